@@ -1,0 +1,56 @@
+# Test pyramid: gtests on the core (no ROS), gtests on the conversions (no master),
+# rostests for plugin loading and the running graph, launch files parse-checked.
+find_package(rostest REQUIRED)
+find_package(roslaunch REQUIRED)
+
+# Core gtests: board_calib_core_gtest(name module... SOURCES files...)
+function(board_calib_core_gtest name)
+  cmake_parse_arguments(ARG "" "" "MODULES;SOURCES;LIBS" ${ARGN})
+  catkin_add_gtest(${name} ${ARG_SOURCES} WORKING_DIRECTORY ${CMAKE_CURRENT_SOURCE_DIR})
+  if(TARGET ${name})
+    target_compile_options(${name} PRIVATE ${BOARD_CALIB_WARNINGS})
+    target_include_directories(${name} PRIVATE ${CMAKE_CURRENT_SOURCE_DIR}/test)
+    target_compile_definitions(${name} PRIVATE
+      BOARD_CALIB_SOURCE_DIR="${CMAKE_CURRENT_SOURCE_DIR}"
+      BOARD_CALIB_SHARED_DIR="${CMAKE_CURRENT_SOURCE_DIR}/../shared")
+    target_link_libraries(${name} ${ARG_MODULES} ${ARG_LIBS} GTest::gtest_main)
+  endif()
+endfunction()
+
+board_calib_core_gtest(test_core_geometry
+  SOURCES test/core/test_target.cpp test/core/test_camera_model.cpp test/core/test_transform_result.cpp
+  MODULES bc_geometry
+  LIBS ${OpenCV_LIBRARIES})
+target_include_directories(test_core_geometry SYSTEM PRIVATE ${OpenCV_INCLUDE_DIRS})
+
+# Module test fragments (cmake/tests_<module>.cmake), added by each module.
+foreach(module solvers sim lidar_detection image_detection session projection msg_graph)
+  if(EXISTS ${CMAKE_CURRENT_SOURCE_DIR}/cmake/tests_${module}.cmake)
+    include(cmake/tests_${module}.cmake)
+  endif()
+endforeach()
+
+# The core must stay ROS-free: no ROS header may be included from include/board_calib/core
+# or src/core (include paths cannot enforce it: ROS headers live in /usr/include on Debian).
+add_test(NAME core_is_ros_free
+  COMMAND /usr/bin/python3 ${CMAKE_CURRENT_SOURCE_DIR}/test/check_core_ros_free.py ${CMAKE_CURRENT_SOURCE_DIR})
+
+# Conversions: ROS messages <-> core types, without a master.
+catkin_add_gtest(test_conversions test/ros/test_conversions.cpp)
+if(TARGET test_conversions)
+  target_compile_options(test_conversions PRIVATE ${BOARD_CALIB_WARNINGS})
+  target_link_libraries(test_conversions board_calib_ros board_calib_core ${catkin_LIBRARIES} GTest::gtest_main)
+endif()
+
+# Every launch file parses and its arguments resolve.
+roslaunch_add_file_check(launch)
+
+# rostests (each starts its own master).
+add_rostest_gtest(test_message_roundtrip test/rostest/message_roundtrip.test test/rostest/message_roundtrip.cpp)
+target_link_libraries(test_message_roundtrip board_calib_ros board_calib_core ${catkin_LIBRARIES} ${GTEST_LIBRARIES})
+add_dependencies(test_message_roundtrip ${PROJECT_NAME}_generate_messages_cpp)
+foreach(rostest_fragment nodelets pipeline projection)
+  if(EXISTS ${CMAKE_CURRENT_SOURCE_DIR}/cmake/rostests_${rostest_fragment}.cmake)
+    include(cmake/rostests_${rostest_fragment}.cmake)
+  endif()
+endforeach()

@@ -1,0 +1,40 @@
+// The one place where ROS messages meet core types. Heavy headers (pcl_conversions, PCL)
+// stay out of here on purpose.
+#pragma once
+
+#include <board_calib/core/camera_model.h>
+#include <board_calib/core/features.h>
+#include <board_calib/core/lidar_cloud.h>
+#include <board_calib/core/result_io.h>
+
+#include <board_calib/CalibrationResult.h>
+#include <board_calib/CameraBoard.h>
+#include <board_calib/LidarBoard.h>
+#include <geometry_msgs/Pose.h>
+#include <geometry_msgs/Transform.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/PointCloud2.h>
+
+namespace board_calib {
+
+/// CameraInfo -> intrinsics (no validation here; CameraModel::create validates).
+Expected<CameraIntrinsics> fromCameraInfo(const sensor_msgs::CameraInfo& info);
+sensor_msgs::CameraInfo toCameraInfo(const CameraIntrinsics& intrinsics);
+
+/// PointCloud2 -> core cloud. Needs float32 x/y/z; takes intensity (any numeric type) and ring
+/// (uint8/uint16/int/float) when present. Fails with a reason naming the missing field.
+Expected<LidarCloud> fromPointCloud2(const sensor_msgs::PointCloud2& msg);
+/// Core cloud -> PointCloud2 with x y z intensity (float32) and ring (uint16, when present).
+sensor_msgs::PointCloud2 toPointCloud2(const LidarCloud& cloud);
+
+LidarBoard toMsg(const LidarBoardFeatures& features);
+LidarBoardFeatures fromMsg(const LidarBoard& msg);
+CameraBoard toMsg(const CameraBoardFeatures& features);
+CameraBoardFeatures fromMsg(const CameraBoard& msg);
+
+geometry_msgs::Transform toTransformMsg(const Eigen::Isometry3d& T);
+Eigen::Isometry3d fromTransformMsg(const geometry_msgs::Transform& msg);
+geometry_msgs::Pose toPoseMsg(const Eigen::Isometry3d& T);
+Eigen::Isometry3d fromPoseMsg(const geometry_msgs::Pose& msg);
+
+}  // namespace board_calib

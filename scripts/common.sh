@@ -1,0 +1,57 @@
+# Shared by the scripts: Debian packages, environment and build steps. Source, don't run.
+# ROS Python tools need Debian's python3 (the first python3 on PATH may lack ROS modules).
+export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
+
+BOARD_CALIB_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+BOARD_CALIB_BUILD="${BOARD_CALIB_BUILD:-${BOARD_CALIB_ROOT}/build/ci}"
+
+BOARD_CALIB_PACKAGES=(
+  catkin ros-base-dev rosbash python3-dynamic-reconfigure libtf2-ros-dev libtf2-eigen-dev
+  libpcl-ros-dev libpcl-conversions-dev libcv-bridge-dev libimage-transport-dev libimage-geometry-dev
+  libnodelet-topic-tools-dev libdiagnostic-updater-dev libopencv-dev libpcl-dev libceres-dev
+  libeigen3-dev libapriltag-dev libyaml-cpp-dev python3-rostest python3-sensor-msgs libgtest-dev
+  python3-tf2-msgs python3-yaml python3-numpy cmake g++ make rviz xvfb
+)
+
+# Installs whatever is missing (an installed machine skips apt entirely).
+board_calib_install_deps() {
+  if dpkg -s "${BOARD_CALIB_PACKAGES[@]}" >/dev/null 2>&1; then
+    return 0
+  fi
+  echo "[board_calib] installing Debian packages (first run only, a few minutes)..."
+  local sudo=""
+  if [ "$(id -u)" != "0" ]; then sudo="sudo"; fi
+  $sudo apt-get update
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y --no-install-recommends "${BOARD_CALIB_PACKAGES[@]}"
+}
+
+# ROS environment kept inside the build folder: no litter in the home directory.
+board_calib_ros_env() {
+  export ROS_HOME="${BOARD_CALIB_BUILD}/ros_home"
+  export ROS_LOG_DIR="${ROS_HOME}/log"
+  export ROS_HOSTNAME=localhost
+  export ROSCONSOLE_STDOUT_LINE_BUFFERED=1
+  mkdir -p "${ROS_LOG_DIR}"
+}
+
+board_calib_build() {
+  local targets=("$@")
+  mkdir -p "${BOARD_CALIB_BUILD}"
+  board_calib_ros_env
+  if [ ! -f "${BOARD_CALIB_BUILD}/Makefile" ]; then
+    cmake -S "${BOARD_CALIB_ROOT}" -B "${BOARD_CALIB_BUILD}" -DCMAKE_BUILD_TYPE=Release \
+      -DPYTHON_EXECUTABLE=/usr/bin/python3 -DCATKIN_ENABLE_TESTING=ON >"${BOARD_CALIB_BUILD}/configure.log" 2>&1 \
+      || { cat "${BOARD_CALIB_BUILD}/configure.log"; return 1; }
+  fi
+  make -C "${BOARD_CALIB_BUILD}" -j"$(nproc)" "${targets[@]:-all}"
+}
+
+# Sources the built workspace (not under set -u: ROS profile scripts read unset variables).
+board_calib_source() {
+  board_calib_ros_env
+  set +u
+  # shellcheck disable=SC1091
+  source "${BOARD_CALIB_BUILD}/devel/setup.bash"
+  # The package root is the repository: make it findable by rospack without a workspace.
+  export ROS_PACKAGE_PATH="${BOARD_CALIB_ROOT}:${ROS_PACKAGE_PATH}"
+}

@@ -1,0 +1,196 @@
+#include <board_calib/core/result_io.h>
+#include <board_calib/core/transform.h>
+
+#include <yaml-cpp/yaml.h>
+
+#include <fstream>
+#include <sstream>
+
+namespace board_calib {
+namespace {
+
+void emitSeq(YAML::Emitter& out, const double* v, int n) {
+  out << YAML::Flow << YAML::BeginSeq;
+  for (int i = 0; i < n; ++i) out << v[i];
+  out << YAML::EndSeq;
+}
+
+void emitTransform(YAML::Emitter& out, const Eigen::Isometry3d& T) {
+  out << YAML::BeginMap;
+  const Eigen::Vector3d t = T.translation();
+  const Eigen::Vector4d q = quaternionXyzw(T);
+  const auto m = rowMajor(T);
+  out << YAML::Key << "translation" << YAML::Value;
+  emitSeq(out, t.data(), 3);
+  out << YAML::Key << "rotation_xyzw" << YAML::Value;
+  emitSeq(out, q.data(), 4);
+  out << YAML::Key << "matrix" << YAML::Value;
+  emitSeq(out, m.data(), 16);
+  out << YAML::EndMap;
+}
+
+struct ParseError {
+  std::string message;
+};
+
+std::vector<double> readNumbers(const YAML::Node& node, const std::string& key, size_t n) {
+  if (!node || !node.IsSequence() || node.size() != n)
+    throw ParseError{"'" + key + "' must be a list of " + std::to_string(n) + " numbers"};
+  std::vector<double> out;
+  for (const auto& v : node) out.push_back(v.as<double>());
+  return out;
+}
+
+Eigen::Isometry3d readTransform(const YAML::Node& node, const std::string& key) {
+  if (!node || !node.IsMap()) throw ParseError{"missing mapping '" + key + "'"};
+  if (node["translation"] && node["rotation_xyzw"]) {
+    const auto t = readNumbers(node["translation"], key + ".translation", 3);
+    const auto q = readNumbers(node["rotation_xyzw"], key + ".rotation_xyzw", 4);
+    const Eigen::Vector4d qv(q[0], q[1], q[2], q[3]);
+    if (!(qv.norm() > 1e-9)) throw ParseError{"'" + key + ".rotation_xyzw' is not a rotation"};
+    return makeTransform(Eigen::Vector3d(t[0], t[1], t[2]), qv);
+  }
+  if (node["matrix"]) {
+    auto T = fromRowMajor(readNumbers(node["matrix"], key + ".matrix", 16));
+    if (!T) throw ParseError{"'" + key + ".matrix': " + T.error()};
+    return *T;
+  }
+  throw ParseError{"'" + key + "' needs translation + rotation_xyzw or matrix"};
+}
+
+std::string readString(const YAML::Node& node, const std::string& key) {
+  if (!node[key]) throw ParseError{"missing key '" + key + "'"};
+  return node[key].as<std::string>();
+}
+
+}  // namespace
+
+std::string resultToYaml(const ResultFile& r) {
+  YAML::Emitter out;
+  out.SetDoublePrecision(9);
+  out << YAML::BeginMap;
+  out << YAML::Key << "method" << YAML::Value << r.method;
+  out << YAML::Key << "camera_frame" << YAML::Value << r.camera_frame;
+  out << YAML::Key << "lidar_frame" << YAML::Value << r.lidar_frame;
+  out << YAML::Key << "camera_T_lidar" << YAML::Value;
+  emitTransform(out, r.camera_T_lidar);
+  out << YAML::Key << "lidar_T_camera" << YAML::Value;
+  emitTransform(out, r.camera_T_lidar.inverse());
+  out << YAML::Key << "views_used" << YAML::Value << r.views_used;
+  if (r.mlre_px) out << YAML::Key << "mlre_px" << YAML::Value << *r.mlre_px;
+  if (r.stddev) {
+    out << YAML::Key << "stddev" << YAML::Value << YAML::BeginMap;
+    out << YAML::Key << "translation_m" << YAML::Value;
+    emitSeq(out, r.stddev->translation_m.data(), 3);
+    out << YAML::Key << "rotation_deg" << YAML::Value;
+    emitSeq(out, r.stddev->rotation_deg.data(), 3);
+    out << YAML::EndMap;
+  }
+  if (!r.quality.empty()) {
+    out << YAML::Key << "quality" << YAML::Value << YAML::BeginMap;
+    for (const auto& kv : r.quality) out << YAML::Key << kv.first << YAML::Value << kv.second;
+    out << YAML::EndMap;
+  }
+  if (!r.notes.empty()) {
+    out << YAML::Key << "notes" << YAML::Value << YAML::BeginSeq;
+    for (const auto& n : r.notes) out << n;
+    out << YAML::EndSeq;
+  }
+  if (!r.sensors.empty()) {
+    out << YAML::Key << "reference_frame" << YAML::Value << r.reference_frame;
+    out << YAML::Key << "sensors" << YAML::Value << YAML::BeginSeq;
+    for (const auto& s : r.sensors) {
+      out << YAML::BeginMap << YAML::Key << "frame" << YAML::Value << s.frame << YAML::Key << "kind" << YAML::Value
+          << s.kind << YAML::Key << "reference_T_sensor" << YAML::Value;
+      emitTransform(out, s.reference_T_sensor);
+      out << YAML::EndMap;
+    }
+    out << YAML::EndSeq;
+  }
+  if (!r.pairs.empty()) {
+    out << YAML::Key << "pairs" << YAML::Value << YAML::BeginSeq;
+    for (const auto& p : r.pairs) {
+      out << YAML::BeginMap << YAML::Key << "camera_frame" << YAML::Value << p.camera_frame << YAML::Key
+          << "lidar_frame" << YAML::Value << p.lidar_frame << YAML::Key << "camera_T_lidar" << YAML::Value;
+      emitTransform(out, p.camera_T_lidar);
+      out << YAML::Key << "lidar_T_camera" << YAML::Value;
+      emitTransform(out, p.camera_T_lidar.inverse());
+      if (p.mlre_px) out << YAML::Key << "mlre_px" << YAML::Value << *p.mlre_px;
+      out << YAML::EndMap;
+    }
+    out << YAML::EndSeq;
+  }
+  out << YAML::EndMap;
+  return std::string(out.c_str()) + "\n";
+}
+
+Status writeResultFile(const std::string& path, const ResultFile& r) {
+  std::ofstream f(path);
+  if (!f) return Status::failure("cannot write result file '" + path + "'");
+  f << resultToYaml(r);
+  if (!f) return Status::failure("error while writing result file '" + path + "'");
+  return Status::success();
+}
+
+Expected<ResultFile> parseResult(const std::string& text) {
+  try {
+    const YAML::Node root = YAML::Load(text);
+    if (!root.IsMap()) throw ParseError{"result file must be a YAML mapping"};
+    ResultFile r;
+    r.method = readString(root, "method");
+    r.camera_frame = readString(root, "camera_frame");
+    r.lidar_frame = readString(root, "lidar_frame");
+    r.camera_T_lidar = readTransform(root["camera_T_lidar"], "camera_T_lidar");
+    if (root["views_used"]) r.views_used = root["views_used"].as<int>();
+    if (root["mlre_px"]) r.mlre_px = root["mlre_px"].as<double>();
+    if (const YAML::Node s = root["stddev"]) {
+      PoseStddev sd;
+      const auto t = readNumbers(s["translation_m"], "stddev.translation_m", 3);
+      const auto a = readNumbers(s["rotation_deg"], "stddev.rotation_deg", 3);
+      sd.translation_m = {t[0], t[1], t[2]};
+      sd.rotation_deg = {a[0], a[1], a[2]};
+      r.stddev = sd;
+    }
+    if (const YAML::Node q = root["quality"])
+      for (const auto& kv : q) r.quality[kv.first.as<std::string>()] = kv.second.as<double>();
+    if (const YAML::Node n = root["notes"])
+      for (const auto& v : n) r.notes.push_back(v.as<std::string>());
+    if (root["reference_frame"]) r.reference_frame = root["reference_frame"].as<std::string>();
+    if (const YAML::Node s = root["sensors"]) {
+      for (const auto& e : s) {
+        SensorPoseEntry entry;
+        entry.frame = readString(e, "frame");
+        if (e["kind"]) entry.kind = e["kind"].as<std::string>();
+        entry.reference_T_sensor = readTransform(e["reference_T_sensor"], "sensors[].reference_T_sensor");
+        r.sensors.push_back(entry);
+      }
+    }
+    if (const YAML::Node p = root["pairs"]) {
+      for (const auto& e : p) {
+        PairEntry entry;
+        entry.camera_frame = readString(e, "camera_frame");
+        entry.lidar_frame = readString(e, "lidar_frame");
+        entry.camera_T_lidar = readTransform(e["camera_T_lidar"], "pairs[].camera_T_lidar");
+        if (e["mlre_px"]) entry.mlre_px = e["mlre_px"].as<double>();
+        r.pairs.push_back(entry);
+      }
+    }
+    return r;
+  } catch (const ParseError& e) {
+    return Expected<ResultFile>::failure(e.message);
+  } catch (const YAML::Exception& e) {
+    return Expected<ResultFile>::failure(std::string("invalid result YAML: ") + e.what());
+  }
+}
+
+Expected<ResultFile> loadResultFile(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return Expected<ResultFile>::failure("cannot read result file '" + path + "'");
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  auto r = parseResult(buffer.str());
+  if (!r) return Expected<ResultFile>::failure("result file '" + path + "': " + r.error());
+  return r;
+}
+
+}  // namespace board_calib

@@ -1,0 +1,102 @@
+#include <board_calib/core/result_io.h>
+#include <board_calib/core/transform.h>
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+
+using namespace board_calib;
+
+TEST(Transform, QuaternionAndMatrixRoundTrip) {
+  std::mt19937 rng(3);
+  for (int i = 0; i < 50; ++i) {
+    const Eigen::Isometry3d T = perturb(Eigen::Isometry3d::Identity(), 1.5, 2.0, rng);
+    const Eigen::Isometry3d a = makeTransform(T.translation(), quaternionXyzw(T));
+    EXPECT_LT(rotationErrorDeg(a, T), 1e-9);
+    EXPECT_LT(translationErrorM(a, T), 1e-12);
+    const auto m = rowMajor(T);
+    const auto b = fromRowMajor(std::vector<double>(m.begin(), m.end()));
+    ASSERT_TRUE(b.ok());
+    EXPECT_LT(rotationErrorDeg(*b, T), 1e-9);
+    EXPECT_LT(expSO3(logSO3(T.rotation())).isApprox(T.rotation(), 1e-9) ? 0 : 1, 1);
+    EXPECT_TRUE(fromRollPitchYaw(rollPitchYaw(T.rotation())).isApprox(T.rotation(), 1e-9));
+  }
+  EXPECT_FALSE(fromRowMajor({1, 2, 3}).ok());
+  EXPECT_FALSE(fromRowMajor({2, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}).ok());
+}
+
+TEST(Plane, TransformKeepsPointsOnPlane) {
+  std::mt19937 rng(5);
+  const Eigen::Isometry3d T = perturb(Eigen::Isometry3d::Identity(), 1.0, 1.0, rng);
+  Plane p;
+  p.normal = Eigen::Vector3d(1, 2, 3).normalized();
+  p.offset = 2.5;
+  const Eigen::Vector3d on = p.normal * p.offset + p.normal.unitOrthogonal() * 0.7;
+  EXPECT_NEAR(p.transformed(T).signedDistance(T * on), 0.0, 1e-12);
+}
+
+TEST(ResultFile, WriteReadRoundTrip) {
+  std::mt19937 rng(11);
+  ResultFile r;
+  r.method = "pbpc";
+  r.camera_frame = "camera";
+  r.lidar_frame = "os1_lidar";
+  r.camera_T_lidar = perturb(Eigen::Isometry3d::Identity(), 1.0, 0.5, rng);
+  r.views_used = 16;
+  r.mlre_px = 1.62;
+  r.stddev = PoseStddev{{0.001, 0.002, 0.003}, {0.01, 0.02, 0.03}};
+  r.quality["plane_rms_mm"] = 12.5;
+  r.notes.push_back("board looks 3% larger in the LiDAR than declared");
+  r.reference_frame = "os1_lidar";
+  r.sensors.push_back({"os1_lidar", "lidar", Eigen::Isometry3d::Identity()});
+  r.sensors.push_back({"camera", "camera", r.camera_T_lidar.inverse()});
+  r.pairs.push_back({"camera", "os1_lidar", r.camera_T_lidar, 1.7});
+
+  const std::string path = ::testing::TempDir() + "/board_calib_result.yaml";
+  ASSERT_TRUE(writeResultFile(path, r).ok);
+  const auto back = loadResultFile(path);
+  std::remove(path.c_str());
+  ASSERT_TRUE(back.ok()) << back.error();
+  EXPECT_EQ(back->method, "pbpc");
+  EXPECT_EQ(back->camera_frame, "camera");
+  EXPECT_EQ(back->lidar_frame, "os1_lidar");
+  EXPECT_LT(rotationErrorDeg(back->camera_T_lidar, r.camera_T_lidar), 1e-6);
+  EXPECT_LT(translationErrorM(back->camera_T_lidar, r.camera_T_lidar), 1e-8);
+  EXPECT_EQ(back->views_used, 16);
+  ASSERT_TRUE(back->mlre_px.has_value());
+  EXPECT_NEAR(*back->mlre_px, 1.62, 1e-9);
+  ASSERT_TRUE(back->stddev.has_value());
+  EXPECT_NEAR(back->stddev->rotation_deg.z(), 0.03, 1e-9);
+  EXPECT_NEAR(back->quality.at("plane_rms_mm"), 12.5, 1e-9);
+  ASSERT_EQ(back->notes.size(), 1u);
+  ASSERT_EQ(back->sensors.size(), 2u);
+  ASSERT_EQ(back->pairs.size(), 1u);
+  EXPECT_LT(rotationErrorDeg(back->pairs[0].camera_T_lidar, r.camera_T_lidar), 1e-6);
+}
+
+TEST(ResultFile, ContractKeysPresentAndInverseConsistent) {
+  ResultFile r;
+  r.method = "ppc";
+  r.camera_frame = "c";
+  r.lidar_frame = "l";
+  r.camera_T_lidar = makeTransform(Eigen::Vector3d(0.1, -0.2, 0.3), Eigen::Vector4d(0.5, -0.5, 0.5, 0.5));
+  const std::string yaml = resultToYaml(r);
+  for (const char* key : {"method:", "camera_frame:", "lidar_frame:", "camera_T_lidar:", "lidar_T_camera:",
+                          "translation:", "rotation_xyzw:", "matrix:", "views_used:"})
+    EXPECT_NE(yaml.find(key), std::string::npos) << key;
+  // Matrix-only input (e.g. hand-edited) is accepted as well.
+  const auto m = rowMajor(r.camera_T_lidar);
+  std::string text = "method: x\ncamera_frame: c\nlidar_frame: l\ncamera_T_lidar: {matrix: [";
+  for (int i = 0; i < 16; ++i) text += std::to_string(m[i]) + (i < 15 ? ", " : "]}\n");
+  const auto parsed = parseResult(text);
+  ASSERT_TRUE(parsed.ok()) << parsed.error();
+  EXPECT_LT(rotationErrorDeg(parsed->camera_T_lidar, r.camera_T_lidar), 1e-3);
+}
+
+TEST(ResultFile, BadInputGivesReasons) {
+  EXPECT_FALSE(loadResultFile("/nonexistent.yaml").ok());
+  EXPECT_FALSE(parseResult("method: x\n").ok());
+  const auto bad = parseResult("method: x\ncamera_frame: c\nlidar_frame: l\ncamera_T_lidar: {translation: [1, 2]}\n");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().find("camera_T_lidar"), std::string::npos);
+}
