@@ -11,8 +11,10 @@
 #include <board_calib/CameraBoard.h>
 #include <board_calib/LidarBoard.h>
 #include <geometry_msgs/Pose.h>
+#include <opencv2/core.hpp>
 #include <geometry_msgs/Transform.h>
 #include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
 #include <sensor_msgs/PointCloud2.h>
 
 namespace board_calib {
@@ -26,6 +28,10 @@ sensor_msgs::CameraInfo toCameraInfo(const CameraIntrinsics& intrinsics);
 Expected<LidarCloud> fromPointCloud2(const sensor_msgs::PointCloud2& msg);
 /// Core cloud -> PointCloud2 with x y z intensity (float32) and ring (uint16, when present).
 sensor_msgs::PointCloud2 toPointCloud2(const LidarCloud& cloud);
+
+/// Image -> cv::Mat: bgr8 for colour and Bayer input, mono8 for mono8/mono16 (16-bit scaled
+/// to 8 bits by its maximum). Fails with a reason naming an unsupported encoding.
+Expected<cv::Mat> imageFromMsg(const sensor_msgs::Image& msg);
 
 LidarBoard toMsg(const LidarBoardFeatures& features);
 LidarBoardFeatures fromMsg(const LidarBoard& msg);

@@ -1,5 +1,8 @@
 #include <board_calib/conversions.h>
 
+#include <cv_bridge/cv_bridge.h>
+#include <opencv2/imgproc.hpp>
+#include <sensor_msgs/image_encodings.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
 
 #include <cstring>
@@ -178,6 +181,31 @@ sensor_msgs::PointCloud2 toPointCloud2(const LidarCloud& cloud) {
     }
   }
   return msg;
+}
+
+Expected<cv::Mat> imageFromMsg(const sensor_msgs::Image& msg) {
+  namespace enc = sensor_msgs::image_encodings;
+  if (msg.width == 0 || msg.height == 0) return Expected<cv::Mat>::failure("image is empty (0 x 0)");
+  try {
+    if (msg.encoding == enc::MONO8) return cv_bridge::toCvCopy(msg, enc::MONO8)->image;
+    if (msg.encoding == enc::MONO16 || msg.encoding == enc::TYPE_16UC1) {
+      const cv::Mat raw = cv_bridge::toCvCopy(msg)->image;
+      double max_value = 0.0;
+      cv::minMaxLoc(raw, nullptr, &max_value);
+      cv::Mat out;
+      raw.convertTo(out, CV_8U, max_value > 0 ? 255.0 / max_value : 1.0);
+      return out;
+    }
+    if (msg.encoding == enc::BGR8 || msg.encoding == enc::RGB8 || msg.encoding == enc::BGRA8 ||
+        msg.encoding == enc::RGBA8 || enc::isBayer(msg.encoding))
+      return cv_bridge::toCvCopy(msg, enc::BGR8)->image;
+  } catch (const cv_bridge::Exception& e) {
+    return Expected<cv::Mat>::failure("cannot convert image with encoding '" + msg.encoding + "': " + e.what());
+  } catch (const cv::Exception& e) {
+    return Expected<cv::Mat>::failure("cannot convert image with encoding '" + msg.encoding + "': " + e.what());
+  }
+  return Expected<cv::Mat>::failure("unsupported image encoding '" + msg.encoding +
+                                    "' (supported: mono8, mono16, bgr8, rgb8, bgra8, rgba8, bayer_*)");
 }
 
 LidarBoard toMsg(const LidarBoardFeatures& f) {

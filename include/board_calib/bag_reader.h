@@ -1,0 +1,48 @@
+// Reads calibration data straight from rosbags (rosbag C++ API: no master, no sim time),
+// converting to core types through the conversions unit. Used by calibrate_bag and tests.
+#pragma once
+
+#include <board_calib/core/camera_model.h>
+#include <board_calib/core/lidar_cloud.h>
+
+#include <opencv2/core.hpp>
+
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace board_calib {
+
+struct ImageFrame {
+  std::string topic;
+  std::string frame_id;
+  double stamp = 0.0;  ///< s, from the image header
+  cv::Mat image;       ///< bgr8 (colour input) or mono8 (mono / 16-bit input)
+};
+
+struct BagCallbacks {
+  /// Called for every image on a requested image topic, in bag order.
+  std::function<void(const ImageFrame&)> on_image;
+  /// Called for every CameraInfo on a requested camera_info topic.
+  std::function<void(const std::string& topic, const std::string& frame_id, const CameraIntrinsics&)> on_camera_info;
+  /// Called for every cloud on a requested cloud topic.
+  std::function<void(const std::string& topic, const LidarCloud&)> on_cloud;
+  /// Called for a message that could not be converted (bad encoding, missing fields...).
+  std::function<void(const std::string& topic, const std::string& reason)> on_bad_message;
+};
+
+struct BagTopics {
+  std::vector<std::string> image_topics;
+  std::vector<std::string> camera_info_topics;
+  std::vector<std::string> cloud_topics;
+};
+
+/// Message counts per topic in the bags (for "missing topic" errors and progress).
+Expected<std::map<std::string, size_t>> bagTopicCounts(const std::vector<std::string>& bag_paths);
+
+/// Streams the requested topics of one or more bags, in time order. Fails with a one-line
+/// reason when a bag cannot be opened or a requested topic is absent from every bag.
+Status readBags(const std::vector<std::string>& bag_paths, const BagTopics& topics, const BagCallbacks& callbacks);
+
+}  // namespace board_calib

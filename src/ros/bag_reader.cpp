@@ -1,0 +1,118 @@
+#include <board_calib/bag_reader.h>
+#include <board_calib/conversions.h>
+
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+
+#include <memory>
+#include <set>
+
+namespace board_calib {
+namespace {
+
+struct OpenBags {
+  std::vector<std::unique_ptr<rosbag::Bag>> bags;
+};
+
+Status openAll(const std::vector<std::string>& paths, OpenBags* out) {
+  if (paths.empty()) return Status::failure("no bag file given");
+  for (const auto& path : paths) {
+    auto bag = std::make_unique<rosbag::Bag>();
+    try {
+      bag->open(path, rosbag::bagmode::Read);
+    } catch (const rosbag::BagException& e) {
+      return Status::failure("cannot open bag '" + path + "': " + e.what());
+    }
+    out->bags.push_back(std::move(bag));
+  }
+  return Status::success();
+}
+
+}  // namespace
+
+Expected<std::map<std::string, size_t>> bagTopicCounts(const std::vector<std::string>& paths) {
+  OpenBags open;
+  const Status s = openAll(paths, &open);
+  if (!s) return Expected<std::map<std::string, size_t>>::failure(s.reason);
+  std::map<std::string, size_t> counts;
+  for (const auto& bag : open.bags) {
+    rosbag::View view(*bag);
+    for (const auto* c : view.getConnections()) counts[c->topic] += 0;
+    for (const auto& m : view) counts[m.getTopic()]++;
+  }
+  return counts;
+}
+
+Status readBags(const std::vector<std::string>& paths, const BagTopics& topics, const BagCallbacks& cb) {
+  OpenBags open;
+  const Status s = openAll(paths, &open);
+  if (!s) return s;
+  std::set<std::string> image_topics(topics.image_topics.begin(), topics.image_topics.end());
+  std::set<std::string> info_topics(topics.camera_info_topics.begin(), topics.camera_info_topics.end());
+  std::set<std::string> cloud_topics(topics.cloud_topics.begin(), topics.cloud_topics.end());
+  std::vector<std::string> wanted;
+  for (const auto* set : {&image_topics, &info_topics, &cloud_topics}) wanted.insert(wanted.end(), set->begin(), set->end());
+
+  try {
+    rosbag::View view;
+    for (const auto& bag : open.bags) view.addQuery(*bag, rosbag::TopicQuery(wanted));
+    std::set<std::string> present;
+    for (const auto* c : view.getConnections()) present.insert(c->topic);
+    for (const auto& t : wanted) {
+      if (!present.count(t)) {
+        std::string available;
+        for (const auto& bag : open.bags) {
+          rosbag::View all(*bag);
+          for (const auto* c : all.getConnections())
+            available += (available.empty() ? "" : ", ") + c->topic + " [" + c->datatype + "]";
+        }
+        return Status::failure("topic '" + t + "' is not in the bag(s); available: " + available);
+      }
+    }
+    for (const auto& m : view) {
+      const std::string& topic = m.getTopic();
+      if (image_topics.count(topic)) {
+        const auto msg = m.instantiate<sensor_msgs::Image>();
+        if (!msg) {
+          if (cb.on_bad_message) cb.on_bad_message(topic, "not a sensor_msgs/Image (" + m.getDataType() + ")");
+          continue;
+        }
+        auto image = imageFromMsg(*msg);
+        if (!image) {
+          if (cb.on_bad_message) cb.on_bad_message(topic, image.error());
+          continue;
+        }
+        if (cb.on_image) cb.on_image({topic, msg->header.frame_id, msg->header.stamp.toSec(), *image});
+      } else if (info_topics.count(topic)) {
+        const auto msg = m.instantiate<sensor_msgs::CameraInfo>();
+        if (!msg) {
+          if (cb.on_bad_message) cb.on_bad_message(topic, "not a sensor_msgs/CameraInfo (" + m.getDataType() + ")");
+          continue;
+        }
+        auto in = fromCameraInfo(*msg);
+        if (!in) {
+          if (cb.on_bad_message) cb.on_bad_message(topic, in.error());
+          continue;
+        }
+        if (cb.on_camera_info) cb.on_camera_info(topic, msg->header.frame_id, *in);
+      } else if (cloud_topics.count(topic)) {
+        const auto msg = m.instantiate<sensor_msgs::PointCloud2>();
+        if (!msg) {
+          if (cb.on_bad_message) cb.on_bad_message(topic, "not a sensor_msgs/PointCloud2 (" + m.getDataType() + ")");
+          continue;
+        }
+        auto cloud = fromPointCloud2(*msg);
+        if (!cloud) {
+          if (cb.on_bad_message) cb.on_bad_message(topic, cloud.error());
+          continue;
+        }
+        if (cb.on_cloud) cb.on_cloud(topic, *cloud);
+      }
+    }
+  } catch (const rosbag::BagException& e) {
+    return Status::failure(std::string("error reading bag: ") + e.what());
+  }
+  return Status::success();
+}
+
+}  // namespace board_calib
