@@ -1,0 +1,65 @@
+// Simulator with ground truth: renders camera images and ray-casts spinning LiDARs observing a
+// calibration board in a simple room with a person-like occluder. ROS-free; the
+// simulate_bag tool wraps it into bags.
+#pragma once
+
+#include <board_calib/core/camera_model.h>
+#include <board_calib/core/lidar_cloud.h>
+#include <board_calib/core/target.h>
+
+#include <opencv2/core.hpp>
+
+#include <random>
+
+namespace board_calib {
+namespace sim {
+
+/// A spinning multi-beam LiDAR.
+struct LidarSpec {
+  std::string name;                        ///< preset name, e.g. "VLP-32C"
+  std::vector<double> elevations_deg;      ///< beam elevation per ring; ring i = elevations_deg[i]
+  std::vector<double> azimuth_offsets_deg; ///< optional per-ring azimuth offset (Ouster stagger), deg
+  double horizontal_resolution_deg = 0.2;  ///< azimuth step between columns, deg
+  double range_noise_m = 0.01;             ///< 1 sigma range noise, m
+  double min_range_m = 0.3;                ///< m
+  double max_range_m = 100.0;              ///< m
+  double dropout_probability = 0.0;        ///< chance a return is lost, 0..1
+  double beam_divergence_deg = 0.15;       ///< footprint for mixed returns at board edges, deg
+  bool organized = true;                   ///< rings x columns (NaN for no return) vs. a flat list
+  bool with_ring = true;                   ///< emit the ring field
+  std::string validate() const;
+};
+
+/// Presets: "VLP-16", "VLP-32C", "OS1-64".
+Expected<LidarSpec> lidarPreset(const std::string& name);
+
+/// The world: a board, a room around the rig and a person holding the board.
+struct SceneSpec {
+  Target target;
+  bool room = true;             ///< floor, walls and ceiling (textured for cameras)
+  double room_half_size_m = 10; ///< walls at +-this distance from the world origin, m
+  double floor_z_m = -1.2;      ///< floor height in the world frame (world z up), m
+  bool occluder = true;         ///< person-like box below and behind the board
+  float board_intensity = 200;  ///< LiDAR intensity of the board
+  float background_intensity = 40;
+};
+
+struct RenderOptions {
+  int supersampling = 4;            ///< samples per pixel per axis (anti-aliased edges)
+  double noise_sigma = 2.0;         ///< Gaussian pixel noise, grey levels
+  double vignetting = 0.15;         ///< relative darkening at the image corners, 0..1
+  double blur_sigma_px = 0.0;       ///< optional Gaussian blur, px
+  std::string validate() const;
+};
+
+/// Ray-casts one full revolution. Points are in the LiDAR frame. world_T_board places the
+/// board (board frame as in target.h).
+LidarCloud simulateLidarScan(const LidarSpec& spec, const Eigen::Isometry3d& world_T_lidar, const SceneSpec& scene,
+                             const Eigen::Isometry3d& world_T_board, std::mt19937& rng);
+
+/// Renders a raw (distorted) bgr8 image of the scene.
+cv::Mat renderCameraImage(const CameraModel& camera, const Eigen::Isometry3d& world_T_camera, const SceneSpec& scene,
+                          const Eigen::Isometry3d& world_T_board, const RenderOptions& options, std::mt19937& rng);
+
+}  // namespace sim
+}  // namespace board_calib
