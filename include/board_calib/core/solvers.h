@@ -1,0 +1,254 @@
+// LiDAR <-> camera extrinsic solvers of the reference paper (DESIGN.md §2), ROS-free:
+//  * PPC-Cal  (point to plane):  r = n_i . (R P_im + t) - d_i, view weight 1/p_i.
+//  * PBPC-Cal (point to back-projected plane): r = N_ij . (R Q_ijn + t), N_ij = K^T l_ij
+//    normalised so r is in metres, edge weight 1/q_ij; combined with the PPC terms.
+//  * MSG-Cal pairwise (plane to plane): n_a - R_ab n_b = 0 and n_a . t_ab + d_b - d_a = 0 for
+//    any two sensors that saw the same board pose (camera-camera, LiDAR-LiDAR, LiDAR-camera).
+// A closed-form initialiser (normals by SVD, offsets and lines by linear least squares) is used
+// when no guess is given. Every result carries quality figures and, on failure, a reason.
+//
+// Covariance convention (everywhere in this header): 6x6, order (rotation x y z [rad],
+// translation x y z [m]); the rotation is a LEFT perturbation of the estimate,
+// R = Exp(delta) * R_hat, expressed in the target frame (camera for camera_T_lidar, a for a_T_b);
+// the translation perturbation is additive, t = t_hat + delta_t.
+#pragma once
+
+#include <board_calib/core/features.h>
+#include <board_calib/core/result_io.h>
+#include <board_calib/core/types.h>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace board_calib {
+
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+
+enum class Method { kPpc, kPbpc, kMsgPair };
+/// "ppc", "pbpc", "msg".
+const char* methodName(Method method);
+/// Accepts "ppc", "pbpc", "msg" (also "msg_pair"), case-insensitive.
+Expected<Method> parseMethod(const std::string& name);
+
+enum class RobustLoss { kNone, kHuber, kCauchy, kTukey };
+/// "none", "huber", "cauchy", "tukey".
+const char* robustLossName(RobustLoss loss);
+Expected<RobustLoss> parseRobustLoss(const std::string& name);
+
+/// How PBPC is run: as the paper does (PPC, then the line terms alone, then jointly), or as one
+/// joint solve of plane and line terms from the initial guess.
+enum class PbpcSchedule { kJoint, kSequential };
+const char* pbpcScheduleName(PbpcSchedule schedule);
+Expected<PbpcSchedule> parsePbpcSchedule(const std::string& name);
+
+struct SolverOptions {
+  RobustLoss loss = RobustLoss::kHuber;
+  double loss_scale_m = 0.05;        ///< m, scale of the robust loss on point residuals
+  int max_iterations = 100;          ///< per Ceres solve
+  double function_tolerance = 1e-10; ///< relative cost change to stop
+  double gradient_tolerance = 1e-12;
+  double parameter_tolerance = 1e-10;
+  int num_threads = 1;
+  /// Solve first with a squared loss, then with the robust loss from there: widens the basin
+  /// of convergence of redescending losses (Cauchy, Tukey) from far-off guesses.
+  bool warm_start_unrobust = true;
+
+  PbpcSchedule pbpc_schedule = PbpcSchedule::kJoint;
+  /// PBPC: relative weight of the line (edge) terms against the plane terms.
+  double pbpc_line_weight = 1.0;
+  /// PBPC: include the point-to-plane terms in the final solve (the paper does).
+  bool pbpc_use_plane_terms = true;
+  /// PBPC: estimate one global factor s on the camera plane offsets (d_i -> s d_i) jointly, to
+  /// absorb a board-size mismatch (the camera plane from PnP of the corners scales with the
+  /// declared board size; the edge terms do not). Reported in the notes when it differs from 1.
+  bool estimate_plane_scale = true;
+  double plane_scale_note_threshold = 0.01;  ///< note the scale when |s - 1| exceeds this
+  /// Re-assign LiDAR edge point sets to image lines by projection with the current estimate
+  /// (fixes views where the two sensors name the edges differently).
+  bool edge_reassociation = true;
+  /// LiDAR horizontal step (deg) for the edge-bias correction below; 0 disables it.
+  double lidar_horizontal_resolution_deg = 0.0;
+  /// Shift each LiDAR edge point outward along its scan line by this many horizontal steps
+  /// (per-scan-line extremes lie up to one step inside the true edge: 0.5 removes the mean).
+  double edge_outward_shift_steps = 0.0;
+
+  /// MSG pairwise: 1-sigma of a plane normal (deg) and of a plane offset (m); the normal
+  /// residual is whitened into metres-equivalent so one loss scale applies to both.
+  double msg_normal_sigma_deg = 0.5;
+  double msg_offset_sigma_m = 0.01;
+
+  /// Degeneracy: the smallest singular value of the stacked unit normals, divided by
+  /// sqrt(views), must exceed sin(this angle). Guards "all normals parallel / coplanar".
+  double min_normal_spread_deg = 2.0;
+  bool compute_covariance = true;
+
+  std::string validate() const;
+};
+
+/// Residual statistics of one group of residuals (metres).
+struct ResidualStats {
+  int count = 0;
+  double rms_m = 0.0;
+  double mean_abs_m = 0.0;
+  double max_abs_m = 0.0;
+};
+
+struct EdgeResidual {
+  bool used = false;             ///< both sides valid and the edge contributed line terms
+  int lidar_edge = -1;           ///< LiDAR edge index matched to this image edge (re-association)
+  ResidualStats distance;        ///< point to back-projected plane, m
+  std::optional<double> mlre_px; ///< mean perpendicular pixel distance to the image line
+};
+
+struct ViewResidual {
+  int view_id = 0;
+  bool used = false;
+  std::string reason;            ///< why the view was skipped, or empty
+  ResidualStats plane;           ///< LiDAR board points to the camera plane, m
+  std::array<EdgeResidual, kNumEdges> edges;  ///< indexed by the image edge
+  std::optional<double> mlre_px; ///< over all edges of the view
+};
+
+struct Observability {
+  double min_eigenvalue = 0.0;   ///< of the information matrix (inverse covariance), SI units
+  double max_eigenvalue = 0.0;
+  double condition_number = 0.0;
+  Vector6d weakest_direction = Vector6d::Zero();  ///< unit eigenvector, covariance order
+  std::string weakest_description;  ///< e.g. "translation along camera z"
+  bool well_conditioned = false;
+};
+
+struct CalibrationSolution {
+  bool success = false;
+  std::string reason;            ///< why it failed, empty on success
+  Method method = Method::kPbpc;
+  Eigen::Isometry3d camera_T_lidar = Eigen::Isometry3d::Identity();  ///< p_camera = T * p_lidar
+  Eigen::Isometry3d initial_guess = Eigen::Isometry3d::Identity();  ///< where Ceres started
+  bool used_closed_form_init = false;
+  int views_used = 0;
+  double final_cost = 0.0;       ///< Ceres cost of the last solve
+  int iterations = 0;            ///< summed over the solves
+  std::string termination;       ///< Ceres termination of the last solve
+  std::optional<double> mlre_px; ///< over every used edge, undistorted px
+  double plane_rms_mm = 0.0;     ///< RMS point-to-camera-plane distance of every used board point
+  double line_rms_mm = 0.0;      ///< RMS point-to-back-projected-plane distance (PBPC / MLRE edges)
+  double plane_scale = 1.0;      ///< estimated camera plane offset factor (1 when not estimated)
+  Matrix6d covariance = Matrix6d::Zero();  ///< see the convention at the top
+  PoseStddev stddev;             ///< 1 sigma, mm is translation_m * 1000
+  Observability observability;
+  std::vector<ViewResidual> views;  ///< one entry per input view, in input order
+  std::vector<std::string> notes;
+  double solve_time_ms = 0.0;
+};
+
+/// Calibrates camera_T_lidar from views of one camera and one LiDAR. Without a guess the
+/// closed-form initialiser is used. Never throws on bad input: success = false with a reason.
+CalibrationSolution calibrate(const std::vector<View>& views, Method method, const SolverOptions& options,
+                              const std::optional<Eigen::Isometry3d>& initial_guess = std::nullopt);
+
+/// Closed-form camera_T_lidar: rotation from the plane normals (SVD), translation from the plane
+/// offsets (and for PBPC the back-projected line planes, which are board-size free) by linear
+/// least squares.
+Expected<Eigen::Isometry3d> closedFormInitialGuess(const std::vector<View>& views, Method method,
+                                                   const SolverOptions& options);
+
+/// Mean perpendicular distance (undistorted px) between each image edge line and the LiDAR edge
+/// points of the same edge projected with camera_T_lidar and the view's K. Uses edges valid on
+/// both sides; nullopt when none is usable.
+std::optional<double> meanLineReprojectionErrorPx(const std::vector<View>& views,
+                                                  const Eigen::Isometry3d& camera_T_lidar);
+/// The same for one view (over its valid edges).
+std::optional<double> viewLineReprojectionErrorPx(const View& view, const Eigen::Isometry3d& camera_T_lidar);
+/// The same for one edge of one view.
+std::optional<double> edgeLineReprojectionErrorPx(const View& view, int edge,
+                                                  const Eigen::Isometry3d& camera_T_lidar);
+/// RMS distance (m) of the LiDAR board points, mapped with camera_T_lidar, to the camera planes.
+std::optional<double> planeRmsM(const std::vector<View>& views, const Eigen::Isometry3d& camera_T_lidar);
+
+// ------------------------------------------------------------------------------------------
+// Generic plane-to-plane (MSG pairwise) solver, reusable for any two sensors.
+// ------------------------------------------------------------------------------------------
+
+/// The same board pose seen by sensors a and b (planes in each sensor's frame).
+struct PlaneCorrespondence {
+  Plane in_a;
+  Plane in_b;
+  double weight = 1.0;  ///< multiplies both residuals (e.g. per-sensor confidence)
+  int view_id = 0;
+};
+
+struct PairwiseSolution {
+  bool success = false;
+  std::string reason;
+  Eigen::Isometry3d a_T_b = Eigen::Isometry3d::Identity();  ///< p_a = a_T_b * p_b
+  Eigen::Isometry3d initial_guess = Eigen::Isometry3d::Identity();
+  bool used_closed_form_init = false;
+  int correspondences_used = 0;
+  double final_cost = 0.0;
+  int iterations = 0;
+  std::string termination;
+  double normal_rms_deg = 0.0;   ///< angle between n_a and R n_b
+  double offset_rms_mm = 0.0;    ///< n_a . t + d_b - d_a
+  Matrix6d covariance = Matrix6d::Zero();  ///< see the convention at the top (frame a)
+  PoseStddev stddev;
+  Observability observability;
+  std::vector<std::string> notes;
+};
+
+/// Closed-form a_T_b from plane correspondences (Kabsch on normals, least squares on offsets).
+Expected<Eigen::Isometry3d> closedFormPlaneToPlane(const std::vector<PlaneCorrespondence>& correspondences,
+                                                   const SolverOptions& options);
+
+/// Plane-to-plane solve (Ceres, quaternion manifold). Needs >= 3 correspondences whose normals
+/// span 3D. Uses loss, msg_* sigmas, iteration and tolerance options of SolverOptions.
+PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& correspondences,
+                                   const SolverOptions& options,
+                                   const std::optional<Eigen::Isometry3d>& initial_guess = std::nullopt);
+
+/// Camera plane (a) and LiDAR plane (b) of every view where both were found.
+std::vector<PlaneCorrespondence> planeCorrespondences(const std::vector<View>& views);
+
+// ------------------------------------------------------------------------------------------
+// Robustness to random initialisation (the paper's experiment).
+// ------------------------------------------------------------------------------------------
+
+struct RobustnessOptions {
+  int trials = 100;
+  double rotation_sigma_deg = 90.0;    ///< deg, per axis of the rotation vector
+  double translation_sigma_m = 0.5;    ///< m, per axis
+  /// false: guesses drawn around the identity (zero-mean, as the paper); true: around the
+  /// reference (perturbations of it).
+  bool around_reference = false;
+  unsigned seed = 1;
+  double converged_rotation_deg = 0.5;   ///< a trial converged if within this of the reference
+  double converged_translation_m = 0.02; ///< m
+  std::string validate() const;
+};
+
+struct RobustnessReport {
+  bool success = false;                 ///< false if the routine could not run (reason)
+  std::string reason;
+  int trials = 0;
+  int converged = 0;
+  double convergence_rate = 0.0;        ///< converged / trials
+  /// Reference the trials are compared with: the caller's, or the closed-form-initialised solve.
+  Eigen::Isometry3d reference = Eigen::Isometry3d::Identity();
+  /// Spread of the converged results around their mean (max and RMS deviation).
+  double rotation_spread_max_deg = 0.0;
+  double rotation_spread_rms_deg = 0.0;
+  double translation_spread_max_m = 0.0;
+  double translation_spread_rms_m = 0.0;
+  std::vector<double> rotation_error_deg;   ///< per trial, against the reference
+  std::vector<double> translation_error_m;  ///< per trial
+  double mean_solve_time_ms = 0.0;
+};
+
+/// Starts Ceres from `trials` random guesses (not from the closed-form initialiser) and reports
+/// how often it reaches the reference.
+RobustnessReport evaluateRandomInitialisation(const std::vector<View>& views, Method method,
+                                              const SolverOptions& options, const RobustnessOptions& robustness,
+                                              const std::optional<Eigen::Isometry3d>& reference = std::nullopt);
+
+}  // namespace board_calib
