@@ -1,0 +1,109 @@
+// Calibration session: pairs LiDAR and camera board features by stamp, accepts a view only
+// when the board is still, both sensors agree and the view adds information, and keeps every
+// accepted view (with why) so it can be saved, reloaded, dropped and solved again.
+#pragma once
+
+#include <board_calib/core/features.h>
+#include <board_calib/core/target.h>
+
+#include <deque>
+#include <string>
+#include <vector>
+
+namespace board_calib {
+
+struct SessionOptions {
+  double sync_tolerance_s = 0.05;          ///< s, max |t_camera - t_lidar| for one view
+  int still_frames_required = 2;           ///< consecutive synchronised pairs that must agree (1 = no check)
+  double still_max_translation_m = 0.03;   ///< m, max board centre motion between those pairs
+  double still_max_rotation_deg = 1.5;     ///< deg, max board normal change between those pairs
+  double min_view_rotation_deg = 5.0;      ///< deg, a new view's normal must differ this much ...
+  double min_view_translation_m = 0.20;    ///< m, ... or its centre move this much from every kept view
+  double max_size_mismatch = 0.15;         ///< relative, LiDAR-measured board size vs the target
+  double max_plane_angle_deg = 5.0;        ///< deg, plane agreement once an estimate exists
+  double max_plane_offset_m = 0.15;        ///< m, plane agreement once an estimate exists
+  int min_board_points = 30;               ///< LiDAR board points a view needs
+  int max_views = 200;                     ///< views kept at most
+  int history = 30;                        ///< features kept per stream for association
+  std::string validate() const;
+};
+
+/// A kept view with its provenance.
+struct SessionView {
+  View view;
+  std::string why;  ///< why it was accepted (e.g. "auto: still 2 frames, 12.4 deg from view 3")
+};
+
+/// What happened to a pair of features.
+struct SessionEvent {
+  enum class Kind { kWaiting, kRejected, kAccepted };
+  Kind kind = Kind::kWaiting;
+  std::string message;  ///< specific: why waiting / rejected / accepted
+  int view_id = -1;     ///< accepted view id
+};
+const char* sessionEventName(SessionEvent::Kind kind);
+
+/// Where the kept views leave gaps, with advice for the next board pose.
+struct CoverageReport {
+  int views = 0;
+  double tilt_span_deg = 0.0;     ///< spread of board normals (max pairwise angle)
+  double range_min_m = 0.0, range_max_m = 0.0;  ///< distances of the board centres
+  double image_coverage = 0.0;    ///< fraction of a 3x3 image grid visited by board centres
+  std::vector<std::string> advice;
+};
+
+class CalibrationSession {
+ public:
+  CalibrationSession(const Target& target, const SessionOptions& options);
+
+  const Target& target() const { return target_; }
+  const SessionOptions& options() const { return options_; }
+  void setOptions(const SessionOptions& options) { options_ = options; }
+
+  /// Feeds one detector output. Auto-captures (when enabled) once the pairing, stillness,
+  /// agreement and diversity gates pass.
+  SessionEvent addLidar(const LidarBoardFeatures& features);
+  SessionEvent addCamera(const CameraBoardFeatures& features);
+  /// Forces a capture of the newest synchronised pair (skips stillness and diversity, keeps
+  /// the sanity gates).
+  SessionEvent captureNow();
+  void setAutoCapture(bool enabled) { auto_capture_ = enabled; }
+  bool autoCapture() const { return auto_capture_; }
+
+  /// The current extrinsic estimate enables the plane-agreement gate.
+  void setEstimate(const Eigen::Isometry3d& camera_T_lidar) { estimate_ = camera_T_lidar; }
+  const std::optional<Eigen::Isometry3d>& estimate() const { return estimate_; }
+
+  const std::vector<SessionView>& views() const { return views_; }
+  std::vector<View> plainViews() const;
+  Status dropView(int view_id);
+  /// Forgets views, buffers and the estimate.
+  void reset();
+
+  CoverageReport coverage() const;
+
+  /// Saves/loads the whole session (target, options, views with their features) as YAML.
+  Status save(const std::string& path) const;
+  Status load(const std::string& path);
+
+  /// Adds a view directly (offline tools that pair features themselves, tests).
+  SessionEvent addView(const View& view, const std::string& why, bool check_diversity);
+
+ private:
+  SessionEvent tryPair(bool forced);
+  SessionEvent gate(const View& view, bool forced) const;
+
+  Target target_;
+  SessionOptions options_;
+  bool auto_capture_ = true;
+  std::optional<Eigen::Isometry3d> estimate_;
+  std::deque<LidarBoardFeatures> lidar_;
+  std::deque<CameraBoardFeatures> camera_;
+  std::optional<View> last_pair_;  ///< newest synchronised pair
+  int still_count_ = 0;            ///< consecutive agreeing pairs up to last_pair_
+  bool captured_this_still_ = false;  ///< one view per still period
+  std::vector<SessionView> views_;
+  int next_id_ = 0;
+};
+
+}  // namespace board_calib

@@ -1,0 +1,180 @@
+#include <board_calib/core/session.h>
+#include <board_calib/core/transform.h>
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+
+using namespace board_calib;
+
+namespace {
+
+Target plainTarget() {
+  Target t;
+  t.type = TargetType::kPlain;
+  t.width = t.height = 1.0;
+  return t;
+}
+
+// Camera looking along the LiDAR's x axis (optical z = LiDAR x, x = -LiDAR y, y = -LiDAR z).
+const Eigen::Isometry3d kCameraTLidar =
+    makeTransform((Eigen::Matrix3d() << 0, -1, 0, 0, 0, -1, 1, 0, 0).finished(), Eigen::Vector3d(0.05, -0.1, 0.02));
+
+// Features of both sensors for a board pose given in the camera frame.
+View makeView(const Eigen::Isometry3d& camera_T_board, double stamp, const Target& target,
+              double lidar_size_scale = 1.0) {
+  View v;
+  v.camera.found = true;
+  v.camera.frame_id = "camera";
+  v.camera.stamp = stamp;
+  v.camera.K << 800, 0, 640, 0, 800, 360, 0, 0, 1;
+  v.camera.image_width = 1280;
+  v.camera.image_height = 720;
+  v.camera.camera_T_board = camera_T_board;
+  v.camera.plane.normal = camera_T_board.linear().col(2);
+  v.camera.plane.offset = v.camera.plane.normal.dot(camera_T_board.translation());
+  const Eigen::Isometry3d lidar_T_board = kCameraTLidar.inverse() * camera_T_board;
+  v.lidar.found = true;
+  v.lidar.frame_id = "lidar";
+  v.lidar.stamp = stamp + 0.013;
+  v.lidar.plane = v.camera.plane.transformed(kCameraTLidar.inverse());
+  for (int i = 0; i < 10; ++i)
+    for (int j = 0; j < 10; ++j) v.lidar.board_points.push_back(lidar_T_board * Eigen::Vector3d(0.1 * i, 0.1 * j, 0));
+  v.lidar.measured_size_m = Eigen::Vector2d(target.width, target.height) * lidar_size_scale;
+  return v;
+}
+
+Eigen::Isometry3d boardPose(double x, double z, double yaw_deg, double pitch_deg) {
+  // Board facing the camera (board z along camera z), centred near (x, 0, z).
+  const Eigen::Matrix3d R = (Eigen::AngleAxisd(yaw_deg * kRadPerDeg, Eigen::Vector3d::UnitY()) *
+                             Eigen::AngleAxisd(pitch_deg * kRadPerDeg, Eigen::Vector3d::UnitX()))
+                                .toRotationMatrix();
+  return makeTransform(R, Eigen::Vector3d(x - 0.5, -0.5, z));
+}
+
+void feed(CalibrationSession& s, const View& v, SessionEvent* last) {
+  s.addCamera(v.camera);
+  *last = s.addLidar(v.lidar);
+}
+
+}  // namespace
+
+TEST(Session, AcceptsOnlyAfterTheBoardIsStill) {
+  const Target target = plainTarget();
+  CalibrationSession s(target, SessionOptions{});
+  SessionEvent e;
+  feed(s, makeView(boardPose(0, 3, 10, 0), 0.0, target), &e);
+  EXPECT_EQ(e.kind, SessionEvent::Kind::kWaiting) << e.message;
+  feed(s, makeView(boardPose(0.3, 3, 10, 0), 0.1, target), &e);  // moved 30 cm
+  EXPECT_EQ(e.kind, SessionEvent::Kind::kWaiting) << e.message;
+  feed(s, makeView(boardPose(0.3, 3, 10, 0), 0.2, target), &e);  // still now
+  EXPECT_EQ(e.kind, SessionEvent::Kind::kAccepted) << e.message;
+  feed(s, makeView(boardPose(0.3, 3, 10, 0), 0.3, target), &e);  // same still period: one view only
+  EXPECT_EQ(e.kind, SessionEvent::Kind::kWaiting);
+  EXPECT_EQ(s.views().size(), 1u);
+}
+
+TEST(Session, RejectsUnsynchronisedAndDuplicatePoses) {
+  const Target target = plainTarget();
+  SessionOptions opt;
+  opt.still_frames_required = 1;
+  CalibrationSession s(target, opt);
+  View far = makeView(boardPose(0, 3, 0, 20), 0.0, target);
+  far.lidar.stamp = 0.5;  // 500 ms apart
+  s.addCamera(far.camera);
+  SessionEvent e = s.addLidar(far.lidar);
+  EXPECT_EQ(e.kind, SessionEvent::Kind::kWaiting);
+  EXPECT_NE(e.message.find("within"), std::string::npos) << e.message;
+
+  feed(s, makeView(boardPose(0, 3, 0, 20), 1.0, target), &e);
+  EXPECT_EQ(e.kind, SessionEvent::Kind::kAccepted) << e.message;
+  feed(s, makeView(boardPose(1.0, 3, 0, -20), 2.0, target), &e);
+  EXPECT_EQ(e.kind, SessionEvent::Kind::kAccepted) << e.message;
+  feed(s, makeView(boardPose(0.05, 3, 2, 20), 3.0, target), &e);  // back to the first pose
+  EXPECT_EQ(e.kind, SessionEvent::Kind::kRejected);
+  EXPECT_NE(e.message.find("too similar to view 0"), std::string::npos) << e.message;
+}
+
+TEST(Session, SanityGates) {
+  const Target target = plainTarget();
+  SessionOptions opt;
+  opt.still_frames_required = 1;
+  CalibrationSession s(target, opt);
+  SessionEvent e;
+  feed(s, makeView(boardPose(0, 3, 0, 20), 0.0, target, 1.5), &e);  // 1.5 m board: not ours
+  EXPECT_EQ(e.kind, SessionEvent::Kind::kRejected);
+  EXPECT_NE(e.message.find("measures"), std::string::npos) << e.message;
+
+  View no_board = makeView(boardPose(0, 3, 30, 0), 1.0, target);
+  no_board.lidar.found = false;
+  no_board.lidar.reason = "no plane";
+  feed(s, no_board, &e);
+  EXPECT_EQ(e.kind, SessionEvent::Kind::kRejected);
+  EXPECT_NE(e.message.find("no plane"), std::string::npos);
+
+  // With an estimate, a view whose planes disagree is refused.
+  s.setEstimate(makeTransform(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, 0.5)) * kCameraTLidar);
+  feed(s, makeView(boardPose(0.5, 4, -30, 0), 2.0, target), &e);
+  EXPECT_EQ(e.kind, SessionEvent::Kind::kRejected);
+  EXPECT_NE(e.message.find("disagree"), std::string::npos) << e.message;
+  s.setEstimate(kCameraTLidar);
+  feed(s, makeView(boardPose(0.5, 4, -30, 0), 3.0, target), &e);
+  EXPECT_EQ(e.kind, SessionEvent::Kind::kAccepted) << e.message;
+}
+
+TEST(Session, ManualCaptureSkipsStillnessButNotSanity) {
+  const Target target = plainTarget();
+  CalibrationSession s(target, SessionOptions{});
+  s.setAutoCapture(false);
+  EXPECT_EQ(s.captureNow().kind, SessionEvent::Kind::kRejected);
+  SessionEvent e;
+  feed(s, makeView(boardPose(0, 3, 0, 0), 0.0, target), &e);
+  EXPECT_EQ(e.kind, SessionEvent::Kind::kWaiting);
+  e = s.captureNow();
+  EXPECT_EQ(e.kind, SessionEvent::Kind::kAccepted) << e.message;
+  EXPECT_EQ(s.views()[0].why, "manual capture");
+}
+
+TEST(Session, SaveLoadDropAndCoverage) {
+  const Target target = plainTarget();
+  SessionOptions opt;
+  opt.still_frames_required = 1;
+  CalibrationSession s(target, opt);
+  SessionEvent e;
+  int t = 0;
+  for (double yaw : {-30.0, 0.0, 30.0})
+    for (double pitch : {-20.0, 20.0}) {
+      feed(s, makeView(boardPose(yaw / 60, 2.5 + t * 0.2, yaw, pitch), t, target), &e);
+      ++t;
+    }
+  ASSERT_EQ(s.views().size(), 6u);
+
+  const std::string path = ::testing::TempDir() + "/board_calib_session.yaml";
+  ASSERT_TRUE(s.save(path).ok);
+  CalibrationSession loaded(plainTarget(), opt);
+  const Status st = loaded.load(path);
+  ASSERT_TRUE(st.ok) << st.reason;
+  ASSERT_EQ(loaded.views().size(), 6u);
+  const View& a = s.views()[3].view;
+  const View& b = loaded.views()[3].view;
+  EXPECT_EQ(a.id, b.id);
+  EXPECT_TRUE(a.camera.K.isApprox(b.camera.K));
+  EXPECT_LT(rotationErrorDeg(a.camera.camera_T_board, b.camera.camera_T_board), 1e-6);
+  EXPECT_NEAR(a.lidar.plane.offset, b.lidar.plane.offset, 1e-9);
+  EXPECT_EQ(a.lidar.board_points.size(), b.lidar.board_points.size());
+  EXPECT_TRUE(a.lidar.board_points[17].isApprox(b.lidar.board_points[17], 1e-9));
+
+  ASSERT_TRUE(loaded.dropView(2).ok);
+  EXPECT_FALSE(loaded.dropView(2).ok);
+  EXPECT_EQ(loaded.views().size(), 5u);
+
+  const CoverageReport cov = s.coverage();
+  EXPECT_EQ(cov.views, 6);
+  EXPECT_GT(cov.tilt_span_deg, 40.0);
+  EXPECT_FALSE(cov.advice.empty());  // fewer than 20 views
+
+  std::remove(path.c_str());
+  EXPECT_FALSE(loaded.load("/nonexistent/session.yaml").ok);
+  EXPECT_FALSE(loaded.load(std::string(BOARD_CALIB_SOURCE_DIR) + "/package.xml").ok);
+  EXPECT_EQ(loaded.views().size(), 5u);  // a failed load keeps what was there
+}
