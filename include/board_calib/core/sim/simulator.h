@@ -9,6 +9,7 @@
 
 #include <opencv2/core.hpp>
 
+#include <cstdint>
 #include <random>
 
 namespace board_calib {
@@ -27,7 +28,17 @@ struct LidarSpec {
   double beam_divergence_deg = 0.15;       ///< footprint for mixed returns at board edges, deg
   bool organized = true;                   ///< rings x columns (NaN for no return) vs. a flat list
   bool with_ring = true;                   ///< emit the ring field
+  double mixed_return_max_gap_m = 1.5;     ///< footprints straddling surfaces closer than this average
+                                           ///< their ranges (mixed pixel); farther: strongest return, m
+  double intensity_noise = 2.0;            ///< 1 sigma intensity noise, intensity units
+  double rate_hz = 10.0;                   ///< revolutions per second (used by the scenario timeline), Hz
   std::string validate() const;
+  /// Columns of one revolution (round(360 / horizontal_resolution_deg)).
+  int columns() const;
+  /// Azimuth (rad, counter-clockwise from +x, in (-pi, pi]) of column `col` for ring `ring`.
+  /// Column 0 looks backwards (-x) and columns advance clockwise seen from above, as the
+  /// sensors spin.
+  double azimuthRad(int ring, int col) const;
 };
 
 /// Presets: "VLP-16", "VLP-32C", "OS1-64".
@@ -39,9 +50,11 @@ struct SceneSpec {
   bool room = true;             ///< floor, walls and ceiling (textured for cameras)
   double room_half_size_m = 10; ///< walls at +-this distance from the world origin, m
   double floor_z_m = -1.2;      ///< floor height in the world frame (world z up), m
+  double ceiling_z_m = 2.8;     ///< ceiling height in the world frame, m
   bool occluder = true;         ///< person-like box below and behind the board
-  float board_intensity = 200;  ///< LiDAR intensity of the board
+  float board_intensity = 200;  ///< LiDAR intensity of the board (its white parts)
   float background_intensity = 40;
+  std::string validate() const;
 };
 
 struct RenderOptions {
@@ -51,6 +64,20 @@ struct RenderOptions {
   double blur_sigma_px = 0.0;       ///< optional Gaussian blur, px
   std::string validate() const;
 };
+
+/// What each LiDAR return hit (ground truth for detector tests), parallel to LidarCloud::points.
+enum class ReturnOrigin : std::uint8_t {
+  kNone = 0,        ///< no return (NaN point; organized output only)
+  kBoard = 1,       ///< the whole beam footprint on the board
+  kBackground = 2,  ///< room or occluder only
+  kMixed = 3,       ///< footprint straddles the board's edge and something else
+};
+
+/// Ray-casts one full revolution. Points are in the LiDAR frame. world_T_board places the
+/// board (board frame as in target.h). `origins` (optional) receives what each point hit.
+LidarCloud simulateLidarScan(const LidarSpec& spec, const Eigen::Isometry3d& world_T_lidar, const SceneSpec& scene,
+                             const Eigen::Isometry3d& world_T_board, std::mt19937& rng,
+                             std::vector<ReturnOrigin>* origins);
 
 /// Ray-casts one full revolution. Points are in the LiDAR frame. world_T_board places the
 /// board (board frame as in target.h).
