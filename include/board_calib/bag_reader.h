@@ -41,6 +41,9 @@ struct BagTopics {
 /// Message counts per topic in the bags (for "missing topic" errors and progress).
 Expected<std::map<std::string, size_t>> bagTopicCounts(const std::vector<std::string>& bag_paths);
 
+/// Receive times (s, bag time, no deserialisation) of every message on `topic`.
+Expected<std::vector<double>> topicTimes(const std::vector<std::string>& bag_paths, const std::string& topic);
+
 /// Streams the requested topics of one or more bags, in time order. Fails with a one-line
 /// reason when a bag cannot be opened or a requested topic is absent from every bag.
 Status readBags(const std::vector<std::string>& bag_paths, const BagTopics& topics, const BagCallbacks& callbacks);

@@ -4,6 +4,7 @@
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 
+#include <algorithm>
 #include <memory>
 #include <set>
 
@@ -41,6 +42,19 @@ Expected<std::map<std::string, size_t>> bagTopicCounts(const std::vector<std::st
     for (const auto& m : view) counts[m.getTopic()]++;
   }
   return counts;
+}
+
+Expected<std::vector<double>> topicTimes(const std::vector<std::string>& paths, const std::string& topic) {
+  OpenBags open;
+  const Status s = openAll(paths, &open);
+  if (!s) return Expected<std::vector<double>>::failure(s.reason);
+  std::vector<double> times;
+  for (const auto& bag : open.bags) {
+    rosbag::View view(*bag, rosbag::TopicQuery(topic));
+    for (const auto& m : view) times.push_back(m.getTime().toSec());
+  }
+  std::sort(times.begin(), times.end());
+  return times;
 }
 
 Status readBags(const std::vector<std::string>& paths, const BagTopics& topics, const BagCallbacks& cb) {

@@ -1,0 +1,69 @@
+// Offline calibration pipeline: raw images and clouds in, board features out, paired into a
+// CalibrationSession. The same detectors and session the nodelets use, without ROS, so the
+// offline tool and the tests exercise exactly the live code path.
+#pragma once
+
+#include <board_calib/core/image_board_detector.h>
+#include <board_calib/core/lidar_board_detector.h>
+#include <board_calib/core/session.h>
+
+#include <map>
+#include <memory>
+
+namespace board_calib {
+
+struct PipelineOptions {
+  LidarBoardDetectorOptions lidar;
+  ImageBoardDetectorOptions image;
+  SessionOptions session;
+  bool keep_view_frames = true;  ///< keep the raw image and cloud of every accepted view (reports)
+  int frame_history = 8;         ///< raw frames kept per stream until their view is decided
+  std::string validate() const;
+};
+
+/// What happened to one input frame.
+struct FrameOutcome {
+  bool board_found = false;
+  std::string detection;  ///< detector reason when not found, or doubts
+  SessionEvent event;     ///< what the session did with the resulting pair
+  double detect_ms = 0.0;
+};
+
+struct PipelineStats {
+  int images = 0, clouds = 0;
+  int images_with_board = 0, clouds_with_board = 0;
+  int bad_camera_info = 0;
+  std::map<std::string, int> image_failures;  ///< reason -> count
+  std::map<std::string, int> cloud_failures;  ///< reason -> count
+  double image_ms = 0.0, cloud_ms = 0.0;      ///< total detection time
+};
+
+class CalibrationPipeline {
+ public:
+  static Expected<CalibrationPipeline> create(const Target& target, const PipelineOptions& options);
+  CalibrationPipeline(CalibrationPipeline&&) noexcept;
+  CalibrationPipeline& operator=(CalibrationPipeline&&) noexcept;
+  ~CalibrationPipeline();
+
+  /// A raw image with the intrinsics valid at its time. Bad intrinsics are reported, not thrown.
+  FrameOutcome addImage(const cv::Mat& image, const CameraIntrinsics& intrinsics, const std::string& frame_id,
+                        double stamp);
+  FrameOutcome addCloud(const LidarCloud& cloud);
+
+  CalibrationSession& session();
+  const CalibrationSession& session() const;
+  const PipelineStats& stats() const;
+  const Target& target() const;
+  /// Frames of accepted views (when keep_view_frames): view id -> raw image / cloud.
+  const std::map<int, cv::Mat>& viewImages() const;
+  const std::map<int, LidarCloud>& viewClouds() const;
+  /// Camera model of the last image (for reports); nullptr before the first valid image.
+  const CameraModel* cameraModel() const;
+
+ private:
+  CalibrationPipeline() = default;
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace board_calib

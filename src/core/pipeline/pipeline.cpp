@@ -1,0 +1,136 @@
+#include <board_calib/core/pipeline.h>
+
+#include <chrono>
+#include <deque>
+
+namespace board_calib {
+namespace {
+
+double elapsedMs(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - since).count();
+}
+
+bool sameIntrinsics(const CameraIntrinsics& a, const CameraIntrinsics& b) {
+  return a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy && a.cx == b.cx &&
+         a.cy == b.cy && a.model == b.model && a.coeffs == b.coeffs;
+}
+
+}  // namespace
+
+std::string PipelineOptions::validate() const {
+  if (auto why = lidar.validate(); !why.empty()) return "lidar detector: " + why;
+  if (auto why = image.validate(); !why.empty()) return "image detector: " + why;
+  if (auto why = session.validate(); !why.empty()) return "session: " + why;
+  if (frame_history < 1) return "frame_history must be >= 1";
+  return {};
+}
+
+struct CalibrationPipeline::Impl {
+  Impl(const Target& t, const PipelineOptions& o, ImageBoardDetector d)
+      : target(t), options(o), image_detector(std::move(d)), session(t, o.session) {}
+
+  Target target;
+  PipelineOptions options;
+  ImageBoardDetector image_detector;
+  CalibrationSession session;
+  std::optional<CameraIntrinsics> intrinsics;
+  std::optional<CameraModel> camera;
+  PipelineStats stats;
+  std::deque<std::pair<double, cv::Mat>> recent_images;
+  std::deque<std::pair<double, LidarCloud>> recent_clouds;
+  std::map<int, cv::Mat> view_images;
+  std::map<int, LidarCloud> view_clouds;
+
+  void keepAccepted(const SessionEvent& event) {
+    if (event.kind != SessionEvent::Kind::kAccepted || !options.keep_view_frames) return;
+    const auto& views = session.views();
+    const auto it = std::find_if(views.begin(), views.end(), [&](const SessionView& v) { return v.view.id == event.view_id; });
+    if (it == views.end()) return;
+    for (const auto& [stamp, image] : recent_images)
+      if (stamp == it->view.camera.stamp) view_images[event.view_id] = image;
+    for (const auto& [stamp, cloud] : recent_clouds)
+      if (stamp == it->view.lidar.stamp) view_clouds[event.view_id] = cloud;
+  }
+};
+
+Expected<CalibrationPipeline> CalibrationPipeline::create(const Target& target, const PipelineOptions& options) {
+  if (auto why = options.validate(); !why.empty()) return Expected<CalibrationPipeline>::failure(why);
+  if (auto why = target.validate(); !why.empty()) return Expected<CalibrationPipeline>::failure("target: " + why);
+  auto detector = ImageBoardDetector::create(target, options.image);
+  if (!detector) return Expected<CalibrationPipeline>::failure("image detector: " + detector.error());
+  CalibrationPipeline p;
+  p.impl_ = std::make_unique<Impl>(target, options, std::move(*detector));
+  return p;
+}
+
+CalibrationPipeline::CalibrationPipeline(CalibrationPipeline&&) noexcept = default;
+CalibrationPipeline& CalibrationPipeline::operator=(CalibrationPipeline&&) noexcept = default;
+CalibrationPipeline::~CalibrationPipeline() = default;
+
+FrameOutcome CalibrationPipeline::addImage(const cv::Mat& image, const CameraIntrinsics& intrinsics,
+                                           const std::string& frame_id, double stamp) {
+  Impl& d = *impl_;
+  FrameOutcome out;
+  ++d.stats.images;
+  if (!d.intrinsics || !sameIntrinsics(*d.intrinsics, intrinsics)) {
+    auto model = CameraModel::create(intrinsics);
+    if (!model) {
+      ++d.stats.bad_camera_info;
+      out.detection = "bad camera_info: " + model.error();
+      d.stats.image_failures[out.detection]++;
+      return out;
+    }
+    d.intrinsics = intrinsics;
+    d.camera = *model;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  ImageDetection det = d.image_detector.detect(image, *d.camera);
+  out.detect_ms = elapsedMs(start);
+  d.stats.image_ms += out.detect_ms;
+  det.features.frame_id = frame_id;
+  det.features.stamp = stamp;
+  out.board_found = det.features.found;
+  out.detection = det.features.reason;
+  if (det.features.found) ++d.stats.images_with_board;
+  else d.stats.image_failures[det.features.reason]++;
+  if (d.options.keep_view_frames) {
+    d.recent_images.emplace_back(stamp, image);
+    while (static_cast<int>(d.recent_images.size()) > d.options.frame_history) d.recent_images.pop_front();
+  }
+  out.event = d.session.addCamera(det.features);
+  d.keepAccepted(out.event);
+  return out;
+}
+
+FrameOutcome CalibrationPipeline::addCloud(const LidarCloud& cloud) {
+  Impl& d = *impl_;
+  FrameOutcome out;
+  ++d.stats.clouds;
+  const auto start = std::chrono::steady_clock::now();
+  LidarBoardDetection det = detectLidarBoard(cloud, d.target, d.options.lidar);
+  out.detect_ms = elapsedMs(start);
+  d.stats.cloud_ms += out.detect_ms;
+  det.features.frame_id = cloud.frame_id;
+  det.features.stamp = cloud.stamp;
+  out.board_found = det.features.found;
+  out.detection = det.features.reason;
+  if (det.features.found) ++d.stats.clouds_with_board;
+  else d.stats.cloud_failures[std::string(lidarDetectionCodeName(det.code))]++;
+  if (d.options.keep_view_frames) {
+    d.recent_clouds.emplace_back(cloud.stamp, cloud);
+    while (static_cast<int>(d.recent_clouds.size()) > d.options.frame_history) d.recent_clouds.pop_front();
+  }
+  out.event = d.session.addLidar(det.features);
+  d.keepAccepted(out.event);
+  return out;
+}
+
+CalibrationSession& CalibrationPipeline::session() { return impl_->session; }
+const CalibrationSession& CalibrationPipeline::session() const { return impl_->session; }
+const PipelineStats& CalibrationPipeline::stats() const { return impl_->stats; }
+const Target& CalibrationPipeline::target() const { return impl_->target; }
+const std::map<int, cv::Mat>& CalibrationPipeline::viewImages() const { return impl_->view_images; }
+const std::map<int, LidarCloud>& CalibrationPipeline::viewClouds() const { return impl_->view_clouds; }
+const CameraModel* CalibrationPipeline::cameraModel() const { return impl_->camera ? &*impl_->camera : nullptr; }
+
+}  // namespace board_calib

@@ -1,0 +1,218 @@
+#include <board_calib/core/report.h>
+#include <board_calib/core/transform.h>
+
+#include <algorithm>
+#include <cmath>
+#include <iomanip>
+#include <sstream>
+
+namespace board_calib {
+namespace {
+
+constexpr double kSizeNoteThreshold = 0.02;  // relative size difference worth reporting
+
+std::string fixed(double v, int precision) {
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(precision) << v;
+  return s.str();
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return std::nan("");
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+}  // namespace
+
+std::vector<std::string> consistencyNotes(const std::vector<View>& views, const Target& target,
+                                          const CalibrationSolution& solution) {
+  std::vector<std::string> notes;
+  // LiDAR-measured board size (median over views with a full outline).
+  std::vector<double> sides;
+  for (const auto& v : views)
+    if (v.lidar.allEdgesValid() && v.lidar.measured_size_m.minCoeff() > 0) {
+      sides.push_back(v.lidar.measured_size_m.x());
+      sides.push_back(v.lidar.measured_size_m.y());
+    }
+  const double declared = 0.5 * (target.width + target.height);
+  if (!sides.empty()) {
+    const double measured = median(sides);
+    const double ratio = measured / declared;
+    if (std::abs(ratio - 1.0) > kSizeNoteThreshold) {
+      notes.push_back("board size inconsistency: the LiDAR measures the board at " + fixed(measured, 3) +
+                      " m per side (median of " + std::to_string(sides.size()) + " edges), the target declares " +
+                      fixed(declared, 3) + " m (" + (ratio > 1 ? "+" : "") + fixed((ratio - 1) * 100, 1) +
+                      " %): either the board is larger than declared or the LiDAR's edge returns bloom; "
+                      "camera planes from the declared size are then biased in depth");
+    }
+  }
+  if (solution.success && std::abs(solution.plane_scale - 1.0) > kSizeNoteThreshold) {
+    notes.push_back("camera board planes fit the LiDAR best scaled by " + fixed(solution.plane_scale, 3) +
+                    ": the declared board size is likely off by " + fixed((solution.plane_scale - 1) * 100, 1) +
+                    " % (estimated and compensated; check target.yaml)");
+  }
+  // Mean signed offset of the LiDAR board points from the camera plane under the estimate.
+  if (solution.success) {
+    double sum = 0;
+    size_t n = 0;
+    for (const auto& v : views) {
+      if (!v.lidar.found || !v.camera.found) continue;
+      for (const auto& p : v.lidar.board_points) {
+        sum += v.camera.plane.signedDistance(solution.camera_T_lidar * p);
+        ++n;
+      }
+    }
+    constexpr double kOffsetNote = 0.02;  // m
+    if (n > 0 && std::abs(sum / n) > kOffsetNote)
+      notes.push_back("LiDAR board points lie on average " + fixed(std::abs(sum / n) * 100, 1) + " cm " +
+                      (sum > 0 ? "behind" : "in front of") +
+                      " the camera's board plane: the camera plane depth (from the declared board size) and the "
+                      "LiDAR disagree");
+  }
+  return notes;
+}
+
+ResultFile makeResultFile(const CalibrationSolution& s, const std::vector<View>& views, const Target& target,
+                          const std::string& camera_frame, const std::string& lidar_frame) {
+  ResultFile r;
+  r.method = methodName(s.method);
+  r.camera_frame = camera_frame;
+  r.lidar_frame = lidar_frame;
+  r.camera_T_lidar = s.camera_T_lidar;
+  r.views_used = s.views_used;
+  r.mlre_px = s.mlre_px;
+  r.stddev = s.stddev;
+  r.quality["plane_rms_mm"] = s.plane_rms_mm;
+  if (s.line_rms_mm > 0) r.quality["line_rms_mm"] = s.line_rms_mm;
+  r.quality["final_cost"] = s.final_cost;
+  r.quality["iterations"] = s.iterations;
+  r.quality["plane_scale"] = s.plane_scale;
+  r.quality["information_min_eigenvalue"] = s.observability.min_eigenvalue;
+  r.quality["information_condition"] = s.observability.condition_number;
+  r.quality["solve_time_ms"] = s.solve_time_ms;
+  r.notes = s.notes;
+  for (const auto& n : consistencyNotes(views, target, s))
+    if (std::find(r.notes.begin(), r.notes.end(), n) == r.notes.end()) r.notes.push_back(n);
+  if (!s.observability.well_conditioned && !s.observability.weakest_description.empty())
+    r.notes.push_back("weakly constrained: " + s.observability.weakest_description +
+                      "; add views that vary it (tilt the board more, change distance)");
+  return r;
+}
+
+std::string solutionSummary(const CalibrationSolution& s) {
+  std::ostringstream o;
+  o << "method " << methodName(s.method) << ": ";
+  if (!s.success) {
+    o << "FAILED: " << s.reason << "\n";
+    return o.str();
+  }
+  const Eigen::Vector3d t = s.camera_T_lidar.translation();
+  const Eigen::Vector4d q = quaternionXyzw(s.camera_T_lidar);
+  const Eigen::Vector3d rpy = rollPitchYaw(s.camera_T_lidar.rotation()) * kDegPerRad;
+  o << s.views_used << " views, " << s.iterations << " iterations, " << fixed(s.solve_time_ms, 1) << " ms\n";
+  o << "  camera_T_lidar translation [m]   " << fixed(t.x(), 4) << " " << fixed(t.y(), 4) << " " << fixed(t.z(), 4)
+    << "\n";
+  o << "  camera_T_lidar rotation xyzw     " << fixed(q[0], 5) << " " << fixed(q[1], 5) << " " << fixed(q[2], 5) << " "
+    << fixed(q[3], 5) << "  (rpy deg " << fixed(rpy.x(), 2) << " " << fixed(rpy.y(), 2) << " " << fixed(rpy.z(), 2)
+    << ")\n";
+  if (s.mlre_px)
+    o << "  MLRE                             " << fixed(*s.mlre_px, 2)
+      << " px  (mean distance of LiDAR edge points to the image edge lines)\n";
+  o << "  plane RMS                        " << fixed(s.plane_rms_mm, 1)
+    << " mm  (LiDAR board points to the camera's board plane)\n";
+  o << "  1 sigma translation [mm]         " << fixed(s.stddev.translation_m.x() * 1e3, 2) << " "
+    << fixed(s.stddev.translation_m.y() * 1e3, 2) << " " << fixed(s.stddev.translation_m.z() * 1e3, 2) << "\n";
+  o << "  1 sigma rotation [deg]           " << fixed(s.stddev.rotation_deg.x(), 3) << " "
+    << fixed(s.stddev.rotation_deg.y(), 3) << " " << fixed(s.stddev.rotation_deg.z(), 3) << "\n";
+  o << "  observability                    condition " << std::scientific << std::setprecision(2)
+    << s.observability.condition_number << std::defaultfloat
+    << (s.observability.well_conditioned ? " (well conditioned)" : " (WEAK: " + s.observability.weakest_description + ")")
+    << "\n";
+  if (std::abs(s.plane_scale - 1.0) > 1e-9) o << "  camera plane scale               " << fixed(s.plane_scale, 4) << "\n";
+  for (const auto& n : s.notes) o << "  note: " << n << "\n";
+  return o.str();
+}
+
+std::string comparisonTable(const std::vector<CalibrationSolution>& solutions) {
+  std::ostringstream o;
+  o << "| method | ok | views | MLRE px | plane RMS mm | sigma t mm (max) | sigma r deg (max) | dR deg | dt mm |\n";
+  o << "|---|---|---|---|---|---|---|---|---|\n";
+  const CalibrationSolution* first = nullptr;
+  for (const auto& s : solutions)
+    if (s.success) {
+      first = &s;
+      break;
+    }
+  for (const auto& s : solutions) {
+    o << "| " << methodName(s.method) << " | " << (s.success ? "yes" : "no") << " | " << s.views_used << " | ";
+    if (!s.success) {
+      o << "- | - | - | - | - | - |  (" << s.reason << ")\n";
+      continue;
+    }
+    o << (s.mlre_px ? fixed(*s.mlre_px, 2) : std::string("-")) << " | " << fixed(s.plane_rms_mm, 1) << " | "
+      << fixed(s.stddev.translation_m.maxCoeff() * 1e3, 2) << " | " << fixed(s.stddev.rotation_deg.maxCoeff(), 3)
+      << " | " << fixed(rotationErrorDeg(s.camera_T_lidar, first->camera_T_lidar), 3) << " | "
+      << fixed(translationErrorM(s.camera_T_lidar, first->camera_T_lidar) * 1e3, 1) << " |\n";
+  }
+  return o.str();
+}
+
+std::string perViewTable(const CalibrationSolution& s) {
+  std::ostringstream o;
+  o << "| view | used | plane RMS mm | MLRE px | UL px | UR px | LR px | LL px | note |\n";
+  o << "|---|---|---|---|---|---|---|---|---|\n";
+  for (const auto& v : s.views) {
+    o << "| " << v.view_id << " | " << (v.used ? "yes" : "no") << " | " << fixed(v.plane.rms_m * 1e3, 1) << " | "
+      << (v.mlre_px ? fixed(*v.mlre_px, 2) : std::string("-"));
+    for (const auto& e : v.edges) o << " | " << (e.mlre_px ? fixed(*e.mlre_px, 2) : std::string("-"));
+    o << " | " << v.reason << " |\n";
+  }
+  return o.str();
+}
+
+std::string staticTransformLaunchSnippet(const ResultFile& r, const std::string& child_frame) {
+  // static_transform_publisher x y z qx qy qz qw parent child: the child (camera) in the parent
+  // (LiDAR) frame, i.e. lidar_T_camera.
+  const Eigen::Isometry3d lidar_T_camera = r.camera_T_lidar.inverse();
+  const Eigen::Vector3d t = lidar_T_camera.translation();
+  const Eigen::Vector4d q = quaternionXyzw(lidar_T_camera);
+  std::ostringstream o;
+  o << std::setprecision(9);
+  o << "<launch>\n  <!-- board_calib " << r.method << " result: " << r.camera_frame << " in " << r.lidar_frame
+    << " -->\n  <node pkg=\"tf2_ros\" type=\"static_transform_publisher\" name=\"board_calib_"
+    << child_frame << "_tf\"\n        args=\"" << t.x() << " " << t.y() << " " << t.z() << " " << q[0] << " " << q[1]
+    << " " << q[2] << " " << q[3] << " " << r.lidar_frame << " " << child_frame << "\"/>\n</launch>\n";
+  return o.str();
+}
+
+std::string urdfJointSnippet(const ResultFile& r, const std::string& child_frame) {
+  const Eigen::Isometry3d lidar_T_camera = r.camera_T_lidar.inverse();
+  const Eigen::Vector3d t = lidar_T_camera.translation();
+  const Eigen::Vector3d rpy = rollPitchYaw(lidar_T_camera.rotation());
+  std::ostringstream o;
+  o << std::setprecision(9);
+  o << "<!-- board_calib " << r.method << " result -->\n<joint name=\"" << r.lidar_frame << "_to_" << child_frame
+    << "\" type=\"fixed\">\n  <parent link=\"" << r.lidar_frame << "\"/>\n  <child link=\"" << child_frame
+    << "\"/>\n  <origin xyz=\"" << t.x() << " " << t.y() << " " << t.z() << "\" rpy=\"" << rpy.x() << " " << rpy.y()
+    << " " << rpy.z() << "\"/>\n</joint>\n";
+  return o.str();
+}
+
+int bestSolutionIndex(const std::vector<CalibrationSolution>& solutions) {
+  int best = -1;
+  for (int i = 0; i < static_cast<int>(solutions.size()); ++i) {
+    const auto& s = solutions[i];
+    if (!s.success) continue;
+    if (best < 0) {
+      best = i;
+      continue;
+    }
+    const auto& b = solutions[best];
+    const bool both_mlre = s.mlre_px && b.mlre_px;
+    if ((both_mlre && *s.mlre_px < *b.mlre_px) || (!both_mlre && s.plane_rms_mm < b.plane_rms_mm)) best = i;
+  }
+  return best;
+}
+
+}  // namespace board_calib

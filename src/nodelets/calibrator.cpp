@@ -1,0 +1,422 @@
+// Calibrator nodelet: collects LiDAR and camera board features into a CalibrationSession (core),
+// solves on ~calibrate off the callback thread, publishes the latched result, broadcasts the
+// static TF and writes the result file with launch/URDF snippets. Thin wiring only.
+#include <board_calib/CalibrationResult.h>
+#include <board_calib/Calibrate.h>
+#include <board_calib/CalibratorConfig.h>
+#include <board_calib/DropView.h>
+#include <board_calib/SessionFile.h>
+#include <board_calib/conversions.h>
+#include <board_calib/core/report.h>
+#include <board_calib/core/session.h>
+#include <board_calib/core/transform.h>
+
+#include <diagnostic_updater/diagnostic_updater.h>
+#include <dynamic_reconfigure/server.h>
+#include <nodelet/nodelet.h>
+#include <pluginlib/class_list_macros.hpp>
+#include <ros/ros.h>
+#include <std_srvs/Trigger.h>
+#include <tf2_ros/static_transform_broadcaster.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <sys/stat.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <future>
+#include <mutex>
+
+namespace board_calib {
+
+class CalibratorNodelet : public nodelet::Nodelet {
+ private:
+  void onInit() override;
+  void onLidar(const LidarBoardConstPtr& msg);
+  void onCamera(const CameraBoardConstPtr& msg);
+  void report(const SessionEvent& event, const char* source);
+  void reconfigure(CalibratorConfig& config, uint32_t level);
+  bool calibrate(Calibrate::Request& req, Calibrate::Response& res);
+  bool capture(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  bool reset(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  bool saveSession(SessionFile::Request& req, SessionFile::Response& res);
+  bool loadSession(SessionFile::Request& req, SessionFile::Response& res);
+  bool dropView(DropView::Request& req, DropView::Response& res);
+  void publishMarkers(const std::vector<View>& views, const std::optional<CalibrationSolution>& solution);
+  void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
+  CalibrationResult toResultMsg(const CalibrationSolution& s, const ResultFile& file) const;
+  std::string writeOutputs(const ResultFile& file);
+
+  std::mutex mutex_;  // guards session_, last_event_, last_solution_
+  std::unique_ptr<CalibrationSession> session_;
+  std::string default_method_ = "pbpc";
+  std::string child_frame_;
+  std::string output_dir_;
+  bool broadcast_tf_ = true;
+  std::string last_event_ = "waiting for features";
+  std::optional<CalibrationSolution> last_solution_;
+  std::string camera_frame_, lidar_frame_;
+  int lidar_msgs_ = 0, camera_msgs_ = 0;
+  std::mutex solve_mutex_;  // one solve at a time
+
+  ros::Subscriber lidar_sub_, camera_sub_;
+  ros::Publisher result_pub_, markers_pub_;
+  std::vector<ros::ServiceServer> services_;
+  std::unique_ptr<tf2_ros::StaticTransformBroadcaster> tf_broadcaster_;
+  std::unique_ptr<dynamic_reconfigure::Server<CalibratorConfig>> reconfigure_server_;
+  std::unique_ptr<diagnostic_updater::Updater> diagnostics_;
+  ros::Timer diagnostics_timer_;
+};
+
+void CalibratorNodelet::onInit() {
+  ros::NodeHandle& nh = getNodeHandle();
+  ros::NodeHandle& pnh = getPrivateNodeHandle();
+  std::string target_file;
+  if (!pnh.getParam("target_file", target_file)) {
+    NODELET_FATAL("calibrator: private parameter ~target_file (the board description YAML) is required");
+    return;
+  }
+  auto target = loadTarget(target_file);
+  if (!target) {
+    NODELET_FATAL_STREAM("calibrator: " << target.error());
+    return;
+  }
+  pnh.param("method", default_method_, default_method_);
+  pnh.param("child_frame", child_frame_, std::string());
+  pnh.param("broadcast_tf", broadcast_tf_, true);
+  std::string default_dir;
+  if (const char* ros_home = std::getenv("ROS_HOME")) default_dir = std::string(ros_home) + "/board_calib";
+  else if (const char* home = std::getenv("HOME")) default_dir = std::string(home) + "/.ros/board_calib";
+  pnh.param("output_dir", output_dir_, default_dir);
+  session_ = std::make_unique<CalibrationSession>(*target, SessionOptions{});
+  std::string session_file;
+  if (pnh.getParam("session_file", session_file) && !session_file.empty()) {
+    const Status st = session_->load(session_file);
+    if (st) NODELET_INFO_STREAM("calibrator: loaded " << session_->views().size() << " views from " << session_file);
+    else NODELET_ERROR_STREAM("calibrator: " << st.reason);
+  }
+
+  result_pub_ = nh.advertise<CalibrationResult>("calibration_result", 1, true);
+  markers_pub_ = nh.advertise<visualization_msgs::MarkerArray>("calibration_markers", 1, true);
+  tf_broadcaster_ = std::make_unique<tf2_ros::StaticTransformBroadcaster>();
+  reconfigure_server_ = std::make_unique<dynamic_reconfigure::Server<CalibratorConfig>>(pnh);
+  reconfigure_server_->setCallback(
+      [this](CalibratorConfig& config, uint32_t level) { reconfigure(config, level); });
+
+  services_.push_back(pnh.advertiseService("calibrate", &CalibratorNodelet::calibrate, this));
+  services_.push_back(pnh.advertiseService("capture", &CalibratorNodelet::capture, this));
+  services_.push_back(pnh.advertiseService("reset", &CalibratorNodelet::reset, this));
+  services_.push_back(pnh.advertiseService("save_session", &CalibratorNodelet::saveSession, this));
+  services_.push_back(pnh.advertiseService("load_session", &CalibratorNodelet::loadSession, this));
+  services_.push_back(pnh.advertiseService("drop_view", &CalibratorNodelet::dropView, this));
+
+  diagnostics_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
+  diagnostics_->setHardwareID("board_calib calibrator");
+  diagnostics_->add("calibration session", this, &CalibratorNodelet::diagnose);
+  diagnostics_timer_ = nh.createTimer(ros::Duration(1.0), [this](const ros::TimerEvent&) { diagnostics_->update(); });
+
+  // The calibrator subscribes eagerly: it must see every feature to collect views.
+  lidar_sub_ = nh.subscribe("lidar_board", 10, &CalibratorNodelet::onLidar, this);
+  camera_sub_ = nh.subscribe("camera_board", 10, &CalibratorNodelet::onCamera, this);
+  NODELET_INFO_STREAM("calibrator: target " << targetTypeName(target->type) << " " << target->width << " x "
+                                            << target->height << " m; waiting for " << nh.resolveName("lidar_board")
+                                            << " and " << nh.resolveName("camera_board"));
+}
+
+void CalibratorNodelet::reconfigure(CalibratorConfig& c, uint32_t) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  SessionOptions o = session_->options();
+  o.sync_tolerance_s = c.sync_tolerance;
+  o.still_frames_required = c.still_frames;
+  o.still_max_translation_m = c.still_max_translation;
+  o.still_max_rotation_deg = c.still_max_rotation_deg;
+  o.min_view_rotation_deg = c.min_view_rotation_deg;
+  o.min_view_translation_m = c.min_view_translation;
+  o.max_size_mismatch = c.max_size_mismatch;
+  o.max_plane_angle_deg = c.max_plane_angle_deg;
+  o.max_plane_offset_m = c.max_plane_offset;
+  if (const std::string why = o.validate(); !why.empty()) {
+    NODELET_WARN_STREAM("calibrator: rejected reconfiguration: " << why);
+    return;
+  }
+  session_->setOptions(o);
+  session_->setAutoCapture(c.auto_capture);
+  default_method_ = c.method;
+}
+
+void CalibratorNodelet::report(const SessionEvent& e, const char* source) {
+  last_event_ = std::string(source) + ": " + e.message;
+  if (e.kind == SessionEvent::Kind::kAccepted) {
+    const CoverageReport cov = session_->coverage();
+    NODELET_INFO_STREAM("calibrator: " << e.message << "; " << cov.views << " views"
+                                       << (cov.advice.empty() ? "" : "; next: " + cov.advice.front()));
+    publishMarkers(session_->plainViews(), last_solution_);
+  } else if (e.kind == SessionEvent::Kind::kRejected) {
+    NODELET_INFO_STREAM_THROTTLE(2.0, "calibrator: view rejected: " << e.message);
+  }
+}
+
+void CalibratorNodelet::onLidar(const LidarBoardConstPtr& msg) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++lidar_msgs_;
+  lidar_frame_ = msg->header.frame_id;
+  if (!msg->found) NODELET_DEBUG_STREAM_THROTTLE(5.0, "calibrator: LiDAR sees no board: " << msg->reason);
+  report(session_->addLidar(fromMsg(*msg)), "lidar");
+}
+
+void CalibratorNodelet::onCamera(const CameraBoardConstPtr& msg) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++camera_msgs_;
+  camera_frame_ = msg->header.frame_id;
+  if (!msg->found) NODELET_DEBUG_STREAM_THROTTLE(5.0, "calibrator: camera sees no board: " << msg->reason);
+  report(session_->addCamera(fromMsg(*msg)), "camera");
+}
+
+CalibrationResult CalibratorNodelet::toResultMsg(const CalibrationSolution& s, const ResultFile& file) const {
+  CalibrationResult m;
+  m.header.stamp = ros::Time::now();
+  m.header.frame_id = file.lidar_frame;
+  m.success = s.success;
+  m.reason = s.reason;
+  m.method = methodName(s.method);
+  m.camera_frame = file.camera_frame;
+  m.lidar_frame = file.lidar_frame;
+  m.camera_T_lidar = toTransformMsg(s.camera_T_lidar);
+  m.views_used = static_cast<uint32_t>(std::max(0, s.views_used));
+  m.mlre_px = s.mlre_px ? *s.mlre_px : std::nan("");
+  m.plane_rms_mm = s.plane_rms_mm;
+  for (int i = 0; i < 3; ++i) {
+    m.stddev_translation_m[i] = s.stddev.translation_m[i];
+    m.stddev_rotation_deg[i] = s.stddev.rotation_deg[i];
+  }
+  for (int r = 0; r < 6; ++r)
+    for (int c = 0; c < 6; ++c) m.covariance[r * 6 + c] = s.covariance(r, c);
+  m.final_cost = s.final_cost;
+  m.notes = file.notes;
+  return m;
+}
+
+std::string CalibratorNodelet::writeOutputs(const ResultFile& file) {
+  if (output_dir_.empty()) return "";
+  for (size_t pos = 0; pos != std::string::npos;) {
+    pos = output_dir_.find('/', pos + 1);
+    mkdir(output_dir_.substr(0, pos).c_str(), 0755);
+  }
+  const std::string child = child_frame_.empty() ? file.camera_frame : child_frame_;
+  const std::string base = output_dir_ + "/" + file.method;
+  const Status st = writeResultFile(base + "_result.yaml", file);
+  if (!st) {
+    NODELET_ERROR_STREAM("calibrator: " << st.reason);
+    return "";
+  }
+  std::ofstream(base + "_static_transform.launch") << staticTransformLaunchSnippet(file, child);
+  std::ofstream(base + "_urdf_joint.xml") << urdfJointSnippet(file, child);
+  return base + "_result.yaml";
+}
+
+bool CalibratorNodelet::calibrate(Calibrate::Request& req, Calibrate::Response& res) {
+  std::lock_guard<std::mutex> solve_lock(solve_mutex_);
+  std::vector<View> views;
+  Target target;
+  std::string method_name;
+  std::string camera_frame, lidar_frame;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    views = session_->plainViews();
+    target = session_->target();
+    method_name = req.method.empty() ? default_method_ : req.method;
+    camera_frame = camera_frame_.empty() && !views.empty() ? views.front().camera.frame_id : camera_frame_;
+    lidar_frame = lidar_frame_.empty() && !views.empty() ? views.front().lidar.frame_id : lidar_frame_;
+  }
+  std::vector<Method> methods;
+  if (method_name == "all") {
+    methods = {Method::kPpc, Method::kPbpc, Method::kMsgPair};
+  } else {
+    auto m = parseMethod(method_name);
+    if (!m) {
+      res.success = false;
+      res.message = m.error();
+      return true;
+    }
+    methods = {*m};
+  }
+  if (views.empty()) {
+    res.success = false;
+    res.message = "no views collected yet: hold the board still in front of both sensors";
+    return true;
+  }
+  std::optional<Eigen::Isometry3d> guess;
+  if (req.use_initial_guess) guess = fromTransformMsg(req.initial_guess);
+
+  // The solve runs on its own thread; feature callbacks keep flowing meanwhile.
+  auto solving = std::async(std::launch::async, [&]() {
+    std::vector<CalibrationSolution> out;
+    for (Method m : methods) out.push_back(board_calib::calibrate(views, m, SolverOptions{}, guess));
+    return out;
+  });
+  const std::vector<CalibrationSolution> solutions = solving.get();
+  const int best = bestSolutionIndex(solutions);
+  for (const auto& s : solutions) {
+    const ResultFile file = makeResultFile(s, views, target, camera_frame, lidar_frame);
+    res.all_results.push_back(toResultMsg(s, file));
+  }
+  if (best < 0) {
+    res.success = false;
+    res.message = "calibration failed: " + solutions.front().reason;
+    res.result = res.all_results.front();
+    NODELET_WARN_STREAM("calibrator: " << res.message);
+    return true;
+  }
+  const CalibrationSolution& chosen = solutions[best];
+  const ResultFile file = makeResultFile(chosen, views, target, camera_frame, lidar_frame);
+  res.result = toResultMsg(chosen, file);
+  if (methods.size() == 1) res.all_results.clear();
+  res.success = true;
+  res.message = solutionSummary(chosen);
+  for (const auto& n : file.notes) NODELET_WARN_STREAM("calibrator: " << n);
+  NODELET_INFO_STREAM("calibrator:\n" << res.message);
+  if (methods.size() > 1) NODELET_INFO_STREAM("calibrator:\n" << comparisonTable(solutions));
+
+  result_pub_.publish(res.result);
+  if (broadcast_tf_) {
+    geometry_msgs::TransformStamped tf;
+    tf.header.stamp = ros::Time::now();
+    tf.header.frame_id = lidar_frame;  // parent: the LiDAR; child: the camera (or a new frame)
+    tf.child_frame_id = child_frame_.empty() ? camera_frame : child_frame_;
+    tf.transform = toTransformMsg(chosen.camera_T_lidar.inverse());
+    tf_broadcaster_->sendTransform(tf);
+  }
+  const std::string written = writeOutputs(file);
+  if (!written.empty()) res.message += "result written to " + written + "\n";
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    session_->setEstimate(chosen.camera_T_lidar);
+    last_solution_ = chosen;
+    publishMarkers(views, last_solution_);
+  }
+  return true;
+}
+
+bool CalibratorNodelet::capture(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const SessionEvent e = session_->captureNow();
+  report(e, "capture");
+  res.success = e.kind == SessionEvent::Kind::kAccepted;
+  res.message = e.message;
+  return true;
+}
+
+bool CalibratorNodelet::reset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const size_t dropped = session_->views().size();
+  session_->reset();
+  last_solution_.reset();
+  publishMarkers({}, std::nullopt);
+  res.success = true;
+  res.message = "session reset (" + std::to_string(dropped) + " views dropped)";
+  NODELET_INFO_STREAM("calibrator: " << res.message);
+  return true;
+}
+
+bool CalibratorNodelet::saveSession(SessionFile::Request& req, SessionFile::Response& res) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const Status st = session_->save(req.path);
+  res.success = st.ok;
+  res.views = static_cast<uint32_t>(session_->views().size());
+  res.message = st.ok ? "saved " + std::to_string(res.views) + " views to " + req.path : st.reason;
+  return true;
+}
+
+bool CalibratorNodelet::loadSession(SessionFile::Request& req, SessionFile::Response& res) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const Status st = session_->load(req.path);
+  res.success = st.ok;
+  res.views = static_cast<uint32_t>(session_->views().size());
+  res.message = st.ok ? "loaded " + std::to_string(res.views) + " views from " + req.path : st.reason;
+  if (st.ok) publishMarkers(session_->plainViews(), std::nullopt);
+  return true;
+}
+
+bool CalibratorNodelet::dropView(DropView::Request& req, DropView::Response& res) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const Status st = session_->dropView(static_cast<int>(req.view_id));
+  res.success = st.ok;
+  res.message = st.ok ? "view " + std::to_string(req.view_id) + " dropped" : st.reason;
+  if (st.ok) publishMarkers(session_->plainViews(), last_solution_);
+  return true;
+}
+
+void CalibratorNodelet::publishMarkers(const std::vector<View>& views,
+                                       const std::optional<CalibrationSolution>& solution) {
+  // One marker per kept view: its LiDAR board points, coloured by the view's plane residual
+  // under the last solution (green good, red 5 cm or worse), white before any solve.
+  constexpr double kResidualRedM = 0.05;
+  visualization_msgs::MarkerArray array;
+  visualization_msgs::Marker clear;
+  clear.action = visualization_msgs::Marker::DELETEALL;
+  array.markers.push_back(clear);
+  for (const auto& v : views) {
+    visualization_msgs::Marker m;
+    m.header.frame_id = v.lidar.frame_id;
+    m.header.stamp = ros::Time(0);
+    m.ns = "views";
+    m.id = v.id;
+    m.type = visualization_msgs::Marker::POINTS;
+    m.scale.x = m.scale.y = 0.02;
+    m.pose.orientation.w = 1.0;
+    m.color.a = 1.0;
+    m.color.r = m.color.g = m.color.b = 1.0;
+    if (solution) {
+      for (const auto& vr : solution->views)
+        if (vr.view_id == v.id && vr.used) {
+          const double x = std::min(1.0, vr.plane.rms_m / kResidualRedM);
+          m.color.r = static_cast<float>(x);
+          m.color.g = static_cast<float>(1.0 - x);
+          m.color.b = 0.0f;
+        }
+    }
+    for (const auto& p : v.lidar.board_points) {
+      geometry_msgs::Point q;
+      q.x = p.x();
+      q.y = p.y();
+      q.z = p.z();
+      m.points.push_back(q);
+    }
+    array.markers.push_back(m);
+  }
+  markers_pub_.publish(array);
+}
+
+void CalibratorNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const CoverageReport cov = session_->coverage();
+  using diagnostic_msgs::DiagnosticStatus;
+  if (lidar_msgs_ == 0 || camera_msgs_ == 0)
+    stat.summary(DiagnosticStatus::WARN, lidar_msgs_ == 0 ? "no LiDAR board features received"
+                                                          : "no camera board features received");
+  else if (cov.views < 3)
+    stat.summary(DiagnosticStatus::WARN, "collecting views (" + std::to_string(cov.views) + ")");
+  else
+    stat.summary(DiagnosticStatus::OK, std::to_string(cov.views) + " views collected");
+  stat.add("views", cov.views);
+  stat.add("lidar feature messages", lidar_msgs_);
+  stat.add("camera feature messages", camera_msgs_);
+  stat.add("last event", last_event_);
+  stat.add("tilt span (deg)", cov.tilt_span_deg);
+  stat.add("range (m)", std::to_string(cov.range_min_m) + " - " + std::to_string(cov.range_max_m));
+  stat.add("image coverage", cov.image_coverage);
+  for (size_t i = 0; i < cov.advice.size(); ++i) stat.add("advice " + std::to_string(i + 1), cov.advice[i]);
+  if (last_solution_) {
+    stat.add("last solve", std::string(methodName(last_solution_->method)) + " with " +
+                               std::to_string(last_solution_->views_used) + " views");
+    if (last_solution_->mlre_px) stat.add("last MLRE (px)", *last_solution_->mlre_px);
+    stat.add("last plane RMS (mm)", last_solution_->plane_rms_mm);
+    if (!last_solution_->observability.well_conditioned)
+      stat.add("weak direction", last_solution_->observability.weakest_description);
+  }
+}
+
+}  // namespace board_calib
+
+PLUGINLIB_EXPORT_CLASS(board_calib::CalibratorNodelet, nodelet::Nodelet)

@@ -1,0 +1,362 @@
+// calibrate_bag: offline LiDAR-camera calibration straight from rosbags (DESIGN.md §3.3).
+// Reads the bags with the rosbag C++ API (no master, no sim time), runs the same detectors,
+// session and solvers as the nodelets, prints the result with its quality figures, and writes
+// the result file and an optional report folder. Bad input ends with a one-line reason and a
+// non-zero exit.
+#include <board_calib/bag_reader.h>
+#include <board_calib/core/pipeline.h>
+#include <board_calib/core/projection.h>
+#include <board_calib/core/report.h>
+#include <board_calib/core/transform.h>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+using namespace board_calib;
+
+namespace {
+
+constexpr int kExitOk = 0;
+constexpr int kExitFailed = 1;
+constexpr int kExitUsage = 2;
+// Captures further apart than this are sparse snapshots, each its own board pose.
+constexpr double kSparseCaptureIntervalS = 0.5;
+
+const char* kUsage =
+    "usage: calibrate_bag --bag FILE [--bag FILE...] --target TARGET.yaml\n"
+    "         --image-topic T --camera-info-topic T --cloud-topic T --method ppc|pbpc|msg|all\n"
+    "         [--initial-guess x y z qx qy qz qw] [--output result.yaml] [--report DIR]\n"
+    "         [--still-frames N] [--sync-tolerance S] [--loss none|huber|cauchy|tukey] [--loss-scale M]\n"
+    "         [--child-frame F] [--save-session FILE] [--load-session FILE] [--truth TRUTH.yaml] [--quiet]\n"
+    "\n"
+    "  --initial-guess     camera_T_lidar (p_camera = R p_lidar + t); default: closed-form initialisation\n"
+    "  --still-frames N    synchronised frames the board must stay still (default: 1 when captures are\n"
+    "                      more than 0.5 s apart, as in snapshot bags, else 2)\n"
+    "  --sync-tolerance S  max image/cloud stamp difference of one view, s (default 0.05)\n"
+    "  --load-session F    solve a saved session (no bag needed); --save-session F keeps the views\n"
+    "  --truth FILE        a ground-truth result file (simulate_bag's *.truth.yaml): print the errors\n";
+
+struct Args {
+  std::vector<std::string> bags;
+  std::string target, image_topic, info_topic, cloud_topic, method = "";
+  std::optional<Eigen::Isometry3d> guess;
+  std::string output, report, save_session, load_session, truth, child_frame;
+  int still_frames = 0;  // 0: auto
+  double sync_tolerance = -1;
+  std::string loss;
+  double loss_scale = -1;
+  bool quiet = false;
+};
+
+// One-line failure, as the contract asks.
+[[noreturn]] void fail(const std::string& why, int code = kExitFailed) {
+  std::cerr << "calibrate_bag: " << why << std::endl;
+  std::exit(code);
+}
+
+double parseNumber(const std::string& flag, const std::string& text) {
+  try {
+    size_t used = 0;
+    const double v = std::stod(text, &used);
+    if (used != text.size()) throw std::invalid_argument(text);
+    return v;
+  } catch (const std::exception&) {
+    fail(flag + " expects a number, got '" + text + "'", kExitUsage);
+  }
+}
+
+Args parseArgs(int argc, char** argv) {
+  Args a;
+  auto need = [&](int& i, const std::string& flag) -> std::string {
+    if (i + 1 >= argc) fail(flag + " needs a value", kExitUsage);
+    return argv[++i];
+  };
+  for (int i = 1; i < argc; ++i) {
+    const std::string f = argv[i];
+    if (f == "--help" || f == "-h") {
+      std::cout << kUsage;
+      std::exit(kExitOk);
+    } else if (f == "--bag") a.bags.push_back(need(i, f));
+    else if (f == "--target") a.target = need(i, f);
+    else if (f == "--image-topic") a.image_topic = need(i, f);
+    else if (f == "--camera-info-topic") a.info_topic = need(i, f);
+    else if (f == "--cloud-topic") a.cloud_topic = need(i, f);
+    else if (f == "--method") a.method = need(i, f);
+    else if (f == "--output") a.output = need(i, f);
+    else if (f == "--report") a.report = need(i, f);
+    else if (f == "--save-session") a.save_session = need(i, f);
+    else if (f == "--load-session") a.load_session = need(i, f);
+    else if (f == "--truth") a.truth = need(i, f);
+    else if (f == "--child-frame") a.child_frame = need(i, f);
+    else if (f == "--loss") a.loss = need(i, f);
+    else if (f == "--loss-scale") a.loss_scale = parseNumber(f, need(i, f));
+    else if (f == "--sync-tolerance") a.sync_tolerance = parseNumber(f, need(i, f));
+    else if (f == "--still-frames") a.still_frames = static_cast<int>(parseNumber(f, need(i, f)));
+    else if (f == "--quiet") a.quiet = true;
+    else if (f == "--initial-guess") {
+      double v[7];
+      for (double& x : v) x = parseNumber(f, need(i, f));
+      a.guess = makeTransform(Eigen::Vector3d(v[0], v[1], v[2]), Eigen::Vector4d(v[3], v[4], v[5], v[6]));
+    } else {
+      fail("unknown option '" + f + "' (see --help)", kExitUsage);
+    }
+  }
+  if (a.method.empty()) fail("--method is required (ppc, pbpc, msg or all)", kExitUsage);
+  if (a.target.empty() && a.load_session.empty()) fail("--target is required", kExitUsage);
+  if (a.load_session.empty()) {
+    if (a.bags.empty()) fail("--bag is required", kExitUsage);
+    if (a.image_topic.empty() || a.info_topic.empty() || a.cloud_topic.empty())
+      fail("--image-topic, --camera-info-topic and --cloud-topic are required", kExitUsage);
+  }
+  return a;
+}
+
+bool makeDir(const std::string& path) {
+  std::string partial;
+  std::stringstream ss(path);
+  std::string part;
+  if (!path.empty() && path[0] == '/') partial = "/";
+  while (std::getline(ss, part, '/')) {
+    if (part.empty()) continue;
+    partial += part + "/";
+    if (mkdir(partial.c_str(), 0755) != 0 && errno != EEXIST) return false;
+  }
+  return true;
+}
+
+void progress(bool quiet, size_t done, size_t total, size_t views) {
+  if (quiet || total == 0) return;
+  constexpr int kWidth = 30;
+  const int filled = static_cast<int>(kWidth * done / total);
+  std::cerr << "\r[" << std::string(filled, '#') << std::string(kWidth - filled, '.') << "] " << done << "/" << total
+            << " frames, " << views << " views" << std::flush;
+  if (done == total) std::cerr << "\n";
+}
+
+void writeText(const std::string& path, const std::string& text) {
+  std::ofstream f(path);
+  if (!f) fail("cannot write '" + path + "'");
+  f << text;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Args args = parseArgs(argc, argv);
+  const auto wall_start = std::chrono::steady_clock::now();
+
+  std::vector<Method> methods;
+  if (args.method == "all") methods = {Method::kPpc, Method::kPbpc, Method::kMsgPair};
+  else {
+    auto m = parseMethod(args.method);
+    if (!m) fail(m.error(), kExitUsage);
+    methods = {*m};
+  }
+
+  SolverOptions solver;
+  if (!args.loss.empty()) {
+    auto loss = parseRobustLoss(args.loss);
+    if (!loss) fail(loss.error(), kExitUsage);
+    solver.loss = *loss;
+  }
+  if (args.loss_scale > 0) solver.loss_scale_m = args.loss_scale;
+  if (auto why = solver.validate(); !why.empty()) fail("solver options: " + why, kExitUsage);
+
+  PipelineOptions options;
+  if (args.sync_tolerance > 0) options.session.sync_tolerance_s = args.sync_tolerance;
+  std::optional<Target> target;
+  if (!args.target.empty()) {
+    auto t = loadTarget(args.target);
+    if (!t) fail(t.error());
+    target = *t;
+  }
+
+  std::optional<CalibrationPipeline> pipeline;
+  CalibrationSession loaded_session(target ? *target : Target{}, options.session);
+  const CalibrationSession* session = nullptr;
+  std::string camera_frame, lidar_frame;
+
+  if (!args.load_session.empty()) {
+    const Status st = loaded_session.load(args.load_session);
+    if (!st) fail(st.reason);
+    session = &loaded_session;  // the session carries its own target
+    target = loaded_session.target();
+  } else {
+    // Sparse snapshot bags (one capture per board pose) cannot show stillness across frames.
+    auto times = topicTimes(args.bags, args.image_topic);
+    if (!times) fail(times.error());
+    if (times->empty()) fail("topic '" + args.image_topic + "' holds no messages");
+    std::vector<double> gaps;
+    for (size_t i = 1; i < times->size(); ++i) gaps.push_back((*times)[i] - (*times)[i - 1]);
+    std::sort(gaps.begin(), gaps.end());
+    const double median_gap = gaps.empty() ? 0.0 : gaps[gaps.size() / 2];
+    options.session.still_frames_required =
+        args.still_frames > 0 ? args.still_frames : (median_gap > kSparseCaptureIntervalS ? 1 : 2);
+    if (!args.quiet)
+      std::cerr << "calibrate_bag: " << times->size() << " images, median interval " << median_gap
+                << " s: board must be still for " << options.session.still_frames_required << " frame(s)\n";
+
+    auto p = CalibrationPipeline::create(*target, options);
+    if (!p) fail(p.error());
+    pipeline.emplace(std::move(*p));
+
+    auto counts = bagTopicCounts(args.bags);
+    if (!counts) fail(counts.error());
+    const size_t total = (*counts)[args.image_topic] + (*counts)[args.cloud_topic];
+    size_t done = 0;
+    std::optional<CameraIntrinsics> intrinsics;
+    std::vector<ImageFrame> waiting_for_info;  // images before the first camera_info
+    std::map<std::string, int> bad_messages;
+
+    BagTopics topics{{args.image_topic}, {args.info_topic}, {args.cloud_topic}};
+    BagCallbacks cb;
+    auto processImage = [&](const ImageFrame& f) {
+      pipeline->addImage(f.image, *intrinsics, f.frame_id, f.stamp);
+      if (camera_frame.empty()) camera_frame = f.frame_id;
+      progress(args.quiet, ++done, total, pipeline->session().views().size());
+    };
+    cb.on_camera_info = [&](const std::string&, const std::string&, const CameraIntrinsics& in) {
+      intrinsics = in;
+      for (const auto& f : waiting_for_info) processImage(f);
+      waiting_for_info.clear();
+    };
+    cb.on_image = [&](const ImageFrame& f) {
+      if (!intrinsics) {
+        constexpr size_t kMaxWaiting = 10;
+        if (waiting_for_info.size() < kMaxWaiting) waiting_for_info.push_back(f);
+        return;
+      }
+      processImage(f);
+    };
+    cb.on_cloud = [&](const std::string&, const LidarCloud& c) {
+      pipeline->addCloud(c);
+      if (lidar_frame.empty()) lidar_frame = c.frame_id;
+      progress(args.quiet, ++done, total, pipeline->session().views().size());
+    };
+    cb.on_bad_message = [&](const std::string& topic, const std::string& why) {
+      if (bad_messages[topic + ": " + why]++ == 0 && !args.quiet)
+        std::cerr << "\ncalibrate_bag: skipping a message on " << topic << ": " << why << "\n";
+    };
+    const Status read = readBags(args.bags, topics, cb);
+    if (!read) fail(read.reason);
+    if (!intrinsics) fail("no valid camera_info on '" + args.info_topic + "'");
+    session = &pipeline->session();
+
+    const PipelineStats& st = pipeline->stats();
+    if (!args.quiet) {
+      std::cerr << "calibrate_bag: board found in " << st.images_with_board << "/" << st.images << " images and "
+                << st.clouds_with_board << "/" << st.clouds << " clouds; " << session->views().size() << " views kept\n";
+      for (const auto& [why, n] : st.image_failures) std::cerr << "  image: " << n << " x " << why << "\n";
+      for (const auto& [why, n] : st.cloud_failures) std::cerr << "  cloud: " << n << " x " << why << "\n";
+    }
+    if (st.images_with_board == 0) fail("the board was never found in the images (" + args.image_topic + ")");
+    if (st.clouds_with_board == 0) fail("the board was never found in the clouds (" + args.cloud_topic + ")");
+  }
+
+  const std::vector<View> views = session->plainViews();
+  if (views.empty()) fail("no view has the board in both sensors at the same time (check --sync-tolerance)");
+  if (camera_frame.empty()) camera_frame = views.front().camera.frame_id;
+  if (lidar_frame.empty()) lidar_frame = views.front().lidar.frame_id;
+  if (!args.save_session.empty()) {
+    const Status st = session->save(args.save_session);
+    if (!st) fail(st.reason);
+  }
+
+  std::vector<CalibrationSolution> solutions;
+  for (Method m : methods) solutions.push_back(calibrate(views, m, solver, args.guess));
+  const int best = bestSolutionIndex(solutions);
+  for (const auto& s : solutions) std::cout << solutionSummary(s);
+  if (solutions.size() > 1) std::cout << "\n" << comparisonTable(solutions);
+  if (best < 0) fail("calibration failed: " + solutions.front().reason);
+  const CalibrationSolution& chosen = solutions[best];
+  if (solutions.size() > 1) std::cout << "reported: " << methodName(chosen.method) << " (lowest MLRE)\n";
+
+  const ResultFile result = makeResultFile(chosen, views, *target, camera_frame, lidar_frame);
+  for (const auto& n : result.notes)
+    if (std::find(chosen.notes.begin(), chosen.notes.end(), n) == chosen.notes.end()) std::cout << "note: " << n << "\n";
+  const std::string child = args.child_frame.empty() ? camera_frame : args.child_frame;
+  if (!args.output.empty()) {
+    const Status st = writeResultFile(args.output, result);
+    if (!st) fail(st.reason);
+    std::cout << "result written to " << args.output << "\n";
+  }
+
+  if (!args.truth.empty()) {
+    auto truth = loadResultFile(args.truth);
+    if (!truth) fail(truth.error());
+    Eigen::Isometry3d truth_T = truth->camera_T_lidar;
+    for (const auto& p : truth->pairs)
+      if (p.camera_frame == camera_frame && p.lidar_frame == lidar_frame) truth_T = p.camera_T_lidar;
+    for (const auto& s : solutions)
+      if (s.success)
+        std::cout << "error vs truth (" << methodName(s.method) << "): rotation "
+                  << rotationErrorDeg(s.camera_T_lidar, truth_T) << " deg, translation "
+                  << translationErrorM(s.camera_T_lidar, truth_T) * 1e3 << " mm\n";
+  }
+
+  if (!args.report.empty()) {
+    if (!makeDir(args.report)) fail("cannot create report folder '" + args.report + "'");
+    std::ostringstream md;
+    md << "# board_calib report\n\n";
+    md << "bags:";
+    for (const auto& b : args.bags) md << " `" << b << "`";
+    md << "\n\ncamera frame `" << camera_frame << "`, LiDAR frame `" << lidar_frame << "`, " << views.size()
+       << " views\n\n";
+    if (pipeline) {
+      const PipelineStats& st = pipeline->stats();
+      md << "board found in " << st.images_with_board << "/" << st.images << " images and " << st.clouds_with_board
+         << "/" << st.clouds << " clouds\n\n";
+    }
+    md << "## Result\n\n```\n";
+    for (const auto& s : solutions) md << solutionSummary(s);
+    md << "```\n\n";
+    if (solutions.size() > 1) md << "## Methods side by side\n\n" << comparisonTable(solutions) << "\n";
+    if (!result.notes.empty()) {
+      md << "## Findings\n\n";
+      for (const auto& n : result.notes) md << "* " << n << "\n";
+      md << "\n";
+    }
+    md << "## Views\n\n";
+    for (const auto& sv : session->views()) md << "* view " << sv.view.id << ": " << sv.why << "\n";
+    md << "\n## Per-view residuals (" << methodName(chosen.method) << ")\n\n" << perViewTable(chosen) << "\n";
+    const CoverageReport cov = session->coverage();
+    md << "## Coverage\n\ntilt span " << cov.tilt_span_deg << " deg, range " << cov.range_min_m << "-"
+       << cov.range_max_m << " m, image coverage " << cov.image_coverage * 100 << " %\n\n";
+    for (const auto& a : cov.advice) md << "* " << a << "\n";
+    writeText(args.report + "/report.md", md.str());
+    (void)writeResultFile(args.report + "/result.yaml", result);
+    writeText(args.report + "/static_transform.launch", staticTransformLaunchSnippet(result, child));
+    writeText(args.report + "/urdf_joint.xml", urdfJointSnippet(result, child));
+    (void)session->save(args.report + "/session.yaml");
+    // Overlays: projected cloud and the projected-edges check of every view.
+    if (pipeline && pipeline->cameraModel()) {
+      const CameraModel& camera = *pipeline->cameraModel();
+      for (const auto& sv : session->views()) {
+        const auto img = pipeline->viewImages().find(sv.view.id);
+        const auto cloud = pipeline->viewClouds().find(sv.view.id);
+        if (img == pipeline->viewImages().end() || cloud == pipeline->viewClouds().end()) continue;
+        cv::Mat canvas = img->second.clone();
+        auto projected = projectCloud(cloud->second, camera, chosen.camera_T_lidar, ProjectionOptions{});
+        if (projected) (void)drawProjectedCloud(*projected, OverlayOptions{}, &canvas);
+        EdgeCheckOptions edge_options;
+        auto check = checkProjectedEdges(sv.view.lidar, sv.view.camera, camera, chosen.camera_T_lidar, edge_options);
+        if (check) (void)drawEdgeCheck(sv.view.camera, *check, camera, edge_options, &canvas);
+        cv::imwrite(args.report + "/overlay_view_" + std::to_string(sv.view.id) + ".jpg", canvas,
+                    {cv::IMWRITE_JPEG_QUALITY, 85});
+      }
+    }
+    std::cout << "report written to " << args.report << "/report.md\n";
+  }
+  if (!args.quiet)
+    std::cerr << "calibrate_bag: done in "
+              << std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count() << " s\n";
+  return kExitOk;
+}
