@@ -9,6 +9,7 @@
 #include <apriltag/apriltag.h>
 #include <apriltag/tag36h11.h>
 
+#include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
@@ -367,7 +368,8 @@ std::shared_ptr<const RayMap> buildRayMap(const CameraModel& camera) {
   constexpr int kMaxIterations = 30;
   constexpr double kStep = 1e-7;
   constexpr double kTolerance2 = 1e-26;
-  for (int v = 0; v < h; ++v) {
+  cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& range) {
+  for (int v = range.start; v < range.end; ++v) {
     Eigen::Vector2d x = camera.undistortNormalized(Eigen::Vector2d(0, v));  // robust start of each row
     for (int u = 0; u < w; ++u) {
       const Eigen::Vector2d target((u - in.cx) / in.fx, (v - in.cy) / in.fy);
@@ -392,6 +394,7 @@ std::shared_ptr<const RayMap> buildRayMap(const CameraModel& camera) {
       map->xy[i + 1] = static_cast<float>(x.y());
     }
   }
+  });
   return map;
 }
 
@@ -664,14 +667,17 @@ cv::Mat renderCameraImage(const CameraModel& camera, const Eigen::Isometry3d& wo
     return world.shade(hit, dir);
   };
 
-  for (int v = 0; v < h; ++v) {
-    auto* row = colour.ptr<cv::Vec3f>(v);
-    auto* lrow = labels.ptr<int>(v);
-    for (int u = 0; u < w; ++u) {
-      const Eigen::Vector3d c = sample(rays->at(u, v), &lrow[u]);
-      row[u] = cv::Vec3f(static_cast<float>(c[0]), static_cast<float>(c[1]), static_cast<float>(c[2]));
+  // Rows are independent (no randomness here), so they render in parallel.
+  cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& range) {
+    for (int v = range.start; v < range.end; ++v) {
+      auto* row = colour.ptr<cv::Vec3f>(v);
+      auto* lrow = labels.ptr<int>(v);
+      for (int u = 0; u < w; ++u) {
+        const Eigen::Vector3d c = sample(rays->at(u, v), &lrow[u]);
+        row[u] = cv::Vec3f(static_cast<float>(c[0]), static_cast<float>(c[1]), static_cast<float>(c[2]));
+      }
     }
-  }
+  });
 
   // Supersample pixels whose 3x3 neighbourhood changes label: the pixel footprint may straddle
   // an edge there. Pixel (u, v) covers [u - 0.5, u + 0.5] x [v - 0.5, v + 0.5].
@@ -691,7 +697,8 @@ cv::Mat renderCameraImage(const CameraModel& camera, const Eigen::Isometry3d& wo
         if (differs) edge.at<uint8_t>(v, u) = 1;
       }
     }
-    for (int v = 0; v < h; ++v) {
+    cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& range) {
+    for (int v = range.start; v < range.end; ++v) {
       for (int u = 0; u < w; ++u) {
         if (!edge.at<uint8_t>(v, u)) continue;
         Eigen::Vector3d sum = Eigen::Vector3d::Zero();
@@ -706,6 +713,7 @@ cv::Mat renderCameraImage(const CameraModel& camera, const Eigen::Isometry3d& wo
             cv::Vec3f(static_cast<float>(sum[0]), static_cast<float>(sum[1]), static_cast<float>(sum[2]));
       }
     }
+    });
   }
 
   if (options.blur_sigma_px > 0) cv::GaussianBlur(colour, colour, cv::Size(0, 0), options.blur_sigma_px);
