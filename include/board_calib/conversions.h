@@ -5,6 +5,7 @@
 #include <board_calib/core/camera_model.h>
 #include <board_calib/core/features.h>
 #include <board_calib/core/lidar_cloud.h>
+#include <board_calib/core/projection.h>
 #include <board_calib/core/result_io.h>
 
 #include <board_calib/CalibrationResult.h>
@@ -29,9 +30,15 @@ Expected<LidarCloud> fromPointCloud2(const sensor_msgs::PointCloud2& msg);
 /// Core cloud -> PointCloud2 with x y z intensity (float32) and ring (uint16, when present).
 sensor_msgs::PointCloud2 toPointCloud2(const LidarCloud& cloud);
 
+/// Image-coloured cloud -> PointCloud2 with x y z intensity (float32) and rgb (float32 holding
+/// packed 0x00RRGGBB, the PCL/rviz convention), unorganized.
+sensor_msgs::PointCloud2 toPointCloud2(const ColoredCloud& cloud);
+
 /// Image -> cv::Mat: bgr8 for colour and Bayer input, mono8 for mono8/mono16 (16-bit scaled
 /// to 8 bits by its maximum). Fails with a reason naming an unsupported encoding.
 Expected<cv::Mat> imageFromMsg(const sensor_msgs::Image& msg);
+/// cv::Mat (CV_8UC3 as bgr8, CV_8UC1 as mono8) -> Image with the given header.
+Expected<sensor_msgs::Image> imageToMsg(const cv::Mat& image, const std_msgs::Header& header);
 
 LidarBoard toMsg(const LidarBoardFeatures& features);
 LidarBoardFeatures fromMsg(const LidarBoard& msg);

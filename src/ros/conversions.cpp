@@ -183,6 +183,27 @@ sensor_msgs::PointCloud2 toPointCloud2(const LidarCloud& cloud) {
   return msg;
 }
 
+sensor_msgs::PointCloud2 toPointCloud2(const ColoredCloud& cloud) {
+  sensor_msgs::PointCloud2 msg;
+  msg.header.frame_id = cloud.frame_id;
+  msg.header.stamp = ros::Time(std::max(0.0, cloud.stamp));
+  sensor_msgs::PointCloud2Modifier mod(msg);
+  mod.setPointCloud2Fields(5, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32,
+                           "z", 1, sensor_msgs::PointField::FLOAT32, "intensity", 1, sensor_msgs::PointField::FLOAT32,
+                           "rgb", 1, sensor_msgs::PointField::FLOAT32);
+  mod.resize(cloud.points.size());
+  msg.is_dense = true;  // only projected (finite) points are kept
+  sensor_msgs::PointCloud2Iterator<float> ix(msg, "x"), iy(msg, "y"), iz(msg, "z"), ii(msg, "intensity"),
+      irgb(msg, "rgb");
+  for (const auto& p : cloud.points) {
+    *ix = p.x; *iy = p.y; *iz = p.z; *ii = p.intensity;
+    const uint32_t packed = (uint32_t(p.r) << 16) | (uint32_t(p.g) << 8) | uint32_t(p.b);
+    std::memcpy(&*irgb, &packed, sizeof(packed));
+    ++ix; ++iy; ++iz; ++ii; ++irgb;
+  }
+  return msg;
+}
+
 Expected<cv::Mat> imageFromMsg(const sensor_msgs::Image& msg) {
   namespace enc = sensor_msgs::image_encodings;
   if (msg.width == 0 || msg.height == 0) return Expected<cv::Mat>::failure("image is empty (0 x 0)");
@@ -206,6 +227,18 @@ Expected<cv::Mat> imageFromMsg(const sensor_msgs::Image& msg) {
   }
   return Expected<cv::Mat>::failure("unsupported image encoding '" + msg.encoding +
                                     "' (supported: mono8, mono16, bgr8, rgb8, bgra8, rgba8, bayer_*)");
+}
+
+Expected<sensor_msgs::Image> imageToMsg(const cv::Mat& image, const std_msgs::Header& header) {
+  namespace enc = sensor_msgs::image_encodings;
+  if (image.empty()) return Expected<sensor_msgs::Image>::failure("image is empty");
+  std::string encoding;
+  if (image.type() == CV_8UC3) encoding = enc::BGR8;
+  else if (image.type() == CV_8UC1) encoding = enc::MONO8;
+  else return Expected<sensor_msgs::Image>::failure("only CV_8UC3 (bgr8) and CV_8UC1 (mono8) images can be sent");
+  sensor_msgs::Image msg;
+  cv_bridge::CvImage(header, encoding, image).toImageMsg(msg);
+  return msg;
 }
 
 LidarBoard toMsg(const LidarBoardFeatures& f) {
