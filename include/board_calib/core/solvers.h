@@ -68,11 +68,13 @@ struct SolverOptions {
   /// Re-assign LiDAR edge point sets to image lines by projection with the current estimate
   /// (fixes views where the two sensors name the edges differently).
   bool edge_reassociation = true;
-  /// LiDAR horizontal step (deg) for the edge-bias correction below; 0 disables it.
+  /// LiDAR horizontal step (deg) for the edge-bias correction below; 0 estimates it from the
+  /// azimuth gaps of the board points along each scan line.
   double lidar_horizontal_resolution_deg = 0.0;
-  /// Shift each LiDAR edge point outward along its scan line by this many horizontal steps
-  /// (per-scan-line extremes lie up to one step inside the true edge: 0.5 removes the mean).
-  double edge_outward_shift_steps = 0.0;
+  /// PBPC: shift each LiDAR edge point outward along its scan line by this many horizontal
+  /// steps (per-scan-line extremes lie up to one step inside the true edge: 0.5 removes the
+  /// mean bias); 0 disables it.
+  double edge_outward_shift_steps = 0.5;
 
   /// MSG pairwise: 1-sigma of a plane normal (deg) and of a plane offset (m); the normal
   /// residual is whitened into metres-equivalent so one loss scale applies to both.
@@ -83,6 +85,9 @@ struct SolverOptions {
   /// sqrt(views), must exceed sin(this angle). Guards "all normals parallel / coplanar".
   double min_normal_spread_deg = 2.0;
   bool compute_covariance = true;
+  /// Observability: well conditioned when the weakest direction's 1 sigma is below this
+  /// (m for translation, rad at a 1 m lever arm for rotation).
+  double observability_max_stddev = 0.02;
 
   std::string validate() const;
 };

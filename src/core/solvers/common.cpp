@@ -1,0 +1,227 @@
+// Names, option validation and the covariance / observability helpers of the solvers.
+#include "internal.h"
+
+#include <board_calib/core/transform.h>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <map>
+#include <sstream>
+
+namespace board_calib {
+
+namespace {
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+}  // namespace
+
+const char* methodName(Method method) {
+  switch (method) {
+    case Method::kPpc: return "ppc";
+    case Method::kPbpc: return "pbpc";
+    case Method::kMsgPair: return "msg";
+  }
+  return "unknown";
+}
+
+Expected<Method> parseMethod(const std::string& name) {
+  const std::string n = lower(name);
+  if (n == "ppc") return Method::kPpc;
+  if (n == "pbpc") return Method::kPbpc;
+  if (n == "msg" || n == "msg_pair") return Method::kMsgPair;
+  return Expected<Method>::failure("unknown method '" + name + "' (expected ppc, pbpc or msg)");
+}
+
+const char* robustLossName(RobustLoss loss) {
+  switch (loss) {
+    case RobustLoss::kNone: return "none";
+    case RobustLoss::kHuber: return "huber";
+    case RobustLoss::kCauchy: return "cauchy";
+    case RobustLoss::kTukey: return "tukey";
+  }
+  return "unknown";
+}
+
+Expected<RobustLoss> parseRobustLoss(const std::string& name) {
+  const std::string n = lower(name);
+  if (n == "none" || n == "") return RobustLoss::kNone;
+  if (n == "huber") return RobustLoss::kHuber;
+  if (n == "cauchy") return RobustLoss::kCauchy;
+  if (n == "tukey") return RobustLoss::kTukey;
+  return Expected<RobustLoss>::failure("unknown robust loss '" + name + "' (expected none, huber, cauchy or tukey)");
+}
+
+const char* pbpcScheduleName(PbpcSchedule schedule) {
+  return schedule == PbpcSchedule::kJoint ? "joint" : "sequential";
+}
+
+Expected<PbpcSchedule> parsePbpcSchedule(const std::string& name) {
+  const std::string n = lower(name);
+  if (n == "joint") return PbpcSchedule::kJoint;
+  if (n == "sequential" || n == "paper") return PbpcSchedule::kSequential;
+  return Expected<PbpcSchedule>::failure("unknown PBPC schedule '" + name + "' (expected joint or sequential)");
+}
+
+std::string SolverOptions::validate() const {
+  auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
+  if (!positive(loss_scale_m)) return "loss_scale_m must be > 0";
+  if (max_iterations < 1) return "max_iterations must be >= 1";
+  if (!positive(function_tolerance) || !positive(gradient_tolerance) || !positive(parameter_tolerance))
+    return "solver tolerances must be > 0";
+  if (num_threads < 1) return "num_threads must be >= 1";
+  if (!std::isfinite(pbpc_line_weight) || pbpc_line_weight <= 0.0) return "pbpc_line_weight must be > 0";
+  if (!std::isfinite(plane_scale_note_threshold) || plane_scale_note_threshold < 0.0)
+    return "plane_scale_note_threshold must be >= 0";
+  if (!std::isfinite(lidar_horizontal_resolution_deg) || lidar_horizontal_resolution_deg < 0.0 ||
+      lidar_horizontal_resolution_deg > 10.0)
+    return "lidar_horizontal_resolution_deg must be in [0, 10]";
+  if (!std::isfinite(edge_outward_shift_steps) || std::abs(edge_outward_shift_steps) > 2.0)
+    return "edge_outward_shift_steps must be in [-2, 2]";
+  if (!positive(msg_normal_sigma_deg) || !positive(msg_offset_sigma_m)) return "msg sigmas must be > 0";
+  if (!std::isfinite(min_normal_spread_deg) || min_normal_spread_deg < 0.0 || min_normal_spread_deg >= 45.0)
+    return "min_normal_spread_deg must be in [0, 45)";
+  if (!positive(observability_max_stddev)) return "observability_max_stddev must be > 0";
+  return "";
+}
+
+std::string RobustnessOptions::validate() const {
+  if (trials < 1) return "trials must be >= 1";
+  if (!std::isfinite(rotation_sigma_deg) || rotation_sigma_deg < 0.0) return "rotation_sigma_deg must be >= 0";
+  if (!std::isfinite(translation_sigma_m) || translation_sigma_m < 0.0) return "translation_sigma_m must be >= 0";
+  if (!std::isfinite(converged_rotation_deg) || converged_rotation_deg <= 0.0)
+    return "converged_rotation_deg must be > 0";
+  if (!std::isfinite(converged_translation_m) || converged_translation_m <= 0.0)
+    return "converged_translation_m must be > 0";
+  return "";
+}
+
+namespace solvers_detail {
+
+double robustWeight(RobustLoss loss, double scale, double s) {
+  const double a2 = scale * scale;
+  switch (loss) {
+    case RobustLoss::kNone: return 1.0;
+    case RobustLoss::kHuber: return s <= a2 ? 1.0 : std::sqrt(a2 / s);
+    case RobustLoss::kCauchy: return 1.0 / (1.0 + s / a2);
+    case RobustLoss::kTukey: {
+      if (s > a2) return 0.0;
+      const double v = 1.0 - s / a2;
+      return v * v;
+    }
+  }
+  return 1.0;
+}
+
+bool sandwichCovariance(const std::vector<LinearisedResidual>& residuals, int dim, RobustLoss loss, double scale,
+                        Matrix6d* covariance) {
+  using Mat7 = Eigen::Matrix<double, 7, 7>;
+  using Vec7 = Eigen::Matrix<double, 7, 1>;
+  Mat7 H = Mat7::Zero();
+  std::map<int, Vec7> scores;
+  for (const LinearisedResidual& res : residuals) {
+    const double w = res.w * robustWeight(loss, scale, res.r * res.r);
+    if (w <= 0.0) continue;
+    H.noalias() += w * res.j * res.j.transpose();
+    auto it = scores.try_emplace(res.cluster, Vec7::Zero()).first;
+    it->second += w * res.r * res.j;
+  }
+  Mat7 B = Mat7::Zero();
+  for (const auto& kv : scores) B.noalias() += kv.second * kv.second.transpose();
+  // Small-sample correction of the cluster-robust estimate.
+  const double clusters = static_cast<double>(scores.size());
+  if (clusters <= dim) return false;
+  B *= clusters / (clusters - dim);
+
+  const Eigen::MatrixXd Hd = H.topLeftCorner(dim, dim);
+  const Eigen::MatrixXd Bd = B.topLeftCorner(dim, dim);
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Hd);
+  if (eig.info() != Eigen::Success) return false;
+  const double max_ev = eig.eigenvalues().maxCoeff();
+  constexpr double kRelativeSingular = 1e-12;
+  if (!(eig.eigenvalues().minCoeff() > kRelativeSingular * max_ev)) return false;
+  const Eigen::MatrixXd H_inv =
+      eig.eigenvectors() * eig.eigenvalues().cwiseInverse().asDiagonal() * eig.eigenvectors().transpose();
+  const Eigen::MatrixXd cov = H_inv * Bd * H_inv;
+  *covariance = cov.topLeftCorner(6, 6);
+  *covariance = 0.5 * (*covariance + covariance->transpose()).eval();
+  return covariance->allFinite();
+}
+
+Observability analyseObservability(const Matrix6d& covariance, bool ok, double max_weak_stddev,
+                                   const std::string& frame_name) {
+  Observability out;
+  if (!ok || !covariance.allFinite()) {
+    out.weakest_description = "unobservable: the information matrix is singular";
+    return out;
+  }
+  Eigen::SelfAdjointEigenSolver<Matrix6d> eig(covariance);
+  const auto& ev = eig.eigenvalues();  // ascending
+  const double largest = std::max(ev(5), 0.0);
+  const double smallest = std::max(ev(0), 0.0);
+  constexpr double kTiny = 1e-30;
+  out.min_eigenvalue = largest > kTiny ? 1.0 / largest : 0.0;
+  out.max_eigenvalue = smallest > kTiny ? 1.0 / smallest : 0.0;
+  out.condition_number = smallest > kTiny ? largest / smallest : std::numeric_limits<double>::infinity();
+  out.weakest_direction = eig.eigenvectors().col(5);
+  const Vector6d& v = out.weakest_direction;
+  const double rot = v.head<3>().squaredNorm();
+  const bool is_rotation = rot > 0.5;
+  const Eigen::Vector3d part = is_rotation ? v.head<3>() : v.tail<3>();
+  int axis = 0;
+  part.cwiseAbs().maxCoeff(&axis);
+  const char* axes = "xyz";
+  std::ostringstream text;
+  text.precision(2);
+  text << std::fixed << (is_rotation ? "rotation about " : "translation along ") << frame_name << " "
+       << axes[axis] << " (share " << part(axis) * part(axis) << " of the direction, 1 sigma ";
+  if (is_rotation)
+    text << std::sqrt(largest) * kDegPerRad << " deg)";
+  else
+    text << std::sqrt(largest) * 1000.0 << " mm)";
+  out.weakest_description = text.str();
+  out.well_conditioned = std::sqrt(largest) <= max_weak_stddev;
+  return out;
+}
+
+PoseStddev stddevFromCovariance(const Matrix6d& covariance) {
+  PoseStddev s;
+  for (int i = 0; i < 3; ++i) {
+    s.rotation_deg(i) = std::sqrt(std::max(covariance(i, i), 0.0)) * kDegPerRad;
+    s.translation_m(i) = std::sqrt(std::max(covariance(i + 3, i + 3), 0.0));
+  }
+  return s;
+}
+
+Expected<Eigen::Matrix3d> alignVectors(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b,
+                                       const std::vector<double>& weights) {
+  Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+  for (size_t i = 0; i < a.size(); ++i) M += weights[i] * a[i] * b[i].transpose();
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::Vector3d sv = svd.singularValues();
+  // Two independent directions fix a rotation; the third singular value may be zero.
+  constexpr double kMinRelativeSecond = 1e-6;
+  if (!(sv(0) > 0.0) || sv(1) < kMinRelativeSecond * sv(0))
+    return Expected<Eigen::Matrix3d>::failure("the normals do not fix a rotation (all parallel)");
+  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
+  D(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
+  return Eigen::Matrix3d(svd.matrixU() * D * svd.matrixV().transpose());
+}
+
+double normalSpreadDeg(const std::vector<Eigen::Vector3d>& normals, int k) {
+  if (normals.empty()) return 0.0;
+  Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
+  for (const auto& n : normals) S += n * n.transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(S / static_cast<double>(normals.size()));
+  // Eigenvalues ascending; descending index k maps to 2 - k. Singular value = sqrt(eigenvalue).
+  const double sv = std::sqrt(std::max(eig.eigenvalues()(2 - k), 0.0));
+  return std::asin(std::min(sv, 1.0)) * kDegPerRad;
+}
+
+}  // namespace solvers_detail
+}  // namespace board_calib

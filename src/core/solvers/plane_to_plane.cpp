@@ -1,0 +1,336 @@
+// MSG-Cal pairwise: plane-to-plane solve between any two sensors, and its LiDAR<->camera use.
+#include "cost_functions.h"
+#include "internal.h"
+
+#include <board_calib/core/transform.h>
+
+#include <cmath>
+#include <sstream>
+
+namespace board_calib {
+
+using solvers_detail::LinearisedResidual;
+
+namespace {
+
+constexpr int kMinCorrespondences = 3;  // three non-coplanar planes fix the translation
+constexpr double kUnitTolerance = 1e-3;
+
+bool validPlane(const Plane& p) {
+  return p.normal.allFinite() && std::isfinite(p.offset) && std::abs(p.normal.norm() - 1.0) <= kUnitTolerance;
+}
+
+// Checks the correspondences; empty when solvable.
+std::string checkCorrespondences(const std::vector<PlaneCorrespondence>& c, const SolverOptions& options) {
+  if (c.size() < static_cast<size_t>(kMinCorrespondences))
+    return "only " + std::to_string(c.size()) + " plane correspondence(s); MSG pairwise needs >= " +
+           std::to_string(kMinCorrespondences) + " non-coplanar board poses";
+  std::vector<Eigen::Vector3d> normals;
+  for (size_t i = 0; i < c.size(); ++i) {
+    if (!validPlane(c[i].in_a) || !validPlane(c[i].in_b))
+      return "plane correspondence " + std::to_string(i) + " (view " + std::to_string(c[i].view_id) +
+             ") has a non-finite plane or a non-unit normal";
+    if (!std::isfinite(c[i].weight) || c[i].weight <= 0.0)
+      return "plane correspondence " + std::to_string(i) + " has a non-positive weight";
+    normals.push_back(c[i].in_a.normal);
+  }
+  const double parallel = solvers_detail::normalSpreadDeg(normals, 1);
+  const double coplanar = solvers_detail::normalSpreadDeg(normals, 2);
+  std::ostringstream text;
+  text.precision(2);
+  text << std::fixed;
+  if (parallel < options.min_normal_spread_deg) {
+    text << "all board normals are parallel (spread " << parallel << " deg < " << options.min_normal_spread_deg
+         << " deg)";
+    return text.str();
+  }
+  if (coplanar < options.min_normal_spread_deg) {
+    text << "the board normals are coplanar (out-of-plane spread " << coplanar << " deg < "
+         << options.min_normal_spread_deg << " deg): plane-to-plane needs non-coplanar normals";
+    return text.str();
+  }
+  return "";
+}
+
+ceres::LossFunction* makeLoss(RobustLoss loss, double scale) {
+  switch (loss) {
+    case RobustLoss::kNone: return nullptr;
+    case RobustLoss::kHuber: return new ceres::HuberLoss(scale);
+    case RobustLoss::kCauchy: return new ceres::CauchyLoss(scale);
+    case RobustLoss::kTukey: return new ceres::TukeyLoss(scale);
+  }
+  return nullptr;
+}
+
+struct PairOutcome {
+  bool usable = false;
+  double cost = 0.0;
+  int iterations = 0;
+  std::string termination, message;
+};
+
+PairOutcome solvePair(const std::vector<PlaneCorrespondence>& c, RobustLoss loss, const SolverOptions& options,
+                      double* q, double* t) {
+  ceres::Problem problem;
+  problem.AddParameterBlock(q, 4, new ceres::EigenQuaternionManifold());
+  problem.AddParameterBlock(t, 3);
+  // Whitening: normal residuals (unit-less) become metres-equivalent via sigma_d / sigma_n.
+  const double normal_weight = options.msg_offset_sigma_m / (options.msg_normal_sigma_deg * kRadPerDeg);
+  for (const auto& pc : c) {
+    const double w = pc.weight;
+    problem.AddResidualBlock(solvers_detail::NormalAlignmentCost::Create(pc.in_a.normal, pc.in_b.normal, normal_weight),
+                             new ceres::ScaledLoss(makeLoss(loss, options.loss_scale_m), w, ceres::TAKE_OWNERSHIP), q);
+    problem.AddResidualBlock(solvers_detail::PlaneOffsetCost::Create(pc.in_a.normal, pc.in_a.offset, pc.in_b.offset),
+                             new ceres::ScaledLoss(makeLoss(loss, options.loss_scale_m), w, ceres::TAKE_OWNERSHIP), t);
+  }
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::DENSE_QR;
+  so.max_num_iterations = options.max_iterations;
+  so.function_tolerance = options.function_tolerance;
+  so.gradient_tolerance = options.gradient_tolerance;
+  so.parameter_tolerance = options.parameter_tolerance;
+  so.num_threads = options.num_threads;
+  so.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  PairOutcome out;
+  out.usable = summary.IsSolutionUsable();
+  out.cost = summary.final_cost;
+  out.iterations = static_cast<int>(summary.iterations.size());
+  out.termination = ceres::TerminationTypeToString(summary.termination_type);
+  out.message = summary.message;
+  return out;
+}
+
+}  // namespace
+
+std::vector<PlaneCorrespondence> planeCorrespondences(const std::vector<View>& views) {
+  std::vector<PlaneCorrespondence> out;
+  for (const View& v : views) {
+    if (!v.camera.found || !v.lidar.found) continue;
+    PlaneCorrespondence pc;
+    pc.in_a = v.camera.plane;
+    pc.in_b = v.lidar.plane;
+    pc.view_id = v.id;
+    out.push_back(pc);
+  }
+  return out;
+}
+
+Expected<Eigen::Isometry3d> closedFormPlaneToPlane(const std::vector<PlaneCorrespondence>& correspondences,
+                                                   const SolverOptions& options) {
+  const std::string why = checkCorrespondences(correspondences, options);
+  if (!why.empty()) return Expected<Eigen::Isometry3d>::failure(why);
+  std::vector<Eigen::Vector3d> a, b;
+  std::vector<double> w;
+  for (const auto& c : correspondences) {
+    a.push_back(c.in_a.normal);
+    b.push_back(c.in_b.normal);
+    w.push_back(c.weight);
+  }
+  auto R = solvers_detail::alignVectors(a, b, w);
+  if (!R) return Expected<Eigen::Isometry3d>::failure(R.error());
+  // n_a . t = d_a - d_b (n_a . R n_b) in least squares.
+  Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  for (const auto& c : correspondences) {
+    A += c.weight * c.in_a.normal * c.in_a.normal.transpose();
+    rhs += c.weight * c.in_a.normal * (c.in_a.offset - c.in_b.offset * c.in_a.normal.dot(*R * c.in_b.normal));
+  }
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = *R;
+  T.translation() = A.ldlt().solve(rhs);
+  return T;
+}
+
+PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& correspondences,
+                                   const SolverOptions& options, const std::optional<Eigen::Isometry3d>& initial_guess) {
+  PairwiseSolution sol;
+  const std::string invalid = options.validate();
+  if (!invalid.empty()) {
+    sol.reason = "invalid solver options: " + invalid;
+    return sol;
+  }
+  const std::string why = checkCorrespondences(correspondences, options);
+  if (!why.empty()) {
+    sol.reason = why;
+    return sol;
+  }
+  if (initial_guess) {
+    if (!initial_guess->matrix().allFinite()) {
+      sol.reason = "the initial guess is not finite";
+      return sol;
+    }
+    sol.initial_guess = *initial_guess;
+  } else {
+    auto guess = closedFormPlaneToPlane(correspondences, options);
+    if (!guess) {
+      sol.reason = guess.error();
+      return sol;
+    }
+    sol.initial_guess = *guess;
+    sol.used_closed_form_init = true;
+  }
+  Eigen::Quaterniond q0(sol.initial_guess.linear());
+  q0.normalize();
+  double q[4] = {q0.x(), q0.y(), q0.z(), q0.w()};
+  double t[3] = {sol.initial_guess.translation().x(), sol.initial_guess.translation().y(),
+                 sol.initial_guess.translation().z()};
+  PairOutcome outcome;
+  if (options.warm_start_unrobust && options.loss != RobustLoss::kNone) {
+    outcome = solvePair(correspondences, RobustLoss::kNone, options, q, t);
+    sol.iterations += outcome.iterations;
+  }
+  if (!(options.warm_start_unrobust && options.loss != RobustLoss::kNone) || outcome.usable) {
+    outcome = solvePair(correspondences, options.loss, options, q, t);
+    sol.iterations += outcome.iterations;
+  }
+  sol.final_cost = outcome.cost;
+  sol.termination = outcome.termination;
+  sol.a_T_b = Eigen::Isometry3d::Identity();
+  sol.a_T_b.linear() = Eigen::Quaterniond(q[3], q[0], q[1], q[2]).normalized().toRotationMatrix();
+  sol.a_T_b.translation() = Eigen::Vector3d(t[0], t[1], t[2]);
+  if (!outcome.usable || !sol.a_T_b.matrix().allFinite()) {
+    sol.reason = "Ceres solution not usable: " + outcome.message;
+    return sol;
+  }
+  sol.correspondences_used = static_cast<int>(correspondences.size());
+
+  // Residual figures and the linearisation for the covariance (left rotation perturbation:
+  // d(R n_b)/d(theta) = -[R n_b]x, so the normal residual n_a - R n_b has Jacobian [R n_b]x).
+  const Eigen::Matrix3d R = sol.a_T_b.linear();
+  const double normal_weight = options.msg_offset_sigma_m / (options.msg_normal_sigma_deg * kRadPerDeg);
+  double angle_sq = 0.0, offset_sq = 0.0;
+  std::vector<LinearisedResidual> lin;
+  int cluster = 0;
+  for (const auto& c : correspondences) {
+    const Eigen::Vector3d rnb = R * c.in_b.normal;
+    const Eigen::Vector3d rn = normal_weight * (c.in_a.normal - rnb);
+    const double angle = std::atan2(c.in_a.normal.cross(rnb).norm(), c.in_a.normal.dot(rnb));
+    angle_sq += angle * angle;
+    const double ro = c.in_a.normal.dot(sol.a_T_b.translation()) + c.in_b.offset - c.in_a.offset;
+    offset_sq += ro * ro;
+    Eigen::Matrix3d skew;
+    skew << 0, -rnb.z(), rnb.y(), rnb.z(), 0, -rnb.x(), -rnb.y(), rnb.x(), 0;
+    for (int i = 0; i < 3; ++i) {
+      LinearisedResidual lr;
+      lr.r = rn(i);
+      lr.j.head<3>() = normal_weight * skew.row(i).transpose();
+      lr.w = c.weight;
+      lr.cluster = cluster;
+      lin.push_back(lr);
+    }
+    LinearisedResidual lr;
+    lr.r = ro;
+    lr.j.segment<3>(3) = c.in_a.normal;
+    lr.w = c.weight;
+    lr.cluster = cluster;
+    lin.push_back(lr);
+    ++cluster;
+  }
+  const double n = static_cast<double>(correspondences.size());
+  sol.normal_rms_deg = std::sqrt(angle_sq / n) * kDegPerRad;
+  sol.offset_rms_mm = 1000.0 * std::sqrt(offset_sq / n);
+  if (options.compute_covariance) {
+    const bool cov_ok =
+        solvers_detail::sandwichCovariance(lin, 6, options.loss, options.loss_scale_m, &sol.covariance);
+    if (!cov_ok) sol.covariance.setConstant(std::numeric_limits<double>::infinity());
+    sol.stddev = solvers_detail::stddevFromCovariance(sol.covariance);
+    sol.observability = solvers_detail::analyseObservability(sol.covariance, cov_ok, options.observability_max_stddev, "a");
+    if (!sol.observability.well_conditioned)
+      sol.notes.push_back("weakly observable: " + sol.observability.weakest_description);
+  }
+  sol.success = true;
+  return sol;
+}
+
+CalibrationSolution calibrateMsgPair(const std::vector<View>& views, const SolverOptions& options,
+                                     const std::optional<Eigen::Isometry3d>& initial_guess) {
+  CalibrationSolution sol;
+  sol.method = Method::kMsgPair;
+  std::vector<PlaneCorrespondence> correspondences;
+  for (const View& v : views) {
+    std::string why;
+    if (!v.camera.found) why = "camera found no board";
+    else if (!v.lidar.found) why = "LiDAR found no board";
+    else if (!validPlane(v.camera.plane)) why = "camera board plane is not finite or its normal not unit";
+    else if (!validPlane(v.lidar.plane)) why = "LiDAR board plane is not finite or its normal not unit";
+    ViewResidual vr;
+    vr.view_id = v.id;
+    vr.used = why.empty();
+    vr.reason = why;
+    sol.views.push_back(vr);
+    if (!why.empty()) {
+      sol.notes.push_back("view " + std::to_string(v.id) + " skipped: " + why);
+      continue;
+    }
+    PlaneCorrespondence pc;
+    pc.in_a = v.camera.plane;
+    pc.in_b = v.lidar.plane;
+    pc.view_id = v.id;
+    correspondences.push_back(pc);
+  }
+  const PairwiseSolution pair = solvePlaneToPlane(correspondences, options, initial_guess);
+  sol.camera_T_lidar = pair.a_T_b;
+  sol.initial_guess = pair.initial_guess;
+  sol.used_closed_form_init = pair.used_closed_form_init;
+  sol.final_cost = pair.final_cost;
+  sol.iterations = pair.iterations;
+  sol.termination = pair.termination;
+  sol.covariance = pair.covariance;
+  sol.stddev = pair.stddev;
+  sol.observability = pair.observability;
+  sol.notes.insert(sol.notes.end(), pair.notes.begin(), pair.notes.end());
+  if (!pair.success) {
+    sol.reason = pair.reason;
+    return sol;
+  }
+  sol.views_used = pair.correspondences_used;
+  // Quality figures on the raw features, as for the other methods.
+  const Eigen::Isometry3d& T = sol.camera_T_lidar;
+  double mlre_sum = 0.0, plane_sq = 0.0;
+  int mlre_count = 0, plane_count = 0;
+  for (size_t i = 0; i < views.size(); ++i) {
+    ViewResidual& vr = sol.views[i];
+    if (!vr.used) continue;
+    const View& v = views[i];
+    std::vector<double> r;
+    double sq = 0.0, abs_sum = 0.0, max_abs = 0.0;
+    for (const auto& p : v.lidar.board_points) {
+      const double d = v.camera.plane.signedDistance(T * p);
+      if (!std::isfinite(d)) continue;
+      sq += d * d;
+      abs_sum += std::abs(d);
+      max_abs = std::max(max_abs, std::abs(d));
+      r.push_back(d);
+    }
+    vr.plane.count = static_cast<int>(r.size());
+    if (!r.empty()) {
+      vr.plane.rms_m = std::sqrt(sq / r.size());
+      vr.plane.mean_abs_m = abs_sum / r.size();
+      vr.plane.max_abs_m = max_abs;
+    }
+    plane_sq += sq;
+    plane_count += vr.plane.count;
+    double view_sum = 0.0;
+    int view_count = 0;
+    for (int j = 0; j < kNumEdges; ++j) {
+      vr.edges[j].lidar_edge = j;
+      const auto e = edgeLineReprojectionErrorPx(v, j, T);
+      if (!e) continue;
+      vr.edges[j].mlre_px = e;
+      const int count = static_cast<int>(v.lidar.edge_points[j].size());
+      view_sum += *e * count;
+      view_count += count;
+    }
+    if (view_count > 0) vr.mlre_px = view_sum / view_count;
+    mlre_sum += view_sum;
+    mlre_count += view_count;
+  }
+  if (mlre_count > 0) sol.mlre_px = mlre_sum / mlre_count;
+  sol.plane_rms_mm = plane_count ? 1000.0 * std::sqrt(plane_sq / plane_count) : 0.0;
+  sol.success = true;
+  return sol;
+}
+
+}  // namespace board_calib
