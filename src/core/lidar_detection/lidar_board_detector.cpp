@@ -1,0 +1,767 @@
+#include <board_calib/core/lidar_board_detector.h>
+
+#include "geometry_2d.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <numeric>
+#include <unordered_map>
+#include <unordered_set>
+
+namespace board_calib {
+
+using lidar_detail::fitLineRobust;
+using lidar_detail::intersectLines;
+using lidar_detail::LineFit2D;
+using lidar_detail::PlaneFit;
+using lidar_detail::PlaneStats;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kRadPerDeg = kPi / 180.0;
+// Voxel indices are packed into one 64-bit key, 21 bits per axis.
+constexpr int64_t kVoxelIndexOffset = 1 << 20;
+constexpr int64_t kVoxelIndexBits = 21;
+// Covariance of a uniform segment of length a is a^2/12: sqrt(12 lambda) estimates a side.
+constexpr double kUniformSideFromVariance = 12.0;
+// A region whose covariance says it is this many times larger than the board is not scored.
+constexpr double kPrefilterExtentFactor = 2.0;
+// Weights of the candidate score (lower is better): size terms are |log(ratio)|.
+constexpr double kFillWeight = 0.5;
+constexpr double kRmsWeight = 0.2;
+// Support = points * exp(-kShapeErrorScale * shape error): 0.25 more shape error costs a factor e.
+constexpr double kShapeErrorScale = 4.0;
+// The plane's up direction becomes undefined when the board is (nearly) horizontal.
+constexpr double kMaxNormalUpCosine = 0.97;
+// Two candidates closer than this are parts of one board, not two boards.
+constexpr double kSameBoardDistanceM = 0.5;
+// Points sampled for the convex hull of a large candidate.
+constexpr size_t kMaxHullPoints = 4000;
+// Re-assignment rounds between the two edges of one side.
+constexpr int kEdgeAssignmentRounds = 3;
+
+std::string fmt(const char* format, double a, double b = 0, double c = 0, double d = 0) {
+  char buf[256];
+  std::snprintf(buf, sizeof(buf), format, a, b, c, d);
+  return buf;
+}
+
+int64_t voxelKey(int64_t ix, int64_t iy, int64_t iz) {
+  return ((ix + kVoxelIndexOffset) << (2 * kVoxelIndexBits)) | ((iy + kVoxelIndexOffset) << kVoxelIndexBits) |
+         (iz + kVoxelIndexOffset);
+}
+
+struct Voxel {
+  int ix = 0, iy = 0, iz = 0;
+  PlaneStats stats;
+  int first = 0, count = 0;  // range in the voxel-sorted point index array
+  int region = -1;
+};
+
+struct ValidPoint {
+  Eigen::Vector3d p;
+  int cloud_index = 0;
+};
+
+struct Region {
+  std::vector<int> voxels;
+  PlaneStats stats;
+};
+
+struct Candidate {
+  LidarBoardCandidate info;
+  int region = -1;
+};
+
+// Azimuth difference wrapped into (-pi, pi].
+double wrapAngle(double a) {
+  while (a > kPi) a -= 2 * kPi;
+  while (a <= -kPi) a += 2 * kPi;
+  return a;
+}
+
+LidarBoardDetection failure(LidarBoardDetection d, LidarDetectionCode code, const std::string& reason) {
+  d.code = code;
+  d.features.found = false;
+  d.features.reason = reason;
+  return d;
+}
+
+}  // namespace
+
+std::string LidarBoardDetectorOptions::validate() const {
+  if (!(min_range_m >= 0.0)) return "min_range_m must be >= 0";
+  if (!(max_range_m > min_range_m)) return "max_range_m must be > min_range_m";
+  if (use_roi && !(roi.min.array() < roi.max.array()).all()) return "roi.min must be < roi.max on every axis";
+  if (!(voxel_size_m > 0.01 && voxel_size_m < 5.0)) return "voxel_size_m must be in (0.01, 5) m";
+  if (min_voxel_points < 1) return "min_voxel_points must be >= 1";
+  if (!(max_voxel_thickness_m > 0.0)) return "max_voxel_thickness_m must be > 0";
+  if (!(max_voxel_offset_m > 0.0)) return "max_voxel_offset_m must be > 0";
+  if (!(min_seed_spread_m >= 0.0)) return "min_seed_spread_m must be >= 0";
+  if (min_board_points < 3) return "min_board_points must be >= 3";
+  if (!(min_size_ratio > 0.0 && min_size_ratio <= 1.0)) return "min_size_ratio must be in (0, 1]";
+  if (!(max_size_ratio >= 1.0)) return "max_size_ratio must be >= 1";
+  if (!(min_fill_ratio >= 0.0 && min_fill_ratio <= 1.0)) return "min_fill_ratio must be in [0, 1]";
+  if (!(max_candidate_rms_m > 0.0)) return "max_candidate_rms_m must be > 0";
+  if (!(ambiguity_ratio > 0.0 && ambiguity_ratio <= 1.0)) return "ambiguity_ratio must be in (0, 1]";
+  if (!(plane_distance_threshold_m > 0.0)) return "plane_distance_threshold_m must be > 0";
+  if (ransac_iterations < 1) return "ransac_iterations must be >= 1";
+  if (!(elevation_gap_deg > 0.0)) return "elevation_gap_deg must be > 0";
+  if (min_points_per_scan_line < 2) return "min_points_per_scan_line must be >= 2";
+  if (min_edge_points < 2) return "min_edge_points must be >= 2";
+  if (!(edge_inlier_threshold_m > 0.0)) return "edge_inlier_threshold_m must be > 0";
+  if (!(max_edge_rms_m > 0.0)) return "max_edge_rms_m must be > 0";
+  if (!(max_corner_angle_error_deg > 0.0 && max_corner_angle_error_deg < 90.0))
+    return "max_corner_angle_error_deg must be in (0, 90)";
+  if (!(size_doubt_ratio >= 0.0)) return "size_doubt_ratio must be >= 0";
+  return {};
+}
+
+const char* lidarDetectionCodeName(LidarDetectionCode code) {
+  switch (code) {
+    case LidarDetectionCode::kFound: return "found";
+    case LidarDetectionCode::kInvalidOptions: return "invalid options";
+    case LidarDetectionCode::kInvalidTarget: return "invalid target";
+    case LidarDetectionCode::kEmptyCloud: return "empty cloud";
+    case LidarDetectionCode::kNoValidPoints: return "no valid points";
+    case LidarDetectionCode::kNoPlane: return "no plane";
+    case LidarDetectionCode::kWrongSize: return "wrong size";
+    case LidarDetectionCode::kAmbiguous: return "ambiguous";
+    case LidarDetectionCode::kTooFewPoints: return "too few points";
+  }
+  return "unknown";
+}
+
+namespace {
+
+// ------------------------------------------------------------------------------------------
+// Stage 1: valid points.
+// ------------------------------------------------------------------------------------------
+std::vector<ValidPoint> validPoints(const LidarCloud& cloud, const LidarBoardDetectorOptions& o,
+                                    const BackgroundModel* background) {
+  std::vector<uint8_t> foreground;
+  if (background && !background->empty()) foreground = background->foregroundMask(cloud);
+  std::vector<ValidPoint> out;
+  out.reserve(cloud.points.size());
+  const double min_r2 = o.min_range_m * o.min_range_m, max_r2 = o.max_range_m * o.max_range_m;
+  for (size_t i = 0; i < cloud.points.size(); ++i) {
+    const auto& q = cloud.points[i];
+    if (!std::isfinite(q.x) || !std::isfinite(q.y) || !std::isfinite(q.z)) continue;
+    const Eigen::Vector3d p(q.x, q.y, q.z);
+    const double r2 = p.squaredNorm();
+    if (r2 < min_r2 || r2 > max_r2) continue;
+    if (o.use_roi && !o.roi.contains(p)) continue;
+    if (!foreground.empty() && !foreground[i]) continue;
+    out.push_back({p, static_cast<int>(i)});
+  }
+  return out;
+}
+
+// ------------------------------------------------------------------------------------------
+// Stage 2: voxels with plane statistics, planar region growing.
+// ------------------------------------------------------------------------------------------
+struct VoxelGrid {
+  std::vector<Voxel> voxels;
+  std::unordered_map<int64_t, int> index;
+  std::vector<int> sorted_points;  // point indices grouped by voxel
+
+  int find(int ix, int iy, int iz) const {
+    const auto it = index.find(voxelKey(ix, iy, iz));
+    return it == index.end() ? -1 : it->second;
+  }
+};
+
+VoxelGrid buildVoxels(const std::vector<ValidPoint>& pts, double size) {
+  VoxelGrid g;
+  g.index.reserve(pts.size() / 4 + 16);
+  std::vector<int> voxel_of(pts.size());
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const auto& p = pts[i].p;
+    const int ix = static_cast<int>(std::floor(p.x() / size));
+    const int iy = static_cast<int>(std::floor(p.y() / size));
+    const int iz = static_cast<int>(std::floor(p.z() / size));
+    const auto ins = g.index.emplace(voxelKey(ix, iy, iz), static_cast<int>(g.voxels.size()));
+    if (ins.second) {
+      Voxel v;
+      v.ix = ix;
+      v.iy = iy;
+      v.iz = iz;
+      g.voxels.push_back(v);
+    }
+    Voxel& v = g.voxels[ins.first->second];
+    v.stats.add(p);
+    v.count++;
+    voxel_of[i] = ins.first->second;
+  }
+  // Counting sort of the point indices by voxel.
+  int offset = 0;
+  for (auto& v : g.voxels) {
+    v.first = offset;
+    offset += v.count;
+    v.count = 0;
+  }
+  g.sorted_points.resize(pts.size());
+  for (size_t i = 0; i < pts.size(); ++i) {
+    Voxel& v = g.voxels[voxel_of[i]];
+    g.sorted_points[v.first + v.count++] = static_cast<int>(i);
+  }
+  return g;
+}
+
+std::vector<Region> growPlanarRegions(VoxelGrid& g, const LidarBoardDetectorOptions& o) {
+  // Seeds: voxels whose points spread in 2D (not a single scan line) and are thin.
+  std::vector<std::pair<int, int>> seeds;  // (points, voxel)
+  std::vector<PlaneFit> fits(g.voxels.size());
+  for (size_t i = 0; i < g.voxels.size(); ++i) {
+    const Voxel& v = g.voxels[i];
+    if (v.stats.n < o.min_voxel_points) continue;
+    fits[i] = lidar_detail::fitPlane(v.stats);
+    const auto& ev = fits[i].eigenvalues;
+    if (std::sqrt(ev[0]) < o.max_voxel_thickness_m && std::sqrt(ev[1]) > o.min_seed_spread_m)
+      seeds.emplace_back(v.stats.n, static_cast<int>(i));
+  }
+  std::sort(seeds.begin(), seeds.end(), std::greater<>());
+
+  std::vector<Region> regions;
+  std::vector<int> queue;
+  for (const auto& seed : seeds) {
+    if (g.voxels[seed.second].region >= 0) continue;
+    Region r;
+    const int id = static_cast<int>(regions.size());
+    r.voxels.push_back(seed.second);
+    r.stats = g.voxels[seed.second].stats;
+    g.voxels[seed.second].region = id;
+    PlaneFit plane = fits[seed.second];
+    queue.assign(1, seed.second);
+    size_t head = 0;
+    int added_since_fit = 0;
+    while (head < queue.size()) {
+      const Voxel cur = g.voxels[queue[head++]];
+      for (int dx = -1; dx <= 1; ++dx)
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dz = -1; dz <= 1; ++dz) {
+            if (!dx && !dy && !dz) continue;
+            const int q = g.find(cur.ix + dx, cur.iy + dy, cur.iz + dz);
+            if (q < 0 || g.voxels[q].region >= 0) continue;
+            const Voxel& nv = g.voxels[q];
+            const Eigen::Vector3d n = plane.normal();
+            const double offset = std::abs(n.dot(nv.stats.mean()) - plane.offset());
+            const double thickness = std::sqrt(std::max(0.0, n.dot(nv.stats.covariance() * n)));
+            if (offset > o.max_voxel_offset_m || thickness > o.max_voxel_thickness_m) continue;
+            g.voxels[q].region = id;
+            r.voxels.push_back(q);
+            r.stats.add(nv.stats);
+            queue.push_back(q);
+            // Refit often while the region is small (its normal is still uncertain).
+            if (++added_since_fit >= std::max<int>(1, static_cast<int>(r.voxels.size()) / 8)) {
+              plane = lidar_detail::fitPlane(r.stats);
+              added_since_fit = 0;
+            }
+          }
+    }
+    regions.push_back(std::move(r));
+  }
+  return regions;
+}
+
+// In-plane basis of a plane: u "right" as seen from the sensor, v "up" (sensor +z projected).
+struct PlaneFrame {
+  Eigen::Vector3d origin, n, u, v;
+  Eigen::Vector2d project(const Eigen::Vector3d& p) const {
+    const Eigen::Vector3d d = p - origin;
+    return {d.dot(u), d.dot(v)};
+  }
+  Eigen::Vector3d lift(const Eigen::Vector2d& q) const { return origin + q.x() * u + q.y() * v; }
+};
+
+bool makePlaneFrame(const Eigen::Vector3d& normal, const Eigen::Vector3d& point, PlaneFrame* f) {
+  f->n = normal;
+  f->origin = point;
+  Eigen::Vector3d up = Eigen::Vector3d::UnitZ() - normal * normal.z();
+  const bool good = std::abs(normal.z()) < kMaxNormalUpCosine;
+  if (!good) {
+    // Horizontal board: any in-plane basis serves the size checks.
+    up = normal.unitOrthogonal();
+  }
+  f->v = up.normalized();
+  f->u = normal.cross(f->v).normalized();
+  return good;
+}
+
+Candidate scoreRegion(const Region& r, int region_id, const VoxelGrid& g, const std::vector<ValidPoint>& pts,
+                      const Target& target, const LidarBoardDetectorOptions& o) {
+  Candidate c;
+  c.region = region_id;
+  auto& info = c.info;
+  const PlaneFit fit = lidar_detail::fitPlane(r.stats);
+  info.centroid = fit.centroid;
+  info.num_points = r.stats.n;
+  info.plane.normal = fit.normal();
+  info.plane.offset = fit.offset();
+  if (info.plane.offset < 0) {
+    info.plane.normal = -info.plane.normal;
+    info.plane.offset = -info.plane.offset;
+  }
+  info.rms_m = std::sqrt(fit.eigenvalues[0]);
+  info.score = -1.0;
+  const double big_side = std::max(target.width, target.height);
+  const double small_side = std::min(target.width, target.height);
+  if (r.stats.n < o.min_board_points) {
+    info.rejected_because = "too few points (" + std::to_string(r.stats.n) + ")";
+    return c;
+  }
+  // Cheap extent check from the covariance before any hull.
+  const double extent_big = std::sqrt(kUniformSideFromVariance * fit.eigenvalues[2]);
+  info.rectangle_m = {extent_big, std::sqrt(kUniformSideFromVariance * fit.eigenvalues[1])};
+  if (extent_big > kPrefilterExtentFactor * o.max_size_ratio * big_side) {
+    info.rejected_because = fmt("far too large (about %.2f m across)", extent_big);
+    return c;
+  }
+  PlaneFrame frame;
+  makePlaneFrame(info.plane.normal, fit.centroid, &frame);
+  Points2 projected;
+  projected.reserve(std::min<size_t>(r.stats.n, kMaxHullPoints));
+  const size_t stride = std::max<size_t>(1, r.stats.n / kMaxHullPoints);
+  size_t k = 0;
+  for (int vi : r.voxels) {
+    const Voxel& v = g.voxels[vi];
+    for (int j = 0; j < v.count; ++j, ++k)
+      if (k % stride == 0) projected.push_back(frame.project(pts[g.sorted_points[v.first + j]].p));
+  }
+  const Points2 hull = lidar_detail::convexHull(projected);
+  info.fill_ratio = lidar_detail::polygonArea(hull) / (target.width * target.height);
+  // Two size estimates: the hull's min-area rectangle (exact for a clean board, inflated by a
+  // hand or an arm touching it) and the second moments (robust to such appendages, biased
+  // where the beams are unevenly spaced, e.g. VLP-32C). The board needs one to fit.
+  const Eigen::Vector2d moments = info.rectangle_m;
+  const Eigen::Vector2d hull_rect = lidar_detail::minAreaRectangle(hull);
+  auto sizeError = [&](const Eigen::Vector2d& sides) {
+    return std::abs(std::log(std::max(1e-6, sides.x()) / big_side)) +
+           std::abs(std::log(std::max(1e-6, sides.y()) / small_side));
+  };
+  auto sizeOk = [&](const Eigen::Vector2d& sides) {
+    const double rb = sides.x() / big_side, rs = sides.y() / small_side;
+    return rb >= o.min_size_ratio && rs >= o.min_size_ratio && rb <= o.max_size_ratio && rs <= o.max_size_ratio;
+  };
+  const bool moments_ok = sizeOk(moments), hull_ok = sizeOk(hull_rect);
+  info.rectangle_m = (hull_ok && (!moments_ok || sizeError(hull_rect) <= sizeError(moments))) ? hull_rect : moments;
+  if (!moments_ok && !hull_ok) {
+    const bool large = hull_rect.x() > o.max_size_ratio * big_side || hull_rect.y() > o.max_size_ratio * small_side;
+    info.rectangle_m = hull_rect;
+    info.rejected_because = fmt(large ? "too large (%.2f x %.2f m)" : "too small (%.2f x %.2f m)", hull_rect.x(),
+                                hull_rect.y());
+    return c;
+  }
+  if (info.fill_ratio < o.min_fill_ratio) {
+    info.rejected_because = fmt("not rectangular enough (hull fills %.0f%% of the board)", 100 * info.fill_ratio);
+    return c;
+  }
+  if (info.rms_m > o.max_candidate_rms_m) {
+    info.rejected_because = fmt("not flat (RMS %.3f m)", info.rms_m);
+    return c;
+  }
+  const double shape_error = sizeError(info.rectangle_m) +
+                             kFillWeight * std::abs(1.0 - std::min(1.0, info.fill_ratio)) +
+                             kRmsWeight * info.rms_m / o.max_candidate_rms_m;
+  // Support: the held board is near the sensor and densely sampled, so point count weighs as
+  // much as shape (a far board-sized door or cabinet has a tenth of its points).
+  info.score = info.num_points * std::exp(-kShapeErrorScale * shape_error);
+  return c;
+}
+
+// ------------------------------------------------------------------------------------------
+// Stage 3: plane refinement (RANSAC seeded from the region, least squares on the inliers).
+// ------------------------------------------------------------------------------------------
+struct RefinedPlane {
+  Plane plane;
+  std::vector<int> inliers;  // indices into the valid points
+  double rms = 0.0;
+};
+
+RefinedPlane refinePlane(const std::vector<int>& region_points, const std::vector<int>& gathered,
+                         const std::vector<ValidPoint>& pts, const LidarBoardDetectorOptions& o, std::mt19937& rng) {
+  RefinedPlane best;
+  const double thr = o.plane_distance_threshold_m;
+  std::uniform_int_distribution<size_t> pick(0, region_points.size() - 1);
+  Eigen::Vector3d best_n = Eigen::Vector3d::UnitX();
+  double best_d = 0.0;
+  size_t best_count = 0;
+  for (int it = 0; it < o.ransac_iterations; ++it) {
+    const auto& a = pts[region_points[pick(rng)]].p;
+    const auto& b = pts[region_points[pick(rng)]].p;
+    const auto& c = pts[region_points[pick(rng)]].p;
+    Eigen::Vector3d n = (b - a).cross(c - a);
+    if (n.norm() < 1e-9) continue;
+    n.normalize();
+    const double d = n.dot(a);
+    size_t count = 0;
+    for (int i : gathered) count += std::abs(n.dot(pts[i].p) - d) < thr;
+    if (count > best_count) {
+      best_count = count;
+      best_n = n;
+      best_d = d;
+    }
+  }
+  // Least squares on the inliers, twice (the inlier set moves with the plane).
+  for (int round = 0; round < 2; ++round) {
+    PlaneStats s;
+    std::vector<int> inliers;
+    for (int i : gathered)
+      if (std::abs(best_n.dot(pts[i].p) - best_d) < thr) {
+        s.add(pts[i].p);
+        inliers.push_back(i);
+      }
+    if (s.n < 3) break;
+    const PlaneFit f = lidar_detail::fitPlane(s);
+    best_n = f.normal();
+    best_d = f.offset();
+    best.inliers = std::move(inliers);
+  }
+  if (best_d < 0) {
+    best_n = -best_n;
+    best_d = -best_d;
+  }
+  best.plane.normal = best_n;
+  best.plane.offset = best_d;
+  double sum_sq = 0.0;
+  for (int i : best.inliers) sum_sq += std::pow(best.plane.signedDistance(pts[i].p), 2);
+  best.rms = best.inliers.empty() ? 0.0 : std::sqrt(sum_sq / best.inliers.size());
+  return best;
+}
+
+// ------------------------------------------------------------------------------------------
+// Stage 4: scan lines and edges.
+// ------------------------------------------------------------------------------------------
+std::vector<int> scanLines(const LidarCloud& cloud, const std::vector<int>& board, const std::vector<ValidPoint>& pts,
+                           const LidarBoardDetectorOptions& o, std::string* source) {
+  std::vector<int> line(board.size(), -1);
+  bool rings_ok = cloud.has_ring;
+  for (size_t k = 0; k < board.size() && rings_ok; ++k) rings_ok = cloud.points[pts[board[k]].cloud_index].ring >= 0;
+  if (rings_ok) {
+    *source = "ring";
+    for (size_t k = 0; k < board.size(); ++k) line[k] = cloud.points[pts[board[k]].cloud_index].ring;
+    return line;
+  }
+  if (cloud.organized() && cloud.width > 0) {
+    *source = "row";
+    for (size_t k = 0; k < board.size(); ++k) line[k] = pts[board[k]].cloud_index / cloud.width;
+    return line;
+  }
+  // Beams of a spinning LiDAR have fixed elevations: cluster the elevation angles.
+  *source = "elevation";
+  std::vector<std::pair<double, int>> elev(board.size());
+  for (size_t k = 0; k < board.size(); ++k) {
+    const auto& p = pts[board[k]].p;
+    elev[k] = {std::atan2(p.z(), std::hypot(p.x(), p.y())), static_cast<int>(k)};
+  }
+  std::sort(elev.begin(), elev.end());
+  const double gap = o.elevation_gap_deg * kRadPerDeg;
+  int id = 0;
+  for (size_t k = 0; k < elev.size(); ++k) {
+    if (k > 0 && elev[k].first - elev[k - 1].first > gap) ++id;
+    line[elev[k].second] = id;
+  }
+  return line;
+}
+
+struct SideFit {
+  LineFit2D upper, lower;
+  std::vector<int> upper_members, lower_members;  // indices into the side's points
+};
+
+// Splits the extremes of one side (left or right) into an upper and a lower edge and fits both.
+// `outward` is -1 for the left side (smaller u), +1 for the right side.
+SideFit fitSide(const Points2& side, double outward, const LidarBoardDetectorOptions& o, std::mt19937& rng) {
+  SideFit s;
+  if (side.size() < 2) return s;
+  // The side's corner is its most outward point: above it the upper edge, below it the lower.
+  size_t corner = 0;
+  for (size_t i = 1; i < side.size(); ++i)
+    if (outward * side[i].x() > outward * side[corner].x()) corner = i;
+  std::vector<int> label(side.size(), -1);  // 0 upper, 1 lower
+  for (size_t i = 0; i < side.size(); ++i)
+    if (i != corner) label[i] = side[i].y() > side[corner].y() ? 0 : 1;
+  for (int round = 0; round < kEdgeAssignmentRounds; ++round) {
+    Points2 up, lo;
+    for (size_t i = 0; i < side.size(); ++i) {
+      if (label[i] == 0) up.push_back(side[i]);
+      if (label[i] == 1) lo.push_back(side[i]);
+    }
+    s.upper = fitLineRobust(up, o.edge_inlier_threshold_m, o.ransac_iterations, rng);
+    s.lower = fitLineRobust(lo, o.edge_inlier_threshold_m, o.ransac_iterations, rng);
+    if (!s.upper.ok || !s.lower.ok) break;
+    // Re-assign every extreme to the nearer line (fixes points near the corner).
+    Eigen::Vector2d x;
+    const bool meet = intersectLines(s.upper, s.lower, &x);
+    bool changed = false;
+    for (size_t i = 0; i < side.size(); ++i) {
+      const double du = s.upper.distance(side[i]), dl = s.lower.distance(side[i]);
+      int l = du < dl ? 0 : 1;
+      // Beyond the corner along v the nearer line can be the wrong one: keep the geometric side.
+      if (meet) l = side[i].y() > x.y() ? (du < 3 * o.edge_inlier_threshold_m || du < dl ? 0 : 1)
+                                        : (dl < 3 * o.edge_inlier_threshold_m || dl < du ? 1 : 0);
+      if (l != label[i]) {
+        label[i] = l;
+        changed = true;
+      }
+    }
+    if (!changed) break;
+  }
+  // Final fits with membership.
+  Points2 up, lo;
+  std::vector<int> up_idx, lo_idx;
+  for (size_t i = 0; i < side.size(); ++i) {
+    if (label[i] == 0) {
+      up.push_back(side[i]);
+      up_idx.push_back(static_cast<int>(i));
+    } else if (label[i] == 1) {
+      lo.push_back(side[i]);
+      lo_idx.push_back(static_cast<int>(i));
+    }
+  }
+  s.upper = fitLineRobust(up, o.edge_inlier_threshold_m, o.ransac_iterations, rng);
+  s.lower = fitLineRobust(lo, o.edge_inlier_threshold_m, o.ransac_iterations, rng);
+  for (size_t i = 0; i < up_idx.size(); ++i)
+    if (s.upper.ok && s.upper.inlier[i]) s.upper_members.push_back(up_idx[i]);
+  for (size_t i = 0; i < lo_idx.size(); ++i)
+    if (s.lower.ok && s.lower.inlier[i]) s.lower_members.push_back(lo_idx[i]);
+  return s;
+}
+
+void extractEdges(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const std::vector<int>& board,
+                  const Target& target, const LidarBoardDetectorOptions& o, std::mt19937& rng,
+                  LidarBoardDetection* det) {
+  auto& f = det->features;
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (int i : board) centroid += pts[i].p;
+  centroid /= static_cast<double>(board.size());
+  centroid -= f.plane.normal * f.plane.signedDistance(centroid);
+  PlaneFrame frame;
+  if (!makePlaneFrame(f.plane.normal, centroid, &frame)) {
+    f.reason = "board plane is nearly horizontal: its edges cannot be named";
+    return;
+  }
+  const std::vector<int> line = scanLines(cloud, board, pts, o, &det->scan_line_source);
+  // Per scan line: the extreme points in azimuth (left = larger azimuth, seen from the sensor).
+  const double center_azimuth = std::atan2(centroid.y(), centroid.x());
+  struct Extremes {
+    int count = 0;
+    int left = -1, right = -1;
+    double left_az = -std::numeric_limits<double>::infinity(), right_az = std::numeric_limits<double>::infinity();
+  };
+  std::unordered_map<int, Extremes> per_line;
+  for (size_t k = 0; k < board.size(); ++k) {
+    const auto& p = pts[board[k]].p;
+    const double az = wrapAngle(std::atan2(p.y(), p.x()) - center_azimuth);
+    Extremes& e = per_line[line[k]];
+    ++e.count;
+    if (az > e.left_az) {
+      e.left_az = az;
+      e.left = board[k];
+    }
+    if (az < e.right_az) {
+      e.right_az = az;
+      e.right = board[k];
+    }
+  }
+  std::vector<int> left_pts, right_pts;
+  for (const auto& kv : per_line) {
+    if (kv.second.count < o.min_points_per_scan_line || kv.second.left == kv.second.right) continue;
+    ++det->num_scan_lines;
+    left_pts.push_back(kv.second.left);
+    right_pts.push_back(kv.second.right);
+  }
+  Points2 left2, right2;
+  for (int i : left_pts) left2.push_back(frame.project(pts[i].p));
+  for (int i : right_pts) right2.push_back(frame.project(pts[i].p));
+  const SideFit left = fitSide(left2, -1.0, o, rng);
+  const SideFit right = fitSide(right2, +1.0, o, rng);
+
+  // Edge order: UL, UR, LR, LL.
+  const std::array<const LineFit2D*, kNumEdges> lines = {&left.upper, &right.upper, &right.lower, &left.lower};
+  const std::array<const std::vector<int>*, kNumEdges> members = {&left.upper_members, &right.upper_members,
+                                                                   &right.lower_members, &left.lower_members};
+  const std::array<const std::vector<int>*, kNumEdges> side_pts = {&left_pts, &right_pts, &right_pts, &left_pts};
+  std::string edge_problems;
+  for (int j = 0; j < kNumEdges; ++j) {
+    f.edge_points[j].clear();
+    for (int m : *members[j]) f.edge_points[j].push_back(pts[(*side_pts[j])[m]].p);
+    const LineFit2D& l = *lines[j];
+    const int n = l.ok ? l.num_inliers : 0;
+    f.edge_valid[j] = l.ok && n >= o.min_edge_points && l.rms <= o.max_edge_rms_m;
+    if (!f.edge_valid[j]) {
+      edge_problems += std::string(edge_problems.empty() ? "" : ", ") + edgeName(j) + ": " +
+                       (n < o.min_edge_points ? "too few points (" + std::to_string(n) + ")"
+                                              : fmt("line fit RMS %.3f m", l.rms));
+    }
+    f.edge_line_point[j] = frame.lift(l.point);
+    f.edge_line_direction[j] = (frame.lift(l.point + l.direction) - frame.lift(l.point)).normalized();
+  }
+  // Corners j = edge j x edge j+1.
+  std::array<bool, kNumEdges> corner_ok{};
+  std::array<Eigen::Vector2d, kNumEdges> corner2;
+  std::string angle_problems;
+  static const char* kCornerNames[kNumEdges] = {"top", "right", "bottom", "left"};
+  for (int j = 0; j < kNumEdges; ++j) {
+    const int k = (j + 1) % kNumEdges;
+    if (!f.edge_valid[j] || !f.edge_valid[k]) continue;
+    corner_ok[j] = intersectLines(*lines[j], *lines[k], &corner2[j]);
+    if (!corner_ok[j]) continue;
+    f.corners[j] = frame.lift(corner2[j]);
+    const double angle = std::acos(std::min(1.0, std::abs(lines[j]->direction.dot(lines[k]->direction)))) / kRadPerDeg;
+    if (std::abs(90.0 - angle) > o.max_corner_angle_error_deg)
+      angle_problems += std::string(" ") + kCornerNames[j] + fmt(" corner meets at %.0f deg", angle);
+  }
+  // Line points and directions from the corners when both ends exist: edge j runs from corner
+  // j-1 to corner j (clockwise as the sensor sees it).
+  for (int j = 0; j < kNumEdges; ++j) {
+    const int prev = (j + kNumEdges - 1) % kNumEdges;
+    if (corner_ok[j] && corner_ok[prev]) {
+      f.edge_line_point[j] = 0.5 * (f.corners[j] + f.corners[prev]);
+      f.edge_line_direction[j] = (f.corners[j] - f.corners[prev]).normalized();
+    }
+  }
+  if (!angle_problems.empty()) {
+    for (int j = 0; j < kNumEdges; ++j) f.edge_valid[j] = false;
+    f.reason = "edges inconsistent:" + angle_problems;
+    return;
+  }
+  if (!edge_problems.empty()) {
+    f.reason = "edges rejected: " + edge_problems;
+    return;
+  }
+  bool all_corners = corner_ok[0] && corner_ok[1] && corner_ok[2] && corner_ok[3];
+  if (!all_corners) {
+    for (int j = 0; j < kNumEdges; ++j) f.edge_valid[j] = false;
+    f.reason = "edges inconsistent: parallel adjacent edges";
+    return;
+  }
+  // Sides: UL (left-top) and LR (right-bottom) are opposite, as are UR and LL.
+  const double ul = (f.corners[0] - f.corners[3]).norm(), ur = (f.corners[1] - f.corners[0]).norm();
+  const double lr = (f.corners[2] - f.corners[1]).norm(), ll = (f.corners[3] - f.corners[2]).norm();
+  const double s1 = 0.5 * (ul + lr), s2 = 0.5 * (ur + ll);
+  const double w = target.width, h = target.height;
+  const bool direct = std::abs(s1 - w) + std::abs(s2 - h) <= std::abs(s1 - h) + std::abs(s2 - w);
+  f.measured_size_m = direct ? Eigen::Vector2d(s1, s2) : Eigen::Vector2d(s2, s1);
+  const double rw = f.measured_size_m.x() / w, rh = f.measured_size_m.y() / h;
+  if (rw < o.min_size_ratio || rh < o.min_size_ratio || rw > o.max_size_ratio || rh > o.max_size_ratio) {
+    for (int j = 0; j < kNumEdges; ++j) f.edge_valid[j] = false;
+    f.reason = "edges inconsistent: " +
+               fmt("corners span %.3f x %.3f m, declared %.3f x %.3f m", f.measured_size_m.x(),
+                   f.measured_size_m.y(), w, h);
+    return;
+  }
+  if (std::abs(rw - 1.0) > o.size_doubt_ratio || std::abs(rh - 1.0) > o.size_doubt_ratio)
+    f.reason = fmt("measured %.3f x %.3f m, declared %.3f x %.3f m", f.measured_size_m.x(), f.measured_size_m.y(), w,
+                   h);
+}
+
+}  // namespace
+
+LidarBoardDetection detectLidarBoard(const LidarCloud& cloud, const Target& target,
+                                     const LidarBoardDetectorOptions& options, const BackgroundModel* background) {
+  LidarBoardDetection det;
+  auto& f = det.features;
+  f.frame_id = cloud.frame_id;
+  f.stamp = cloud.stamp;
+  for (int j = 0; j < kNumEdges; ++j) {
+    f.edge_line_point[j].setZero();
+    f.edge_line_direction[j] = Eigen::Vector3d::UnitX();
+    f.corners[j].setZero();
+  }
+  const std::string bad_options = options.validate();
+  if (!bad_options.empty())
+    return failure(std::move(det), LidarDetectionCode::kInvalidOptions, "invalid detector options: " + bad_options);
+  const std::string bad_target = target.validate();
+  if (!bad_target.empty())
+    return failure(std::move(det), LidarDetectionCode::kInvalidTarget, "invalid target: " + bad_target);
+  if (cloud.points.empty()) return failure(std::move(det), LidarDetectionCode::kEmptyCloud, "empty cloud (0 points)");
+
+  const std::vector<ValidPoint> pts = validPoints(cloud, options, background);
+  det.num_valid_points = static_cast<int>(pts.size());
+  if (pts.size() < 3) {
+    std::string why = "no valid returns among " + std::to_string(cloud.points.size()) + " points (NaN, zero or out of " +
+                      fmt("%.1f..%.1f m", options.min_range_m, options.max_range_m) + ")";
+    if (options.use_roi) why += ", or outside the ROI";
+    if (background && !background->empty()) why += ", or background";
+    return failure(std::move(det), LidarDetectionCode::kNoValidPoints, why);
+  }
+
+  VoxelGrid grid = buildVoxels(pts, options.voxel_size_m);
+  const std::vector<Region> regions = growPlanarRegions(grid, options);
+
+  std::vector<Candidate> candidates;
+  for (size_t r = 0; r < regions.size(); ++r) {
+    if (regions[r].stats.n < options.min_board_points) continue;  // not worth reporting
+    candidates.push_back(scoreRegion(regions[r], static_cast<int>(r), grid, pts, target, options));
+  }
+  if (candidates.empty())
+    return failure(std::move(det), LidarDetectionCode::kNoPlane,
+                   "no planar region with at least " + std::to_string(options.min_board_points) + " points among " +
+                       std::to_string(pts.size()) + " valid points");
+  std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
+    const bool pa = a.info.score >= 0, pb = b.info.score >= 0;
+    if (pa != pb) return pa;
+    if (pa) return a.info.score > b.info.score;
+    return a.info.num_points > b.info.num_points;
+  });
+  for (const auto& c : candidates) det.candidates.push_back(c.info);
+  const Candidate& best = candidates.front();
+  if (best.info.score < 0) {
+    const auto& c = best.info;
+    return failure(std::move(det), LidarDetectionCode::kWrongSize,
+                   "no board-sized plane: largest planar region (" + std::to_string(c.num_points) + " points at " +
+                       fmt("%.1f m) is ", c.centroid.norm()) + c.rejected_because +
+                       fmt("; declared %.3f x %.3f m", target.width, target.height));
+  }
+  if (options.reject_ambiguous && candidates.size() > 1 && candidates[1].info.score >= 0 &&
+      candidates[1].info.score >= options.ambiguity_ratio * best.info.score &&
+      (candidates[1].info.centroid - best.info.centroid).norm() > kSameBoardDistanceM) {
+    const auto& a = best.info.centroid;
+    const auto& b = candidates[1].info.centroid;
+    return failure(std::move(det), LidarDetectionCode::kAmbiguous,
+                   "ambiguous: two board-like planes, at " + fmt("(%.2f, %.2f, %.2f)", a.x(), a.y(), a.z()) + " and " +
+                       fmt("(%.2f, %.2f, %.2f) m; set an ROI or capture a background", b.x(), b.y(), b.z()));
+  }
+
+  // Points of the winning region and of its neighbouring voxels (edge voxels mix the board
+  // with what lies behind it, so they rarely join the region).
+  const Region& region = regions[best.region];
+  std::vector<int> region_points, gathered;
+  std::unordered_set<int> gathered_voxels;
+  for (int vi : region.voxels) {
+    const Voxel& v = grid.voxels[vi];
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz) {
+          const int q = grid.find(v.ix + dx, v.iy + dy, v.iz + dz);
+          if (q >= 0) gathered_voxels.insert(q);
+        }
+    for (int j = 0; j < v.count; ++j) region_points.push_back(grid.sorted_points[v.first + j]);
+  }
+  for (int vi : gathered_voxels) {
+    const Voxel& v = grid.voxels[vi];
+    // Only voxels that belong to no other large plane (walls behind the board stay out).
+    if (v.region >= 0 && v.region != best.region && regions[v.region].stats.n >= options.min_board_points) continue;
+    for (int j = 0; j < v.count; ++j) gathered.push_back(grid.sorted_points[v.first + j]);
+  }
+  std::mt19937 rng(options.random_seed);
+  const RefinedPlane refined = refinePlane(region_points, gathered, pts, options, rng);
+  if (static_cast<int>(refined.inliers.size()) < options.min_board_points)
+    return failure(std::move(det), LidarDetectionCode::kTooFewPoints,
+                   "board candidate has only " + std::to_string(refined.inliers.size()) +
+                       " points on its plane (need " + std::to_string(options.min_board_points) + ")");
+  f.found = true;
+  det.code = LidarDetectionCode::kFound;
+  f.plane = refined.plane;
+  f.plane_rms_m = refined.rms;
+  f.board_points.reserve(refined.inliers.size());
+  for (int i : refined.inliers) f.board_points.push_back(pts[i].p);
+  extractEdges(cloud, pts, refined.inliers, target, options, rng, &det);
+  return det;
+}
+
+}  // namespace board_calib
