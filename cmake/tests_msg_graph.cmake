@@ -1,0 +1,4 @@
+# MSG graph on a simulated rig at known ground truth (stereo + two LiDARs, 40 poses).
+board_calib_core_gtest(test_msg_graph
+  SOURCES test/core/test_msg_graph.cpp
+  MODULES bc_msg_graph bc_solvers bc_geometry)
