@@ -3,3 +3,9 @@ board_calib_core_gtest(test_projection
   SOURCES test/core/test_projection.cpp
   MODULES bc_projection bc_geometry
   LIBS ${OpenCV_LIBRARIES})
+
+# Overlay on simulated data: projected LiDAR edge points land on the rendered board edges.
+board_calib_core_gtest(test_projection_sim
+  SOURCES test/core/test_projection_sim.cpp
+  MODULES bc_projection bc_sim bc_geometry
+  LIBS ${OpenCV_LIBRARIES} opencv_imgcodecs)  # imgcodecs: the overlay is saved for a look
