@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <iostream>
 
 namespace board_calib {
 namespace msg {
@@ -87,6 +88,204 @@ TEST(MsgGraph, FourSensorRigEveryPairWithinTolerance) {
   }
   EXPECT_TRUE(sol.rejected.empty());
   EXPECT_GT(sol.residuals.corner_terms, 0);
+}
+
+// A fifth sensor with 3x the noise (VLP-16-like) must not pull the four good ones out of
+// tolerance: its sigmas are estimated from the pairwise residuals and it is down-weighted.
+TEST(MsgGraph, NoisyFifthSensorDoesNotRuinTheOthers) {
+  auto rig = defaultRig();
+  rig.push_back(extraLidar16("vlp16_noisy", 3.0));
+  const MsgSyntheticScene scene = makeScene(rig, 2);
+  const MsgSolution sol = solveMsgGraph(scene.problem, MsgGraphOptions());
+  ASSERT_TRUE(sol.success) << sol.reason;
+  expectPairsWithin(sol, scene, {0, 1, 2, 3}, kNoisyRotationTolDeg, kNoisyTranslationTolM);
+  std::cout << "good pairs: max " << maxPairRotationDeg(sol, scene, {0, 1, 2, 3}) << " deg, "
+            << 1000 * maxPairTranslationM(sol, scene, {0, 1, 2, 3}) << " mm; noisy sensor sigma "
+            << sol.sensors[4].offset_sigma_m * 1000 << " mm vs " << sol.sensors[3].offset_sigma_m * 1000 << " mm\n";
+  // The noisy sensor is found noisier than its good sibling.
+  EXPECT_GT(sol.sensors[4].offset_sigma_m, sol.sensors[3].offset_sigma_m);
+}
+
+// The same with one of the rig's own LiDARs made 3x noisier.
+TEST(MsgGraph, OneLidarThreeTimesNoisier) {
+  auto rig = defaultRig();
+  rig[3].noise_scale = 3.0;
+  const MsgSyntheticScene scene = makeScene(rig, 3);
+  const MsgSolution sol = solveMsgGraph(scene.problem, MsgGraphOptions());
+  ASSERT_TRUE(sol.success) << sol.reason;
+  expectPairsWithin(sol, scene, {0, 1, 2}, kNoisyRotationTolDeg, kNoisyTranslationTolM);
+  // The noisy LiDAR's own pairs stay usable too (looser: 3x the noise).
+  expectPairsWithin(sol, scene, {0, 1, 2, 3}, 3 * kNoisyRotationTolDeg, 3 * kNoisyTranslationTolM);
+}
+
+// 100% convergence from the pairwise initialisation over independent rigs (fresh noise and
+// board poses each time).
+TEST(MsgGraph, ConvergesFromPairwiseInitialisationEveryTime) {
+  constexpr int kScenes = 5;
+  int ok = 0;
+  for (int i = 0; i < kScenes; ++i) {
+    const MsgSyntheticScene scene = makeScene(defaultRig(), 100 + i);
+    const MsgSolution sol = solveMsgGraph(scene.problem, MsgGraphOptions());
+    if (sol.success && maxPairRotationDeg(sol, scene, {0, 1, 2, 3}) < kPairRotationTolDeg &&
+        maxPairTranslationM(sol, scene, {0, 1, 2, 3}) < kPairTranslationTolM)
+      ++ok;
+  }
+  EXPECT_EQ(ok, kScenes);
+}
+
+// Random starts (sigma 90 deg per rotation axis, 50 cm per translation axis, applied to every
+// non-reference sensor): >= 95% reach the pairwise-initialised solution.
+TEST(MsgGraph, ConvergesFromRandomStarts) {
+  const MsgSyntheticScene scene = makeScene(defaultRig(), 4);
+  MsgGraphOptions options;
+  options.compute_covariance = false;
+  const MsgSolution reference = solveMsgGraph(scene.problem, options);
+  ASSERT_TRUE(reference.success) << reference.reason;
+  constexpr int kTrials = 40;
+  // The same minimum: far below the accuracy targets.
+  constexpr double kSameDeg = 0.01, kSameM = 0.001;
+  std::mt19937 rng(7);
+  int converged = 0;
+  for (int trial = 0; trial < kTrials; ++trial) {
+    std::vector<Eigen::Isometry3d> start;
+    for (int s = 0; s < 4; ++s)
+      start.push_back(s == 0 ? Eigen::Isometry3d::Identity()
+                             : perturb(scene.sensors[s].reference_T_sensor, 90.0 * kRadPerDeg, 0.5, rng));
+    const MsgSolution sol = solveMsgGraph(scene.problem, options, start);
+    EXPECT_FALSE(sol.used_pairwise_init);
+    bool same = sol.success;
+    for (int s = 1; s < 4 && same; ++s)
+      same = rotationErrorDeg(sol.sensors[s].reference_T_sensor, reference.sensors[s].reference_T_sensor) < kSameDeg &&
+             translationErrorM(sol.sensors[s].reference_T_sensor, reference.sensors[s].reference_T_sensor) < kSameM;
+    converged += same ? 1 : 0;
+  }
+  std::cout << "random starts converged: " << converged << " / " << kTrials << "\n";
+  EXPECT_GE(converged, static_cast<int>(std::ceil(0.95 * kTrials)));
+}
+
+// Two groups of sensors that never saw the same board pose: refused with the unreachable ones.
+TEST(MsgGraph, DisconnectedGraphIsRefusedWithReason) {
+  MsgSyntheticScene scene = makeScene(defaultRig(), 5, 20);
+  for (size_t p = 0; p < scene.problem.poses.size(); ++p) {
+    auto& pose = scene.problem.poses[p];
+    if (p % 2 == 0) {
+      pose.lidars.clear();  // cameras only
+    } else {
+      pose.cameras.clear();  // LiDARs only
+    }
+  }
+  const MsgSolution sol = solveMsgGraph(scene.problem, MsgGraphOptions());
+  EXPECT_FALSE(sol.success);
+  EXPECT_NE(sol.reason.find("disconnected"), std::string::npos) << sol.reason;
+  EXPECT_NE(sol.reason.find("vlp32c"), std::string::npos) << sol.reason;
+  EXPECT_NE(sol.reason.find("os1_64"), std::string::npos) << sol.reason;
+}
+
+TEST(MsgGraph, DegenerateInputGivesReasons) {
+  MsgSyntheticScene scene = makeScene(defaultRig(), 6, 10);
+  // No sensors / one sensor.
+  MsgProblem empty;
+  EXPECT_FALSE(solveMsgGraph(empty, MsgGraphOptions()).success);
+  // Bad reference index.
+  MsgProblem bad_ref = scene.problem;
+  bad_ref.reference_sensor = 9;
+  auto r = solveMsgGraph(bad_ref, MsgGraphOptions());
+  EXPECT_FALSE(r.success);
+  EXPECT_NE(r.reason.find("reference_sensor"), std::string::npos) << r.reason;
+  // A LiDAR observation filed under a camera.
+  MsgProblem wrong_kind = scene.problem;
+  wrong_kind.poses[0].lidars[0] = wrong_kind.poses[0].lidars.begin()->second;
+  r = solveMsgGraph(wrong_kind, MsgGraphOptions());
+  EXPECT_FALSE(r.success);
+  EXPECT_NE(r.reason.find("is a camera"), std::string::npos) << r.reason;
+  // Every board pose with the same orientation: plane-to-plane cannot fix the poses.
+  MsgProblem parallel = scene.problem;
+  for (auto& pose : parallel.poses) {
+    for (auto& [s, f] : pose.cameras) f.plane.normal = scene.problem.poses[0].cameras.at(s).plane.normal;
+    for (auto& [s, f] : pose.lidars) f.plane.normal = scene.problem.poses[0].lidars.at(s).plane.normal;
+  }
+  MsgGraphOptions no_corners;
+  no_corners.use_corner_terms = false;
+  r = solveMsgGraph(parallel, no_corners);
+  EXPECT_FALSE(r.success);
+  EXPECT_NE(r.reason.find("parallel"), std::string::npos) << r.reason;
+  // Non-finite planes are skipped with a note, not a crash.
+  MsgProblem nan_plane = scene.problem;
+  nan_plane.poses[1].lidars.begin()->second.plane.offset = std::nan("");
+  r = solveMsgGraph(nan_plane, MsgGraphOptions());
+  EXPECT_TRUE(r.success) << r.reason;
+  EXPECT_FALSE(r.notes.empty());
+  // A wrong-sized initial guess.
+  r = solveMsgGraph(scene.problem, MsgGraphOptions(), std::vector<Eigen::Isometry3d>(2));
+  EXPECT_FALSE(r.success);
+  EXPECT_NE(r.reason.find("initial guess"), std::string::npos) << r.reason;
+  // Invalid options.
+  MsgGraphOptions bad;
+  bad.min_shared_views = 1;
+  r = solveMsgGraph(scene.problem, bad);
+  EXPECT_FALSE(r.success);
+  EXPECT_NE(r.reason.find("min_shared_views"), std::string::npos) << r.reason;
+}
+
+// Gross errors (a wrong LiDAR plane offset, a camera pose from a mis-detection) are rejected
+// and the accuracy holds.
+TEST(MsgGraph, OutlierObservationsAreRejected) {
+  MsgSyntheticScene scene = makeScene(defaultRig(), 8);
+  const std::vector<int> corrupted_lidar_poses = {3, 11, 25};
+  for (int p : corrupted_lidar_poses) scene.problem.poses[p].lidars.at(2).plane.offset += 0.15;
+  auto& cam = scene.problem.poses[17].cameras.at(1);
+  cam.plane.normal = (Eigen::AngleAxisd(10 * kRadPerDeg, Eigen::Vector3d::UnitX()) * cam.plane.normal).normalized();
+  for (auto& c : cam.pattern) c.pixel += Eigen::Vector2d(25.0, -15.0);
+  const MsgSolution sol = solveMsgGraph(scene.problem, MsgGraphOptions());
+  ASSERT_TRUE(sol.success) << sol.reason;
+  expectPairsWithin(sol, scene, {0, 1, 2, 3}, kPairRotationTolDeg, kPairTranslationTolM);
+  auto rejected = [&](int pose, int sensor) {
+    for (const auto& r : sol.rejected)
+      if (r.pose_id == pose && r.sensor == sensor) return true;
+    return false;
+  };
+  for (int p : corrupted_lidar_poses) EXPECT_TRUE(rejected(p, 2)) << "pose " << p;
+  EXPECT_TRUE(rejected(17, 1));
+  // Nothing else (a handful of false alarms would still be acceptable; none are expected).
+  EXPECT_LE(sol.rejected.size(), corrupted_lidar_poses.size() + 2);
+}
+
+// PBPC line terms: measured against the plane+corner graph (the default leaves them off); they
+// must not break the accuracy either way.
+TEST(MsgGraph, LineTermsOptional) {
+  const MsgSyntheticScene scene = makeScene(defaultRig(), 9);
+  MsgGraphOptions with_lines;
+  with_lines.use_line_terms = true;
+  const MsgSolution sol = solveMsgGraph(scene.problem, with_lines);
+  ASSERT_TRUE(sol.success) << sol.reason;
+  EXPECT_GT(sol.residuals.line_terms, 0);
+  expectPairsWithin(sol, scene, {0, 1, 2, 3}, kPairRotationTolDeg, kPairTranslationTolM);
+}
+
+TEST(MsgGraph, ResultFileListsEverySensorAndPair) {
+  const MsgSyntheticScene scene = makeScene(defaultRig(), 10, 20);
+  const MsgSolution sol = solveMsgGraph(scene.problem, MsgGraphOptions());
+  ASSERT_TRUE(sol.success) << sol.reason;
+  const ResultFile file = msgResultFile(scene.problem, sol);
+  EXPECT_EQ(file.method, "msg");
+  EXPECT_EQ(file.reference_frame, "camera_left");
+  ASSERT_EQ(file.sensors.size(), 4u);
+  ASSERT_EQ(file.pairs.size(), 4u);  // 2 cameras x 2 LiDARs
+  for (const auto& pair : file.pairs) {
+    ASSERT_TRUE(pair.mlre_px.has_value());
+    // Synthetic lines carry 0.3 px noise and edge points sit up to one step inside the edge:
+    // a few px at most (the paper's MSG figures were 2.6-11.8 px).
+    EXPECT_LT(*pair.mlre_px, 5.0) << pair.camera_frame << "<->" << pair.lidar_frame;
+  }
+  const auto parsed = parseResult(resultToYaml(file));
+  ASSERT_TRUE(parsed.ok()) << parsed.error();
+  ASSERT_EQ(parsed->sensors.size(), 4u);
+  ASSERT_EQ(parsed->pairs.size(), 4u);
+  for (size_t i = 0; i < 4; ++i) {
+    EXPECT_EQ(parsed->pairs[i].camera_frame, file.pairs[i].camera_frame);
+    EXPECT_LT(rotationErrorDeg(parsed->pairs[i].camera_T_lidar, file.pairs[i].camera_T_lidar), 1e-3);
+    EXPECT_LT(translationErrorM(parsed->pairs[i].camera_T_lidar, file.pairs[i].camera_T_lidar), 1e-5);
+  }
 }
 
 }  // namespace
