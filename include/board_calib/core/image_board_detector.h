@@ -1,0 +1,114 @@
+// Camera board detector: finds the calibration board in one raw (distorted) image and returns
+// its features in undistorted pixels (core/features.h). Three board types:
+//  * plain        (PBPC-Cal): segmentation + sub-pixel edge fitting, corners = line
+//                  intersections (may lie outside the image), pose by PnP on the four corners;
+//  * checkerboard (PPC-Cal):  OpenCV corners + cornerSubPix, pose by PnP, outer edges from pose;
+//  * apriltag_grid (MSG-Cal): libapriltag tag36h11 corners mapped to the grid, pose from all corners.
+//
+// Edge naming (features.h): edges are named by the direction of their outward normal in the image
+// (UL ~ up-left, UR, LR, LL), choosing the cyclic assignment closest to a diamond. For the plain
+// board the PnP correspondence is: image corner 0 (top, UL ∩ UR) = board top-left outer corner
+// (board origin), corner 1 (right) = top-right, corner 2 (bottom) = bottom-right, corner 3 (left) =
+// bottom-left; a square plain board's 4-fold symmetry is resolved by this choice.
+// Checkerboard 180° ambiguity: the pattern is oriented so that the board x axis points as close to
+// image +u as possible (board held upright or as a diamond, never upside down).
+#pragma once
+
+#include <board_calib/core/camera_model.h>
+#include <board_calib/core/features.h>
+#include <board_calib/core/target.h>
+
+#include <opencv2/core.hpp>
+
+#include <memory>
+
+namespace board_calib {
+
+struct ImageBoardDetectorOptions {
+  // --- plain board ---
+  int segmentation_width_px = 480;        ///< px, width of the downscaled image used for segmentation
+  double min_board_area_fraction = 0.01;  ///< smallest board area, fraction of the image area
+  double min_solidity = 0.80;             ///< board region area / convex hull area (a board is convex)
+  double max_interior_texture = 0.35;     ///< interior grey stddev / board-background contrast (a board is uniform)
+  double border_margin_px = 3.0;          ///< px; edge pixels closer than this to the image border are not board edges
+  double coarse_search_px = 10.0;         ///< px, half width of the first edge search around the coarse outline
+  double fine_search_px = 3.0;            ///< px, half width of the refinement search around the fitted line
+  double sample_step_px = 2.0;            ///< px, spacing of edge samples along each edge
+  double corner_exclusion_px = 12.0;      ///< px, edge samples this close to a coarse corner are skipped
+  double min_edge_contrast = 4.0;         ///< grey levels per px, weakest accepted edge gradient
+  double min_edge_length_px = 60.0;       ///< px, shortest visible edge accepted as a board edge
+  int min_edge_points = 20;               ///< inlier edge samples needed for a valid edge
+  double edge_inlier_px = 3.0;            ///< px, edge samples farther than this from the line are outliers (a held board bows ~3 px)
+  double max_edge_rms_px = 1.5;           ///< px, an edge fit worse than this is marked invalid
+  // --- checkerboard ---
+  int fast_check_width_px = 800;          ///< px, images wider than this are searched downscaled first
+  int subpix_window_px = 5;               ///< px, half window of cornerSubPix (clamped to the square size)
+  // --- AprilTag grid ---
+  double tag_decimate = 2.0;              ///< libapriltag quad_decimate (1 = full resolution)
+  double tag_sigma = 0.0;                 ///< px, libapriltag quad_sigma (Gaussian blur before quads)
+  int tag_threads = 1;                    ///< libapriltag worker threads
+  bool tag_refine_edges = true;           ///< libapriltag refine_edges
+  int tag_max_hamming = 1;                ///< bits corrected per tag (0..2; more = more false ids)
+  int min_tags = 1;                       ///< tags needed for a pose
+  // --- all ---
+  double min_board_size_px = 30.0;        ///< px, smallest board side in the image
+  double max_reprojection_rms_px = 3.0;   ///< px, a pattern pose fitting worse than this is rejected
+  double max_plain_corner_rms_px = 10.0;  ///< px, plain board: corners are extrapolated (often far outside the image) and the board flexes
+  double pixel_sigma_px = 0.2;            ///< px, assumed corner noise floor for the pose covariance
+
+  /// Reason the options are inconsistent, empty when valid.
+  std::string validate() const;
+};
+
+/// What the detector saw beyond the features (for debug drawing and quality checks).
+struct ImageDetectionDetails {
+  std::array<Points2, kNumEdges> edge_points_raw;  ///< plain: inlier edge samples per edge, raw px
+  std::array<double, kNumEdges> edge_rms_px{};     ///< plain: line fit RMS per edge, px
+  std::array<std::string, kNumEdges> edge_reason;  ///< why an edge is invalid (empty when valid)
+  Points2 outline_raw;                             ///< plain: coarse board outline, raw px
+  std::vector<int> tag_ids;                        ///< AprilTag: detected ids on the grid
+  std::vector<std::array<Eigen::Vector2d, 4>> tag_corners_raw;  ///< AprilTag: corners, raw px (OpenCV convention)
+  int rejected_tags = 0;                           ///< AprilTag: detections whose id is not on the grid
+  Points2 pattern_raw;                             ///< pattern points (checkerboard/tag corners), raw px
+  std::vector<double> pattern_errors_px;           ///< reprojection error per pattern point (features.pattern order)
+  /// Pose covariance, order (rotation vector rad, translation m), from the PnP Jacobian with
+  /// sigma = max(residual RMS, pixel_sigma_px). Zero when no pose.
+  Eigen::Matrix<double, 6, 6> pose_covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  double time_ms = 0.0;                            ///< detection time
+};
+
+struct ImageDetection {
+  CameraBoardFeatures features;
+  ImageDetectionDetails details;
+};
+
+/// Detector for one target; not thread-safe (holds a libapriltag detector), one per camera.
+class ImageBoardDetector {
+ public:
+  static Expected<ImageBoardDetector> create(const Target& target, const ImageBoardDetectorOptions& options);
+  ImageBoardDetector(ImageBoardDetector&&) noexcept;
+  ImageBoardDetector& operator=(ImageBoardDetector&&) noexcept;
+  ~ImageBoardDetector();
+
+  /// Detects the board in a raw bgr8 or mono8 image. The image size must match the camera
+  /// model; otherwise (or on any other failure) features.found is false with a reason.
+  ImageDetection detect(const cv::Mat& image, const CameraModel& camera);
+
+  const Target& target() const;
+  const ImageBoardDetectorOptions& options() const;
+
+ private:
+  ImageBoardDetector() = default;
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Debug drawing on a copy of the raw image (bgr8): board outline, edge samples, fitted lines
+/// (drawn curved, through the distortion), corners, tag ids, pattern points, board axes.
+cv::Mat drawImageDetection(const cv::Mat& image, const CameraModel& camera, const ImageDetection& detection);
+
+/// Line through two undistorted points with the outward normal pointing away from `inside`
+/// (a u + b v + c = 0, a^2 + b^2 = 1, inside < 0).
+Eigen::Vector3d lineThrough(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const Eigen::Vector2d& inside);
+
+}  // namespace board_calib

@@ -1,0 +1,402 @@
+// Plain board (PBPC-Cal): coarse segmentation on a downscaled image, then each board edge is
+// refined at full resolution by sub-pixel gradient peaks searched along the edge normal, and the
+// line is fitted to those edge pixels after undistortion (a straight edge is only straight there).
+#include "detection_internal.h"
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+namespace board_calib {
+namespace image_detection {
+namespace {
+
+constexpr double kProfileStepPx = 0.5;      // spacing of intensity samples along the edge normal
+constexpr double kMergeAngleRad = 0.14;     // ~8 deg: consecutive outline segments this close are one edge
+constexpr double kPolygonEpsilon = 0.01;    // outline simplification, fraction of the perimeter
+constexpr double kWeakPeakFraction = 0.3;   // a gradient peak below this fraction of the median is an outlier
+constexpr double kMadToSigma = 1.4826;
+constexpr int kFinePasses = 2;
+
+double sampleBilinear(const cv::Mat& gray, double x, double y) {
+  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+  const double fx = x - x0, fy = y - y0;
+  const uchar* r0 = gray.ptr<uchar>(y0);
+  const uchar* r1 = gray.ptr<uchar>(y0 + 1);
+  return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x0 + 1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]);
+}
+
+bool insideImage(const cv::Mat& gray, const Eigen::Vector2d& p, double margin) {
+  return p.x() >= margin && p.y() >= margin && p.x() <= gray.cols - 1 - margin && p.y() <= gray.rows - 1 - margin;
+}
+
+struct Candidate {
+  std::vector<cv::Point> contour;
+  double score = 0;
+  bool bright = true;
+};
+
+// Finds the board region: a large, convex, uniform region clearly brighter or darker than its
+// surroundings. Brightness only proposes regions; convexity and uniformity decide.
+bool segmentBoard(const cv::Mat& small, const ImageBoardDetectorOptions& o, Candidate* best, std::string* reason) {
+  cv::Mat blurred, bright;
+  cv::GaussianBlur(small, blurred, cv::Size(5, 5), 0);
+  cv::threshold(blurred, bright, 0, 255, cv::THRESH_BINARY | cv::THRESH_OTSU);
+  const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5));
+  const double min_area = o.min_board_area_fraction * small.total();
+  int proposals = 0;
+  std::string last_rejection = "no region large enough";
+  for (bool is_bright : {true, false}) {
+    cv::Mat mask = is_bright ? bright : (255 - bright);
+    cv::morphologyEx(mask, mask, cv::MORPH_OPEN, kernel);
+    std::vector<std::vector<cv::Point>> contours;
+    cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+    for (auto& contour : contours) {
+      const double area = cv::contourArea(contour);
+      if (area < min_area) continue;
+      ++proposals;
+      std::vector<cv::Point> hull;
+      cv::convexHull(contour, hull);
+      const double solidity = area / std::max(1.0, cv::contourArea(hull));
+      if (solidity < o.min_solidity) {
+        last_rejection = cv::format("largest region not convex (solidity %.2f < %.2f)", solidity, o.min_solidity);
+        continue;
+      }
+      cv::Mat region = cv::Mat::zeros(small.size(), CV_8U);
+      cv::drawContours(region, std::vector<std::vector<cv::Point>>{contour}, 0, 255, cv::FILLED);
+      cv::Mat interior, around;
+      cv::erode(region, interior, kernel, cv::Point(-1, -1), 2);
+      cv::dilate(region, around, kernel, cv::Point(-1, -1), 3);
+      around -= region;
+      if (cv::countNonZero(interior) == 0 || cv::countNonZero(around) == 0) continue;
+      cv::Scalar mean_in, std_in;
+      cv::meanStdDev(blurred, mean_in, std_in, interior);
+      const double mean_out = cv::mean(blurred, around)[0];
+      const double contrast = std::abs(mean_in[0] - mean_out);
+      const double texture = std_in[0] / std::max(1.0, contrast);
+      if (texture > o.max_interior_texture) {
+        last_rejection = cv::format("region not uniform (texture %.2f > %.2f)", texture, o.max_interior_texture);
+        continue;
+      }
+      const double score = area * solidity * solidity / (1.0 + texture);
+      if (score > best->score) {
+        best->score = score;
+        best->contour = std::move(hull);
+        best->bright = is_bright;
+      }
+    }
+  }
+  if (best->score <= 0) {
+    *reason = proposals == 0 ? "board not found: no region large enough" : "board not found: " + last_rejection;
+    return false;
+  }
+  return true;
+}
+
+struct CoarseEdge {
+  Eigen::Vector2d a = Eigen::Vector2d::Zero(), b = Eigen::Vector2d::Zero();  // raw full-resolution px
+  double angle = 0;      // outward normal angle
+  double length = 0;
+};
+
+// Splits the hull of the board region into straight sides, dropping those along the image border.
+std::vector<CoarseEdge> coarseEdges(const std::vector<cv::Point>& hull, double scale, cv::Size small_size,
+                                    const ImageBoardDetectorOptions& o, Eigen::Vector2d* centroid) {
+  std::vector<cv::Point> poly;
+  cv::approxPolyDP(hull, poly, kPolygonEpsilon * cv::arcLength(hull, true), true);
+  const cv::Moments m = cv::moments(hull);
+  const Eigen::Vector2d c_small(m.m10 / m.m00, m.m01 / m.m00);
+  auto toFull = [scale](const Eigen::Vector2d& p) { return Eigen::Vector2d((p.array() + 0.5) * scale - 0.5); };
+  *centroid = toFull(c_small);
+  const double border = o.border_margin_px / scale + 1.5;  // small px; the opening erodes ~1 px
+  auto onBorder = [&](const cv::Point& p, int side) {
+    switch (side) {
+      case 0: return p.x <= border;
+      case 1: return p.x >= small_size.width - 1 - border;
+      case 2: return p.y <= border;
+      default: return p.y >= small_size.height - 1 - border;
+    }
+  };
+  std::vector<CoarseEdge> sides;
+  const size_t n = poly.size();
+  for (size_t i = 0; i < n; ++i) {
+    const cv::Point& p = poly[i];
+    const cv::Point& q = poly[(i + 1) % n];
+    bool along_border = false;
+    for (int side = 0; side < 4; ++side) along_border |= onBorder(p, side) && onBorder(q, side);
+    if (along_border) {
+      sides.push_back(CoarseEdge{});  // placeholder keeps the cyclic order; length 0 = border
+      continue;
+    }
+    CoarseEdge e;
+    e.a = toFull(Eigen::Vector2d(p.x, p.y));
+    e.b = toFull(Eigen::Vector2d(q.x, q.y));
+    e.length = (e.b - e.a).norm();
+    const Eigen::Vector3d l = lineThrough(e.a, e.b, *centroid);
+    e.angle = std::atan2(l.y(), l.x());
+    sides.push_back(e);
+  }
+  // Merge consecutive, nearly collinear sides (the polygon may split a bowed or notched edge).
+  std::vector<CoarseEdge> merged;
+  for (const auto& s : sides) {
+    if (s.length > 0 && !merged.empty() && merged.back().length > 0) {
+      double d = std::abs(std::remainder(s.angle - merged.back().angle, 2 * M_PI));
+      if (d < kMergeAngleRad) {
+        CoarseEdge& e = merged.back();
+        e.b = s.b;
+        e.length = (e.b - e.a).norm();
+        continue;
+      }
+    }
+    merged.push_back(s);
+  }
+  if (merged.size() > 1 && merged.front().length > 0 && merged.back().length > 0 &&
+      std::abs(std::remainder(merged.front().angle - merged.back().angle, 2 * M_PI)) < kMergeAngleRad) {
+    merged.back().b = merged.front().b;
+    merged.back().length = (merged.back().b - merged.back().a).norm();
+    merged.erase(merged.begin());
+  }
+  std::vector<CoarseEdge> out;
+  for (const auto& e : merged)
+    if (e.length >= o.min_edge_length_px) out.push_back(e);
+  while (out.size() > static_cast<size_t>(kNumEdges)) {
+    auto shortest = std::min_element(out.begin(), out.end(),
+                                     [](const CoarseEdge& x, const CoarseEdge& y) { return x.length < y.length; });
+    out.erase(shortest);
+  }
+  return out;
+}
+
+struct EdgeFit {
+  Eigen::Vector3d line = Eigen::Vector3d::Zero();
+  Points2 raw_inliers;
+  double rms = 0;
+  double span = 0;
+  std::string reason;
+  bool valid = false;
+};
+
+// Total least squares line through points (undistorted px).
+Eigen::Vector3d fitLine(const Points2& pts, const std::vector<bool>& use, const Eigen::Vector2d& inside) {
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  int n = 0;
+  for (size_t i = 0; i < pts.size(); ++i)
+    if (use[i]) {
+      mean += pts[i];
+      ++n;
+    }
+  mean /= std::max(1, n);
+  Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+  for (size_t i = 0; i < pts.size(); ++i)
+    if (use[i]) cov += (pts[i] - mean) * (pts[i] - mean).transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
+  const Eigen::Vector2d dir = eig.eigenvectors().col(1);
+  return lineThrough(mean, mean + dir, inside);
+}
+
+// Refines one edge: samples along the current (undistorted) line estimate, searches the strongest
+// inside-to-outside gradient along the raw-image normal, fits a line to the undistorted peaks.
+EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse, const Eigen::Vector2d& inside_u,
+                   bool bright, const ImageBoardDetectorOptions& o) {
+  EdgeFit fit;
+  Eigen::Vector2d a = camera.undistortPixel(coarse.a), b = camera.undistortPixel(coarse.b);
+  Eigen::Vector3d line = lineThrough(a, b, inside_u);
+  const double polarity = bright ? -1.0 : 1.0;  // intensity change walking outward, made positive
+  for (int pass = 0; pass <= kFinePasses; ++pass) {
+    const double half = pass == 0 ? o.coarse_search_px : o.fine_search_px;
+    const int steps = static_cast<int>(std::ceil(half / kProfileStepPx)) + 1;
+    const Eigen::Vector2d n = line.head<2>();
+    // Project the segment ends onto the current line.
+    a = a - (n.dot(a) + line.z()) * n;
+    b = b - (n.dot(b) + line.z()) * n;
+    const double len = (b - a).norm();
+    const Eigen::Vector2d dir = (b - a) / std::max(len, 1e-9);
+    Points2 pts_u, pts_raw;
+    std::vector<double> strength;
+    std::vector<double> profile(2 * steps + 1);
+    for (double t = o.corner_exclusion_px; t <= len - o.corner_exclusion_px; t += o.sample_step_px) {
+      const Eigen::Vector2d xu = a + t * dir;
+      const Eigen::Vector2d x = camera.distortPixel(xu);
+      Eigen::Vector2d d = camera.distortPixel(xu + n) - x;
+      d.normalize();
+      if (!insideImage(gray, x - half * d, 1.0) || !insideImage(gray, x + half * d, 1.0) ||
+          !insideImage(gray, x - (half + kProfileStepPx) * d, 1.0) ||
+          !insideImage(gray, x + (half + kProfileStepPx) * d, 1.0))
+        continue;
+      for (int k = -steps; k <= steps; ++k) {
+        const Eigen::Vector2d p = x + (k * kProfileStepPx) * d;
+        profile[k + steps] = sampleBilinear(gray, p.x(), p.y());
+      }
+      int best_k = 0;
+      double best_g = 0;
+      std::vector<double> g(profile.size(), 0.0);
+      for (int k = 1; k + 1 < static_cast<int>(profile.size()); ++k) {
+        // Derivative across one full pixel (samples at +-0.5 px): robust to noise, unbiased.
+        g[k] = polarity * (profile[k + 1] - profile[k - 1]) / (2 * kProfileStepPx);
+        if (g[k] > best_g) {
+          best_g = g[k];
+          best_k = k;
+        }
+      }
+      if (best_k <= 1 || best_k + 2 >= static_cast<int>(profile.size()) || best_g < o.min_edge_contrast) continue;
+      const double gm = g[best_k - 1], g0 = g[best_k], gp = g[best_k + 1];
+      const double denom = gm - 2 * g0 + gp;
+      const double delta = denom < 0 ? std::clamp(0.5 * (gm - gp) / denom, -0.5, 0.5) : 0.0;
+      const Eigen::Vector2d edge_raw = x + ((best_k - steps + delta) * kProfileStepPx) * d;
+      if (!insideImage(gray, edge_raw, o.border_margin_px)) continue;
+      pts_raw.push_back(edge_raw);
+      pts_u.push_back(camera.undistortPixel(edge_raw));
+      strength.push_back(best_g);
+    }
+    if (static_cast<int>(pts_u.size()) < o.min_edge_points) {
+      fit.reason = "too few edge pixels (" + std::to_string(pts_u.size()) + ")";
+      fit.valid = false;
+      return fit;
+    }
+    std::vector<double> sorted = strength;
+    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+    const double median_strength = sorted[sorted.size() / 2];
+    std::vector<bool> use(pts_u.size());
+    for (size_t i = 0; i < pts_u.size(); ++i) use[i] = strength[i] >= kWeakPeakFraction * median_strength;
+    // Robust refit: MAD-based threshold, never tighter than the configured inlier distance.
+    for (int iter = 0; iter < 3; ++iter) {
+      line = fitLine(pts_u, use, inside_u);
+      std::vector<double> res;
+      for (size_t i = 0; i < pts_u.size(); ++i)
+        if (use[i]) res.push_back(std::abs(line.head<2>().dot(pts_u[i]) + line.z()));
+      if (res.empty()) break;
+      std::nth_element(res.begin(), res.begin() + res.size() / 2, res.end());
+      const double thr = std::max(o.edge_inlier_px, 3 * kMadToSigma * res[res.size() / 2]);
+      for (size_t i = 0; i < pts_u.size(); ++i)
+        use[i] = strength[i] >= kWeakPeakFraction * median_strength &&
+                 std::abs(line.head<2>().dot(pts_u[i]) + line.z()) <= thr;
+    }
+    line = fitLine(pts_u, use, inside_u);
+    fit.raw_inliers.clear();
+    double sum_sq = 0, tmin = 1e18, tmax = -1e18;
+    const Eigen::Vector2d ldir(-line.y(), line.x());
+    for (size_t i = 0; i < pts_u.size(); ++i) {
+      if (!use[i]) continue;
+      const double r = line.head<2>().dot(pts_u[i]) + line.z();
+      sum_sq += r * r;
+      fit.raw_inliers.push_back(pts_raw[i]);
+      tmin = std::min(tmin, ldir.dot(pts_u[i]));
+      tmax = std::max(tmax, ldir.dot(pts_u[i]));
+    }
+    const int count = static_cast<int>(fit.raw_inliers.size());
+    fit.rms = count > 0 ? std::sqrt(sum_sq / count) : 0.0;
+    fit.span = count > 0 ? tmax - tmin : 0.0;
+    fit.line = line;
+    if (count < o.min_edge_points) {
+      fit.reason = "too few edge inliers (" + std::to_string(count) + ")";
+      return fit;
+    }
+  }
+  if (fit.span < o.min_edge_length_px) {
+    fit.reason = cv::format("visible edge too short (%.0f px)", fit.span);
+  } else if (fit.rms > o.max_edge_rms_px) {
+    fit.reason = cv::format("edge not straight (rms %.2f px)", fit.rms);
+  } else {
+    fit.valid = true;
+  }
+  return fit;
+}
+
+}  // namespace
+
+void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& target,
+                 const ImageBoardDetectorOptions& o, ImageDetection* out) {
+  CameraBoardFeatures& f = out->features;
+  ImageDetectionDetails& d = out->details;
+  const double scale = std::max(1.0, static_cast<double>(gray.cols) / o.segmentation_width_px);
+  cv::Mat small;
+  if (scale > 1.0)
+    cv::resize(gray, small, cv::Size(static_cast<int>(std::lround(gray.cols / scale)),
+                                      static_cast<int>(std::lround(gray.rows / scale))),
+               0, 0, cv::INTER_AREA);
+  else
+    small = gray;
+  const double sx = static_cast<double>(gray.cols) / small.cols;
+  Candidate board;
+  if (!segmentBoard(small, o, &board, &f.reason)) return;
+  for (const auto& p : board.contour) d.outline_raw.emplace_back((p.x + 0.5) * sx - 0.5, (p.y + 0.5) * sx - 0.5);
+  Eigen::Vector2d centroid;
+  const std::vector<CoarseEdge> sides = coarseEdges(board.contour, sx, small.size(), o, &centroid);
+  if (sides.size() < 2) {
+    f.reason = "board not found: " + std::to_string(sides.size()) + " straight board edge(s) in the outline";
+    return;
+  }
+  std::vector<double> angles, weights;
+  for (const auto& s : sides) {
+    angles.push_back(s.angle);
+    weights.push_back(s.length);
+  }
+  const std::vector<int> names = nameEdges(angles, weights, sides.size() == static_cast<size_t>(kNumEdges));
+  const Eigen::Vector2d inside_u = camera.undistortPixel(centroid);
+  for (int j = 0; j < kNumEdges; ++j) d.edge_reason[j] = "not in the outline (outside the image or along its border)";
+  for (size_t k = 0; k < sides.size(); ++k) {
+    const int j = names[k];
+    if (j < 0) continue;
+    const EdgeFit fit = refineEdge(gray, camera, sides[k], inside_u, board.bright, o);
+    f.edge_lines[j] = fit.line;
+    f.edge_valid[j] = fit.valid;
+    d.edge_points_raw[j] = fit.raw_inliers;
+    d.edge_rms_px[j] = fit.rms;
+    d.edge_reason[j] = fit.reason;
+  }
+  int valid = 0;
+  for (int j = 0; j < kNumEdges; ++j) valid += f.edge_valid[j];
+  for (int j = 0; j < kNumEdges; ++j)
+    if (f.edge_valid[j] && f.edge_valid[(j + 1) % 4] &&
+        !intersectLines(f.edge_lines[j], f.edge_lines[(j + 1) % 4], &f.corners_px[j])) {
+      f.reason = std::string("board not found: edges ") + edgeName(j) + " and " + edgeName((j + 1) % 4) + " are parallel";
+      return;
+    }
+  if (valid < kNumEdges) {
+    std::string why;
+    for (int j = 0; j < kNumEdges; ++j)
+      if (!f.edge_valid[j]) why += std::string(why.empty() ? "" : "; ") + edgeName(j) + ": " + d.edge_reason[j];
+    f.reason = "board edges missing (" + std::to_string(valid) + " of 4 valid): " + why;
+    return;
+  }
+  // The four corners must form a convex quadrilateral in clockwise image order with sides of a
+  // usable length; otherwise the edges were mislabelled or belong to something else.
+  for (int j = 0; j < kNumEdges; ++j) {
+    const Eigen::Vector2d e1 = f.corners_px[(j + 1) % 4] - f.corners_px[j];
+    const Eigen::Vector2d e2 = f.corners_px[(j + 2) % 4] - f.corners_px[(j + 1) % 4];
+    if (e1.x() * e2.y() - e1.y() * e2.x() <= 0) {
+      f.reason = "board not found: edge lines do not form a convex quadrilateral";
+      return;
+    }
+    if (e1.norm() < o.min_board_size_px) {
+      f.reason = cv::format("board too small: side %.0f px", e1.norm());
+      return;
+    }
+  }
+  const auto outer = target.outerCorners();
+  const Points3 obj(outer.begin(), outer.end());
+  const Points2 img(f.corners_px.begin(), f.corners_px.end());
+  const PoseFit pose = fitPose(obj, img, f.K, o.pixel_sigma_px);
+  if (!pose.ok) {
+    f.reason = pose.reason;
+    return;
+  }
+  f.camera_T_board = pose.camera_T_board;
+  f.plane = planeFromPose(pose.camera_T_board);
+  f.reprojection_rms_px = pose.rms_px;
+  d.pattern_errors_px = pose.errors_px;
+  d.pose_covariance = pose.covariance;
+  if (pose.rms_px > o.max_plain_corner_rms_px) {
+    f.reason = cv::format("corners do not fit a %.3f x %.3f m board (rms %.2f px)", target.width, target.height,
+                          pose.rms_px);
+    return;
+  }
+  f.found = true;
+}
+
+}  // namespace image_detection
+}  // namespace board_calib
