@@ -28,6 +28,9 @@ struct SimSensor {
   double min_elevation_deg = -25.0, max_elevation_deg = 15.0;  ///< deg
   double horizontal_resolution_deg = 0.2;  ///< deg
   double range_noise_m = 0.01;             ///< 1 sigma along the ray, m
+  /// 1 sigma of a fixed per-ring range offset (laser-to-laser calibration error, drawn once
+  /// per scene): a systematic error that tilts the fitted plane differently per board pose.
+  double ring_bias_m = 0.002;
   double max_range_m = 50.0;               ///< m
   int max_board_points = 400;  ///< uniform subsample of the kept board points; 0 keeps all
   /// Multiplies every noise of this sensor (3 for the "noisy sensor" experiments).

@@ -133,6 +133,7 @@ std::optional<CameraBoardFeatures> observeCamera(const SimSensor& s, const Targe
 
 // LiDAR observation by ray casting; nullopt when too few rings / points hit the board.
 std::optional<LidarBoardFeatures> observeLidar(const SimSensor& s, const MsgSyntheticOptions& opt,
+                                               const std::vector<double>& ring_bias,
                                                const Eigen::Isometry3d& sensor_T_board, std::mt19937& rng) {
   const Target& target = opt.target;
   const Eigen::Isometry3d board_T_sensor = sensor_T_board.inverse();
@@ -175,7 +176,7 @@ std::optional<LidarBoardFeatures> observeLidar(const SimSensor& s, const MsgSynt
       const Eigen::Vector3d b = board_T_sensor * (range * u);
       if (b.x() < 0 || b.y() < 0 || b.x() > target.width || b.y() > target.height) continue;
       ring_true.push_back(range * u);
-      ring_hits.push_back((range + range_noise(rng)) * u);
+      ring_hits.push_back((range + ring_bias[ring] + range_noise(rng)) * u);
     }
     if (ring_hits.empty()) continue;
     ++rings_hit;
@@ -330,6 +331,9 @@ Expected<MsgSyntheticScene> generateMsgScene(const std::vector<SimSensor>& senso
   const std::string invalid = options.validate();
   if (!invalid.empty()) return Expected<MsgSyntheticScene>::failure("invalid synthetic options: " + invalid);
   if (sensors.size() < 2) return Expected<MsgSyntheticScene>::failure("a rig needs >= 2 sensors");
+  for (const auto& s : sensors)
+    if (s.kind == SensorKind::kLidar && (s.rings < 1 || !(s.horizontal_resolution_deg > 0)))
+      return Expected<MsgSyntheticScene>::failure("LiDAR '" + s.frame + "' needs >= 1 ring and a resolution > 0");
   MsgSyntheticScene scene;
   scene.sensors = sensors;
   for (const auto& s : sensors) {
@@ -337,6 +341,13 @@ Expected<MsgSyntheticScene> generateMsgScene(const std::vector<SimSensor>& senso
     spec.frame = s.frame;
     spec.kind = s.kind;
     scene.problem.sensors.push_back(spec);
+  }
+  // Fixed per-ring range offsets of every LiDAR.
+  std::vector<std::vector<double>> ring_bias(sensors.size());
+  for (size_t i = 0; i < sensors.size(); ++i) {
+    std::normal_distribution<double> bias(0.0, sensors[i].ring_bias_m * sensors[i].noise_scale);
+    if (sensors[i].kind == SensorKind::kLidar)
+      for (int r = 0; r < sensors[i].rings; ++r) ring_bias[i].push_back(bias(rng));
   }
   // Board poses are drawn around the reference sensor's (sensor 0) optical axis.
   const Eigen::Isometry3d ref_T_s0 = sensors[0].reference_T_sensor;
@@ -357,7 +368,7 @@ Expected<MsgSyntheticScene> generateMsgScene(const std::vector<SimSensor>& senso
         if (f) obs.cameras[static_cast<int>(i)] = std::move(*f);
         else all = false;
       } else {
-        auto f = observeLidar(sensors[i], options, s_T_board, rng);
+        auto f = observeLidar(sensors[i], options, ring_bias[i], s_T_board, rng);
         if (f) obs.lidars[static_cast<int>(i)] = std::move(*f);
         else all = false;
       }
