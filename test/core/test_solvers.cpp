@@ -130,6 +130,60 @@ TEST(Solvers, PlaneToPlaneBetweenTwoLidars) {
   EXPECT_LT(translationErrorM(sol.a_T_b, a_T_b), 1e-6);
 }
 
+TEST(Solvers, PlaneToPlaneBetweenTwoCameras) {
+  // Camera <-> camera: the true board planes seen by two cameras, each with the synthetic
+  // camera-plane noise (0.2 deg normal, 3 mm offset).
+  std::mt19937 rng(12);
+  const auto scene = makeScene(6);
+  const Eigen::Isometry3d a_T_b = perturb(Eigen::Isometry3d::Identity(), 0.3, 0.4, rng);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  auto noisy = [&](const Plane& p) {
+    Plane out = p;
+    out.normal = (p.normal + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)) * 0.2 * kRadPerDeg).normalized();
+    out.offset += 0.003 * noise(rng);
+    return out;
+  };
+  std::vector<PlaneCorrespondence> c;
+  for (size_t i = 0; i < scene.views.size(); ++i) {
+    const Plane in_a = Plane{Eigen::Vector3d::UnitZ(), 0.0}.transformed(scene.camera_T_board[i]);
+    PlaneCorrespondence pc;
+    pc.in_a = noisy(in_a);
+    pc.in_b = noisy(in_a.transformed(a_T_b.inverse()));
+    c.push_back(pc);
+  }
+  const auto sol = solvePlaneToPlane(c, SolverOptions());
+  ASSERT_TRUE(sol.success) << sol.reason;
+  // The MSG target (0.5 deg / 2 cm) with noise on both sides.
+  EXPECT_LT(rotationErrorDeg(sol.a_T_b, a_T_b), 0.5);
+  EXPECT_LT(translationErrorM(sol.a_T_b, a_T_b), 0.02);
+  EXPECT_TRUE(sol.covariance.allFinite());
+  EXPECT_GT(sol.normal_rms_deg, 0.0);
+  // Coplanar normals (all board normals in one plane) are rejected with the reason.
+  std::vector<PlaneCorrespondence> coplanar;
+  for (int i = 0; i < 6; ++i) {
+    PlaneCorrespondence pc;
+    pc.in_a.normal = Eigen::Vector3d(std::cos(0.3 * i), 0.0, std::sin(0.3 * i) + 1.0).normalized();
+    pc.in_a.offset = 3.0;
+    pc.in_b = pc.in_a;
+    coplanar.push_back(pc);
+  }
+  const auto bad = solvePlaneToPlane(coplanar, SolverOptions());
+  EXPECT_FALSE(bad.success);
+  EXPECT_NE(bad.reason.find("coplanar"), std::string::npos) << bad.reason;
+}
+
+TEST(Solvers, ClosedFormInitialiserIsClose) {
+  // The initialiser only has to land in the basin of convergence; with 30 noisy views it is
+  // already within about a degree and a few centimetres.
+  const auto scene = makeScene(2);
+  for (Method m : {Method::kPpc, Method::kPbpc, Method::kMsgPair}) {
+    const auto guess = closedFormInitialGuess(scene.views, m, SolverOptions());
+    ASSERT_TRUE(guess.ok()) << guess.error();
+    EXPECT_LT(rotationErrorDeg(*guess, scene.camera_T_lidar), 1.0) << methodName(m);
+    EXPECT_LT(translationErrorM(*guess, scene.camera_T_lidar), 0.05) << methodName(m);
+  }
+}
+
 // Robustness: Ceres from 100 random starts (rotation N(0, 90 deg), translation N(0, 50 cm)).
 TEST(Solvers, RandomInitialisationRobustness) {
   const auto scene = makeScene(21);

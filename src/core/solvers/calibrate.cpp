@@ -581,9 +581,6 @@ Expected<Eigen::Isometry3d> closedFormInitialGuess(const std::vector<View>& view
   return closedForm(prepared, method, options);
 }
 
-CalibrationSolution calibrateMsgPair(const std::vector<View>& views, const SolverOptions& options,
-                                     const std::optional<Eigen::Isometry3d>& initial_guess);
-
 namespace {
 
 void fillResidualFigures(const std::vector<View>& views, const std::vector<PreparedView>& prepared, Method method,
@@ -682,7 +679,7 @@ CalibrationSolution calibrate(const std::vector<View>& views, Method method, con
     return sol;
   }
   if (method == Method::kMsgPair) {
-    sol = calibrateMsgPair(views, options, initial_guess);
+    sol = solvers_detail::calibrateMsgPair(views, options, initial_guess);
     sol.solve_time_ms = elapsed_ms();
     return sol;
   }

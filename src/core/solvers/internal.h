@@ -44,5 +44,10 @@ Expected<Eigen::Matrix3d> alignVectors(const std::vector<Eigen::Vector3d>& a, co
 /// coplanar (k = 2).
 double normalSpreadDeg(const std::vector<Eigen::Vector3d>& normals, int k);
 
+/// calibrate() for Method::kMsgPair: camera plane (a) and LiDAR plane (b) per view, then
+/// solvePlaneToPlane, with the same quality figures as the other methods (plane_to_plane.cpp).
+CalibrationSolution calibrateMsgPair(const std::vector<View>& views, const SolverOptions& options,
+                                     const std::optional<Eigen::Isometry3d>& initial_guess);
+
 }  // namespace solvers_detail
 }  // namespace board_calib

@@ -244,6 +244,8 @@ PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& corre
   return sol;
 }
 
+namespace solvers_detail {
+
 CalibrationSolution calibrateMsgPair(const std::vector<View>& views, const SolverOptions& options,
                                      const std::optional<Eigen::Isometry3d>& initial_guess) {
   CalibrationSolution sol;
@@ -333,4 +335,5 @@ CalibrationSolution calibrateMsgPair(const std::vector<View>& views, const Solve
   return sol;
 }
 
+}  // namespace solvers_detail
 }  // namespace board_calib
