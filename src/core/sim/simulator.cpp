@@ -36,13 +36,18 @@ constexpr double kPersonBehindBoard = 0.25; // m, body centre behind the board c
 // Room texture.
 constexpr double kFloorTile = 0.6;          // m, tile size on the floor
 constexpr double kGroutWidth = 0.01;        // m
-constexpr double kWallNoiseScale = 0.35;    // m, feature size of the wall blotches
+constexpr double kWallPanelWidth = 1.2;     // m
+constexpr double kWallPanelHeight = 0.8;    // m
+constexpr double kSeamFraction = 0.02;      // of a panel, dark seams between panels
+constexpr double kPosterThreshold = 0.85;   // panels above this hash are coloured posters
 
 // Surface appearance (linear grey levels 0..1).
 constexpr double kBoardWhite = 0.86;
 constexpr double kBoardBlack = 0.08;
 constexpr double kBoardBack = 0.45;
 constexpr double kBlackReflectivity = 0.25;  // LiDAR intensity of printed black relative to white
+constexpr double kBoardFacingMin = 0.85;   // brightness of the board at grazing view
+constexpr double kBoardAmbient = 0.85;     // the board is lit mostly evenly (light, slightly shaded)
 constexpr double kAmbient = 0.55;
 constexpr double kDiffuse = 0.45;
 
@@ -138,7 +143,7 @@ bool boardBlackAt(const Target& target, double x, double y) {
   return false;
 }
 
-// Smooth pseudo-random texture in [0, 1] (value noise on an integer lattice).
+// Pseudo-random value in [0, 1] per integer lattice cell (per-tile brightness).
 double hash01(int64_t x, int64_t y, int64_t z) {
   uint64_t h = static_cast<uint64_t>(x) * 0x9E3779B97F4A7C15ULL ^ static_cast<uint64_t>(y) * 0xC2B2AE3D27D4EB4FULL ^
                static_cast<uint64_t>(z) * 0x165667B19E3779F9ULL;
@@ -146,17 +151,6 @@ double hash01(int64_t x, int64_t y, int64_t z) {
   h *= 0xBF58476D1CE4E5B9ULL;
   h ^= h >> 32;
   return static_cast<double>(h & 0xFFFFFF) / static_cast<double>(0xFFFFFF);
-}
-
-double valueNoise(double u, double v, int seed) {
-  const double fu = std::floor(u), fv = std::floor(v);
-  const int64_t iu = static_cast<int64_t>(fu), iv = static_cast<int64_t>(fv);
-  double a = u - fu, b = v - fv;
-  a = a * a * (3 - 2 * a);
-  b = b * b * (3 - 2 * b);
-  const double n00 = hash01(iu, iv, seed), n10 = hash01(iu + 1, iv, seed);
-  const double n01 = hash01(iu, iv + 1, seed), n11 = hash01(iu + 1, iv + 1, seed);
-  return (n00 * (1 - a) + n10 * a) * (1 - b) + (n01 * (1 - a) + n11 * a) * b;
 }
 
 // The scene in the world frame, prepared once per render / scan.
@@ -196,39 +190,58 @@ class Scene {
     return best;
   }
 
-  // Grey level (0..1) of a hit as a camera sees it; `dir` is the viewing ray.
+  // Colour (BGR, 0..1) of a hit as a camera sees it; `dir` is the viewing ray. The room is
+  // piecewise flat (panels, tiles): realistic straight clutter for line detectors, and
+  // noise-free images compress well in bags.
   Eigen::Vector3d shade(const Hit& hit, const Eigen::Vector3d& dir) const {
-    // Light from above and slightly from the viewer's side: soft, so edges stay photometric.
+    // Light from above and slightly from the side: soft, so edges stay photometric.
     const Eigen::Vector3d light = Eigen::Vector3d(0.3, 0.2, 1.0).normalized();
     const double lambert = std::abs(hit.normal.dot(light));
-    const double facing = std::abs(hit.normal.dot(dir));  // slight darkening at grazing views
-    const double shading = kAmbient + kDiffuse * (0.5 * lambert + 0.5 * facing);
+    const bool board = hit.board();
+    const double shading = board ? kBoardAmbient + (1 - kBoardAmbient) * lambert : kAmbient + kDiffuse * lambert;
     const Eigen::Vector3d& p = hit.point;
     double grey = 0.5;
     Eigen::Vector3d tint(1.0, 1.0, 1.0);  // b, g, r
     switch (hit.label) {
-      case kLabelBoardWhite: grey = kBoardWhite; break;
-      case kLabelBoardBlack: grey = kBoardBlack; break;
+      case kLabelBoardWhite:
+      case kLabelBoardBlack: {
+        // Slightly darker at grazing views (matte print): a smooth gradient over the board.
+        const double facing = std::abs(hit.normal.dot(dir));
+        grey = (hit.label == kLabelBoardWhite ? kBoardWhite : kBoardBlack) * (kBoardFacingMin + (1 - kBoardFacingMin) * facing);
+        break;
+      }
       case kLabelBoardBack: grey = kBoardBack; break;
       case kLabelPerson: {
-        const double fold = valueNoise(p.z() / 0.08, p.x() + p.y(), 7);
-        grey = 0.25 + 0.1 * fold;
+        grey = 0.3;
         tint = {1.3, 0.95, 0.75};  // blue clothes
         break;
       }
       case kLabelFloor: {
-        const double gx = std::fmod(std::abs(p.x()), kFloorTile), gy = std::fmod(std::abs(p.y()), kFloorTile);
-        const bool grout = gx < kGroutWidth || gy < kGroutWidth;
-        grey = grout ? 0.22 : 0.42 + 0.18 * valueNoise(p.x() / 0.2, p.y() / 0.2, 1);
+        const double gx = p.x() / kFloorTile, gy = p.y() / kFloorTile;
+        const double fx = gx - std::floor(gx), fy = gy - std::floor(gy);
+        const double grout = kGroutWidth / kFloorTile;
+        if (fx < grout || fy < grout) {
+          grey = 0.22;
+        } else {
+          grey = 0.38 + 0.2 * hash01(static_cast<int64_t>(std::floor(gx)), static_cast<int64_t>(std::floor(gy)), 1);
+        }
         tint = {0.85, 0.95, 1.1};
         break;
       }
-      case kLabelCeiling: grey = 0.75 + 0.05 * valueNoise(p.x(), p.y(), 2); break;
-      default: {  // walls
+      case kLabelCeiling: grey = 0.8; break;
+      default: {  // walls: panels of random brightness with dark seams, some posters
         const double s = std::abs(hit.normal.x()) > 0.5 ? p.y() : p.x();
-        grey = 0.45 + 0.25 * valueNoise(s / kWallNoiseScale, p.z() / kWallNoiseScale, 3 + hit.label) +
-               0.1 * valueNoise(s / 0.05, p.z() / 0.05, 11);
-        tint = {0.9 + 0.05 * (hit.label - kLabelWall), 1.0, 1.05};
+        const double gu = s / kWallPanelWidth, gv = (p.z() - spec_.floor_z_m) / kWallPanelHeight;
+        const double fu = gu - std::floor(gu), fv = gv - std::floor(gv);
+        const int64_t iu = static_cast<int64_t>(std::floor(gu)), iv = static_cast<int64_t>(std::floor(gv));
+        if (fu < kSeamFraction || fv < kSeamFraction) {
+          grey = 0.25;
+        } else {
+          const double h = hash01(iu, iv, 3 + hit.label);
+          grey = 0.4 + 0.35 * h;
+          if (h > kPosterThreshold) tint = {0.7 + 0.6 * hash01(iu, iv, 17), 0.8, 0.7 + 0.6 * hash01(iu, iv, 23)};
+        }
+        tint = tint.cwiseProduct(Eigen::Vector3d(0.9 + 0.05 * (hit.label - kLabelWall), 1.0, 1.05));
       }
     }
     return grey * shading * tint;
@@ -650,6 +663,13 @@ LidarCloud simulateLidarScan(const LidarSpec& spec, const Eigen::Isometry3d& wor
 // ---------------------------------------------------------------------------------------------
 cv::Mat renderCameraImage(const CameraModel& camera, const Eigen::Isometry3d& world_T_camera, const SceneSpec& scene,
                           const Eigen::Isometry3d& world_T_board, const RenderOptions& options, std::mt19937& rng) {
+  const cv::Mat radiance = renderCameraRadiance(camera, world_T_camera, scene, world_T_board, options);
+  if (radiance.empty()) return cv::Mat();
+  return finishCameraImage(radiance, camera, options, rng);
+}
+
+cv::Mat renderCameraRadiance(const CameraModel& camera, const Eigen::Isometry3d& world_T_camera, const SceneSpec& scene,
+                             const Eigen::Isometry3d& world_T_board, const RenderOptions& options) {
   const int w = camera.width(), h = camera.height();
   if (w <= 0 || h <= 0 || !options.validate().empty() || !scene.validate().empty()) return cv::Mat();
   const std::shared_ptr<const RayMap> rays = rayMapFor(camera);
@@ -716,7 +736,15 @@ cv::Mat renderCameraImage(const CameraModel& camera, const Eigen::Isometry3d& wo
     });
   }
 
-  if (options.blur_sigma_px > 0) cv::GaussianBlur(colour, colour, cv::Size(0, 0), options.blur_sigma_px);
+  return colour;
+}
+
+cv::Mat finishCameraImage(const cv::Mat& radiance, const CameraModel& camera, const RenderOptions& options,
+                          std::mt19937& rng) {
+  if (radiance.empty() || radiance.type() != CV_32FC3 || !options.validate().empty()) return cv::Mat();
+  const int w = radiance.cols, h = radiance.rows;
+  cv::Mat colour = radiance;
+  if (options.blur_sigma_px > 0) cv::GaussianBlur(radiance, colour, cv::Size(0, 0), options.blur_sigma_px);
 
   // Vignetting (radial, quadratic in the distance from the principal point), then 8 bit + noise.
   const auto& in = camera.intrinsics();

@@ -88,5 +88,15 @@ LidarCloud simulateLidarScan(const LidarSpec& spec, const Eigen::Isometry3d& wor
 cv::Mat renderCameraImage(const CameraModel& camera, const Eigen::Isometry3d& world_T_camera, const SceneSpec& scene,
                           const Eigen::Isometry3d& world_T_board, const RenderOptions& options, std::mt19937& rng);
 
+/// The expensive, deterministic part of renderCameraImage: anti-aliased linear colour (CV_32FC3,
+/// BGR, 0..1) before blur, vignetting, quantisation and noise. Reusable while the board is still.
+/// Empty when the options, scene or camera are invalid.
+cv::Mat renderCameraRadiance(const CameraModel& camera, const Eigen::Isometry3d& world_T_camera,
+                             const SceneSpec& scene, const Eigen::Isometry3d& world_T_board,
+                             const RenderOptions& options);
+/// Blur, vignetting, Gaussian noise and 8-bit quantisation of a radiance image -> bgr8.
+cv::Mat finishCameraImage(const cv::Mat& radiance, const CameraModel& camera, const RenderOptions& options,
+                          std::mt19937& rng);
+
 }  // namespace sim
 }  // namespace board_calib
