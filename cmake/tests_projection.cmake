@@ -9,3 +9,9 @@ board_calib_core_gtest(test_projection_sim
   SOURCES test/core/test_projection_sim.cpp
   MODULES bc_projection bc_sim bc_geometry
   LIBS ${OpenCV_LIBRARIES} opencv_imgcodecs)  # imgcodecs: the overlay is saved for a look
+
+# The projected-edges check against the independent MLRE tool on real reference features.
+board_calib_core_gtest(test_projection_real
+  SOURCES test/core/test_projection_real.cpp
+  MODULES bc_projection bc_geometry
+  LIBS ${OpenCV_LIBRARIES} yaml-cpp)
