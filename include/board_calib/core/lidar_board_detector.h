@@ -42,6 +42,7 @@ struct LidarBoardDetectorOptions {
   double max_voxel_thickness_m = 0.03; ///< RMS spread of a voxel's points along the region normal, m
   double max_voxel_offset_m = 0.05;    ///< distance of a voxel's centroid from the region plane, m
   double min_seed_spread_m = 0.02;     ///< second-largest RMS spread of a seed voxel (2D, not a line), m
+  double max_voxel_normal_angle_deg = 20.0;  ///< a 2D voxel's own normal vs the region's, deg
 
   // Candidate scoring against the target.
   int min_board_points = 30;       ///< fewer points on a candidate: not a board
@@ -61,8 +62,10 @@ struct LidarBoardDetectorOptions {
   double elevation_gap_deg = 0.15;        ///< without ring/rows: a gap larger than this starts a new beam, deg
   int min_points_per_scan_line = 2;       ///< scan lines with fewer board points give no edge points
   int min_edge_points = 3;                ///< fewer inliers: the edge is invalid
-  double edge_inlier_threshold_m = 0.03;  ///< distance of an edge point from its line (in-plane), m
+  double edge_inlier_threshold_m = 0.03;  ///< distance of an edge point from its line (in-plane; at least the sample spacing), m
   double max_edge_rms_m = 0.02;           ///< RMS of the edge-line fit above this: invalid, m
+  bool correct_edge_sampling_bias = true; ///< move edge lines out by the extremes' mean inset (edge_points stay raw)
+  double beam_divergence_deg = 0.15;      ///< edges bloom out by half of it, which offsets the inset, deg
   double max_corner_angle_error_deg = 15.0;  ///< adjacent edges must meet at 90 deg +- this, deg
   double size_doubt_ratio = 0.02;         ///< measured size differs from declared by more: say so in `reason`
 

@@ -135,7 +135,7 @@ LineFit2D fitLineRobust(const Points2& points, double inlier_threshold, int iter
           cost += dist * dist;
         }
       }
-      // Most inliers; ties broken by the smaller squared residual (MSAC-like).
+      // Most inliers; ties broken by the smaller squared residual.
       if (count > best_count || (count == best_count && cost < best_cost)) {
         best_count = count;
         best_cost = cost;

@@ -38,6 +38,13 @@ constexpr double kShapeErrorScale = 4.0;
 constexpr double kMaxNormalUpCosine = 0.97;
 // Two candidates closer than this are parts of one board, not two boards.
 constexpr double kSameBoardDistanceM = 0.5;
+// Median absolute deviation to sigma (Gaussian), band width in sigmas, and its floor.
+constexpr double kMadToSigma = 1.4826;
+constexpr double kRobustBandSigmas = 2.5;
+constexpr double kMinRobustBandM = 0.005;
+// The plane refit after the edges keeps points this far inside the edge lines (drops the
+// mixed returns of the rim and anything touching the board from outside).
+constexpr double kRimExclusionM = 0.02;
 // Points sampled for the convex hull of a large candidate.
 constexpr size_t kMaxHullPoints = 4000;
 // Re-assignment rounds between the two edges of one side.
@@ -101,6 +108,8 @@ std::string LidarBoardDetectorOptions::validate() const {
   if (!(max_voxel_thickness_m > 0.0)) return "max_voxel_thickness_m must be > 0";
   if (!(max_voxel_offset_m > 0.0)) return "max_voxel_offset_m must be > 0";
   if (!(min_seed_spread_m >= 0.0)) return "min_seed_spread_m must be >= 0";
+  if (!(max_voxel_normal_angle_deg > 0.0 && max_voxel_normal_angle_deg <= 90.0))
+    return "max_voxel_normal_angle_deg must be in (0, 90]";
   if (min_board_points < 3) return "min_board_points must be >= 3";
   if (!(min_size_ratio > 0.0 && min_size_ratio <= 1.0)) return "min_size_ratio must be in (0, 1]";
   if (!(max_size_ratio >= 1.0)) return "max_size_ratio must be >= 1";
@@ -117,6 +126,7 @@ std::string LidarBoardDetectorOptions::validate() const {
   if (!(max_corner_angle_error_deg > 0.0 && max_corner_angle_error_deg < 90.0))
     return "max_corner_angle_error_deg must be in (0, 90)";
   if (!(size_doubt_ratio >= 0.0)) return "size_doubt_ratio must be >= 0";
+  if (!(beam_divergence_deg >= 0.0 && beam_divergence_deg < 5.0)) return "beam_divergence_deg must be in [0, 5)";
   return {};
 }
 
@@ -217,14 +227,16 @@ std::vector<Region> growPlanarRegions(VoxelGrid& g, const LidarBoardDetectorOpti
   std::vector<PlaneFit> fits(g.voxels.size());
   for (size_t i = 0; i < g.voxels.size(); ++i) {
     const Voxel& v = g.voxels[i];
-    if (v.stats.n < o.min_voxel_points) continue;
     fits[i] = lidar_detail::fitPlane(v.stats);
+    if (v.stats.n < o.min_voxel_points) continue;
     const auto& ev = fits[i].eigenvalues;
     if (std::sqrt(ev[0]) < o.max_voxel_thickness_m && std::sqrt(ev[1]) > o.min_seed_spread_m)
       seeds.emplace_back(v.stats.n, static_cast<int>(i));
   }
   std::sort(seeds.begin(), seeds.end(), std::greater<>());
 
+  const double min_spread_sq = o.min_seed_spread_m * o.min_seed_spread_m;
+  const double min_normal_cos = std::cos(o.max_voxel_normal_angle_deg * kRadPerDeg);
   std::vector<Region> regions;
   std::vector<int> queue;
   for (const auto& seed : seeds) {
@@ -251,6 +263,9 @@ std::vector<Region> growPlanarRegions(VoxelGrid& g, const LidarBoardDetectorOpti
             const double offset = std::abs(n.dot(nv.stats.mean()) - plane.offset());
             const double thickness = std::sqrt(std::max(0.0, n.dot(nv.stats.covariance() * n)));
             if (offset > o.max_voxel_offset_m || thickness > o.max_voxel_thickness_m) continue;
+            // A voxel with a reliable normal of its own must agree (a body touching the board
+            // at a shallow angle stays out).
+            if (nv.stats.n >= o.min_voxel_points && fits[q].eigenvalues[1] > min_spread_sq && std::abs(fits[q].normal().dot(n)) < min_normal_cos) continue;
             g.voxels[q].region = id;
             r.voxels.push_back(q);
             r.stats.add(nv.stats);
@@ -420,6 +435,24 @@ RefinedPlane refinePlane(const std::vector<int>& region_points, const std::vecto
     best_d = f.offset();
     best.inliers = std::move(inliers);
   }
+  // Robust scale of the residuals: a tighter band drops mixed returns at the board's rim (they
+  // lie between the board and whatever is behind it) that the fixed threshold let in.
+  if (best.inliers.size() >= 3) {
+    std::vector<double> abs_res;
+    abs_res.reserve(best.inliers.size());
+    for (int i : best.inliers) abs_res.push_back(std::abs(best_n.dot(pts[i].p) - best_d));
+    std::nth_element(abs_res.begin(), abs_res.begin() + abs_res.size() / 2, abs_res.end());
+    const double sigma = kMadToSigma * abs_res[abs_res.size() / 2];
+    const double band = std::clamp(kRobustBandSigmas * sigma, kMinRobustBandM, thr);
+    PlaneStats s;
+    for (int i : best.inliers)
+      if (std::abs(best_n.dot(pts[i].p) - best_d) < band) s.add(pts[i].p);
+    if (s.n >= 3) {
+      const PlaneFit f = lidar_detail::fitPlane(s);
+      best_n = f.normal();
+      best_d = f.offset();
+    }
+  }
   if (best_d < 0) {
     best_n = -best_n;
     best_d = -best_d;
@@ -568,17 +601,54 @@ void extractEdges(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, c
     }
   }
   std::vector<int> left_pts, right_pts;
+  // Per extreme: the scan line's in-plane direction and its mean spacing between samples.
+  Points2 left_dir, right_dir;
+  std::vector<double> left_gap, right_gap;
   for (const auto& kv : per_line) {
     if (kv.second.count < o.min_points_per_scan_line || kv.second.left == kv.second.right) continue;
     ++det->num_scan_lines;
     left_pts.push_back(kv.second.left);
     right_pts.push_back(kv.second.right);
+    const Eigen::Vector2d span = frame.project(pts[kv.second.right].p) - frame.project(pts[kv.second.left].p);
+    const double gap = span.norm() / (kv.second.count - 1);
+    left_dir.push_back(span.normalized());
+    right_dir.push_back(span.normalized());
+    left_gap.push_back(gap);
+    right_gap.push_back(gap);
   }
   Points2 left2, right2;
   for (int i : left_pts) left2.push_back(frame.project(pts[i].p));
   for (int i : right_pts) right2.push_back(frame.project(pts[i].p));
-  const SideFit left = fitSide(left2, -1.0, o, rng);
-  const SideFit right = fitSide(right2, +1.0, o, rng);
+  // Extremes scatter inward by up to one sample spacing: the inlier band must cover that at
+  // long range, where the spacing exceeds the configured threshold.
+  LidarBoardDetectorOptions edge_options = o;
+  if (!left_gap.empty()) {
+    std::vector<double> gaps = left_gap;
+    std::nth_element(gaps.begin(), gaps.begin() + gaps.size() / 2, gaps.end());
+    edge_options.edge_inlier_threshold_m = std::max(o.edge_inlier_threshold_m, gaps[gaps.size() / 2]);
+  }
+  SideFit left = fitSide(left2, -1.0, edge_options, rng);
+  SideFit right = fitSide(right2, +1.0, edge_options, rng);
+  if (o.correct_edge_sampling_bias) {
+    // The true edge lies between a scan line's extreme and the next (missing) sample outside:
+    // on average half a sample spacing further out along the scan line.
+    // A return registers once part of the beam's footprint is on the board, so the extremes
+    // bloom out by about half the divergence (times the range), which offsets that inset.
+    const double bloom = 0.5 * o.beam_divergence_deg * kRadPerDeg * centroid.norm();
+    auto shiftOut = [bloom](LineFit2D& l, const std::vector<int>& members, const Points2& dirs,
+                            const std::vector<double>& gaps) {
+      if (!l.ok || members.empty()) return;
+      Eigen::Vector2d normal(-l.direction.y(), l.direction.x());
+      if (normal.dot(l.point) < 0) normal = -normal;  // away from the board centre (the origin)
+      double shift = 0.0;
+      for (int m : members) shift += std::max(0.0, 0.5 * gaps[m] - bloom) * std::abs(dirs[m].dot(normal));
+      l.point += normal * (shift / members.size());
+    };
+    shiftOut(left.upper, left.upper_members, left_dir, left_gap);
+    shiftOut(left.lower, left.lower_members, left_dir, left_gap);
+    shiftOut(right.upper, right.upper_members, right_dir, right_gap);
+    shiftOut(right.lower, right.lower_members, right_dir, right_gap);
+  }
 
   // Edge order: UL, UR, LR, LL.
   const std::array<const LineFit2D*, kNumEdges> lines = {&left.upper, &right.upper, &right.lower, &left.lower};
@@ -756,12 +826,50 @@ LidarBoardDetection detectLidarBoard(const LidarCloud& cloud, const Target& targ
                        " points on its plane (need " + std::to_string(options.min_board_points) + ")");
   f.found = true;
   det.code = LidarDetectionCode::kFound;
+  const LidarBoardDetection before_edges = det;
   f.plane = refined.plane;
   f.plane_rms_m = refined.rms;
-  f.board_points.reserve(refined.inliers.size());
   for (int i : refined.inliers) f.board_points.push_back(pts[i].p);
   extractEdges(cloud, pts, refined.inliers, target, options, rng, &det);
-  return det;
+  if (!f.allEdgesValid()) return det;
+
+  // Second pass: whatever touches the board near its plane (a body, an arm) lies outside the
+  // quadrilateral of the four edges. Drop it, refit the plane and find the edges again.
+  const Eigen::Vector3d centre = 0.25 * (f.corners[0] + f.corners[1] + f.corners[2] + f.corners[3]);
+  std::array<Eigen::Vector3d, kNumEdges> outward;
+  for (int j = 0; j < kNumEdges; ++j) {
+    outward[j] = f.plane.normal.cross(f.edge_line_direction[j]);
+    if (outward[j].dot(centre - f.edge_line_point[j]) > 0) outward[j] = -outward[j];
+  }
+  // Signed in-plane distance outside the edge quadrilateral (negative inside).
+  auto outside = [&](const Eigen::Vector3d& p) {
+    double d = -std::numeric_limits<double>::infinity();
+    for (int j = 0; j < kNumEdges; ++j) d = std::max(d, outward[j].dot(p - f.edge_line_point[j]));
+    return d;
+  };
+  PlaneStats core_stats;  // well inside: no rim mixed returns, nothing touching from outside
+  for (int i : refined.inliers)
+    if (outside(pts[i].p) < -kRimExclusionM) core_stats.add(pts[i].p);
+  if (core_stats.n < options.min_board_points) return det;
+  const PlaneFit fit = lidar_detail::fitPlane(core_stats);
+  Plane plane{fit.normal(), fit.offset()};
+  if (plane.offset < 0) plane = Plane{-plane.normal, -plane.offset};
+  std::vector<int> board;
+  double sum_sq = 0.0;
+  for (int i : refined.inliers) {
+    const double r = plane.signedDistance(pts[i].p);
+    if (std::abs(r) >= options.plane_distance_threshold_m || outside(pts[i].p) >= options.edge_inlier_threshold_m)
+      continue;
+    board.push_back(i);
+    sum_sq += r * r;
+  }
+  if (static_cast<int>(board.size()) < options.min_board_points) return det;
+  LidarBoardDetection second = before_edges;
+  second.features.plane = plane;
+  second.features.plane_rms_m = std::sqrt(sum_sq / board.size());
+  for (int i : board) second.features.board_points.push_back(pts[i].p);
+  extractEdges(cloud, pts, board, target, options, rng, &second);
+  return second.features.allEdgesValid() ? second : det;
 }
 
 }  // namespace board_calib

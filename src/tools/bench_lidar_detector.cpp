@@ -1,0 +1,97 @@
+// Benchmark of the LiDAR board detector on real recordings: median / p90 time per cloud,
+// single-threaded, plus detection counts. Usage:
+//   bench_lidar_detector [--data DIR] [--repeat N]
+// DIR defaults to ../shared/data, relative to the working directory (run it from the package
+// root); it holds basler_os1_plain/ and left_vlp32_checker/.
+#include <board_calib/bag_reader.h>
+#include <board_calib/core/lidar_board_detector.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+using namespace board_calib;
+
+namespace {
+
+struct Dataset {
+  std::string folder, topic;
+};
+
+int run(const std::string& data, const Dataset& ds, int repeat) {
+  const std::string dir = data + "/" + ds.folder;
+  auto target = loadTarget(dir + "/target.yaml");
+  if (!target) {
+    std::fprintf(stderr, "%s: %s\n", ds.folder.c_str(), target.error().c_str());
+    return 1;
+  }
+  std::vector<LidarCloud> clouds;
+  BagTopics topics;
+  topics.cloud_topics = {ds.topic};
+  BagCallbacks cb;
+  cb.on_cloud = [&](const std::string&, const LidarCloud& c) { clouds.push_back(c); };
+  const Status st = readBags({dir + "/session.bag"}, topics, cb);
+  if (!st) {
+    std::fprintf(stderr, "%s: %s\n", ds.folder.c_str(), st.reason.c_str());
+    return 1;
+  }
+  if (clouds.empty()) {
+    std::fprintf(stderr, "%s: no clouds on %s\n", ds.folder.c_str(), ds.topic.c_str());
+    return 1;
+  }
+  for (const bool strip_ring : {false, true}) {
+    std::vector<double> ms;
+    int found = 0, four_edges = 0;
+    size_t points = 0;
+    for (LidarCloud c : clouds) {
+      if (strip_ring) {
+        c.has_ring = false;
+        for (auto& p : c.points) p.ring = -1;
+        c.width = static_cast<int>(c.points.size());
+        c.height = 1;
+      }
+      points += c.points.size();
+      for (int r = 0; r < repeat; ++r) {
+        const auto t0 = std::chrono::steady_clock::now();
+        const LidarBoardDetection det = detectLidarBoard(c, *target);
+        const auto t1 = std::chrono::steady_clock::now();
+        ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+        if (r == 0) {
+          found += det.features.found;
+          four_edges += det.features.found && det.features.allEdgesValid();
+        }
+      }
+    }
+    std::sort(ms.begin(), ms.end());
+    std::printf("%-20s %-22s clouds %2zu  points/cloud %6zu  found %2d  four edges %2d  median %6.2f ms  p90 %6.2f ms  "
+                "max %6.2f ms\n",
+                ds.folder.c_str(), strip_ring ? "(unorganized, no ring)" : "(as recorded)", clouds.size(),
+                points / clouds.size(), found, four_edges, ms[ms.size() / 2], ms[ms.size() * 9 / 10], ms.back());
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string data = "../shared/data";  // from the package root
+  int repeat = 5;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--data" && i + 1 < argc) {
+      data = argv[++i];
+    } else if (a == "--repeat" && i + 1 < argc) {
+      repeat = std::max(1, std::atoi(argv[++i]));
+    } else {
+      std::fprintf(stderr, "usage: bench_lidar_detector [--data DIR] [--repeat N]\n");
+      return a == "--help" || a == "-h" ? 0 : 2;
+    }
+  }
+  int rc = 0;
+  rc |= run(data, {"basler_os1_plain", "/os1/points"}, repeat);
+  rc |= run(data, {"left_vlp32_checker", "/lidar/points"}, repeat);
+  return rc;
+}
