@@ -1,9 +1,11 @@
 # rviz starts headless (Xvfb, software GL) with rviz/calibration.rviz, subscribes to every
-# display's topic and logs no error; screenshot in <build>/rviz_check/calibration_rviz.png.
+# display's topic and logs no error; with ../shared present it shows basler_os1_plain played
+# through the projection nodelet. Screenshot: <build>/rviz_check/calibration_rviz.png.
 # Exit code 77 (rviz or xvfb-run missing) counts as skipped.
 add_test(NAME rviz_headless_check
   COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/test/rviz_headless_check.sh
-          ${CMAKE_CURRENT_SOURCE_DIR}/rviz/calibration.rviz ${CMAKE_BINARY_DIR}/rviz_check)
+          ${CMAKE_CURRENT_SOURCE_DIR}/rviz/calibration.rviz ${CMAKE_BINARY_DIR}/rviz_check
+          ${CATKIN_DEVEL_PREFIX}/setup.bash)
 set_tests_properties(rviz_headless_check PROPERTIES SKIP_RETURN_CODE 77 TIMEOUT 180)
 
 # The projection nodelet: lazy subscription, overlay and coloured cloud on a synthetic frame.

@@ -4,7 +4,11 @@
 # running after start-up, subscribed to every topic of the config, and logged no error.
 # A screenshot (PNG, from Xvfb's frame buffer) is written to OUT_DIR/calibration_rviz.png.
 #
-#   test/rviz_headless_check.sh RVIZ_CONFIG OUT_DIR
+#   test/rviz_headless_check.sh RVIZ_CONFIG OUT_DIR [DEVEL_SETUP]
+# With DEVEL_SETUP (the build's devel/setup.bash) and ../shared/data/basler_os1_plain present,
+# the check also plays that recording through the projection nodelet (extrinsic: the source
+# authors' one as a static TF) so the screenshot shows real data, and fails unless the
+# projection's overlay and coloured cloud reach rviz's topics.
 # Exit 0 pass, 1 fail, 77 skipped (rviz or xvfb-run missing).
 #
 # Known-benign log lines, not counted as errors:
@@ -16,8 +20,8 @@ export PATH=/usr/bin:$PATH
 
 if [ "$1" = "--inner" ]; then
   # Runs inside xvfb-run: start rviz, wait until it subscribed, grab the frame buffer, stop it.
-  config=$2 out=$3 fbdir=$4 expected=$5
-  rviz -d "$config" > "$out/rviz.log" 2>&1 &
+  config=$2 out=$3 fbdir=$4 expected=$5 fixed_frame=$6
+  rviz -d "$config" -f "$fixed_frame" > "$out/rviz.log" 2>&1 &
   rviz_pid=$!
   subscribed=0
   for _ in $(seq 1 60); do
@@ -32,6 +36,8 @@ if [ "$1" = "--inner" ]; then
     done
     if [ $missing = 0 ]; then subscribed=1; break; fi
   done
+  # With data: wait until the projection's overlay flows (lazy: it starts once rviz listens).
+  [ "$WITH_DATA" = 1 ] && timeout 60 rostopic echo -n 1 --noarr /overlay/header > /dev/null 2>&1
   sleep 5  # let it render a few frames with the displays loaded
   alive=0
   kill -0 $rviz_pid 2> /dev/null && alive=1
@@ -44,6 +50,10 @@ fi
 
 config=$(readlink -f "$1")
 out=$2
+devel_setup=$3
+here=$(dirname "$(readlink -f "$0")")
+bag="$here/../../shared/data/basler_os1_plain/session.bag"
+extrinsic="$here/../../shared/tools/mlre/authors_extrinsic_basler_os1.txt"
 if ! command -v rviz > /dev/null || ! command -v xvfb-run > /dev/null; then
   echo "SKIP: rviz or xvfb-run not installed"
   exit 77
@@ -60,6 +70,7 @@ export ROS_MASTER_URI=http://localhost:$port
 roscore -p "$port" > "$out/roscore.log" 2>&1 &
 roscore_pid=$!
 cleanup() {
+  [ -n "$data_pids" ] && kill $data_pids 2> /dev/null
   kill $roscore_pid 2> /dev/null
   wait $roscore_pid 2> /dev/null
   rm -rf "$fbdir"
@@ -71,9 +82,49 @@ for _ in $(seq 1 30); do
 done
 rosnode list > /dev/null 2>&1 || { echo "FAIL: roscore did not start on port $port"; cat "$out/roscore.log"; exit 1; }
 
+data_pids=""
+fixed_frame=lidar
+with_data=0
+if [ -n "$devel_setup" ] && [ -f "$devel_setup" ] && [ -f "$bag" ] && [ -f "$extrinsic" ]; then
+  with_data=1
+  fixed_frame=os1_lidar
+  # Static TF os1_lidar -> camera from the 3x4 camera_T_lidar (the transform carries the
+  # child's pose in the parent: lidar_T_camera).
+  tf_yaml=$(/usr/bin/python3 - "$extrinsic" << 'PY'
+import sys
+import numpy as np
+T = np.loadtxt(sys.argv[1]).reshape(3, 4)
+R, t = T[:, :3], T[:, 3]
+Ri, ti = R.T, -R.T @ t
+w = np.sqrt(max(1e-12, 1 + np.trace(Ri))) / 2
+q = [(Ri[2, 1] - Ri[1, 2]) / (4 * w), (Ri[0, 2] - Ri[2, 0]) / (4 * w), (Ri[1, 0] - Ri[0, 1]) / (4 * w), w]
+print("{transforms: [{header: {frame_id: os1_lidar}, child_frame_id: camera, transform: "
+      "{translation: {x: %.9f, y: %.9f, z: %.9f}, rotation: {x: %.9f, y: %.9f, z: %.9f, w: %.9f}}}]}"
+      % tuple(list(ti) + q))
+PY
+)
+  # (tf2_ros's static_transform_publisher is not packaged here: publish /tf_static latched.)
+  rostopic pub -l /tf_static tf2_msgs/TFMessage "$tf_yaml" > "$out/static_tf.log" 2>&1 &
+  data_pids="$data_pids $!"
+  (source "$devel_setup" && exec roslaunch board_calib projection.launch start_manager:=true \
+    image:=/camera/image_raw camera_info:=/camera/camera_info points:=/points) > "$out/projection.log" 2>&1 &
+  data_pids="$data_pids $!"
+  (source "$devel_setup" && exec rosbag play --loop -r 2 -q "$bag" /os1/points:=/points) > "$out/rosbag.log" 2>&1 &
+  data_pids="$data_pids $!"
+fi
+
 # Topics the config subscribes to (relative names resolve to / in the root namespace).
 expected="points colored_cloud markers calibration_markers overlay tf"
-xvfb-run -a -s "-screen 0 1400x900x24 -fbdir $fbdir" bash "$0" --inner "$config" "$out" "$fbdir" "$expected"
+export WITH_DATA=$with_data
+xvfb-run -a -s "-screen 0 1400x900x24 -fbdir $fbdir" bash "$0" --inner "$config" "$out" "$fbdir" "$expected" \
+  "$fixed_frame"
+if [ $with_data = 1 ]; then
+  # The projection must have fed rviz's topics while it ran.
+  data_ok=1
+  for topic in /overlay /colored_cloud; do
+    timeout 20 rostopic echo -n 1 --noarr "$topic/header" > /dev/null 2>&1 || { echo "FAIL: nothing on $topic"; data_ok=0; }
+  done
+fi
 
 status=$(cat "$out/inner_status.txt" 2> /dev/null)
 errors=$(grep -E 'ERROR|Error|error|Failed|failed|FATAL|Segmentation' "$out/rviz.log" |
@@ -90,10 +141,17 @@ if [ -f "$out/calibration_rviz.xwd" ]; then
   /usr/bin/python3 "$(dirname "$0")/xwd_to_png.py" "$out/calibration_rviz.xwd" "$out/calibration_rviz.png" &&
     rm -f "$out/calibration_rviz.xwd" && echo "screenshot: $out/calibration_rviz.png"
 fi
+if [ $with_data = 1 ] && [ $data_ok != 1 ]; then
+  echo "--- projection.log"
+  tail -20 "$out/projection.log"
+  fail=1
+fi
 if [ $fail != 0 ]; then
   echo "--- rviz.log"
   cat "$out/rviz.log"
   exit 1
 fi
-echo "PASS: rviz ran headless with $config, subscribed to: $expected; no errors in its log"
+data_note=""
+[ $with_data = 1 ] && data_note=" (with basler_os1_plain played through the projection nodelet)"
+echo "PASS: rviz ran headless with $config$data_note, subscribed to: $expected; no errors in its log"
 exit 0
