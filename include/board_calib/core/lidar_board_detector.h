@@ -42,7 +42,7 @@ struct LidarBoardDetectorOptions {
   double max_voxel_thickness_m = 0.03; ///< RMS spread of a voxel's points along the region normal, m
   double max_voxel_offset_m = 0.05;    ///< distance of a voxel's centroid from the region plane, m
   double min_seed_spread_m = 0.02;     ///< second-largest RMS spread of a seed voxel (2D, not a line), m
-  double max_voxel_normal_angle_deg = 20.0;  ///< a 2D voxel's own normal vs the region's, deg
+  double max_voxel_normal_angle_deg = 15.0;  ///< a 2D voxel's own normal vs the region's, deg
 
   // Candidate scoring against the target.
   int min_board_points = 30;       ///< fewer points on a candidate: not a board

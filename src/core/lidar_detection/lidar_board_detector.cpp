@@ -32,6 +32,7 @@ constexpr double kPrefilterExtentFactor = 2.0;
 // Weights of the candidate score (lower is better): size terms are |log(ratio)|.
 constexpr double kFillWeight = 0.5;
 constexpr double kRmsWeight = 0.2;
+constexpr double kMinFillForLog = 1e-3;
 // Support = points * exp(-kShapeErrorScale * shape error): 0.25 more shape error costs a factor e.
 constexpr double kShapeErrorScale = 4.0;
 // The plane's up direction becomes undefined when the board is (nearly) horizontal.
@@ -379,7 +380,7 @@ Candidate scoreRegion(const Region& r, int region_id, const VoxelGrid& g, const 
     return c;
   }
   const double shape_error = sizeError(info.rectangle_m) +
-                             kFillWeight * std::abs(1.0 - std::min(1.0, info.fill_ratio)) +
+                             kFillWeight * std::abs(std::log(std::max(info.fill_ratio, kMinFillForLog))) +
                              kRmsWeight * info.rms_m / o.max_candidate_rms_m;
   // Support: the held board is near the sensor and densely sampled, so point count weighs as
   // much as shape (a far board-sized door or cabinet has a tenth of its points).
