@@ -108,6 +108,11 @@ TEST(Solvers, MsgPairwiseRecoversGroundTruth) {
     const Errors e = errors(msg, scene.camera_T_lidar);
     EXPECT_LT(e.rot_deg, 0.5) << "seed " << seed;
     EXPECT_LT(e.trans_m, 0.02) << "seed " << seed;
+    // Quality figures as for the other methods (edges are not used by MSG, only measured).
+    EXPECT_TRUE(msg.mlre_px.has_value());
+    EXPECT_GT(msg.line_rms_mm, 0.0);
+    EXPECT_GT(msg.plane_rms_mm, 0.0);
+    EXPECT_TRUE(msg.covariance.allFinite());
   }
 }
 

@@ -140,7 +140,7 @@ struct CalibrationSolution {
   std::string termination;       ///< Ceres termination of the last solve
   std::optional<double> mlre_px; ///< over every used edge, undistorted px
   double plane_rms_mm = 0.0;     ///< RMS point-to-camera-plane distance of every used board point
-  double line_rms_mm = 0.0;      ///< RMS point-to-back-projected-plane distance (PBPC / MLRE edges)
+  double line_rms_mm = 0.0;      ///< RMS LiDAR edge point to back-projected image line plane distance
   double plane_scale = 1.0;      ///< estimated camera plane offset factor (1 when not estimated)
   Matrix6d covariance = Matrix6d::Zero();  ///< see the convention at the top
   PoseStddev stddev;             ///< 1 sigma, mm is translation_m * 1000

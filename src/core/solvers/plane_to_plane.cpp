@@ -290,8 +290,8 @@ CalibrationSolution calibrateMsgPair(const std::vector<View>& views, const Solve
   sol.views_used = pair.correspondences_used;
   // Quality figures on the raw features, as for the other methods.
   const Eigen::Isometry3d& T = sol.camera_T_lidar;
-  double mlre_sum = 0.0, plane_sq = 0.0;
-  int mlre_count = 0, plane_count = 0;
+  double mlre_sum = 0.0, plane_sq = 0.0, line_sq = 0.0;
+  int mlre_count = 0, plane_count = 0, line_count = 0;
   for (size_t i = 0; i < views.size(); ++i) {
     ViewResidual& vr = sol.views[i];
     if (!vr.used) continue;
@@ -318,6 +318,25 @@ CalibrationSolution calibrateMsgPair(const std::vector<View>& views, const Solve
     int view_count = 0;
     for (int j = 0; j < kNumEdges; ++j) {
       vr.edges[j].lidar_edge = j;
+      // Point-to-back-projected-plane distances as a figure (MSG does not use the lines).
+      const Eigen::Vector3d N = v.camera.K.transpose() * v.camera.edge_lines[j];
+      if (v.camera.edge_valid[j] && v.lidar.edge_valid[j] && N.allFinite() && N.norm() > 0.0) {
+        double esq = 0.0, eabs = 0.0, emax = 0.0;
+        int n = 0;
+        for (const auto& q : v.lidar.edge_points[j]) {
+          const double d = N.normalized().dot(T * q);
+          if (!std::isfinite(d)) continue;
+          esq += d * d;
+          eabs += std::abs(d);
+          emax = std::max(emax, std::abs(d));
+          ++n;
+        }
+        if (n > 0) {
+          vr.edges[j].distance = {n, std::sqrt(esq / n), eabs / n, emax};
+          line_sq += esq;
+          line_count += n;
+        }
+      }
       const auto e = edgeLineReprojectionErrorPx(v, j, T);
       if (!e) continue;
       vr.edges[j].mlre_px = e;
@@ -331,6 +350,7 @@ CalibrationSolution calibrateMsgPair(const std::vector<View>& views, const Solve
   }
   if (mlre_count > 0) sol.mlre_px = mlre_sum / mlre_count;
   sol.plane_rms_mm = plane_count ? 1000.0 * std::sqrt(plane_sq / plane_count) : 0.0;
+  sol.line_rms_mm = line_count ? 1000.0 * std::sqrt(line_sq / line_count) : 0.0;
   sol.success = true;
   return sol;
 }
