@@ -2,7 +2,7 @@
 board_calib_core_gtest(test_image_detector
   SOURCES test/core/test_image_detector.cpp
   MODULES bc_image_detection bc_sim bc_geometry
-  LIBS ${OpenCV_LIBRARIES})
+  LIBS ${OpenCV_LIBRARIES} opencv_imgcodecs)  # imgcodecs: optional debug PNGs
 
 catkin_add_gtest(test_image_detector_real test/ros/test_image_detector_real.cpp
   WORKING_DIRECTORY ${CMAKE_CURRENT_SOURCE_DIR})
@@ -11,6 +11,6 @@ if(TARGET test_image_detector_real)
   target_compile_definitions(test_image_detector_real PRIVATE
     BOARD_CALIB_SHARED_DIR="${CMAKE_CURRENT_SOURCE_DIR}/../shared")
   target_link_libraries(test_image_detector_real board_calib_ros board_calib_core ${catkin_LIBRARIES} yaml-cpp
-    ${OpenCV_LIBRARIES} GTest::gtest_main)
+    ${OpenCV_LIBRARIES} opencv_imgcodecs GTest::gtest_main)
   add_dependencies(test_image_detector_real ${PROJECT_NAME}_generate_messages_cpp)
 endif()

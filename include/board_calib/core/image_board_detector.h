@@ -28,7 +28,8 @@ struct ImageBoardDetectorOptions {
   // --- plain board ---
   int segmentation_width_px = 480;        ///< px, width of the downscaled image used for segmentation
   double min_board_area_fraction = 0.01;  ///< smallest board area, fraction of the image area
-  double min_solidity = 0.80;             ///< board region area / convex hull area (a board is convex)
+  double min_solidity = 0.90;             ///< board region area / convex hull area (a board is convex)
+  double max_flat_gradient = 10.0;        ///< grey levels (3x3 max - min, downscaled): below it a pixel is in a flat area
   double max_interior_texture = 0.35;     ///< interior grey stddev / board-background contrast (a board is uniform)
   double border_margin_px = 3.0;          ///< px; edge pixels closer than this to the image border are not board edges
   double coarse_search_px = 10.0;         ///< px, half width of the first edge search around the coarse outline

@@ -20,6 +20,7 @@ std::string ImageBoardDetectorOptions::validate() const {
   if (segmentation_width_px < 64) return "segmentation_width_px must be >= 64";
   if (!(min_board_area_fraction > 0 && min_board_area_fraction < 1)) return "min_board_area_fraction must be in (0, 1)";
   if (!(min_solidity > 0 && min_solidity <= 1)) return "min_solidity must be in (0, 1]";
+  if (!(max_flat_gradient > 0)) return "max_flat_gradient must be > 0";
   if (!(max_interior_texture > 0)) return "max_interior_texture must be > 0";
   if (!(border_margin_px >= 0)) return "border_margin_px must be >= 0";
   if (!(coarse_search_px >= fine_search_px && fine_search_px >= 1)) return "need coarse_search_px >= fine_search_px >= 1";

@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <climits>
 #include <cmath>
 
 namespace board_calib {
@@ -21,6 +22,7 @@ constexpr double kPolygonEpsilon = 0.01;    // outline simplification, fraction 
 constexpr double kWeakPeakFraction = 0.3;   // a gradient peak below this fraction of the median is an outlier
 constexpr double kMadToSigma = 1.4826;
 constexpr int kFinePasses = 2;
+constexpr int kFlatOpeningPx = 11;          // downscaled px, opening of the flat-area proposals
 
 double sampleBilinear(const cv::Mat& gray, double x, double y) {
   const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
@@ -37,57 +39,84 @@ bool insideImage(const cv::Mat& gray, const Eigen::Vector2d& p, double margin) {
 struct Candidate {
   std::vector<cv::Point> contour;
   double score = 0;
-  bool bright = true;
 };
 
-// Finds the board region: a large, convex, uniform region clearly brighter or darker than its
-// surroundings. Brightness only proposes regions; convexity and uniformity decide.
+// Scores one proposed region: a board is large, convex and uniform, and differs from its
+// surroundings. Returns false (with the rejection) when it is not board-like.
+bool scoreRegion(const std::vector<cv::Point>& contour, const cv::Mat& blurred, const ImageBoardDetectorOptions& o,
+                 Candidate* best, std::string* rejection) {
+  static const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5));
+  const double area = cv::contourArea(contour);
+  std::vector<cv::Point> hull;
+  cv::convexHull(contour, hull);
+  const double solidity = area / std::max(1.0, cv::contourArea(hull));
+  if (solidity < o.min_solidity) {
+    *rejection = cv::format("largest region not convex (solidity %.2f < %.2f)", solidity, o.min_solidity);
+    return false;
+  }
+  const cv::Rect box = cv::boundingRect(hull);
+  const int pad = 8;
+  const cv::Rect roi = (box + cv::Size(2 * pad, 2 * pad) - cv::Point(pad, pad)) & cv::Rect(0, 0, blurred.cols, blurred.rows);
+  cv::Mat region = cv::Mat::zeros(roi.size(), CV_8U);
+  cv::drawContours(region, std::vector<std::vector<cv::Point>>{contour}, 0, 255, cv::FILLED, cv::LINE_8, cv::noArray(),
+                   INT_MAX, -roi.tl());
+  cv::Mat interior, around;
+  cv::erode(region, interior, kernel, cv::Point(-1, -1), 2);
+  cv::dilate(region, around, kernel, cv::Point(-1, -1), 3);
+  around -= region;
+  if (cv::countNonZero(interior) == 0 || cv::countNonZero(around) == 0) return false;
+  const cv::Mat patch = blurred(roi);
+  cv::Scalar mean_in, std_in;
+  cv::meanStdDev(patch, mean_in, std_in, interior);
+  // Contrast as the mean absolute difference of the surroundings from the board level: the
+  // background may be brighter on one side and darker on another.
+  cv::Mat diff;
+  cv::absdiff(patch, cv::Scalar(mean_in[0]), diff);
+  const double contrast = cv::mean(diff, around)[0];
+  const double texture = std_in[0] / std::max(1.0, contrast);
+  if (texture > o.max_interior_texture) {
+    *rejection = cv::format("region not uniform (texture %.2f > %.2f)", texture, o.max_interior_texture);
+    return false;
+  }
+  const double score = area * std::pow(solidity, 4) / (1.0 + texture);
+  fprintf(stderr, "cand area %.0f sol %.2f tex %.2f score %.0f\n", area, solidity, texture, score);
+  if (score > best->score) {
+    best->score = score;
+    best->contour = std::move(hull);
+  }
+  return true;
+}
+
+// Finds the board region. Proposals come from brightness (Otsu, both polarities) and, failing
+// those, from uniformity (connected low-gradient areas); convexity, uniformity and size decide.
 bool segmentBoard(const cv::Mat& small, const ImageBoardDetectorOptions& o, Candidate* best, std::string* reason) {
-  cv::Mat blurred, bright;
+  cv::Mat blurred, bright, gradient, flat;
   cv::GaussianBlur(small, blurred, cv::Size(5, 5), 0);
   cv::threshold(blurred, bright, 0, 255, cv::THRESH_BINARY | cv::THRESH_OTSU);
+  cv::morphologyEx(blurred, gradient, cv::MORPH_GRADIENT, cv::Mat());
+  cv::threshold(gradient, flat, o.max_flat_gradient, 255, cv::THRESH_BINARY_INV);
   const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5));
   const double min_area = o.min_board_area_fraction * small.total();
+  // Flat areas leak into the background through short stretches of low-contrast edge: a larger
+  // opening cuts those bridges (the board is far wider than them).
+  const cv::Mat wide_kernel = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(kFlatOpeningPx, kFlatOpeningPx));
   int proposals = 0;
   std::string last_rejection = "no region large enough";
-  for (bool is_bright : {true, false}) {
-    cv::Mat mask = is_bright ? bright : (255 - bright);
-    cv::morphologyEx(mask, mask, cv::MORPH_OPEN, kernel);
+  // Brightness classes first; flat (uniform) areas only when no brightness class gives a
+  // board-like region (a board as bright as its background on several sides).
+  for (const cv::Mat& proposal : {bright, cv::Mat(255 - bright), flat}) {
+    const bool is_flat = proposal.data == flat.data;
+    if (is_flat && best->score > 0) break;
+    cv::Mat mask;
+    cv::morphologyEx(proposal, mask, cv::MORPH_OPEN, is_flat ? wide_kernel : kernel);
+    // A flat area stops where the blurred edge starts to rise: grow it back to the edge itself.
+    if (is_flat) cv::dilate(mask, mask, kernel);
     std::vector<std::vector<cv::Point>> contours;
     cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
     for (auto& contour : contours) {
-      const double area = cv::contourArea(contour);
-      if (area < min_area) continue;
+      if (cv::contourArea(contour) < min_area) continue;
       ++proposals;
-      std::vector<cv::Point> hull;
-      cv::convexHull(contour, hull);
-      const double solidity = area / std::max(1.0, cv::contourArea(hull));
-      if (solidity < o.min_solidity) {
-        last_rejection = cv::format("largest region not convex (solidity %.2f < %.2f)", solidity, o.min_solidity);
-        continue;
-      }
-      cv::Mat region = cv::Mat::zeros(small.size(), CV_8U);
-      cv::drawContours(region, std::vector<std::vector<cv::Point>>{contour}, 0, 255, cv::FILLED);
-      cv::Mat interior, around;
-      cv::erode(region, interior, kernel, cv::Point(-1, -1), 2);
-      cv::dilate(region, around, kernel, cv::Point(-1, -1), 3);
-      around -= region;
-      if (cv::countNonZero(interior) == 0 || cv::countNonZero(around) == 0) continue;
-      cv::Scalar mean_in, std_in;
-      cv::meanStdDev(blurred, mean_in, std_in, interior);
-      const double mean_out = cv::mean(blurred, around)[0];
-      const double contrast = std::abs(mean_in[0] - mean_out);
-      const double texture = std_in[0] / std::max(1.0, contrast);
-      if (texture > o.max_interior_texture) {
-        last_rejection = cv::format("region not uniform (texture %.2f > %.2f)", texture, o.max_interior_texture);
-        continue;
-      }
-      const double score = area * solidity * solidity / (1.0 + texture);
-      if (score > best->score) {
-        best->score = score;
-        best->contour = std::move(hull);
-        best->bright = is_bright;
-      }
+      scoreRegion(contour, blurred, o, best, &last_rejection);
     }
   }
   if (best->score <= 0) {
@@ -201,11 +230,14 @@ Eigen::Vector3d fitLine(const Points2& pts, const std::vector<bool>& use, const 
 // Refines one edge: samples along the current (undistorted) line estimate, searches the strongest
 // inside-to-outside gradient along the raw-image normal, fits a line to the undistorted peaks.
 EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse, const Eigen::Vector2d& inside_u,
-                   bool bright, const ImageBoardDetectorOptions& o) {
+                   const ImageBoardDetectorOptions& o) {
   EdgeFit fit;
   Eigen::Vector2d a = camera.undistortPixel(coarse.a), b = camera.undistortPixel(coarse.b);
   Eigen::Vector3d line = lineThrough(a, b, inside_u);
-  const double polarity = bright ? -1.0 : 1.0;  // intensity change walking outward, made positive
+  // Sign of the intensity change walking outward, per edge (the background may be brighter than
+  // the board on one side and darker on another); 0 = unknown: the first pass takes the strongest
+  // change of either sign and the majority sets it.
+  double polarity = 0.0;
   for (int pass = 0; pass <= kFinePasses; ++pass) {
     const double half = pass == 0 ? o.coarse_search_px : o.fine_search_px;
     const int steps = static_cast<int>(std::ceil(half / kProfileStepPx)) + 1;
@@ -217,6 +249,7 @@ EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseE
     const Eigen::Vector2d dir = (b - a) / std::max(len, 1e-9);
     Points2 pts_u, pts_raw;
     std::vector<double> strength;
+    std::vector<int> signs;
     std::vector<double> profile(2 * steps + 1);
     for (double t = o.corner_exclusion_px; t <= len - o.corner_exclusion_px; t += o.sample_step_px) {
       const Eigen::Vector2d xu = a + t * dir;
@@ -236,7 +269,8 @@ EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseE
       std::vector<double> g(profile.size(), 0.0);
       for (int k = 1; k + 1 < static_cast<int>(profile.size()); ++k) {
         // Derivative across one full pixel (samples at +-0.5 px): robust to noise, unbiased.
-        g[k] = polarity * (profile[k + 1] - profile[k - 1]) / (2 * kProfileStepPx);
+        const double raw_g = (profile[k + 1] - profile[k - 1]) / (2 * kProfileStepPx);
+        g[k] = polarity != 0.0 ? polarity * raw_g : std::abs(raw_g);
         if (g[k] > best_g) {
           best_g = g[k];
           best_k = k;
@@ -251,6 +285,14 @@ EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseE
       pts_raw.push_back(edge_raw);
       pts_u.push_back(camera.undistortPixel(edge_raw));
       strength.push_back(best_g);
+      signs.push_back(profile[best_k + 1] > profile[best_k - 1] ? 1 : -1);
+    }
+    if (polarity == 0.0) {
+      int sum = 0;
+      for (int sgn : signs) sum += sgn;
+      polarity = sum >= 0 ? 1.0 : -1.0;
+      for (size_t i = 0; i < signs.size(); ++i)
+        if (signs[i] != polarity) strength[i] = 0;  // the other polarity: clutter, not this edge
     }
     if (static_cast<int>(pts_u.size()) < o.min_edge_points) {
       fit.reason = "too few edge pixels (" + std::to_string(pts_u.size()) + ")";
@@ -341,7 +383,7 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
   for (size_t k = 0; k < sides.size(); ++k) {
     const int j = names[k];
     if (j < 0) continue;
-    const EdgeFit fit = refineEdge(gray, camera, sides[k], inside_u, board.bright, o);
+    const EdgeFit fit = refineEdge(gray, camera, sides[k], inside_u, o);
     f.edge_lines[j] = fit.line;
     f.edge_valid[j] = fit.valid;
     d.edge_points_raw[j] = fit.raw_inliers;
