@@ -79,7 +79,6 @@ bool scoreRegion(const std::vector<cv::Point>& contour, const cv::Mat& blurred, 
     return false;
   }
   const double score = area * std::pow(solidity, 4) / (1.0 + texture);
-  fprintf(stderr, "cand area %.0f sol %.2f tex %.2f score %.0f\n", area, solidity, texture, score);
   if (score > best->score) {
     best->score = score;
     best->contour = std::move(hull);
