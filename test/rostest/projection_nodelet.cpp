@@ -144,6 +144,110 @@ TEST(ProjectionNodelet, LazyOverlayAndColoredCloud) {
   EXPECT_TRUE(waitFor([&] { return image_pub.getNumSubscribers() == 0 && cloud_pub.getNumSubscribers() == 0; }, 10.0));
 }
 
+// Edge-check mode: the detected image line is drawn (bent by no distortion here: straight),
+// the LiDAR edge points land on it (residual 0 -> green) and the MLRE text is written.
+TEST(ProjectionNodelet, EdgeCheckOverlay) {
+  ros::NodeHandle nh;
+  ros::Publisher image_pub = nh.advertise<sensor_msgs::Image>("image", 2);
+  ros::Publisher info_pub = nh.advertise<sensor_msgs::CameraInfo>("camera_info", 2);
+  ros::Publisher cloud_pub = nh.advertise<sensor_msgs::PointCloud2>("points", 2);
+  ros::Publisher camera_board_pub = nh.advertise<CameraBoard>("camera_board", 2);
+  ros::Publisher lidar_board_pub = nh.advertise<LidarBoard>("lidar_board", 2);
+  sensor_msgs::ImageConstPtr overlay;
+  ros::Subscriber overlay_sub =
+      nh.subscribe<sensor_msgs::Image>("overlay", 1, [&](const sensor_msgs::ImageConstPtr& m) { overlay = m; });
+  ASSERT_TRUE(waitFor([&] { return camera_board_pub.getNumSubscribers() > 0 && lidar_board_pub.getNumSubscribers() > 0 &&
+                                   image_pub.getNumSubscribers() > 0; },
+                      10.0))
+      << "edge_check is on: the nodelet should subscribe to the board topics";
+
+  CameraIntrinsics in;
+  in.width = kWidth;
+  in.height = kHeight;
+  in.fx = in.fy = kFocal;
+  in.cx = 319.5;
+  in.cy = 239.5;
+  sensor_msgs::CameraInfo info = toCameraInfo(in);
+  // Image edge UL: the vertical line u = 200 (outward normal -u: the board lies at u > 200).
+  constexpr double kLineU = 200.0;
+  CameraBoardFeatures image_board;
+  image_board.found = true;
+  image_board.K = CameraModel::create(in).value().K();
+  image_board.image_width = kWidth;
+  image_board.image_height = kHeight;
+  image_board.edge_lines[0] = Eigen::Vector3d(-1.0, 0.0, kLineU);
+  image_board.edge_valid[0] = true;
+  // LiDAR edge UL: points 4 m ahead whose pinhole projection lies on that line.
+  LidarBoardFeatures lidar_board;
+  lidar_board.found = true;
+  lidar_board.edge_valid[0] = true;
+  const Eigen::Isometry3d lidar_T_camera = cameraTLidar().inverse();
+  for (int k = 0; k < 8; ++k) {
+    const double z = 4.0, v = 60.0 + 45.0 * k;
+    const Eigen::Vector3d pc((kLineU - 319.5) / kFocal * z, (v - 239.5) / kFocal * z, z);
+    lidar_board.edge_points[0].push_back(lidar_T_camera * pc);
+  }
+  LidarCloud cloud;  // an empty scene apart from the edge points
+  cloud.frame_id = "lidar";
+  for (const auto& p : lidar_board.edge_points[0]) {
+    LidarPoint lp;
+    lp.x = static_cast<float>(p.x());
+    lp.y = static_cast<float>(p.y());
+    lp.z = static_cast<float>(p.z());
+    cloud.points.push_back(lp);
+  }
+  cloud.width = static_cast<int>(cloud.points.size());
+  const cv::Mat image(kHeight, kWidth, CV_8UC3, cv::Scalar(kBackground[0], kBackground[1], kBackground[2]));
+
+  const bool got = waitFor(
+      [&] {
+        const ros::Time stamp = ros::Time::now();
+        std_msgs::Header header;
+        header.stamp = stamp;
+        header.frame_id = "camera";
+        info.header = header;
+        image_board.stamp = lidar_board.stamp = stamp.toSec();
+        image_board.frame_id = "camera";
+        lidar_board.frame_id = "lidar";
+        camera_board_pub.publish(toMsg(image_board));
+        lidar_board_pub.publish(toMsg(lidar_board));
+        ros::WallDuration(0.05).sleep();  // boards first: the overlay uses the latest ones
+        sensor_msgs::PointCloud2 cloud_msg = toPointCloud2(cloud);
+        cloud_msg.header.stamp = stamp;
+        image_pub.publish(imageToMsg(image, header).value());
+        info_pub.publish(info);
+        cloud_pub.publish(cloud_msg);
+        ros::WallDuration(0.1).sleep();
+        ros::spinOnce();
+        if (!overlay) return false;
+        // Wait for an overlay that carries the edge check (the first ones may predate the boards).
+        const auto drawn = imageFromMsg(*overlay);
+        return drawn.ok() && drawn->at<cv::Vec3b>(20, static_cast<int>(kLineU)) != kBackground;
+      },
+      20.0);
+  ASSERT_TRUE(got) << "no edge-check overlay received";
+  const cv::Mat drawn = imageFromMsg(*overlay).value();
+  // The line (LineStyle default colour, BGR 255 255 0) runs down the whole image at u = 200.
+  int line_rows = 0;
+  for (int v = 0; v < kHeight; v += 10)
+    if (drawn.at<cv::Vec3b>(v, static_cast<int>(kLineU)) != kBackground) ++line_rows;
+  EXPECT_GE(line_rows, kHeight / 10 - 2);
+  // Edge points: residual 0 px -> pure green discs centred on the line.
+  const cv::Vec3b green(0, 255, 0);
+  int green_points = 0;
+  for (int k = 0; k < 8; ++k) {
+    const int v = static_cast<int>(60.0 + 45.0 * k + 0.5);
+    if (drawn.at<cv::Vec3b>(v, static_cast<int>(kLineU) + 3) == green) ++green_points;
+  }
+  EXPECT_GE(green_points, 7);
+  // The MLRE annotation: white text in the top-left corner.
+  int white = 0;
+  for (int v = 10; v < 50; ++v)
+    for (int u = 10; u < 150; ++u)
+      if (drawn.at<cv::Vec3b>(v, u) == cv::Vec3b(255, 255, 255)) ++white;
+  EXPECT_GT(white, 50);
+}
+
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_projection_nodelet");
