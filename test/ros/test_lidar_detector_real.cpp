@@ -7,7 +7,9 @@
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <cmath>
+#include <ctime>
 #include <cstdio>
 #include <cstdlib>
 
@@ -50,8 +52,13 @@ struct Tally {
 
 Tally run(const std::vector<LidarCloud>& clouds, const Target& target, const char* label) {
   Tally t;
+  std::vector<double> cpu_ms;
   for (const auto& c : clouds) {
+    timespec t0, t1;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t0);
     const auto det = detectLidarBoard(c, target);
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t1);
+    cpu_ms.push_back((t1.tv_sec - t0.tv_sec) * 1e3 + (t1.tv_nsec - t0.tv_nsec) * 1e-6);
     const auto& f = det.features;
     ++t.frames;
     t.planes += f.found;
@@ -70,6 +77,10 @@ Tally run(const std::vector<LidarCloud>& clouds, const Target& target, const cha
                     c.centroid.x(), c.centroid.y(), c.centroid.z(), c.rectangle_m.x(), c.rectangle_m.y(), c.fill_ratio,
                     c.rms_m, c.score, c.rejected_because.c_str());
   }
+  std::sort(cpu_ms.begin(), cpu_ms.end());
+  if (!cpu_ms.empty())
+    std::printf("[%s] detector CPU time per cloud: median %.2f ms, max %.2f ms (%zu points per cloud)\n", label,
+                cpu_ms[cpu_ms.size() / 2], cpu_ms.back(), clouds.front().points.size());
   return t;
 }
 

@@ -508,16 +508,48 @@ struct SideFit {
 
 // Splits the extremes of one side (left or right) into an upper and a lower edge and fits both.
 // `outward` is -1 for the left side (smaller u), +1 for the right side.
-SideFit fitSide(const Points2& side, double outward, const LidarBoardDetectorOptions& o, std::mt19937& rng) {
+// Sum of squared distances of points to their total-least-squares line.
+double lineResidual(const Points2& pts, const std::vector<size_t>& order, size_t begin, size_t end) {
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (size_t k = begin; k < end; ++k) mean += pts[order[k]];
+  mean /= static_cast<double>(end - begin);
+  Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+  for (size_t k = begin; k < end; ++k) {
+    const Eigen::Vector2d d = pts[order[k]] - mean;
+    cov += d * d.transpose();
+  }
+  return Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(cov).eigenvalues()(0);
+}
+
+// `search_split`: instead of taking the most outward point as the corner (a hand at the corner
+// can fool it), split the extremes, ordered top to bottom, where two lines fit best.
+SideFit fitSide(const Points2& side, double outward, const LidarBoardDetectorOptions& o, std::mt19937& rng,
+                bool search_split = false) {
   SideFit s;
   if (side.size() < 2) return s;
-  // The side's corner is its most outward point: above it the upper edge, below it the lower.
-  size_t corner = 0;
-  for (size_t i = 1; i < side.size(); ++i)
-    if (outward * side[i].x() > outward * side[corner].x()) corner = i;
   std::vector<int> label(side.size(), -1);  // 0 upper, 1 lower
-  for (size_t i = 0; i < side.size(); ++i)
-    if (i != corner) label[i] = side[i].y() > side[corner].y() ? 0 : 1;
+  if (search_split && side.size() >= 4) {
+    std::vector<size_t> order(side.size());
+    std::iota(order.begin(), order.end(), 0);
+    std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return side[a].y() > side[b].y(); });
+    double best = std::numeric_limits<double>::infinity();
+    size_t split = 2;
+    for (size_t k = 2; k + 2 <= order.size(); ++k) {
+      const double cost = lineResidual(side, order, 0, k) + lineResidual(side, order, k, order.size());
+      if (cost < best) {
+        best = cost;
+        split = k;
+      }
+    }
+    for (size_t k = 0; k < order.size(); ++k) label[order[k]] = k < split ? 0 : 1;
+  } else {
+    // The side's corner is its most outward point: above it the upper edge, below it the lower.
+    size_t corner = 0;
+    for (size_t i = 1; i < side.size(); ++i)
+      if (outward * side[i].x() > outward * side[corner].x()) corner = i;
+    for (size_t i = 0; i < side.size(); ++i)
+      if (i != corner) label[i] = side[i].y() > side[corner].y() ? 0 : 1;
+  }
   for (int round = 0; round < kEdgeAssignmentRounds; ++round) {
     Points2 up, lo;
     for (size_t i = 0; i < side.size(); ++i) {
@@ -630,6 +662,31 @@ void extractEdges(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, c
   }
   SideFit left = fitSide(left2, -1.0, edge_options, rng);
   SideFit right = fitSide(right2, +1.0, edge_options, rng);
+  // Adjacent edges of a rectangle meet at right angles; when they do not, one side's split was
+  // wrong: try the split search on either side, then on both.
+  auto anglesOk = [&](const SideFit& l, const SideFit& r) {
+    const std::array<const LineFit2D*, kNumEdges> ls = {&l.upper, &r.upper, &r.lower, &l.lower};
+    for (int j = 0; j < kNumEdges; ++j) {
+      const LineFit2D& a = *ls[j];
+      const LineFit2D& b = *ls[(j + 1) % kNumEdges];
+      if (!a.ok || !b.ok) return false;
+      const double angle = std::acos(std::min(1.0, std::abs(a.direction.dot(b.direction)))) / kRadPerDeg;
+      if (std::abs(90.0 - angle) > o.max_corner_angle_error_deg) return false;
+    }
+    return true;
+  };
+  if (!anglesOk(left, right)) {
+    const SideFit left_split = fitSide(left2, -1.0, edge_options, rng, true);
+    const SideFit right_split = fitSide(right2, +1.0, edge_options, rng, true);
+    if (anglesOk(left_split, right)) {
+      left = left_split;
+    } else if (anglesOk(left, right_split)) {
+      right = right_split;
+    } else if (anglesOk(left_split, right_split)) {
+      left = left_split;
+      right = right_split;
+    }
+  }
   if (o.correct_edge_sampling_bias) {
     // The true edge lies between a scan line's extreme and the next (missing) sample outside:
     // on average half a sample spacing further out along the scan line.
