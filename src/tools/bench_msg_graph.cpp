@@ -119,6 +119,11 @@ int main(int argc, char** argv) {
   variants.push_back({"default (planes + corners + PBPC lines)", MsgGraphOptions()});
   {
     MsgGraphOptions o;
+    o.balance_plane_pairs = !o.balance_plane_pairs;
+    variants.push_back({o.balance_plane_pairs ? "with plane-pair balancing" : "without plane-pair balancing", o});
+  }
+  {
+    MsgGraphOptions o;
     o.use_line_terms = false;
     variants.push_back({"without PBPC line terms", o});
   }

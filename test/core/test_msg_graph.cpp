@@ -274,6 +274,25 @@ TEST(MsgGraph, LineTermsOptional) {
     }
 }
 
+// The fixed sensor is a choice of frame, not of answer: a LiDAR as the reference gives the same
+// relative poses (to well below the accuracy targets).
+TEST(MsgGraph, ReferenceSensorChoiceDoesNotChangeTheRelativePoses) {
+  MsgSyntheticScene scene = makeScene(defaultRig(), 11, 25);
+  const MsgSolution camera_ref = solveMsgGraph(scene.problem, MsgGraphOptions());
+  scene.problem.reference_sensor = 3;
+  const MsgSolution lidar_ref = solveMsgGraph(scene.problem, MsgGraphOptions());
+  ASSERT_TRUE(camera_ref.success && lidar_ref.success) << camera_ref.reason << lidar_ref.reason;
+  EXPECT_TRUE(lidar_ref.sensors[3].reference_T_sensor.isApprox(Eigen::Isometry3d::Identity()));
+  for (int a = 0; a < 4; ++a)
+    for (int b = a + 1; b < 4; ++b) {
+      const Eigen::Isometry3d x = *sensorTSensor(camera_ref, a, b), y = *sensorTSensor(lidar_ref, a, b);
+      EXPECT_LT(rotationErrorDeg(x, y), 0.01);
+      EXPECT_LT(translationErrorM(x, y), 0.001);
+    }
+  // The result file names the LiDAR as the reference frame.
+  EXPECT_EQ(msgResultFile(scene.problem, lidar_ref).reference_frame, "os1_64");
+}
+
 TEST(MsgGraph, ResultFileListsEverySensorAndPair) {
   const MsgSyntheticScene scene = makeScene(defaultRig(), 10, 20);
   const MsgSolution sol = solveMsgGraph(scene.problem, MsgGraphOptions());

@@ -235,7 +235,12 @@ class Graph {
     for (size_t p = 0; p < obs_.size(); ++p) {
       const std::vector<int> cams = planes_only ? std::vector<int>{} : cornerCameras(p);
       const std::set<int> corner_set(cams.begin(), cams.end());
-      // Plane pairs (camera pairs tied by corners are left to the corner terms).
+      // Plane pairs (camera pairs tied by corners are left to the corner terms). With K sensors
+      // on a board pose each plane enters K - 1 pairs: K(K-1)/2 pair terms carry the
+      // information of K - 1 independent ones, so each is inflated by sqrt(K / 2).
+      int active = 0;
+      for (int s = 0; s < n_; ++s) active += obs_[p][s].active ? 1 : 0;
+      const double inflate = options_.balance_plane_pairs ? std::sqrt(std::max(1.0, 0.5 * active)) : 1.0;
       for (int a = 0; a < n_; ++a) {
         if (!obs_[p][a].active) continue;
         for (int b = a + 1; b < n_; ++b) {
@@ -243,8 +248,9 @@ class Graph {
           if (corner_set.count(a) && corner_set.count(b)) continue;
           problem->AddResidualBlock(
               detail::PlanePairCost::Create(obs_[p][a].plane.normal, obs_[p][a].plane.offset, obs_[p][b].plane.normal,
-                                            obs_[p][b].plane.offset, pairNormalSigmaComponent(sigmas_[a], sigmas_[b]),
-                                            pairOffsetSigma(sigmas_[a], sigmas_[b])),
+                                            obs_[p][b].plane.offset,
+                                            inflate * pairNormalSigmaComponent(sigmas_[a], sigmas_[b]),
+                                            inflate * pairOffsetSigma(sigmas_[a], sigmas_[b])),
               makeLoss(loss, scale), poses_[a].q, poses_[a].t, poses_[b].q, poses_[b].t);
         }
       }
