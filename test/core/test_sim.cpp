@@ -12,6 +12,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 
@@ -311,6 +312,30 @@ TEST(SimLidar, BoardReturnsLieOnTruePlaneWithinNoise) {
     EXPECT_GT(rms, 0.3 * spec->range_noise_m) << preset << ": noise missing";
     EXPECT_LT(worst, 5 * spec->range_noise_m) << preset;
     EXPECT_GT(mixed, 0) << preset << ": the board's edges produce mixed returns";
+  }
+}
+
+TEST(SimLidar, PersonNeverHidesTheBoard) {
+  // The person stands behind the board: for boards leaning forward or back, the LiDAR sees
+  // exactly the same board returns with and without the occluder.
+  const Target target = loadConfigTarget("plain_1016.yaml");
+  SceneSpec with, without;
+  with.target = without.target = target;
+  without.occluder = false;
+  auto spec = lidarPreset("VLP-32C");
+  ASSERT_TRUE(spec.ok());
+  spec->range_noise_m = 0;
+  for (double pitch : {-25.0, 0.0, 25.0}) {
+    const Eigen::Isometry3d world_T_board = boardPose(target, {2.0, 0.0, -0.3}, 45, 10, pitch);
+    std::mt19937 rng_a(1), rng_b(1);
+    std::vector<ReturnOrigin> a, b;
+    simulateLidarScan(*spec, Eigen::Isometry3d::Identity(), with, world_T_board, rng_a, &a);
+    simulateLidarScan(*spec, Eigen::Isometry3d::Identity(), without, world_T_board, rng_b, &b);
+    const auto board_count = [](const std::vector<ReturnOrigin>& v) {
+      return std::count(v.begin(), v.end(), ReturnOrigin::kBoard);
+    };
+    EXPECT_GT(board_count(b), 100);
+    EXPECT_EQ(board_count(a), board_count(b)) << "pitch " << pitch;
   }
 }
 

@@ -74,7 +74,7 @@ TEST(SimScenario, ShippedScenariosLoadAndPlaceEveryPose) {
 }
 
 TEST(SimScenario, TimelineHoldsMovesStampsAndThinning) {
-  auto scenario = loadScenario(kScenarioDir + "/plain_vlp32c_1920.yaml");
+  auto scenario = loadScenario(kScenarioDir + "/checker_vlp16_1280.yaml");  // 3 still, 1 moving
   ASSERT_TRUE(scenario.ok()) << scenario.error();
   const Scenario& s = *scenario;
   auto timeline = makeTimeline(s);
@@ -103,6 +103,7 @@ TEST(SimScenario, TimelineHoldsMovesStampsAndThinning) {
     EXPECT_EQ((still_count[{true, p}]), s.motion.still_frames_per_hold) << "pose " << p;
     EXPECT_EQ((still_count[{false, p}]), s.motion.still_frames_per_hold) << "pose " << p;
   }
+  ASSERT_GT(s.motion.frames_per_move, 0);
   EXPECT_EQ(moving_images, (s.motion.poses - 1) * s.motion.frames_per_move);
   EXPECT_EQ(moving_clouds, (s.motion.poses - 1) * s.motion.frames_per_move);
   // A still image and a still cloud of the same pose are a few ms apart.

@@ -31,7 +31,10 @@ constexpr double kRayEpsilon = 1e-9;  // m, ignore hits at the ray origin
 // Person-like occluder: a box standing on the floor behind the board's centre.
 constexpr double kPersonHalfWidth = 0.22;   // m, shoulder half width
 constexpr double kPersonHalfDepth = 0.14;   // m
-constexpr double kPersonBehindBoard = 0.25; // m, body centre behind the board centre (horizontal)
+constexpr double kPersonBehindBoard = 0.25; // m, body centre behind the board centre (horizontal), at least
+constexpr double kPersonMaxBehind = 2.0;    // m
+constexpr double kPersonStep = 0.05;        // m
+constexpr double kPersonClearance = 0.05;   // m, body behind the board's plane
 
 // Room texture.
 constexpr double kFloorTile = 0.6;          // m, tile size on the floor
@@ -171,11 +174,25 @@ class Scene {
       rotation.col(1) = rotation.col(2).cross(rotation.col(0));
       const double top = centre.z();
       person_half_height_ = std::max(0.0, (top - spec.floor_z_m) / 2);
+      // Step back until the body, where it overlaps the board's height, is behind the board's
+      // plane (a tilted board leans forward or back by up to ~0.3 m).
+      double lowest = top;
+      for (const auto& corner : spec.target.outerCorners()) lowest = std::min(lowest, (world_T_board * corner).z());
+      Eigen::Vector3d person_centre;
+      for (double behind = kPersonBehindBoard; behind < kPersonMaxBehind; behind += kPersonStep) {
+        person_centre = Eigen::Vector3d(centre.x() + behind * back.x(), centre.y() + behind * back.y(),
+                                        spec.floor_z_m + person_half_height_);
+        bool clear = true;
+        for (int k = 0; k < 8 && clear; ++k) {
+          const Eigen::Vector3d local((k & 1 ? 1 : -1) * kPersonHalfDepth, (k & 2 ? 1 : -1) * kPersonHalfWidth, 0.0);
+          Eigen::Vector3d corner = person_centre + rotation * local;
+          corner.z() = (k & 4) ? top : std::max(lowest, spec.floor_z_m);
+          clear = board_normal_.dot(corner - board_origin_) > kPersonClearance;
+        }
+        if (clear) break;
+      }
       person_T_world_ = Eigen::Isometry3d::Identity();
       person_T_world_.linear() = rotation.transpose();
-      const Eigen::Vector3d person_centre(centre.x() + kPersonBehindBoard * back.x(),
-                                          centre.y() + kPersonBehindBoard * back.y(),
-                                          spec.floor_z_m + person_half_height_);
       person_T_world_.translation() = -(rotation.transpose() * person_centre);
       person_rotation_ = rotation;
     }
