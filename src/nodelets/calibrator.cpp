@@ -89,6 +89,7 @@ void CalibratorNodelet::onInit() {
   if (const char* ros_home = std::getenv("ROS_HOME")) default_dir = std::string(ros_home) + "/board_calib";
   else if (const char* home = std::getenv("HOME")) default_dir = std::string(home) + "/.ros/board_calib";
   pnh.param("output_dir", output_dir_, default_dir);
+  if (output_dir_.empty()) output_dir_ = default_dir;
   session_ = std::make_unique<CalibrationSession>(*target, SessionOptions{});
   std::string session_file;
   if (pnh.getParam("session_file", session_file) && !session_file.empty()) {
