@@ -87,7 +87,7 @@ struct MsgGraphOptions {
   bool use_corner_terms = true;  ///< camera<->camera terms on shared pattern corners
   int min_shared_corners = 6;    ///< per camera and board pose, to add corner terms
   /// PBPC line terms for LiDAR<->camera pairs (the paper's proposed future work). On by
-  /// default: on the simulated rig they cut the worst-pair translation error by ~15% (mean and
+  /// default: on the simulated rig they cut the worst-pair translation error by 17-38% (mean and
   /// max, with and without a noisy sensor) for about twice the solve time (docs/BENCHMARKS.md).
   bool use_line_terms = true;
   int min_edge_points = 3;       ///< per edge, for a line term
