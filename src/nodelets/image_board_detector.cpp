@@ -1,0 +1,256 @@
+// board_calib/image_board_detector: finds the calibration board in a camera image.
+// Wiring only: Image + CameraInfo -> core image + CameraModel -> ImageBoardDetector ->
+// board_calib/CameraBoard (header = image header). Lazy: subscribes to the camera only while
+// `camera_board` or `debug_image` has a subscriber; the debug image is drawn only when watched.
+#include <board_calib/ImageBoardDetectorConfig.h>
+#include <board_calib/conversions.h>
+#include <board_calib/core/image_board_detector.h>
+
+#include <cv_bridge/cv_bridge.h>
+#include <diagnostic_updater/diagnostic_updater.h>
+#include <dynamic_reconfigure/server.h>
+#include <image_transport/image_transport.h>
+#include <nodelet/nodelet.h>
+#include <pluginlib/class_list_macros.hpp>
+#include <ros/ros.h>
+
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+
+namespace board_calib {
+namespace {
+
+constexpr double kDiagnosticsPeriodS = 1.0;
+constexpr double kStatsWindowS = 10.0;  // input rate and detection ratio over this window
+constexpr double kWarnThrottleS = 10.0;
+
+ImageBoardDetectorOptions optionsFromConfig(const ImageBoardDetectorConfig& c) {
+  ImageBoardDetectorOptions o;
+  o.segmentation_width_px = c.segmentation_width;
+  o.min_board_area_fraction = c.min_board_area_fraction;
+  o.min_solidity = c.min_solidity;
+  o.max_flat_gradient = c.max_flat_gradient;
+  o.max_interior_texture = c.max_interior_texture;
+  o.border_margin_px = c.border_margin;
+  o.coarse_search_px = c.coarse_search;
+  o.fine_search_px = c.fine_search;
+  o.sample_step_px = c.sample_step;
+  o.corner_exclusion_px = c.corner_exclusion;
+  o.min_edge_contrast = c.min_edge_contrast;
+  o.min_edge_length_px = c.min_edge_length;
+  o.min_edge_points = c.min_edge_points;
+  o.edge_inlier_px = c.edge_inlier;
+  o.max_edge_rms_px = c.max_edge_rms;
+  o.max_plain_corner_rms_px = c.max_plain_corner_rms;
+  o.fast_check_width_px = c.fast_check_width;
+  o.subpix_window_px = c.subpix_window;
+  o.tag_decimate = c.tag_decimate;
+  o.tag_sigma = c.tag_sigma;
+  o.tag_threads = c.tag_threads;
+  o.tag_refine_edges = c.tag_refine_edges;
+  o.tag_max_hamming = c.tag_max_hamming;
+  o.min_tags = c.min_tags;
+  o.min_board_size_px = c.min_board_size;
+  o.max_reprojection_rms_px = c.max_reprojection_rms;
+  o.pixel_sigma_px = c.pixel_sigma;
+  return o;
+}
+
+// Same calibration as the cached one (CameraInfo arrives with every image).
+bool sameCalibration(const sensor_msgs::CameraInfo& a, const sensor_msgs::CameraInfo& b) {
+  return a.width == b.width && a.height == b.height && a.K == b.K && a.D == b.D &&
+         a.distortion_model == b.distortion_model;
+}
+
+}  // namespace
+
+class ImageBoardDetectorNodelet : public nodelet::Nodelet {
+ private:
+  void onInit() override {
+    ros::NodeHandle& nh = getNodeHandle();
+    ros::NodeHandle& pnh = getPrivateNodeHandle();
+    std::string target_file;
+    if (!pnh.getParam("target_file", target_file)) {
+      NODELET_FATAL("~target_file is required (board description YAML, DESIGN.md 3.2)");
+      return;
+    }
+    auto target = loadTarget(target_file);
+    if (!target) {
+      NODELET_FATAL_STREAM("~target_file: " << target.error());
+      return;
+    }
+    target_ = *target;
+    pnh.param<std::string>("image_transport", transport_, "raw");
+    auto detector = ImageBoardDetector::create(target_, ImageBoardDetectorOptions{});
+    if (!detector) {
+      NODELET_FATAL_STREAM("detector: " << detector.error());
+      return;
+    }
+    detector_.emplace(std::move(*detector));
+
+    it_ = std::make_unique<image_transport::ImageTransport>(nh);
+    std::lock_guard<std::mutex> lock(connect_mutex_);
+    board_pub_ = nh.advertise<CameraBoard>("camera_board", 10, boost::bind(&ImageBoardDetectorNodelet::connectCb, this),
+                                           boost::bind(&ImageBoardDetectorNodelet::connectCb, this));
+    debug_pub_ = it_->advertise("debug_image", 1, boost::bind(&ImageBoardDetectorNodelet::connectCb, this),
+                                boost::bind(&ImageBoardDetectorNodelet::connectCb, this));
+
+    reconfigure_ = std::make_unique<dynamic_reconfigure::Server<ImageBoardDetectorConfig>>(reconfigure_mutex_, pnh);
+    reconfigure_->setCallback(
+        [this](const ImageBoardDetectorConfig& config, uint32_t level) { reconfigure(config, level); });
+
+    diagnostics_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
+    diagnostics_->setHardwareID("camera (" + std::string(targetTypeName(target_.type)) + " board)");
+    diagnostics_->add("image board detection", this, &ImageBoardDetectorNodelet::diagnose);
+    diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(kDiagnosticsPeriodS),
+                                            [this](const ros::WallTimerEvent&) { diagnostics_->update(); });
+    NODELET_INFO_STREAM("image_board_detector: " << targetTypeName(target_.type) << " board from " << target_file
+                                                 << ", transport '" << transport_ << "'");
+  }
+
+  void connectCb() {
+    std::lock_guard<std::mutex> lock(connect_mutex_);
+    const bool wanted = board_pub_.getNumSubscribers() > 0 || debug_pub_.getNumSubscribers() > 0;
+    if (wanted && !camera_sub_) {
+      camera_sub_ = it_->subscribeCamera("image_raw", 1, &ImageBoardDetectorNodelet::imageCb, this,
+                                         image_transport::TransportHints(transport_, ros::TransportHints(),
+                                                                         getPrivateNodeHandle()));
+    } else if (!wanted && camera_sub_) {
+      camera_sub_.shutdown();
+    }
+  }
+
+  void reconfigure(const ImageBoardDetectorConfig& config, uint32_t /*level*/) {
+    const ImageBoardDetectorOptions options = optionsFromConfig(config);
+    if (const std::string why = options.validate(); !why.empty()) {
+      NODELET_WARN_STREAM("dynamic_reconfigure rejected: " << why << " (keeping the previous options)");
+      return;
+    }
+    auto detector = ImageBoardDetector::create(target_, options);
+    if (!detector) {
+      NODELET_WARN_STREAM("dynamic_reconfigure rejected: " << detector.error());
+      return;
+    }
+    std::lock_guard<std::mutex> lock(detector_mutex_);
+    detector_.emplace(std::move(*detector));
+  }
+
+  // Camera model from CameraInfo, re-created only when the calibration changes.
+  const CameraModel* cameraModel(const sensor_msgs::CameraInfo& info, const sensor_msgs::Image& image) {
+    if (info.K[0] == 0.0 || info.K[4] == 0.0) {
+      NODELET_WARN_THROTTLE(kWarnThrottleS, "camera_info (frame '%s') has a zero K: the camera is not calibrated",
+                            info.header.frame_id.c_str());
+      return nullptr;
+    }
+    if (info.width != image.width || info.height != image.height) {
+      NODELET_WARN_THROTTLE(kWarnThrottleS, "camera_info is %ux%u but the image is %ux%u (frame '%s'): skipping",
+                            info.width, info.height, image.width, image.height, image.header.frame_id.c_str());
+      return nullptr;
+    }
+    if (camera_ && sameCalibration(info, last_info_)) return &*camera_;
+    auto intrinsics = fromCameraInfo(info);
+    if (!intrinsics) {
+      NODELET_WARN_THROTTLE(kWarnThrottleS, "camera_info (frame '%s'): %s", info.header.frame_id.c_str(),
+                            intrinsics.error().c_str());
+      return nullptr;
+    }
+    auto camera = CameraModel::create(*intrinsics);
+    if (!camera) {
+      NODELET_WARN_THROTTLE(kWarnThrottleS, "camera_info (frame '%s'): %s", info.header.frame_id.c_str(),
+                            camera.error().c_str());
+      return nullptr;
+    }
+    camera_ = *camera;
+    last_info_ = info;
+    return &*camera_;
+  }
+
+  void imageCb(const sensor_msgs::ImageConstPtr& image_msg, const sensor_msgs::CameraInfoConstPtr& info_msg) {
+    const ros::WallTime now = ros::WallTime::now();
+    const CameraModel* camera = cameraModel(*info_msg, *image_msg);
+    if (!camera) return record(now, false, "bad camera_info");
+    auto image = imageFromMsg(*image_msg);
+    if (!image) {
+      NODELET_WARN_THROTTLE(kWarnThrottleS, "image (frame '%s', encoding '%s'): %s", image_msg->header.frame_id.c_str(),
+                            image_msg->encoding.c_str(), image.error().c_str());
+      return record(now, false, "bad image: " + image.error());
+    }
+    ImageDetection detection;
+    {
+      std::lock_guard<std::mutex> lock(detector_mutex_);
+      detection = detector_->detect(*image, *camera);
+    }
+    CameraBoardFeatures& f = detection.features;
+    f.frame_id = image_msg->header.frame_id;
+    f.stamp = image_msg->header.stamp.toSec();
+    if (board_pub_.getNumSubscribers() > 0) {
+      CameraBoard msg = toMsg(f);
+      msg.header = image_msg->header;
+      board_pub_.publish(msg);
+    }
+    if (debug_pub_.getNumSubscribers() > 0)
+      debug_pub_.publish(
+          cv_bridge::CvImage(image_msg->header, "bgr8", drawImageDetection(*image, *camera, detection)).toImageMsg());
+    record(now, f.found, f.found ? "" : f.reason, detection.details.time_ms);
+  }
+
+  void record(const ros::WallTime& now, bool found, const std::string& reason, double time_ms = 0.0) {
+    std::lock_guard<std::mutex> lock(stats_mutex_);
+    history_.push_back({now, found});
+    while (!history_.empty() && (now - history_.front().first).toSec() > kStatsWindowS) history_.pop_front();
+    last_reason_ = reason;
+    last_time_ms_ = time_ms;
+  }
+
+  void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
+    std::lock_guard<std::mutex> lock(stats_mutex_);
+    const ros::WallTime now = ros::WallTime::now();
+    while (!history_.empty() && (now - history_.front().first).toSec() > kStatsWindowS) history_.pop_front();
+    int found = 0;
+    for (const auto& h : history_) found += h.second;
+    const double rate = history_.size() / kStatsWindowS;
+    const double ratio = history_.empty() ? 0.0 : static_cast<double>(found) / history_.size();
+    stat.add("input rate (Hz)", rate);
+    stat.add("detection ratio", ratio);
+    stat.add("last detection time (ms)", last_time_ms_);
+    stat.add("last reason", last_reason_);
+    stat.add("subscribed", static_cast<bool>(camera_sub_));
+    if (!camera_sub_)
+      stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "idle (no subscribers)");
+    else if (history_.empty())
+      stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "no images");
+    else if (found == 0)
+      stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "no board: " + last_reason_);
+    else
+      stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "board found");
+  }
+
+  Target target_;
+  std::string transport_;
+  std::optional<ImageBoardDetector> detector_;
+  std::mutex detector_mutex_;
+  std::optional<CameraModel> camera_;
+  sensor_msgs::CameraInfo last_info_;
+
+  std::unique_ptr<image_transport::ImageTransport> it_;
+  std::mutex connect_mutex_;
+  image_transport::CameraSubscriber camera_sub_;
+  ros::Publisher board_pub_;
+  image_transport::Publisher debug_pub_;
+
+  boost::recursive_mutex reconfigure_mutex_;
+  std::unique_ptr<dynamic_reconfigure::Server<ImageBoardDetectorConfig>> reconfigure_;
+  std::unique_ptr<diagnostic_updater::Updater> diagnostics_;
+  ros::WallTimer diagnostics_timer_;
+
+  std::mutex stats_mutex_;
+  std::deque<std::pair<ros::WallTime, bool>> history_;
+  std::string last_reason_;
+  double last_time_ms_ = 0.0;
+};
+
+}  // namespace board_calib
+
+PLUGINLIB_EXPORT_CLASS(board_calib::ImageBoardDetectorNodelet, nodelet::Nodelet)
