@@ -14,17 +14,14 @@ if(TARGET test_lidar_detector)
   target_include_directories(test_lidar_detector SYSTEM PRIVATE ${OpenCV_INCLUDE_DIRS})
 endif()
 
-# Links the conversions unit and the modules it exercises directly (not the whole
-# board_calib_core), so it builds while other modules are in progress.
 catkin_add_gtest(test_lidar_detector_real test/ros/test_lidar_detector_real.cpp
-  src/ros/conversions.cpp src/ros/bag_reader.cpp
   WORKING_DIRECTORY ${CMAKE_CURRENT_SOURCE_DIR})
 if(TARGET test_lidar_detector_real)
   target_compile_options(test_lidar_detector_real PRIVATE ${BOARD_CALIB_WARNINGS})
   target_compile_definitions(test_lidar_detector_real PRIVATE
     BOARD_CALIB_SOURCE_DIR="${CMAKE_CURRENT_SOURCE_DIR}"
     BOARD_CALIB_SHARED_DIR="${CMAKE_CURRENT_SOURCE_DIR}/../shared")
-  target_link_libraries(test_lidar_detector_real bc_lidar_detection bc_geometry ${catkin_LIBRARIES}
-    ${OpenCV_LIBRARIES} GTest::gtest_main)
+  target_link_libraries(test_lidar_detector_real board_calib_ros board_calib_core ${catkin_LIBRARIES}
+    GTest::gtest_main)
   add_dependencies(test_lidar_detector_real ${PROJECT_NAME}_generate_messages_cpp)
 endif()
