@@ -1,0 +1,228 @@
+#include <board_calib/core/rig_config.h>
+
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+namespace board_calib {
+namespace {
+
+// Thrown inside the parser only; turned into an Expected failure at the API boundary.
+struct RigError {
+  std::string why;
+};
+
+[[noreturn]] void bad(const std::string& why) { throw RigError{why}; }
+
+std::string requireString(const YAML::Node& node, const std::string& key, const std::string& where) {
+  const YAML::Node v = node[key];
+  if (!v) bad(where + ": missing key '" + key + "'");
+  if (!v.IsScalar()) bad(where + "." + key + ": expected a string");
+  const std::string s = v.as<std::string>();
+  if (s.empty()) bad(where + "." + key + ": must not be empty");
+  return s;
+}
+
+double optionalNumber(const YAML::Node& node, const std::string& key, const std::string& where, double fallback) {
+  const YAML::Node v = node[key];
+  if (!v) return fallback;
+  double x = 0.0;
+  if (!v.IsScalar() || !YAML::convert<double>::decode(v, x) || !std::isfinite(x))
+    bad(where + "." + key + ": expected a number");
+  return x;
+}
+
+std::vector<double> numberList(const YAML::Node& node, const std::string& key, const std::string& where, size_t n) {
+  const YAML::Node v = node[key];
+  if (!v) bad(where + ": missing key '" + key + "'");
+  if (!v.IsSequence() || v.size() != n) bad(where + "." + key + ": expected a list of " + std::to_string(n) + " numbers");
+  std::vector<double> out;
+  for (const auto& e : v) {
+    double x = 0.0;
+    if (!e.IsScalar() || !YAML::convert<double>::decode(e, x) || !std::isfinite(x))
+      bad(where + "." + key + ": expected a list of " + std::to_string(n) + " numbers");
+    out.push_back(x);
+  }
+  return out;
+}
+
+void checkKeys(const YAML::Node& node, const std::set<std::string>& allowed, const std::string& where) {
+  for (const auto& kv : node) {
+    const std::string k = kv.first.as<std::string>();
+    if (!allowed.count(k)) bad(where + ": unknown key '" + k + "'");
+  }
+}
+
+// Noise sigmas must be >= 0 (0 = graph default); negative values are a typo, not a default.
+double noiseValue(const YAML::Node& noise, const std::string& key, const std::string& where) {
+  const double x = optionalNumber(noise, key, where, 0.0);
+  if (x < 0.0) bad(where + "." + key + ": must be >= 0");
+  return x;
+}
+
+RigConfig parse(const YAML::Node& root, const std::string& base_dir) {
+  if (!root.IsMap()) bad("rig file: expected a map at the top level");
+  checkKeys(root, {"target", "reference", "cameras", "lidars", "known_extrinsics", "stamp_tolerance_s"}, "rig");
+  RigConfig rig;
+  rig.target_path = requireString(root, "target", "rig");
+  if (!base_dir.empty() && rig.target_path[0] != '/') rig.target_path = base_dir + "/" + rig.target_path;
+  rig.reference = requireString(root, "reference", "rig");
+  rig.stamp_tolerance_s = optionalNumber(root, "stamp_tolerance_s", "rig", rig.stamp_tolerance_s);
+
+  if (const YAML::Node cams = root["cameras"]) {
+    if (!cams.IsSequence()) bad("rig.cameras: expected a list");
+    for (size_t i = 0; i < cams.size(); ++i) {
+      const std::string where = "cameras[" + std::to_string(i) + "]";
+      const YAML::Node c = cams[i];
+      if (!c.IsMap()) bad(where + ": expected a map");
+      checkKeys(c, {"name", "image_topic", "camera_info_topic", "noise"}, where);
+      RigCamera cam;
+      cam.name = requireString(c, "name", where);
+      cam.image_topic = requireString(c, "image_topic", where);
+      cam.camera_info_topic = requireString(c, "camera_info_topic", where);
+      if (const YAML::Node n = c["noise"]) {
+        if (!n.IsMap()) bad(where + ".noise: expected a map");
+        const std::string nw = where + ".noise";
+        checkKeys(n, {"pixel_sigma_px", "normal_sigma_deg", "offset_sigma_m"}, nw);
+        cam.pixel_sigma_px = noiseValue(n, "pixel_sigma_px", nw);
+        cam.normal_sigma_deg = noiseValue(n, "normal_sigma_deg", nw);
+        cam.offset_sigma_m = noiseValue(n, "offset_sigma_m", nw);
+      }
+      rig.cameras.push_back(cam);
+    }
+  }
+  if (const YAML::Node lids = root["lidars"]) {
+    if (!lids.IsSequence()) bad("rig.lidars: expected a list");
+    for (size_t i = 0; i < lids.size(); ++i) {
+      const std::string where = "lidars[" + std::to_string(i) + "]";
+      const YAML::Node l = lids[i];
+      if (!l.IsMap()) bad(where + ": expected a map");
+      checkKeys(l, {"name", "cloud_topic", "noise"}, where);
+      RigLidar lid;
+      lid.name = requireString(l, "name", where);
+      lid.cloud_topic = requireString(l, "cloud_topic", where);
+      if (const YAML::Node n = l["noise"]) {
+        if (!n.IsMap()) bad(where + ".noise: expected a map");
+        const std::string nw = where + ".noise";
+        checkKeys(n, {"normal_sigma_deg", "offset_sigma_m", "edge_sigma_m"}, nw);
+        lid.normal_sigma_deg = noiseValue(n, "normal_sigma_deg", nw);
+        lid.offset_sigma_m = noiseValue(n, "offset_sigma_m", nw);
+        lid.edge_sigma_m = noiseValue(n, "edge_sigma_m", nw);
+      }
+      rig.lidars.push_back(lid);
+    }
+  }
+  if (const YAML::Node known = root["known_extrinsics"]) {
+    if (!known.IsSequence()) bad("rig.known_extrinsics: expected a list");
+    for (size_t i = 0; i < known.size(); ++i) {
+      const std::string where = "known_extrinsics[" + std::to_string(i) + "]";
+      const YAML::Node k = known[i];
+      if (!k.IsMap()) bad(where + ": expected a map");
+      checkKeys(k, {"a", "b", "a_T_b"}, where);
+      KnownExtrinsic e;
+      e.a = requireString(k, "a", where);
+      e.b = requireString(k, "b", where);
+      const YAML::Node t = k["a_T_b"];
+      if (!t || !t.IsMap()) bad(where + ": missing key 'a_T_b' (a map with translation and rotation_xyzw)");
+      checkKeys(t, {"translation", "rotation_xyzw"}, where + ".a_T_b");
+      const auto tr = numberList(t, "translation", where + ".a_T_b", 3);
+      const auto q = numberList(t, "rotation_xyzw", where + ".a_T_b", 4);
+      Eigen::Quaterniond quat(q[3], q[0], q[1], q[2]);
+      if (std::abs(quat.norm() - 1.0) > 1e-3)
+        bad(where + ".a_T_b.rotation_xyzw: not a unit quaternion (norm " + std::to_string(quat.norm()) + ")");
+      quat.normalize();
+      e.a_T_b.linear() = quat.toRotationMatrix();
+      e.a_T_b.translation() = Eigen::Vector3d(tr[0], tr[1], tr[2]);
+      rig.known_extrinsics.push_back(e);
+    }
+  }
+  if (const std::string why = rig.validate(); !why.empty()) bad(why);
+  return rig;
+}
+
+}  // namespace
+
+std::string RigConfig::validate() const {
+  if (target_path.empty()) return "rig: 'target' is empty";
+  if (cameras.size() + lidars.size() < 2) return "rig: needs at least two sensors in 'cameras' and 'lidars'";
+  if (!(stamp_tolerance_s > 0.0)) return "rig.stamp_tolerance_s: must be > 0";
+  std::set<std::string> names, topics;
+  auto addName = [&](const std::string& n) { return names.insert(n).second; };
+  auto addTopic = [&](const std::string& t) { return topics.insert(t).second; };
+  for (const auto& c : cameras) {
+    if (!addName(c.name)) return "rig: duplicate sensor name '" + c.name + "'";
+    if (!addTopic(c.image_topic)) return "rig: topic '" + c.image_topic + "' used twice";
+    if (!addTopic(c.camera_info_topic)) return "rig: topic '" + c.camera_info_topic + "' used twice";
+  }
+  for (const auto& l : lidars) {
+    if (!addName(l.name)) return "rig: duplicate sensor name '" + l.name + "'";
+    if (!addTopic(l.cloud_topic)) return "rig: topic '" + l.cloud_topic + "' used twice";
+  }
+  if (!names.count(reference)) return "rig.reference: '" + reference + "' is not a sensor of the rig";
+  for (size_t i = 0; i < known_extrinsics.size(); ++i) {
+    const auto& k = known_extrinsics[i];
+    const std::string where = "known_extrinsics[" + std::to_string(i) + "]";
+    if (!names.count(k.a)) return where + ".a: '" + k.a + "' is not a sensor of the rig";
+    if (!names.count(k.b)) return where + ".b: '" + k.b + "' is not a sensor of the rig";
+    if (k.a == k.b) return where + ": a and b are the same sensor";
+  }
+  return "";
+}
+
+int RigConfig::sensorIndex(const std::string& name) const {
+  for (size_t i = 0; i < cameras.size(); ++i)
+    if (cameras[i].name == name) return static_cast<int>(i);
+  for (size_t i = 0; i < lidars.size(); ++i)
+    if (lidars[i].name == name) return static_cast<int>(cameras.size() + i);
+  return -1;
+}
+
+std::vector<msg::SensorSpec> RigConfig::sensorSpecs() const {
+  std::vector<msg::SensorSpec> out;
+  for (const auto& c : cameras) {
+    msg::SensorSpec s;
+    s.frame = c.name;
+    s.kind = msg::SensorKind::kCamera;
+    s.pixel_sigma_px = c.pixel_sigma_px;
+    s.normal_sigma_deg = c.normal_sigma_deg;
+    s.offset_sigma_m = c.offset_sigma_m;
+    out.push_back(s);
+  }
+  for (const auto& l : lidars) {
+    msg::SensorSpec s;
+    s.frame = l.name;
+    s.kind = msg::SensorKind::kLidar;
+    s.normal_sigma_deg = l.normal_sigma_deg;
+    s.offset_sigma_m = l.offset_sigma_m;
+    s.edge_sigma_m = l.edge_sigma_m;
+    out.push_back(s);
+  }
+  return out;
+}
+
+Expected<RigConfig> parseRigConfig(const std::string& yaml_text, const std::string& base_dir) {
+  try {
+    return parse(YAML::Load(yaml_text), base_dir);
+  } catch (const RigError& e) {
+    return Expected<RigConfig>::failure(e.why);
+  } catch (const YAML::Exception& e) {
+    return Expected<RigConfig>::failure(std::string("rig file: invalid YAML: ") + e.what());
+  }
+}
+
+Expected<RigConfig> loadRigConfig(const std::string& path) {
+  std::ifstream f(path);
+  if (!f) return Expected<RigConfig>::failure("cannot read rig file '" + path + "'");
+  std::stringstream ss;
+  ss << f.rdbuf();
+  const size_t slash = path.find_last_of('/');
+  const std::string base = slash == std::string::npos ? "." : path.substr(0, slash == 0 ? 1 : slash);
+  auto rig = parseRigConfig(ss.str(), base);
+  if (!rig) return Expected<RigConfig>::failure(path + ": " + rig.error());
+  return rig;
+}
+
+}  // namespace board_calib
