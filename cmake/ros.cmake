@@ -46,3 +46,8 @@ install(TARGETS board_calib_core board_calib_ros ${BOARD_CALIB_NODELET_LIBS}
 if(BOARD_CALIB_TOOLS)
   install(TARGETS ${BOARD_CALIB_TOOLS} RUNTIME DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})
 endif()
+
+# Multi-sensor rig mode of calibrate_bag (--config RIG.yaml --method msg).
+if(TARGET calibrate_bag)
+  target_sources(calibrate_bag PRIVATE src/tools/calibrate_rig.cpp)
+endif()

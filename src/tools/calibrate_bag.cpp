@@ -3,6 +3,8 @@
 // session and solvers as the nodelets, prints the result with its quality figures, and writes
 // the result file and an optional report folder. Bad input ends with a one-line reason and a
 // non-zero exit.
+#include "calibrate_rig.h"
+
 #include <board_calib/bag_reader.h>
 #include <board_calib/core/pipeline.h>
 #include <board_calib/core/projection.h>
@@ -12,6 +14,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -35,14 +38,19 @@ const char* kUsage =
     "         --image-topic T --camera-info-topic T --cloud-topic T --method ppc|pbpc|msg|all\n"
     "         [--initial-guess x y z qx qy qz qw] [--output result.yaml] [--report DIR]\n"
     "         [--still-frames N] [--sync-tolerance S] [--loss none|huber|cauchy|tukey] [--loss-scale M]\n"
-    "         [--child-frame F] [--save-session FILE] [--load-session FILE] [--truth TRUTH.yaml] [--quiet]\n"
+    "         [--child-frame F] [--save-session FILE] [--load-session FILE] [--truth TRUTH.yaml]\n"
+    "         [--check-truth ROT_DEG TRANS_M] [--edge-shift STEPS] [--quiet]\n"
+    "       calibrate_bag --config RIG.yaml --bag FILE [--bag FILE...] --method msg [--output result.yaml]\n"
+    "         [--report DIR] [--truth TRUTH.yaml [--check-truth ROT_DEG TRANS_M]] [--quiet]   (docs/MSG.md)\n"
     "\n"
     "  --initial-guess     camera_T_lidar (p_camera = R p_lidar + t); default: closed-form initialisation\n"
     "  --still-frames N    synchronised frames the board must stay still (default: 1 when captures are\n"
     "                      more than 0.5 s apart, as in snapshot bags, else 2)\n"
     "  --sync-tolerance S  max image/cloud stamp difference of one view, s (default 0.05)\n"
     "  --load-session F    solve a saved session (no bag needed); --save-session F keeps the views\n"
-    "  --truth FILE        a ground-truth result file (simulate_bag's *.truth.yaml): print the errors\n";
+    "  --truth FILE        a ground-truth result file (simulate_bag's *.truth.yaml): print the errors\n"
+    "  --check-truth R T   with --truth: exit non-zero if the reported result is off by more than R deg or T m\n"
+    "  --edge-shift STEPS  shift LiDAR edge points outward by STEPS horizontal steps (solver default 0.5)\n";
 
 struct Args {
   std::vector<std::string> bags;
@@ -54,6 +62,9 @@ struct Args {
   std::string loss;
   double loss_scale = -1;
   bool quiet = false;
+  std::string config;  // multi-sensor rig (MSG-Cal): everything else comes from the rig file
+  double check_rot_deg = 0, check_trans_m = 0;
+  double edge_shift = -1;  // horizontal steps; < 0: solver default
 };
 
 // One-line failure, as the contract asks.
@@ -101,6 +112,12 @@ Args parseArgs(int argc, char** argv) {
     else if (f == "--sync-tolerance") a.sync_tolerance = parseNumber(f, need(i, f));
     else if (f == "--still-frames") a.still_frames = static_cast<int>(parseNumber(f, need(i, f)));
     else if (f == "--quiet") a.quiet = true;
+    else if (f == "--edge-shift") a.edge_shift = parseNumber(f, need(i, f));
+    else if (f == "--config") a.config = need(i, f);
+    else if (f == "--check-truth") {
+      a.check_rot_deg = parseNumber(f, need(i, f));
+      a.check_trans_m = parseNumber(f, need(i, f));
+    }
     else if (f == "--initial-guess") {
       double v[7];
       for (double& x : v) x = parseNumber(f, need(i, f));
@@ -110,6 +127,10 @@ Args parseArgs(int argc, char** argv) {
     }
   }
   if (a.method.empty()) fail("--method is required (ppc, pbpc, msg or all)", kExitUsage);
+  if (!a.config.empty()) {
+    if (a.method != "msg") fail("--config (a multi-sensor rig) needs --method msg", kExitUsage);
+    return a;
+  }
   if (a.target.empty() && a.load_session.empty()) fail("--target is required", kExitUsage);
   if (a.load_session.empty()) {
     if (a.bags.empty()) fail("--bag is required", kExitUsage);
@@ -134,6 +155,12 @@ bool makeDir(const std::string& path) {
 
 void progress(bool quiet, size_t done, size_t total, size_t views) {
   if (quiet || total == 0) return;
+  // A redrawn bar on a terminal; a line per quarter in logs.
+  if (!isatty(STDERR_FILENO)) {
+    if (done == total || (4 * done / total) != (4 * (done - 1) / total))
+      std::cerr << "calibrate_bag: " << done << "/" << total << " frames, " << views << " views\n";
+    return;
+  }
   constexpr int kWidth = 30;
   const int filled = static_cast<int>(kWidth * done / total);
   std::cerr << "\r[" << std::string(filled, '#') << std::string(kWidth - filled, '.') << "] " << done << "/" << total
@@ -151,6 +178,9 @@ void writeText(const std::string& path, const std::string& text) {
 
 int main(int argc, char** argv) {
   const Args args = parseArgs(argc, argv);
+  if (!args.config.empty())
+    return runRigCalibration({args.config, args.bags, args.output, args.report, args.truth, args.check_rot_deg,
+                              args.check_trans_m, args.quiet});
   const auto wall_start = std::chrono::steady_clock::now();
 
   std::vector<Method> methods;
@@ -168,6 +198,7 @@ int main(int argc, char** argv) {
     solver.loss = *loss;
   }
   if (args.loss_scale > 0) solver.loss_scale_m = args.loss_scale;
+  if (args.edge_shift >= 0) solver.edge_outward_shift_steps = args.edge_shift;
   if (auto why = solver.validate(); !why.empty()) fail("solver options: " + why, kExitUsage);
 
   PipelineOptions options;
@@ -300,6 +331,16 @@ int main(int argc, char** argv) {
         std::cout << "error vs truth (" << methodName(s.method) << "): rotation "
                   << rotationErrorDeg(s.camera_T_lidar, truth_T) << " deg, translation "
                   << translationErrorM(s.camera_T_lidar, truth_T) * 1e3 << " mm\n";
+    if (args.check_rot_deg > 0) {
+      const double rot = rotationErrorDeg(chosen.camera_T_lidar, truth_T);
+      const double trans = translationErrorM(chosen.camera_T_lidar, truth_T);
+      if (rot > args.check_rot_deg || trans > args.check_trans_m)
+        fail("reported result misses the truth: " + std::to_string(rot) + " deg, " + std::to_string(trans * 1e3) +
+             " mm (allowed " + std::to_string(args.check_rot_deg) + " deg, " +
+             std::to_string(args.check_trans_m * 1e3) + " mm)");
+    }
+  } else if (args.check_rot_deg > 0) {
+    fail("--check-truth needs --truth", kExitUsage);
   }
 
   if (!args.report.empty()) {
