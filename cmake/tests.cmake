@@ -42,6 +42,14 @@ if(TARGET test_conversions)
   target_link_libraries(test_conversions board_calib_ros board_calib_core ${catkin_LIBRARIES} GTest::gtest_main)
 endif()
 
+# Every class in nodelet_plugins.xml loads through pluginlib.
+catkin_add_gtest(test_nodelet_plugins test/ros/test_nodelet_plugins.cpp)
+if(TARGET test_nodelet_plugins)
+  target_compile_definitions(test_nodelet_plugins PRIVATE BOARD_CALIB_SOURCE_DIR="${CMAKE_CURRENT_SOURCE_DIR}")
+  target_link_libraries(test_nodelet_plugins ${catkin_LIBRARIES} GTest::gtest_main)
+  add_dependencies(test_nodelet_plugins ${BOARD_CALIB_NODELET_LIBS})
+endif()
+
 # Every launch file parses and its arguments resolve.
 roslaunch_add_file_check(launch)
 
@@ -49,7 +57,7 @@ roslaunch_add_file_check(launch)
 add_rostest_gtest(test_message_roundtrip test/rostest/message_roundtrip.test test/rostest/message_roundtrip.cpp)
 target_link_libraries(test_message_roundtrip board_calib_ros board_calib_core ${catkin_LIBRARIES} ${GTEST_LIBRARIES})
 add_dependencies(test_message_roundtrip ${PROJECT_NAME}_generate_messages_cpp)
-foreach(rostest_fragment nodelets pipeline projection)
+foreach(rostest_fragment pipeline projection real_data rig)
   if(EXISTS ${CMAKE_CURRENT_SOURCE_DIR}/cmake/rostests_${rostest_fragment}.cmake)
     include(cmake/rostests_${rostest_fragment}.cmake)
   endif()

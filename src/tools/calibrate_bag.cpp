@@ -131,7 +131,6 @@ Args parseArgs(int argc, char** argv) {
     if (a.method != "msg") fail("--config (a multi-sensor rig) needs --method msg", kExitUsage);
     return a;
   }
-  if (a.check_rot_deg > 0 || a.check_trans_m > 0) fail("--check-truth is only available with --config", kExitUsage);
   if (a.target.empty() && a.load_session.empty()) fail("--target is required", kExitUsage);
   if (a.load_session.empty()) {
     if (a.bags.empty()) fail("--bag is required", kExitUsage);

@@ -17,7 +17,7 @@ std::set<std::string> declaredClasses() {
   text << f.rdbuf();
   const std::string xml = text.str();
   std::set<std::string> names;
-  const std::regex class_name(R"(<class\s+name="([^"]+)")");
+  const std::regex class_name(R"re(<class\s+name="([^"]+)")re");
   for (auto it = std::sregex_iterator(xml.begin(), xml.end(), class_name); it != std::sregex_iterator(); ++it)
     names.insert((*it)[1]);
   return names;
