@@ -1,5 +1,6 @@
 # End-to-end rostest on a simulated session: the bag is generated first by a CTest fixture.
 set(BOARD_CALIB_E2E_DIR ${CMAKE_CURRENT_BINARY_DIR}/test_data/e2e)
+file(MAKE_DIRECTORY ${BOARD_CALIB_E2E_DIR})
 add_test(NAME generate_e2e_bag
   COMMAND ${CMAKE_COMMAND} -E env ROS_HOME=${CMAKE_CURRENT_BINARY_DIR}/ros_home
     $<TARGET_FILE:simulate_bag> --quiet --scenario ${CMAKE_CURRENT_SOURCE_DIR}/config/scenarios/plain_vlp32c_1920.yaml

@@ -1,7 +1,7 @@
 # Real recordings (../shared/data, present in CI): calibrate_bag end to end, scored independently.
 set(BOARD_CALIB_SHARED ${CMAKE_CURRENT_SOURCE_DIR}/../shared)
 if(EXISTS ${BOARD_CALIB_SHARED}/data/basler_os1_plain/session.bag)
-  foreach(case checker)
+  foreach(case plain checker)
     add_test(NAME calibrate_bag_real_${case}
       COMMAND /usr/bin/python3 ${CMAKE_CURRENT_SOURCE_DIR}/test/check_real_data.py ${case}
         --tool $<TARGET_FILE:calibrate_bag> --shared ${BOARD_CALIB_SHARED}

@@ -46,7 +46,7 @@ endif()
 catkin_add_gtest(test_nodelet_plugins test/ros/test_nodelet_plugins.cpp)
 if(TARGET test_nodelet_plugins)
   target_compile_definitions(test_nodelet_plugins PRIVATE BOARD_CALIB_SOURCE_DIR="${CMAKE_CURRENT_SOURCE_DIR}")
-  target_link_libraries(test_nodelet_plugins ${catkin_LIBRARIES} GTest::gtest_main)
+  target_link_libraries(test_nodelet_plugins ${catkin_LIBRARIES})
   add_dependencies(test_nodelet_plugins ${BOARD_CALIB_NODELET_LIBS})
 endif()
 

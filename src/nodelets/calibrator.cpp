@@ -253,7 +253,7 @@ bool CalibratorNodelet::calibrate(Calibrate::Request& req, Calibrate::Response& 
   // The solve runs on its own thread; feature callbacks keep flowing meanwhile.
   auto solving = std::async(std::launch::async, [&]() {
     std::vector<CalibrationSolution> out;
-    for (Method m : methods) out.push_back(board_calib::calibrate(views, m, SolverOptions{}, guess));
+    for (Method m : methods) out.push_back(board_calib::calibrate(views, m, realLidarSolverOptions(), guess));
     return out;
   });
   const std::vector<CalibrationSolution> solutions = solving.get();

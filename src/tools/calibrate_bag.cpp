@@ -50,7 +50,9 @@ const char* kUsage =
     "  --load-session F    solve a saved session (no bag needed); --save-session F keeps the views\n"
     "  --truth FILE        a ground-truth result file (simulate_bag's *.truth.yaml): print the errors\n"
     "  --check-truth R T   with --truth: exit non-zero if the reported result is off by more than R deg or T m\n"
-    "  --edge-shift STEPS  shift LiDAR edge points outward by STEPS horizontal steps (solver default 0.5)\n";
+    "  --edge-shift STEPS  shift LiDAR edge points outward by STEPS horizontal steps (default 0: beam\n"
+    "                      divergence cancels the extremes' inset)\n"
+    "  --loss, --loss-scale  robust loss on point residuals (default tukey, 0.02 m)\n";
 
 struct Args {
   std::vector<std::string> bags;
@@ -191,7 +193,7 @@ int main(int argc, char** argv) {
     methods = {*m};
   }
 
-  SolverOptions solver;
+  SolverOptions solver = realLidarSolverOptions();
   if (!args.loss.empty()) {
     auto loss = parseRobustLoss(args.loss);
     if (!loss) fail(loss.error(), kExitUsage);

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <nodelet/nodelet.h>
 #include <pluginlib/class_loader.hpp>
+#include <ros/ros.h>
 
 #include <fstream>
 #include <regex>
@@ -44,4 +45,11 @@ TEST(NodeletPlugins, EveryDeclaredClassLoads) {
       ADD_FAILURE() << name << ": " << e.what();
     }
   }
+}
+
+// Nodelet constructors may create NodeHandles: roscpp must be initialised (no master needed).
+int main(int argc, char** argv) {
+  ::testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_nodelet_plugins", ros::init_options::AnonymousName | ros::init_options::NoSigintHandler);
+  return RUN_ALL_TESTS();
 }

@@ -54,7 +54,7 @@ struct LidarBoardDetectorOptions {
   bool reject_ambiguous = true;    ///< report two board-like planes as "ambiguous" instead of picking one
 
   // Plane refinement.
-  double plane_distance_threshold_m = 0.03;  ///< RANSAC inlier distance, m
+  double plane_distance_threshold_m = 0.05;  ///< RANSAC inlier distance, m (3 RMS of a noisy OS1-64 board)
   int ransac_iterations = 100;               ///< RANSAC hypotheses for the plane and each edge line
   unsigned random_seed = 42;                 ///< fixed seed: deterministic results
 

@@ -43,6 +43,8 @@ constexpr double kSameBoardDistanceM = 0.5;
 constexpr double kMadToSigma = 1.4826;
 constexpr double kRobustBandSigmas = 2.5;
 constexpr double kMinRobustBandM = 0.005;
+constexpr double kAdaptiveBandSigmas = 3.0;   // plane inlier band in robust sigmas
+constexpr double kMaxAdaptiveBandFactor = 2.0;  // the band grows to at most this times the threshold
 // The plane refit after the edges keeps points this far inside the edge lines (drops the
 // mixed returns of the rim and anything touching the board from outside).
 constexpr double kRimExclusionM = 0.02;
@@ -421,12 +423,15 @@ RefinedPlane refinePlane(const std::vector<int>& region_points, const std::vecto
       best_d = d;
     }
   }
-  // Least squares on the inliers, twice (the inlier set moves with the plane).
-  for (int round = 0; round < 2; ++round) {
+  // Least squares on the inliers, three times (the inlier set moves with the plane). From the
+  // second round the band follows the measured noise (3 RMS): a noisy LiDAR (OS1:
+  // ~1.5 cm) would otherwise lose the board's sparse rim rows to a fixed threshold.
+  double band_m = thr;
+  for (int round = 0; round < 3; ++round) {
     PlaneStats s;
     std::vector<int> inliers;
     for (int i : gathered)
-      if (std::abs(best_n.dot(pts[i].p) - best_d) < thr) {
+      if (std::abs(best_n.dot(pts[i].p) - best_d) < band_m) {
         s.add(pts[i].p);
         inliers.push_back(i);
       }
@@ -434,6 +439,10 @@ RefinedPlane refinePlane(const std::vector<int>& region_points, const std::vecto
     const PlaneFit f = lidar_detail::fitPlane(s);
     best_n = f.normal();
     best_d = f.offset();
+    // RMS, not MAD: a flexing board's rim sits in the tails that the band must reach.
+    double sum_sq = 0.0;
+    for (int i : inliers) sum_sq += std::pow(best_n.dot(pts[i].p) - best_d, 2);
+    band_m = std::clamp(kAdaptiveBandSigmas * std::sqrt(sum_sq / inliers.size()), thr, kMaxAdaptiveBandFactor * thr);
     best.inliers = std::move(inliers);
   }
   // Robust scale of the residuals: a tighter band drops mixed returns at the board's rim (they

@@ -34,7 +34,7 @@ constexpr double kPersonHalfDepth = 0.14;   // m
 constexpr double kPersonBehindBoard = 0.25; // m, body centre behind the board centre (horizontal), at least
 constexpr double kPersonMaxBehind = 2.0;    // m
 constexpr double kPersonStep = 0.05;        // m
-constexpr double kPersonClearance = 0.05;   // m, body behind the board's plane
+constexpr double kPersonClearance = 0.15;   // m, body behind the board's plane: a held board is at arm's length
 
 // Room texture.
 constexpr double kFloorTile = 0.6;          // m, tile size on the floor

@@ -68,6 +68,15 @@ Expected<PbpcSchedule> parsePbpcSchedule(const std::string& name) {
   return Expected<PbpcSchedule>::failure("unknown PBPC schedule '" + name + "' (expected joint or sequential)");
 }
 
+SolverOptions realLidarSolverOptions() {
+  SolverOptions o;
+  o.edge_outward_shift_steps = 0.0;
+  o.loss = RobustLoss::kTukey;
+  constexpr double kRealLossScaleM = 0.02;  // about twice a real LiDAR's range noise
+  o.loss_scale_m = kRealLossScaleM;
+  return o;
+}
+
 std::string SolverOptions::validate() const {
   auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
   if (!positive(loss_scale_m)) return "loss_scale_m must be > 0";
