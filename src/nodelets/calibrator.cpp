@@ -20,10 +20,9 @@
 #include <tf2_ros/static_transform_broadcaster.h>
 #include <visualization_msgs/MarkerArray.h>
 
-#include <sys/stat.h>
-
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <future>
 #include <mutex>
@@ -200,9 +199,11 @@ CalibrationResult CalibratorNodelet::toResultMsg(const CalibrationSolution& s, c
 
 std::string CalibratorNodelet::writeOutputs(const ResultFile& file) {
   if (output_dir_.empty()) return "";
-  for (size_t pos = 0; pos != std::string::npos;) {
-    pos = output_dir_.find('/', pos + 1);
-    mkdir(output_dir_.substr(0, pos).c_str(), 0755);
+  std::error_code error;
+  std::filesystem::create_directories(output_dir_, error);
+  if (error) {
+    NODELET_ERROR_STREAM("calibrator: cannot create " << output_dir_ << ": " << error.message());
+    return "";
   }
   const std::string child = child_frame_.empty() ? file.camera_frame : child_frame_;
   const std::string base = output_dir_ + "/" + file.method;

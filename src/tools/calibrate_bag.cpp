@@ -13,12 +13,12 @@
 
 #include <opencv2/imgcodecs.hpp>
 
-#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -143,16 +143,9 @@ Args parseArgs(int argc, char** argv) {
 }
 
 bool makeDir(const std::string& path) {
-  std::string partial;
-  std::stringstream ss(path);
-  std::string part;
-  if (!path.empty() && path[0] == '/') partial = "/";
-  while (std::getline(ss, part, '/')) {
-    if (part.empty()) continue;
-    partial += part + "/";
-    if (mkdir(partial.c_str(), 0755) != 0 && errno != EEXIST) return false;
-  }
-  return true;
+  std::error_code error;
+  std::filesystem::create_directories(path, error);
+  return !error;
 }
 
 void progress(bool quiet, size_t done, size_t total, size_t views) {

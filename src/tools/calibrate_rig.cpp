@@ -15,11 +15,11 @@
 #include <board_calib/core/target.h>
 #include <board_calib/core/transform.h>
 
-#include <sys/stat.h>
 
 #include <cerrno>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <iostream>
@@ -42,16 +42,9 @@ int failWith(const std::string& why, int code = kExitFailed) {
 }
 
 bool makeDirs(const std::string& path) {
-  std::string partial;
-  std::stringstream ss(path);
-  std::string part;
-  if (!path.empty() && path[0] == '/') partial = "/";
-  while (std::getline(ss, part, '/')) {
-    if (part.empty()) continue;
-    partial += part + "/";
-    if (mkdir(partial.c_str(), 0755) != 0 && errno != EEXIST) return false;
-  }
-  return true;
+  std::error_code error;
+  std::filesystem::create_directories(path, error);
+  return !error;
 }
 
 std::string poseLine(const Eigen::Isometry3d& T) {
