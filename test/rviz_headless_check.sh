@@ -116,7 +116,7 @@ PY
 fi
 
 # Topics the config subscribes to (relative names resolve to / in the root namespace).
-expected="points colored_cloud markers calibration_markers overlay tf"
+expected="points colored_cloud markers calibration_markers camera_frustum overlay tf"
 export WITH_DATA=$with_data
 xvfb-run -a -s "-screen 0 1400x900x24 -fbdir $fbdir" bash "$0" --inner "$config" "$out" "$fbdir" "$expected" \
   "$fixed_frame"

@@ -16,6 +16,7 @@
 #include <pluginlib/class_list_macros.hpp>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
+#include <visualization_msgs/Marker.h>
 
 #include <atomic>
 #include <cmath>
@@ -85,6 +86,7 @@ class ProjectionNodelet : public nodelet::Nodelet {
     ros::SubscriberStatusCallback cloud_cb = [this](const ros::SingleSubscriberPublisher&) { onConnect(); };
     overlay_pub_ = it_->advertise("overlay", 1, image_cb, image_cb);
     cloud_pub_ = nh.advertise<sensor_msgs::PointCloud2>("colored_cloud", 1, cloud_cb, cloud_cb);
+    frustum_pub_ = nh.advertise<visualization_msgs::Marker>("camera_frustum", 1, true);
     check_timer_ = nh.createWallTimer(ros::WallDuration(kInputCheckPeriodS), &ProjectionNodelet::checkInputs, this);
   }
 
@@ -239,6 +241,7 @@ class ProjectionNodelet : public nodelet::Nodelet {
       return;
     }
     const std::string camera_frame = camera_frame_override_.empty() ? image_msg->header.frame_id : camera_frame_override_;
+    if (frustum_pub_.getNumSubscribers() > 0) publishFrustum(camera_frame, image_msg->header.stamp);
     Eigen::Isometry3d camera_T_lidar;
     if (!extrinsic(camera_frame, cloud_msg->header.frame_id, &camera_T_lidar)) return;
 
@@ -283,6 +286,37 @@ class ProjectionNodelet : public nodelet::Nodelet {
                               edge_max_age_s, &overlay);
     const auto out = imageToMsg(overlay, image_msg->header);
     if (out) overlay_pub_.publish(*out);
+  }
+
+  // The camera's field of view as lines from the optical centre to the image corners at
+  // kFrustumDepthM, in the camera frame (rviz places it with the calibrated TF).
+  void publishFrustum(const std::string& camera_frame, const ros::Time& stamp) {
+    constexpr double kFrustumDepthM = 1.0;
+    const auto corners = frustumCorners(*camera_, kFrustumDepthM);
+    visualization_msgs::Marker m;
+    m.header.frame_id = camera_frame;
+    m.header.stamp = stamp;
+    m.ns = "camera_frustum";
+    m.type = visualization_msgs::Marker::LINE_LIST;
+    m.pose.orientation.w = 1.0;
+    m.scale.x = 0.01;
+    m.color.r = 1.0f;
+    m.color.g = 0.8f;
+    m.color.a = 1.0f;
+    auto point = [](const Eigen::Vector3d& p) {
+      geometry_msgs::Point q;
+      q.x = p.x();
+      q.y = p.y();
+      q.z = p.z();
+      return q;
+    };
+    for (int i = 0; i < 4; ++i) {
+      m.points.push_back(point(Eigen::Vector3d::Zero()));
+      m.points.push_back(point(corners[i]));
+      m.points.push_back(point(corners[i]));
+      m.points.push_back(point(corners[(i + 1) % 4]));
+    }
+    frustum_pub_.publish(m);
   }
 
   // The projected-edges check on the latest board detections close enough to this frame.
@@ -354,6 +388,7 @@ class ProjectionNodelet : public nodelet::Nodelet {
   ros::Subscriber result_sub_, camera_board_sub_, lidar_board_sub_;
   image_transport::Publisher overlay_pub_;
   ros::Publisher cloud_pub_;
+  ros::Publisher frustum_pub_;
   ros::WallTimer check_timer_;
   std::mutex connect_mutex_;
   bool subscribed_ = false;
