@@ -33,6 +33,11 @@ TEST(PipelineEndToEnd, CalibratedTfMatchesGroundTruth) {
   auto truth = board_calib::loadResultFile(truth_file);
   ASSERT_TRUE(truth.ok()) << truth.error();
 
+  // Listen for TF from the start; every wait below is in wall time, since the simulated clock
+  // stops with the bag (a sim-time timeout would never expire).
+  tf2_ros::Buffer buffer;
+  tf2_ros::TransformListener listener(buffer);
+
   // The bag is over when /clock has advanced and then stopped for a while (wall time).
   ros::Time last_clock;
   ros::WallTime last_change = ros::WallTime::now();
@@ -67,11 +72,12 @@ TEST(PipelineEndToEnd, CalibratedTfMatchesGroundTruth) {
     if (p.camera_frame == r.camera_frame && p.lidar_frame == r.lidar_frame) truth_T = p.camera_T_lidar;
 
   // The broadcast TF (parent LiDAR, child camera) carries lidar_T_camera.
-  tf2_ros::Buffer buffer;
-  tf2_ros::TransformListener listener(buffer);
+  const ros::WallTime tf_deadline = ros::WallTime::now() + ros::WallDuration(10.0);
+  while (!buffer.canTransform(r.lidar_frame, r.camera_frame, ros::Time(0)) && ros::WallTime::now() < tf_deadline)
+    ros::WallDuration(0.05).sleep();
   geometry_msgs::TransformStamped tf;
   try {
-    tf = buffer.lookupTransform(r.lidar_frame, r.camera_frame, ros::Time(0), ros::Duration(10.0));
+    tf = buffer.lookupTransform(r.lidar_frame, r.camera_frame, ros::Time(0));
   } catch (const tf2::TransformException& e) {
     FAIL() << "no static TF " << r.lidar_frame << " -> " << r.camera_frame << ": " << e.what();
   }
