@@ -13,14 +13,15 @@ board_calib_build all
 board_calib_source
 
 out="${BOARD_CALIB_BUILD}/demo"
+bin="${BOARD_CALIB_BUILD}/devel/lib/board_calib"  # (rosrun would also see other build folders inside the repo)
 mkdir -p "${out}"
 echo
 echo "== 1. simulating a calibration session: ${scenario}"
-rosrun board_calib simulate_bag --scenario "${scenario}" --out "${out}/session.bag"
+"${bin}/simulate_bag" --scenario "${scenario}" --out "${out}/session.bag"
 
 echo
 echo "== 2. calibrating it offline (calibrate_bag --method all)"
-rosrun board_calib calibrate_bag --bag "${out}/session.bag" --target "${out}/session.target.yaml" \
+"${bin}/calibrate_bag" --bag "${out}/session.bag" --target "${out}/session.target.yaml" \
   --image-topic /camera/image_raw --camera-info-topic /camera/camera_info --cloud-topic /lidar/points \
   --method all --output "${out}/result.yaml" --report "${out}/report" --truth "${out}/session.truth.yaml"
 
