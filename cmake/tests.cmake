@@ -42,13 +42,11 @@ if(TARGET test_conversions)
   target_link_libraries(test_conversions board_calib_ros board_calib_core ${catkin_LIBRARIES} GTest::gtest_main)
 endif()
 
-# Every class in nodelet_plugins.xml loads through pluginlib.
-catkin_add_gtest(test_nodelet_plugins test/ros/test_nodelet_plugins.cpp)
-if(TARGET test_nodelet_plugins)
-  target_compile_definitions(test_nodelet_plugins PRIVATE BOARD_CALIB_SOURCE_DIR="${CMAKE_CURRENT_SOURCE_DIR}")
-  target_link_libraries(test_nodelet_plugins ${catkin_LIBRARIES})
-  add_dependencies(test_nodelet_plugins ${BOARD_CALIB_NODELET_LIBS})
-endif()
+# Every class in nodelet_plugins.xml loads through pluginlib (a rostest: constructors may need a master).
+add_rostest_gtest(test_nodelet_plugins test/rostest/nodelet_plugins.test test/ros/test_nodelet_plugins.cpp)
+target_compile_definitions(test_nodelet_plugins PRIVATE BOARD_CALIB_SOURCE_DIR="${CMAKE_CURRENT_SOURCE_DIR}")
+target_link_libraries(test_nodelet_plugins ${catkin_LIBRARIES} ${GTEST_LIBRARIES})
+add_dependencies(test_nodelet_plugins ${BOARD_CALIB_NODELET_LIBS})
 
 # Every launch file parses and its arguments resolve.
 roslaunch_add_file_check(launch)

@@ -47,7 +47,7 @@ TEST(NodeletPlugins, EveryDeclaredClassLoads) {
   }
 }
 
-// Nodelet constructors may create NodeHandles: roscpp must be initialised (no master needed).
+// Nodelet constructors may create NodeHandles: roscpp must be initialised and a master running (rostest).
 int main(int argc, char** argv) {
   ::testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_nodelet_plugins", ros::init_options::AnonymousName | ros::init_options::NoSigintHandler);
