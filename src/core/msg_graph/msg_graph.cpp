@@ -1,6 +1,7 @@
 // MSG-Cal multi-sensor graph: pairwise initialisation, spanning tree, global Ceres solve with
 // outlier-observation rejection (see msg_graph.h for the formulation).
 #include "msg_costs.h"
+#include "../solvers/ceres_helpers.h"  // shared with the pairwise solvers (bc_solvers)
 
 #include <ceres/product_manifold.h>
 
@@ -42,16 +43,6 @@ std::string fmt(double v, int precision = 2) {
   s.precision(precision);
   s << std::fixed << v;
   return s.str();
-}
-
-ceres::LossFunction* makeLoss(RobustLoss loss, double scale) {
-  switch (loss) {
-    case RobustLoss::kNone: return nullptr;
-    case RobustLoss::kHuber: return new ceres::HuberLoss(scale);
-    case RobustLoss::kCauchy: return new ceres::CauchyLoss(scale);
-    case RobustLoss::kTukey: return new ceres::TukeyLoss(scale);
-  }
-  return nullptr;
 }
 
 // Sigmas of one sensor in use (normal as an RMS angle in rad).
@@ -251,7 +242,7 @@ class Graph {
                                             obs_[p][b].plane.offset,
                                             inflate * pairNormalSigmaComponent(sigmas_[a], sigmas_[b]),
                                             inflate * pairOffsetSigma(sigmas_[a], sigmas_[b])),
-              makeLoss(loss, scale), poses_[a].q, poses_[a].t, poses_[b].q, poses_[b].t);
+              solvers_detail::makeLoss(loss, scale), poses_[a].q, poses_[a].t, poses_[b].q, poses_[b].t);
         }
       }
       if (!cams.empty()) {
@@ -268,7 +259,7 @@ class Graph {
           for (const auto& corner : cam.pattern)
             problem->AddResidualBlock(detail::CornerCost::Create(corner.board_point, corner.pixel, cam.K,
                                                                  sigmas_[c].pixel_px, kMinCornerDepthM),
-                                      makeLoss(loss, scale), poses_[c].q, poses_[c].t, boards_[p].x);
+                                      solvers_detail::makeLoss(loss, scale), poses_[c].q, poses_[c].t, boards_[p].x);
         }
       }
       if (!planes_only && options_.use_line_terms) addLineTerms(p, problem.get(), loss, scale);
@@ -291,12 +282,7 @@ class Graph {
     } else {
       so.linear_solver_type = ceres::DENSE_QR;
     }
-    so.max_num_iterations = options_.max_iterations;
-    so.function_tolerance = options_.function_tolerance;
-    so.gradient_tolerance = options_.gradient_tolerance;
-    so.parameter_tolerance = options_.parameter_tolerance;
-    so.num_threads = options_.num_threads;
-    so.logging_type = ceres::SILENT;
+    solvers_detail::applyStopCriteria(options_, &so);
     ceres::Solver::Summary summary;
     ceres::Solve(so, problem.get(), &summary);
     StageResult r;
@@ -400,7 +386,7 @@ class Graph {
           const double sigma = std::sqrt(sigmas_[l].edge_m * sigmas_[l].edge_m + line_m * line_m);
           const double w = 1.0 / (sigma * std::sqrt(static_cast<double>(lid.edge_points[e].size())));
           for (const auto& q : lid.edge_points[e])
-            problem->AddResidualBlock(detail::LineCost::Create(q, N, w), makeLoss(loss, scale), poses_[c].q,
+            problem->AddResidualBlock(detail::LineCost::Create(q, N, w), solvers_detail::makeLoss(loss, scale), poses_[c].q,
                                       poses_[c].t, poses_[l].q, poses_[l].t);
         }
       }

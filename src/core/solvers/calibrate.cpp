@@ -1,4 +1,5 @@
 // PPC-Cal and PBPC-Cal: view checks, closed-form initialiser, Ceres solves, quality figures.
+#include "ceres_helpers.h"
 #include "cost_functions.h"
 #include "internal.h"
 
@@ -245,12 +246,7 @@ SolveOutcome solveWeighted(const std::vector<Cluster>& clusters, const std::vect
   }
   ceres::Solver::Options solver_options;
   solver_options.linear_solver_type = ceres::DENSE_QR;
-  solver_options.max_num_iterations = options.max_iterations;
-  solver_options.function_tolerance = options.function_tolerance;
-  solver_options.gradient_tolerance = options.gradient_tolerance;
-  solver_options.parameter_tolerance = options.parameter_tolerance;
-  solver_options.num_threads = options.num_threads;
-  solver_options.logging_type = ceres::SILENT;
+  solvers_detail::applyStopCriteria(options, &solver_options);
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options, &problem, &summary);
   SolveOutcome out;

@@ -1,4 +1,5 @@
 // MSG-Cal pairwise: plane-to-plane solve between any two sensors, and its LiDAR<->camera use.
+#include "ceres_helpers.h"
 #include "cost_functions.h"
 #include "internal.h"
 
@@ -52,16 +53,6 @@ std::string checkCorrespondences(const std::vector<PlaneCorrespondence>& c, cons
   return "";
 }
 
-ceres::LossFunction* makeLoss(RobustLoss loss, double scale) {
-  switch (loss) {
-    case RobustLoss::kNone: return nullptr;
-    case RobustLoss::kHuber: return new ceres::HuberLoss(scale);
-    case RobustLoss::kCauchy: return new ceres::CauchyLoss(scale);
-    case RobustLoss::kTukey: return new ceres::TukeyLoss(scale);
-  }
-  return nullptr;
-}
-
 struct PairOutcome {
   bool usable = false;
   double cost = 0.0;
@@ -79,18 +70,13 @@ PairOutcome solvePair(const std::vector<PlaneCorrespondence>& c, RobustLoss loss
   for (const auto& pc : c) {
     const double w = pc.weight;
     problem.AddResidualBlock(solvers_detail::NormalAlignmentCost::Create(pc.in_a.normal, pc.in_b.normal, normal_weight),
-                             new ceres::ScaledLoss(makeLoss(loss, options.loss_scale_m), w, ceres::TAKE_OWNERSHIP), q);
+                             new ceres::ScaledLoss(solvers_detail::makeLoss(loss, options.loss_scale_m), w, ceres::TAKE_OWNERSHIP), q);
     problem.AddResidualBlock(solvers_detail::PlaneOffsetCost::Create(pc.in_a.normal, pc.in_a.offset, pc.in_b.offset),
-                             new ceres::ScaledLoss(makeLoss(loss, options.loss_scale_m), w, ceres::TAKE_OWNERSHIP), t);
+                             new ceres::ScaledLoss(solvers_detail::makeLoss(loss, options.loss_scale_m), w, ceres::TAKE_OWNERSHIP), t);
   }
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::DENSE_QR;
-  so.max_num_iterations = options.max_iterations;
-  so.function_tolerance = options.function_tolerance;
-  so.gradient_tolerance = options.gradient_tolerance;
-  so.parameter_tolerance = options.parameter_tolerance;
-  so.num_threads = options.num_threads;
-  so.logging_type = ceres::SILENT;
+  solvers_detail::applyStopCriteria(options, &so);
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
   PairOutcome out;
