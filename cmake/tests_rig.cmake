@@ -5,6 +5,10 @@ board_calib_core_gtest(test_rig_config
   SOURCES test/core/test_rig_config.cpp
   MODULES bc_rig bc_msg_graph bc_solvers bc_geometry
   LIBS Ceres::ceres yaml-cpp)
+board_calib_core_gtest(test_rig_session
+  SOURCES test/core/test_rig_session.cpp
+  MODULES bc_rig bc_msg_graph bc_session bc_solvers bc_geometry
+  LIBS Ceres::ceres yaml-cpp)
 
 if(TARGET simulate_bag AND TARGET calibrate_bag)
   set(_rig_dir ${CMAKE_CURRENT_BINARY_DIR}/test_rig_e2e)

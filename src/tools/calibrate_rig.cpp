@@ -12,9 +12,9 @@
 #include <board_calib/core/msg_session.h>
 #include <board_calib/core/result_io.h>
 #include <board_calib/core/rig_config.h>
+#include <board_calib/core/rig_report.h>
 #include <board_calib/core/target.h>
 #include <board_calib/core/transform.h>
-
 
 #include <cerrno>
 #include <chrono>
@@ -45,15 +45,6 @@ bool makeDirs(const std::string& path) {
   std::error_code error;
   std::filesystem::create_directories(path, error);
   return !error;
-}
-
-std::string poseLine(const Eigen::Isometry3d& T) {
-  const Eigen::Quaterniond q(T.linear());
-  const Eigen::Vector3d t = T.translation();
-  std::ostringstream os;
-  os << std::fixed << std::setprecision(4) << "t [" << t.x() << ", " << t.y() << ", " << t.z() << "] m, q_xyzw ["
-     << std::setprecision(5) << q.x() << ", " << q.y() << ", " << q.z() << ", " << q.w() << "]";
-  return os.str();
 }
 
 struct CameraStream {
@@ -239,52 +230,7 @@ int runRigCalibration(const RigArgs& args) {
 
   const ResultFile result = msg::msgResultFile(problem, solution);
   std::ostringstream out;
-  out << std::fixed;
-  out << "MSG-Cal: " << solution.sensors.size() << " sensors, " << solution.poses_used << " board poses, reference "
-      << solution.sensors[solution.reference_sensor].frame << ", solved in " << std::setprecision(1)
-      << solution.solve_time_ms << " ms\n";
-  out << "sensors (reference_T_sensor, 1-sigma max rotation / translation):\n";
-  for (const auto& s : solution.sensors) {
-    out << "  " << std::left << std::setw(16) << s.frame << std::right << " " << std::setw(6)
-        << msg::sensorKindName(s.kind) << "  " << poseLine(s.reference_T_sensor);
-    if (&s != &solution.sensors[solution.reference_sensor])
-      out << "  +-" << std::setprecision(3) << s.stddev.rotation_deg.maxCoeff() << " deg / "
-          << std::setprecision(1) << 1000.0 * s.stddev.translation_m.maxCoeff() << " mm";
-    out << "  (" << s.observations << " poses, " << s.observations_rejected << " rejected)\n";
-  }
-  out << "camera <- LiDAR pairs (camera_T_lidar):\n";
-  for (const auto& p : result.pairs) {
-    out << "  " << p.camera_frame << " <- " << p.lidar_frame << ": " << poseLine(p.camera_T_lidar) << ", MLRE ";
-    if (p.mlre_px) out << std::setprecision(2) << *p.mlre_px << " px\n";
-    else out << "n/a (no shared edges)\n";
-  }
-  out << std::setprecision(3) << "loop consistency (max over " << solution.loops.size()
-      << " triangles of pairwise estimates): " << solution.loop_rotation_max_deg << " deg, " << std::setprecision(1)
-      << solution.loop_translation_max_mm << " mm\n";
-  out << std::setprecision(3) << "graph residuals: plane normal " << solution.residuals.normal_rms_deg
-      << " deg rms, offset " << solution.residuals.offset_rms_mm << " mm rms";
-  if (solution.residuals.corner_terms) out << ", corners " << solution.residuals.corner_rms_px << " px rms";
-  if (solution.residuals.line_terms) out << ", lines " << solution.residuals.line_rms_mm << " mm rms";
-  out << "\n";
-  for (const auto& k : rig->known_extrinsics) {
-    const int a = rig->sensorIndex(k.a), b = rig->sensorIndex(k.b);
-    const bool both_cameras = solution.sensors[a].kind == msg::SensorKind::kCamera &&
-                              solution.sensors[b].kind == msg::SensorKind::kCamera;
-    std::optional<msg::StereoConsistency> c;
-    if (both_cameras) {
-      auto s = msg::stereoConsistency(solution, a, b, k.a_T_b);
-      if (!s) return failWith("known_extrinsics " + k.a + "-" + k.b + ": " + s.error());
-      c = *s;
-    } else {
-      auto T = msg::sensorTSensor(solution, a, b);
-      if (!T) return failWith("known_extrinsics " + k.a + "-" + k.b + ": " + T.error());
-      c = msg::StereoConsistency{rotationErrorDeg(*T, k.a_T_b), 1000.0 * translationErrorM(*T, k.a_T_b)};
-    }
-    out << (both_cameras ? "stereo consistency " : "known-extrinsic consistency ") << k.a << " <- " << k.b
-        << " (graph vs known): " << std::setprecision(3) << c->rotation_deg << " deg, " << std::setprecision(1)
-        << c->translation_mm << " mm\n";
-  }
-  for (const auto& n : solution.notes) out << "note: " << n << "\n";
+  out << rigSolutionSummary(*rig, solution, result) << std::fixed;
 
   bool check_failed = false;
   if (!args.truth.empty()) {

@@ -16,7 +16,7 @@ reference: vlp
 stamp_tolerance_s: 0.02
 cameras:
   - {name: left, image_topic: /l/img, camera_info_topic: /l/info, noise: {pixel_sigma_px: 0.3}}
-  - {name: right, image_topic: /r/img, camera_info_topic: /r/info}
+  - {name: right, image_topic: /r/img, camera_info_topic: /r/info, features_topic: /r/board}
 lidars:
   - {name: vlp, cloud_topic: /vlp/points, noise: {normal_sigma_deg: 0.4, offset_sigma_m: 0.01, edge_sigma_m: 0.03}}
 known_extrinsics:
@@ -51,6 +51,10 @@ TEST(RigConfig, ParsesEveryField) {
   EXPECT_DOUBLE_EQ(rig->cameras[0].pixel_sigma_px, 0.3);
   EXPECT_DOUBLE_EQ(rig->cameras[1].pixel_sigma_px, 0.0);  // graph default
   EXPECT_DOUBLE_EQ(rig->lidars[0].edge_sigma_m, 0.03);
+  // Feature topics for the calibrator nodelet: NAME/<kind>_board unless given.
+  EXPECT_EQ(rig->cameras[0].features_topic, "left/camera_board");
+  EXPECT_EQ(rig->cameras[1].features_topic, "/r/board");
+  EXPECT_EQ(rig->lidars[0].features_topic, "vlp/lidar_board");
   // MsgProblem order: cameras, then LiDARs.
   EXPECT_EQ(rig->sensorIndex("left"), 0);
   EXPECT_EQ(rig->sensorIndex("vlp"), 2);
@@ -89,6 +93,9 @@ TEST(RigConfig, ErrorsNameTheKey) {
             std::string::npos);
   EXPECT_NE(errorOf(variant("{name: right", "{name: left")).find("duplicate sensor name 'left'"), std::string::npos);
   EXPECT_NE(errorOf(variant("/r/info", "/l/info")).find("'/l/info' used twice"), std::string::npos);
+  EXPECT_NE(errorOf(variant("features_topic: /r/board", "features_topic: left/camera_board"))
+                .find("'left/camera_board' used twice"),
+            std::string::npos);
   EXPECT_NE(errorOf(variant("b: right", "b: rear")).find("known_extrinsics[0].b"), std::string::npos);
   EXPECT_NE(errorOf(variant("translation: [0.12, 0, 0]", "translation: [0.12, 0]"))
                 .find("known_extrinsics[0].a_T_b.translation"),

@@ -17,6 +17,7 @@ struct RigCamera {
   std::string name;               ///< sensor name (used in `reference`, `known_extrinsics`)
   std::string image_topic;
   std::string camera_info_topic;
+  std::string features_topic;     ///< board features for the calibrator nodelet (default NAME/camera_board)
   double pixel_sigma_px = 0.0;    ///< px, noise.pixel_sigma_px (<= 0: graph default)
   double normal_sigma_deg = 0.0;  ///< deg, noise.normal_sigma_deg (<= 0: graph default)
   double offset_sigma_m = 0.0;    ///< m, noise.offset_sigma_m (<= 0: graph default)
@@ -25,6 +26,7 @@ struct RigCamera {
 struct RigLidar {
   std::string name;
   std::string cloud_topic;
+  std::string features_topic;     ///< board features for the calibrator nodelet (default NAME/lidar_board)
   double normal_sigma_deg = 0.0;  ///< deg, noise.normal_sigma_deg (<= 0: graph default)
   double offset_sigma_m = 0.0;    ///< m, noise.offset_sigma_m (<= 0: graph default)
   double edge_sigma_m = 0.0;      ///< m, noise.edge_sigma_m (<= 0: graph default)

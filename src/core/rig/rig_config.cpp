@@ -78,11 +78,12 @@ RigConfig parse(const YAML::Node& root, const std::string& base_dir) {
       const std::string where = "cameras[" + std::to_string(i) + "]";
       const YAML::Node c = cams[i];
       if (!c.IsMap()) bad(where + ": expected a map");
-      checkKeys(c, {"name", "image_topic", "camera_info_topic", "noise"}, where);
+      checkKeys(c, {"name", "image_topic", "camera_info_topic", "features_topic", "noise"}, where);
       RigCamera cam;
       cam.name = requireString(c, "name", where);
       cam.image_topic = requireString(c, "image_topic", where);
       cam.camera_info_topic = requireString(c, "camera_info_topic", where);
+      cam.features_topic = c["features_topic"] ? requireString(c, "features_topic", where) : cam.name + "/camera_board";
       if (const YAML::Node n = c["noise"]) {
         if (!n.IsMap()) bad(where + ".noise: expected a map");
         const std::string nw = where + ".noise";
@@ -100,10 +101,11 @@ RigConfig parse(const YAML::Node& root, const std::string& base_dir) {
       const std::string where = "lidars[" + std::to_string(i) + "]";
       const YAML::Node l = lids[i];
       if (!l.IsMap()) bad(where + ": expected a map");
-      checkKeys(l, {"name", "cloud_topic", "noise"}, where);
+      checkKeys(l, {"name", "cloud_topic", "features_topic", "noise"}, where);
       RigLidar lid;
       lid.name = requireString(l, "name", where);
       lid.cloud_topic = requireString(l, "cloud_topic", where);
+      lid.features_topic = l["features_topic"] ? requireString(l, "features_topic", where) : lid.name + "/lidar_board";
       if (const YAML::Node n = l["noise"]) {
         if (!n.IsMap()) bad(where + ".noise: expected a map");
         const std::string nw = where + ".noise";
@@ -156,10 +158,12 @@ std::string RigConfig::validate() const {
     if (!addName(c.name)) return "rig: duplicate sensor name '" + c.name + "'";
     if (!addTopic(c.image_topic)) return "rig: topic '" + c.image_topic + "' used twice";
     if (!addTopic(c.camera_info_topic)) return "rig: topic '" + c.camera_info_topic + "' used twice";
+    if (!addTopic(c.features_topic)) return "rig: topic '" + c.features_topic + "' used twice";
   }
   for (const auto& l : lidars) {
     if (!addName(l.name)) return "rig: duplicate sensor name '" + l.name + "'";
     if (!addTopic(l.cloud_topic)) return "rig: topic '" + l.cloud_topic + "' used twice";
+    if (!addTopic(l.features_topic)) return "rig: topic '" + l.features_topic + "' used twice";
   }
   if (!names.count(reference)) return "rig.reference: '" + reference + "' is not a sensor of the rig";
   for (size_t i = 0; i < known_extrinsics.size(); ++i) {

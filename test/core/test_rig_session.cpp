@@ -1,0 +1,220 @@
+// Live rig session: board poses captured from interleaved per-sensor streams (holds and moves,
+// as a person waving the board produces them), solved against the ground truth, saved and
+// reloaded; bad input gives specific events.
+#include <board_calib/core/msg_synthetic.h>
+#include <board_calib/core/rig_session.h>
+#include <board_calib/core/transform.h>
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+namespace board_calib {
+namespace msg {
+namespace {
+
+constexpr double kFramePeriodS = 0.1;
+
+// Board moved by `shift` (sensor frame): what a sensor sees while the board is carried.
+CameraBoardFeatures moved(CameraBoardFeatures f, const Eigen::Vector3d& shift) {
+  f.camera_T_board.pretranslate(shift);
+  f.plane.offset += f.plane.normal.dot(shift);
+  return f;
+}
+LidarBoardFeatures moved(LidarBoardFeatures f, const Eigen::Vector3d& shift) {
+  for (auto& p : f.board_points) p += shift;
+  f.plane.offset += f.plane.normal.dot(shift);
+  return f;
+}
+
+struct Feed {
+  std::vector<SessionEvent> events;
+  int accepted() const {
+    int n = 0;
+    for (const auto& e : events) n += e.kind == SessionEvent::Kind::kAccepted;
+    return n;
+  }
+};
+
+// Plays the scene into the session: per pose `hold_frames` still frames from every sensor
+// (per-sensor stamp offsets like real drivers), then `move_frames` frames of a moving board.
+Feed play(RigSession& session, const MsgSyntheticScene& scene, int hold_frames, int move_frames,
+          double t0 = 100.0, const std::vector<int>& only_sensors = {}) {
+  Feed feed;
+  const std::vector<double> offset = {0.005, 0.006, 0.0, 0.013};
+  double t = t0;
+  auto wanted = [&](int k) {
+    return only_sensors.empty() || std::find(only_sensors.begin(), only_sensors.end(), k) != only_sensors.end();
+  };
+  for (const auto& pose : scene.problem.poses) {
+    for (int i = 0; i < hold_frames + move_frames; ++i, t += kFramePeriodS) {
+      const Eigen::Vector3d shift = i < hold_frames ? Eigen::Vector3d::Zero()
+                                                    : Eigen::Vector3d(0.1 * (i - hold_frames + 1), 0.0, 0.0);
+      for (auto [k, f] : pose.cameras) {
+        if (!wanted(k)) continue;
+        f.stamp = t + offset[k];
+        feed.events.push_back(session.addCamera(k, moved(f, shift)));
+      }
+      for (auto [k, f] : pose.lidars) {
+        if (!wanted(k)) continue;
+        f.stamp = t + offset[k];
+        feed.events.push_back(session.addLidar(k, moved(f, shift)));
+      }
+    }
+  }
+  return feed;
+}
+
+class RigSessionTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::mt19937 rng(31);
+    MsgSyntheticOptions so;
+    so.num_poses = 25;
+    auto s = generateMsgScene(defaultRig(), so, rng);
+    ASSERT_TRUE(s.ok()) << s.error();
+    scene = *s;
+    options.stamp_tolerance_s = 0.05;
+  }
+  RigSession makeSession() const {
+    return RigSession({"left", "right", "vlp32", "os1"}, scene.problem.sensors, options);
+  }
+  MsgSyntheticScene scene;
+  RigSessionOptions options;
+};
+
+TEST_F(RigSessionTest, CapturesOnePosePerHoldWithEverySensorAndSolvesToTruth) {
+  RigSession session = makeSession();
+  const Feed feed = play(session, scene, 4, 3);
+  session.flush();
+  ASSERT_EQ(session.poses().size(), scene.problem.poses.size()) << "one pose per hold";
+  for (const auto& p : session.poses()) {
+    EXPECT_EQ(p.observation.cameras.size(), 2u) << p.why;
+    EXPECT_EQ(p.observation.lidars.size(), 2u) << p.why;
+  }
+  const MsgSolution sol = solveMsgGraph(session.problem(0), MsgGraphOptions{});
+  ASSERT_TRUE(sol.success) << sol.reason;
+  for (size_t k = 1; k < scene.sensors.size(); ++k) {
+    const Eigen::Isometry3d& truth = scene.sensors[k].reference_T_sensor;
+    // The graph target on this rig: every sensor within 0.2 deg / 1 cm.
+    EXPECT_LT(rotationErrorDeg(sol.sensors[k].reference_T_sensor, truth), 0.2) << scene.sensors[k].frame;
+    EXPECT_LT(translationErrorM(sol.sensors[k].reference_T_sensor, truth), 0.01) << scene.sensors[k].frame;
+  }
+}
+
+TEST_F(RigSessionTest, ARepeatedHoldIsNotCapturedTwice) {
+  RigSession session = makeSession();
+  play(session, scene, 4, 3);
+  session.flush();
+  const size_t first = session.poses().size();
+  // The same board poses again (later stamps): every sensor already saw each of them.
+  const Feed again = play(session, scene, 4, 3, 200.0);
+  session.flush();
+  EXPECT_EQ(session.poses().size(), first);
+  EXPECT_EQ(again.accepted(), 0);
+  bool told = false;
+  for (const auto& e : again.events) told |= e.message.find("already saw this board pose") != std::string::npos;
+  EXPECT_TRUE(told) << "the user must be told why nothing is captured";
+}
+
+TEST_F(RigSessionTest, APoseSeenByOneSensorIsRejectedWithTheReason) {
+  RigSession session = makeSession();
+  const Feed feed = play(session, scene, 4, 3, 100.0, {2});
+  session.flush();
+  EXPECT_TRUE(session.poses().empty());
+  bool told = false;
+  for (const auto& e : feed.events)
+    told |= e.kind == SessionEvent::Kind::kRejected && e.message.find("seen by 1 sensor(s) (vlp32)") != std::string::npos;
+  EXPECT_TRUE(told);
+}
+
+TEST_F(RigSessionTest, SaveLoadRoundTripGivesTheSameSolution) {
+  RigSession session = makeSession();
+  play(session, scene, 3, 2);
+  session.flush();
+  ASSERT_GE(session.poses().size(), 20u);
+  const std::string path = (std::filesystem::temp_directory_path() / "board_calib_rig_session_test.yaml").string();
+  ASSERT_TRUE(session.save(path).ok);
+  RigSession loaded = makeSession();
+  const Status st = loaded.load(path);
+  ASSERT_TRUE(st.ok) << st.reason;
+  ASSERT_EQ(loaded.poses().size(), session.poses().size());
+  for (size_t k = 0; k < scene.sensors.size(); ++k) EXPECT_EQ(loaded.sensors()[k].frame, session.sensors()[k].frame);
+  const MsgSolution a = solveMsgGraph(session.problem(0), MsgGraphOptions{});
+  const MsgSolution b = solveMsgGraph(loaded.problem(0), MsgGraphOptions{});
+  ASSERT_TRUE(a.success && b.success);
+  for (size_t k = 1; k < scene.sensors.size(); ++k) {
+    EXPECT_LT(rotationErrorDeg(a.sensors[k].reference_T_sensor, b.sensors[k].reference_T_sensor), 1e-6);
+    EXPECT_LT(translationErrorM(a.sensors[k].reference_T_sensor, b.sensors[k].reference_T_sensor), 1e-7);
+  }
+  // Captures continue after a load with fresh ids.
+  const int last_id = loaded.poses().back().observation.id;
+  EXPECT_TRUE(loaded.dropPose(last_id).ok);
+  EXPECT_FALSE(loaded.dropPose(last_id).ok);
+
+  // A rig with other sensors refuses the file, naming the mismatch; the poses stay.
+  std::vector<SensorSpec> other = scene.problem.sensors;
+  other[1].kind = SensorKind::kLidar;
+  RigSession wrong({"left", "lidar_b", "vlp32", "os1"}, other, options);
+  const Status refused = wrong.load(path);
+  EXPECT_FALSE(refused.ok);
+  EXPECT_NE(refused.reason.find("sensor 1"), std::string::npos) << refused.reason;
+  EXPECT_FALSE(loaded.load("/nonexistent/rig_session.yaml").ok);
+  EXPECT_EQ(loaded.poses().size(), session.poses().size() - 1);
+  {
+    std::ofstream(path) << "poses: [1, 2\n";
+  }
+  EXPECT_FALSE(loaded.load(path).ok);
+  std::remove(path.c_str());
+}
+
+TEST_F(RigSessionTest, BadInputGivesSpecificEventsAndNoCrash) {
+  RigSession session = makeSession();
+  const auto& pose = scene.problem.poses.front();
+  // Features of the wrong kind / unknown sensor.
+  SessionEvent e = session.addCamera(2, pose.cameras.begin()->second);
+  EXPECT_EQ(e.kind, SessionEvent::Kind::kRejected);
+  EXPECT_NE(e.message.find("not a camera"), std::string::npos);
+  e = session.addLidar(7, pose.lidars.begin()->second);
+  EXPECT_EQ(e.kind, SessionEvent::Kind::kRejected);
+  // A found LiDAR board without points does not count as seeing the board.
+  LidarBoardFeatures empty = pose.lidars.begin()->second;
+  empty.board_points.clear();
+  session.addLidar(2, empty);
+  EXPECT_EQ(session.counts()[2].found, 0);
+  CameraBoardFeatures nan_stamp = pose.cameras.begin()->second;
+  nan_stamp.stamp = std::nan("");
+  EXPECT_EQ(session.addCamera(0, nan_stamp).kind, SessionEvent::Kind::kRejected);
+  // Nothing seen: manual capture says so.
+  RigSession fresh = makeSession();
+  EXPECT_EQ(fresh.captureNow().kind, SessionEvent::Kind::kRejected);
+  EXPECT_FALSE(RigSessionOptions{}.validate().size());
+  RigSessionOptions bad;
+  bad.min_sensors = 1;
+  EXPECT_FALSE(bad.validate().empty());
+}
+
+TEST_F(RigSessionTest, ManualCaptureAndABagRestartKeepThePoses) {
+  options.auto_capture = false;
+  RigSession session = makeSession();
+  play(session, scene, 2, 0);
+  EXPECT_TRUE(session.poses().empty()) << "auto capture is off";
+  const SessionEvent e = session.captureNow();
+  ASSERT_EQ(e.kind, SessionEvent::Kind::kAccepted) << e.message;
+  ASSERT_EQ(session.poses().size(), 1u);
+  EXPECT_EQ(session.poses().front().observation.cameras.size() + session.poses().front().observation.lidars.size(), 4u);
+  // The bag starts over (stamps jump back): poses stay, streams restart cleanly.
+  options.auto_capture = true;
+  session.setOptions(options);
+  play(session, scene, 3, 2, 100.0);
+  session.flush();
+  EXPECT_GE(session.poses().size(), scene.problem.poses.size());
+}
+
+}  // namespace
+}  // namespace msg
+}  // namespace board_calib
