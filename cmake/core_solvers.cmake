@@ -6,5 +6,6 @@ board_calib_core_module(solvers
   src/core/solvers/calibrate.cpp
   src/core/solvers/plane_to_plane.cpp
   src/core/solvers/robustness.cpp
+  src/core/solvers/covariance.cpp
   src/core/solvers/synthetic_features.cpp)
 target_link_libraries(bc_solvers PUBLIC bc_geometry Ceres::ceres)

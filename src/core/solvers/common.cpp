@@ -9,7 +9,6 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
-#include <map>
 #include <sstream>
 
 namespace board_calib {
@@ -125,41 +124,6 @@ double robustWeight(RobustLoss loss, double scale, double s) {
     }
   }
   return 1.0;
-}
-
-bool sandwichCovariance(const std::vector<LinearisedResidual>& residuals, int dim, RobustLoss loss, double scale,
-                        Matrix6d* covariance) {
-  using Mat7 = Eigen::Matrix<double, 7, 7>;
-  using Vec7 = Eigen::Matrix<double, 7, 1>;
-  Mat7 H = Mat7::Zero();
-  std::map<int, Vec7> scores;
-  for (const LinearisedResidual& res : residuals) {
-    const double w = res.w * robustWeight(loss, scale, res.r * res.r);
-    if (w <= 0.0) continue;
-    H.noalias() += w * res.j * res.j.transpose();
-    auto it = scores.try_emplace(res.cluster, Vec7::Zero()).first;
-    it->second += w * res.r * res.j;
-  }
-  Mat7 B = Mat7::Zero();
-  for (const auto& kv : scores) B.noalias() += kv.second * kv.second.transpose();
-  // Small-sample correction of the cluster-robust estimate.
-  const double clusters = static_cast<double>(scores.size());
-  if (clusters <= dim) return false;
-  B *= clusters / (clusters - dim);
-
-  const Eigen::MatrixXd Hd = H.topLeftCorner(dim, dim);
-  const Eigen::MatrixXd Bd = B.topLeftCorner(dim, dim);
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Hd);
-  if (eig.info() != Eigen::Success) return false;
-  const double max_ev = eig.eigenvalues().maxCoeff();
-  constexpr double kRelativeSingular = 1e-12;
-  if (!(eig.eigenvalues().minCoeff() > kRelativeSingular * max_ev)) return false;
-  const Eigen::MatrixXd H_inv =
-      eig.eigenvectors() * eig.eigenvalues().cwiseInverse().asDiagonal() * eig.eigenvectors().transpose();
-  const Eigen::MatrixXd cov = H_inv * Bd * H_inv;
-  *covariance = cov.topLeftCorner(6, 6);
-  *covariance = 0.5 * (*covariance + covariance->transpose()).eval();
-  return covariance->allFinite();
 }
 
 Observability analyseObservability(const Matrix6d& covariance, bool ok, double max_weak_stddev,

@@ -9,25 +9,8 @@
 namespace board_calib {
 namespace solvers_detail {
 
-/// Linearised residual for the covariance: residual r, Jacobian j (covariance order, plus an
-/// optional 7th column for the plane offset factor), weight w and its cluster (residuals sharing
-/// a measurement error: one camera plane, one image line, one MSG plane pair).
-struct LinearisedResidual {
-  double r = 0.0;
-  Eigen::Matrix<double, 7, 1> j = Eigen::Matrix<double, 7, 1>::Zero();
-  double w = 1.0;
-  int cluster = 0;
-};
-
 /// Derivative of the robust loss at squared residual s (1 for no loss).
 double robustWeight(RobustLoss loss, double scale, double squared_residual);
-
-/// Cluster-robust sandwich covariance H^-1 B H^-1 with H = sum w rho' j j^T and
-/// B = sum_c g_c g_c^T, g_c = sum_{k in c} w rho' r j: honest when residuals within a view or
-/// edge share an error (the camera plane or line estimate). Returns the leading `dim` x `dim`
-/// block (6 or 7 parameters; the 7th is marginalised when present). False if H is singular.
-bool sandwichCovariance(const std::vector<LinearisedResidual>& residuals, int dim, RobustLoss loss, double scale,
-                        Matrix6d* covariance);
 
 /// Eigen-analysis of a 6x6 covariance (rotation in rad taken at a 1 m lever arm).
 Observability analyseObservability(const Matrix6d& covariance, bool ok, double max_weak_stddev,

@@ -10,7 +10,6 @@
 
 namespace board_calib {
 
-using solvers_detail::LinearisedResidual;
 
 namespace {
 
@@ -55,24 +54,34 @@ std::string checkCorrespondences(const std::vector<PlaneCorrespondence>& c, cons
 
 struct PairOutcome {
   bool usable = false;
+  bool covariance_ok = false;
+  Matrix6d covariance = Matrix6d::Zero();
   double cost = 0.0;
   int iterations = 0;
   std::string termination, message;
 };
 
+// One solve; with `covariance`, also the cluster-robust covariance of the solved problem (each
+// correspondence's normal and offset residuals share the plane errors: one cluster).
 PairOutcome solvePair(const std::vector<PlaneCorrespondence>& c, RobustLoss loss, const SolverOptions& options,
-                      double* q, double* t) {
+                      double* q, double* t, bool covariance = false) {
   ceres::Problem problem;
   problem.AddParameterBlock(q, 4, new ceres::EigenQuaternionManifold());
   problem.AddParameterBlock(t, 3);
   // Whitening: normal residuals (unit-less) become metres-equivalent via sigma_d / sigma_n.
   const double normal_weight = options.msg_offset_sigma_m / (options.msg_normal_sigma_deg * kRadPerDeg);
-  for (const auto& pc : c) {
+  std::vector<std::pair<ceres::ResidualBlockId, int>> blocks;
+  for (size_t k = 0; k < c.size(); ++k) {
+    const PlaneCorrespondence& pc = c[k];
     const double w = pc.weight;
-    problem.AddResidualBlock(solvers_detail::NormalAlignmentCost::Create(pc.in_a.normal, pc.in_b.normal, normal_weight),
-                             new ceres::ScaledLoss(solvers_detail::makeLoss(loss, options.loss_scale_m), w, ceres::TAKE_OWNERSHIP), q);
-    problem.AddResidualBlock(solvers_detail::PlaneOffsetCost::Create(pc.in_a.normal, pc.in_a.offset, pc.in_b.offset),
-                             new ceres::ScaledLoss(solvers_detail::makeLoss(loss, options.loss_scale_m), w, ceres::TAKE_OWNERSHIP), t);
+    blocks.emplace_back(
+        problem.AddResidualBlock(solvers_detail::NormalAlignmentCost::Create(pc.in_a.normal, pc.in_b.normal, normal_weight),
+                                 new ceres::ScaledLoss(solvers_detail::makeLoss(loss, options.loss_scale_m), w, ceres::TAKE_OWNERSHIP), q),
+        static_cast<int>(k));
+    blocks.emplace_back(
+        problem.AddResidualBlock(solvers_detail::PlaneOffsetCost::Create(pc.in_a.normal, pc.in_a.offset, pc.in_b.offset),
+                                 new ceres::ScaledLoss(solvers_detail::makeLoss(loss, options.loss_scale_m), w, ceres::TAKE_OWNERSHIP), t),
+        static_cast<int>(k));
   }
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::DENSE_QR;
@@ -85,6 +94,8 @@ PairOutcome solvePair(const std::vector<PlaneCorrespondence>& c, RobustLoss loss
   out.iterations = static_cast<int>(summary.iterations.size());
   out.termination = ceres::TerminationTypeToString(summary.termination_type);
   out.message = summary.message;
+  if (covariance && out.usable)
+    out.covariance_ok = solvers_detail::clusterRobustCovariance(&problem, {q, t}, blocks, &out.covariance);
   return out;
 }
 
@@ -168,7 +179,7 @@ PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& corre
     sol.iterations += outcome.iterations;
   }
   if (!(options.warm_start_unrobust && options.loss != RobustLoss::kNone) || outcome.usable) {
-    outcome = solvePair(correspondences, options.loss, options, q, t);
+    outcome = solvePair(correspondences, options.loss, options, q, t, options.compute_covariance);
     sol.iterations += outcome.iterations;
   }
   sol.final_cost = outcome.cost;
@@ -182,44 +193,22 @@ PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& corre
   }
   sol.correspondences_used = static_cast<int>(correspondences.size());
 
-  // Residual figures and the linearisation for the covariance (left rotation perturbation:
-  // d(R n_b)/d(theta) = -[R n_b]x, so the normal residual n_a - R n_b has Jacobian [R n_b]x).
+  // Residual figures.
   const Eigen::Matrix3d R = sol.a_T_b.linear();
-  const double normal_weight = options.msg_offset_sigma_m / (options.msg_normal_sigma_deg * kRadPerDeg);
   double angle_sq = 0.0, offset_sq = 0.0;
-  std::vector<LinearisedResidual> lin;
-  int cluster = 0;
   for (const auto& c : correspondences) {
     const Eigen::Vector3d rnb = R * c.in_b.normal;
-    const Eigen::Vector3d rn = normal_weight * (c.in_a.normal - rnb);
     const double angle = std::atan2(c.in_a.normal.cross(rnb).norm(), c.in_a.normal.dot(rnb));
     angle_sq += angle * angle;
     const double ro = c.in_a.normal.dot(sol.a_T_b.translation()) + c.in_b.offset - c.in_a.offset;
     offset_sq += ro * ro;
-    Eigen::Matrix3d skew;
-    skew << 0, -rnb.z(), rnb.y(), rnb.z(), 0, -rnb.x(), -rnb.y(), rnb.x(), 0;
-    for (int i = 0; i < 3; ++i) {
-      LinearisedResidual lr;
-      lr.r = rn(i);
-      lr.j.head<3>() = normal_weight * skew.row(i).transpose();
-      lr.w = c.weight;
-      lr.cluster = cluster;
-      lin.push_back(lr);
-    }
-    LinearisedResidual lr;
-    lr.r = ro;
-    lr.j.segment<3>(3) = c.in_a.normal;
-    lr.w = c.weight;
-    lr.cluster = cluster;
-    lin.push_back(lr);
-    ++cluster;
   }
   const double n = static_cast<double>(correspondences.size());
   sol.normal_rms_deg = std::sqrt(angle_sq / n) * kDegPerRad;
   sol.offset_rms_mm = 1000.0 * std::sqrt(offset_sq / n);
   if (options.compute_covariance) {
-    const bool cov_ok =
-        solvers_detail::sandwichCovariance(lin, 6, options.loss, options.loss_scale_m, &sol.covariance);
+    const bool cov_ok = outcome.covariance_ok;
+    sol.covariance = outcome.covariance;
     if (!cov_ok) sol.covariance.setConstant(std::numeric_limits<double>::infinity());
     sol.stddev = solvers_detail::stddevFromCovariance(sol.covariance);
     sol.observability = solvers_detail::analyseObservability(sol.covariance, cov_ok, options.observability_max_stddev, "a");
