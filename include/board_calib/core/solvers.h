@@ -57,6 +57,13 @@ struct SolverOptions {
   /// of convergence of redescending losses (Cauchy, Tukey) from far-off guesses.
   bool warm_start_unrobust = true;
 
+  /// PPC: after the paper's solve (every point weighted 1/p_i), weight each view's plane offset
+  /// and its two tilts by the camera plane error estimated from the residuals (variance
+  /// components; generalised least squares). The points of a view share its camera plane error,
+  /// which the per-point weighting treats as independent noise and so under-weights the tilts
+  /// (measured: worst rotation error over 10 seeds 0.258 -> 0.13 deg, docs/BENCHMARKS.md).
+  bool ppc_plane_error_model = true;
+
   PbpcSchedule pbpc_schedule = PbpcSchedule::kSequential;
   /// PBPC: relative weight of the line (edge) terms against the plane terms.
   double pbpc_line_weight = 1.0;

@@ -17,8 +17,6 @@
 
 namespace board_calib {
 
-using solvers_detail::LinearisedResidual;
-
 namespace {
 
 constexpr int kMinEdgePoints = 2;          // a line term needs two points to constrain anything
@@ -34,6 +32,7 @@ constexpr double kMinAzimuthGapRad = 1e-4 * kRadPerDeg;  // duplicates are not a
 constexpr double kMaxPlausibleStepRad = 2.0 * kRadPerDeg;
 constexpr int kMaxIrlsRounds = 10;         // reweighting rounds of a robust solve
 constexpr double kIrlsTolerance = 1e-9;    // rad / m / scale change that ends the rounds
+constexpr int kPlaneErrorRounds = 3;       // PPC: re-estimations of the camera plane error
 
 // A set of points that must lie on one plane n . x = s d in the camera frame: one view's board
 // points (camera plane) or one edge's points (back-projected plane, d = 0). Points share the
@@ -43,6 +42,7 @@ struct Cluster {
   double offset = 0.0;
   double weight = 1.0;
   bool scaled = false;  // offset multiplied by the global factor s
+  bool plane = false;   // a camera plane (not a back-projected line plane)
   int id = 0;
   const Points3* points = nullptr;
 };
@@ -162,13 +162,13 @@ std::vector<Cluster> buildClusters(const std::vector<PreparedView>& views, bool 
     if (!v.used) continue;
     if (planes && v.plane_ok)
       clusters.push_back({v.cam_normal, v.cam_offset, 1.0 / static_cast<double>(v.board_points->size()), scaled,
-                          v.index * (kNumEdges + 1), v.board_points});
+                          true, v.index * (kNumEdges + 1), v.board_points});
     if (lines) {
       for (int j = 0; j < kNumEdges; ++j) {
         const int k = v.association[j];
         if (!v.image_edge_ok[j] || k < 0 || !v.lidar_edge_ok[k]) continue;
         clusters.push_back({v.backprojected_normal[j], 0.0, line_weight / static_cast<double>(v.lidar_edges[k].size()),
-                            false, v.index * (kNumEdges + 1) + 1 + j, &v.lidar_edges[k]});
+                            false, false, v.index * (kNumEdges + 1) + 1 + j, &v.lidar_edges[k]});
       }
     }
   }
@@ -204,46 +204,99 @@ struct SolveOutcome {
   std::string message;
 };
 
-// One Ceres solve of the clusters in closed form (ClusterPlaneCost) with per-point weights
-// (robust IRLS weights; all 1 when null).
-SolveOutcome solveWeighted(const std::vector<Cluster>& clusters, const std::vector<std::vector<double>>* point_weights,
-                           bool estimate_scale, const SolverOptions& options, Pose* pose) {
-  ceres::Problem problem;
-  problem.AddParameterBlock(pose->q, 4, new ceres::EigenQuaternionManifold());
-  problem.AddParameterBlock(pose->t, 3);
+// Per-view error of the camera plane (PPC): variance of its offset (m^2) and of its tilt about
+// each in-plane axis (rad^2), shared by all points of the view. Disabled: the paper's model
+// (every point an independent residual, weight 1/p_i).
+struct PlaneErrorModel {
+  bool enabled = false;
+  double offset_var = 0.0;
+  double tilt_var = 0.0;
+};
+
+// Weighted moments of one cluster's points: W = sum w, mean, scatter eigen-decomposition
+// (eigenvalues ascending; the first is the noise thickness across the plane).
+struct Moments {
+  double W = 0.0;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  Eigen::Vector3d lambda = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d axes = Eigen::Matrix3d::Identity();
+};
+
+Moments moments(const Points3& pts, const std::vector<double>* w) {
+  Moments m;
+  for (size_t k = 0; k < pts.size(); ++k) {
+    const double wk = w ? (*w)[k] : 1.0;
+    m.W += wk;
+    m.mean += wk * pts[k];
+  }
+  if (!(m.W > 0.0)) return m;
+  m.mean /= m.W;
+  Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
+  for (size_t k = 0; k < pts.size(); ++k) S += (w ? (*w)[k] : 1.0) * (pts[k] - m.mean) * (pts[k] - m.mean).transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(S);
+  m.lambda = eig.eigenvalues().cwiseMax(0.0);
+  m.axes = eig.eigenvectors();
+  return m;
+}
+
+// Variance of one point's residual along the plane normal, from the thickness of the cloud.
+double pointVariance(const Moments& m) {
+  constexpr double kPlaneDof = 3.0;
+  return m.W > kPlaneDof + 1.0 ? m.lambda(0) / (m.W - kPlaneDof) : 0.0;
+}
+
+// The residual block of one cluster. Paper model: r_0 = sqrt(w W) (offset at the mean) and
+// r_k = n . R a_k with a_k = sqrt(w lambda_k) v_k (exactly the weighted sum of squared point
+// residuals). Plane-error model (plane clusters): the offset at the mean and the two tilts
+// n . R v_k whitened by their variances, offset_var + s^2/W and tilt_var + s^2/lambda_k
+// (s^2 the point variance): generalised least squares over the view's shared plane error.
+ceres::CostFunction* clusterCost(const Cluster& cl, const Moments& m, bool scaled, const PlaneErrorModel& model) {
+  double sqrt_weight = 0.0;
+  Eigen::Matrix3d axes = Eigen::Matrix3d::Zero();
+  if (model.enabled && cl.plane) {
+    const double s2 = pointVariance(m);
+    sqrt_weight = 1.0 / std::sqrt(model.offset_var + s2 / m.W);
+    for (int k = 1; k < 3; ++k)
+      if (m.lambda(k) > 0.0) axes.col(k) = m.axes.col(k) / std::sqrt(model.tilt_var + s2 / m.lambda(k));
+  } else {
+    sqrt_weight = std::sqrt(cl.weight * m.W);
+    axes = m.axes * (cl.weight * m.lambda).cwiseSqrt().asDiagonal();
+  }
+  if (scaled) return solvers_detail::ScaledClusterPlaneCost::Create(cl.normal, cl.offset, sqrt_weight, m.mean, axes);
+  return solvers_detail::ClusterPlaneCost::Create(cl.normal, cl.offset, sqrt_weight, m.mean, axes);
+}
+
+// The Ceres problem of the clusters in closed form (ClusterPlaneCost), one residual block per
+// cluster, with per-point weights (robust IRLS weights; all 1 when null). `blocks` receives each
+// residual block with its cluster id.
+void buildProblem(const std::vector<Cluster>& clusters, const std::vector<std::vector<double>>* point_weights,
+                  bool estimate_scale, const PlaneErrorModel& model, Pose* pose, ceres::Problem* problem,
+                  std::vector<std::pair<ceres::ResidualBlockId, int>>* blocks = nullptr) {
+  problem->AddParameterBlock(pose->q, 4, new ceres::EigenQuaternionManifold());
+  problem->AddParameterBlock(pose->t, 3);
   if (estimate_scale) {
-    problem.AddParameterBlock(&pose->s, 1);
-    problem.SetParameterLowerBound(&pose->s, 0, kPlaneScaleMin);
-    problem.SetParameterUpperBound(&pose->s, 0, kPlaneScaleMax);
+    problem->AddParameterBlock(&pose->s, 1);
+    problem->SetParameterLowerBound(&pose->s, 0, kPlaneScaleMin);
+    problem->SetParameterUpperBound(&pose->s, 0, kPlaneScaleMax);
   }
   for (size_t c = 0; c < clusters.size(); ++c) {
     const Cluster& cl = clusters[c];
-    const Points3& pts = *cl.points;
-    double W = 0.0;
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (size_t m = 0; m < pts.size(); ++m) {
-      const double w = cl.weight * (point_weights ? (*point_weights)[c][m] : 1.0);
-      W += w;
-      mean += w * pts[m];
-    }
-    if (!(W > 0.0)) continue;
-    mean /= W;
-    Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
-    for (size_t m = 0; m < pts.size(); ++m) {
-      const double w = cl.weight * (point_weights ? (*point_weights)[c][m] : 1.0);
-      S += w * (pts[m] - mean) * (pts[m] - mean).transpose();
-    }
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(S);
-    const Eigen::Matrix3d axes =
-        eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
-    if (estimate_scale && cl.scaled)
-      problem.AddResidualBlock(
-          solvers_detail::ScaledClusterPlaneCost::Create(cl.normal, cl.offset, std::sqrt(W), mean, axes), nullptr,
-          pose->q, pose->t, &pose->s);
-    else
-      problem.AddResidualBlock(solvers_detail::ClusterPlaneCost::Create(cl.normal, cl.offset, std::sqrt(W), mean, axes),
-                               nullptr, pose->q, pose->t);
+    const Moments m = moments(*cl.points, point_weights ? &(*point_weights)[c] : nullptr);
+    if (!(m.W > 0.0)) continue;
+    const bool scaled = estimate_scale && cl.scaled;
+    ceres::CostFunction* cost = clusterCost(cl, m, scaled, model);
+    const ceres::ResidualBlockId id = scaled ? problem->AddResidualBlock(cost, nullptr, pose->q, pose->t, &pose->s)
+                                             : problem->AddResidualBlock(cost, nullptr, pose->q, pose->t);
+    if (blocks) blocks->emplace_back(id, cl.id);
   }
+}
+
+// One Ceres solve of the clusters.
+SolveOutcome solveWeighted(const std::vector<Cluster>& clusters, const std::vector<std::vector<double>>* point_weights,
+                           bool estimate_scale, const PlaneErrorModel& model, const SolverOptions& options,
+                           Pose* pose) {
+  ceres::Problem problem;
+  buildProblem(clusters, point_weights, estimate_scale, model, pose, &problem);
   ceres::Solver::Options solver_options;
   solver_options.linear_solver_type = ceres::DENSE_QR;
   solvers_detail::applyStopCriteria(options, &solver_options);
@@ -287,33 +340,40 @@ double robustCost(const std::vector<Cluster>& clusters, const Pose& pose, Robust
   return cost;
 }
 
+// The robust loss's weight rho'(r^2) of every point at the pose (all 1 for the squared loss).
+std::vector<std::vector<double>> robustWeights(const std::vector<Cluster>& clusters, const Pose& pose,
+                                               const SolverOptions& options) {
+  const Eigen::Isometry3d T = pose.isometry();
+  std::vector<std::vector<double>> weights(clusters.size());
+  for (size_t c = 0; c < clusters.size(); ++c) {
+    weights[c].resize(clusters[c].points->size());
+    for (size_t m = 0; m < clusters[c].points->size(); ++m) {
+      const double r = residualOf(clusters[c], T, pose.s, (*clusters[c].points)[m]);
+      weights[c][m] = solvers_detail::robustWeight(options.loss, options.loss_scale_m, r * r);
+    }
+  }
+  return weights;
+}
+
 // A solve with the requested loss: squared loss in closed form, robust losses by iteratively
 // reweighted least squares with the loss's weight rho'(r^2) per point (its fixed point is a
 // stationary point of the robust cost), optionally after a squared-loss solve.
 SolveOutcome solveStage(const std::vector<Cluster>& clusters, bool estimate_scale, const SolverOptions& options,
-                        bool warm, Pose* pose) {
+                        bool warm, Pose* pose, const PlaneErrorModel& model = PlaneErrorModel()) {
   SolveOutcome out;
   int iterations = 0;
   if (options.loss == RobustLoss::kNone || (warm && options.warm_start_unrobust)) {
-    out = solveWeighted(clusters, nullptr, estimate_scale, options, pose);
+    out = solveWeighted(clusters, nullptr, estimate_scale, model, options, pose);
     iterations += out.iterations;
     if (!out.usable || options.loss == RobustLoss::kNone) {
       out.iterations = iterations;
       return out;
     }
   }
-  std::vector<std::vector<double>> weights(clusters.size());
   for (int round = 0; round < kMaxIrlsRounds; ++round) {
-    const Eigen::Isometry3d T = pose->isometry();
-    for (size_t c = 0; c < clusters.size(); ++c) {
-      weights[c].resize(clusters[c].points->size());
-      for (size_t m = 0; m < clusters[c].points->size(); ++m) {
-        const double r = residualOf(clusters[c], T, pose->s, (*clusters[c].points)[m]);
-        weights[c][m] = solvers_detail::robustWeight(options.loss, options.loss_scale_m, r * r);
-      }
-    }
+    const std::vector<std::vector<double>> weights = robustWeights(clusters, *pose, options);
     const Pose before = *pose;
-    out = solveWeighted(clusters, &weights, estimate_scale, options, pose);
+    out = solveWeighted(clusters, &weights, estimate_scale, model, options, pose);
     iterations += out.iterations;
     if (!out.usable) break;
     const Eigen::Isometry3d after = pose->isometry();
@@ -324,6 +384,53 @@ SolveOutcome solveStage(const std::vector<Cluster>& clusters, bool estimate_scal
   out.iterations = iterations;
   out.cost = robustCost(clusters, *pose, options.loss, options.loss_scale_m);
   return out;
+}
+
+// Variance components of the camera planes from the residuals at the pose: per plane cluster
+// the squared offset at the mean of the (robustly weighted) points minus its LiDAR share s^2/W,
+// and the squared tilts minus s^2/lambda_k, averaged with the degrees of freedom the pose
+// takes (3 of the offsets for the translation, 3 of the tilts for the rotation). Disabled when
+// too few views.
+PlaneErrorModel estimatePlaneErrorModel(const std::vector<Cluster>& clusters, const Pose& pose,
+                                        const SolverOptions& options) {
+  constexpr double kPoseDofPerKind = 3.0;
+  const auto weights = robustWeights(clusters, pose, options);
+  const Eigen::Isometry3d T = pose.isometry();
+  double offset_sum = 0.0, tilt_sum = 0.0;
+  int views = 0;
+  for (size_t c = 0; c < clusters.size(); ++c) {
+    const Cluster& cl = clusters[c];
+    if (!cl.plane) continue;
+    const Moments m = moments(*cl.points, &weights[c]);
+    if (!(m.W > 0.0) || !(m.lambda(1) > 0.0)) continue;
+    const double s2 = pointVariance(m);
+    const double ro = residualOf(cl, T, pose.s, m.mean);
+    offset_sum += ro * ro - s2 / m.W;
+    for (int k = 1; k < 3; ++k) {
+      const double tilt = cl.normal.dot(T.linear() * m.axes.col(k));
+      tilt_sum += tilt * tilt - s2 / m.lambda(k);
+    }
+    ++views;
+  }
+  PlaneErrorModel model;
+  if (views <= kPoseDofPerKind) return model;
+  model.enabled = true;
+  model.offset_var = std::max(offset_sum / (views - kPoseDofPerKind), 0.0);
+  model.tilt_var = std::max(tilt_sum / (2.0 * views - kPoseDofPerKind), 0.0);
+  return model;
+}
+
+// The covariance of the final problem (the clusters with the robust weights at the final pose,
+// the same residual blocks as the last solve) from Ceres, cluster-robust.
+bool finalCovariance(const std::vector<Cluster>& clusters, bool estimate_scale, const PlaneErrorModel& model,
+                     const SolverOptions& options, Pose pose, Matrix6d* covariance) {
+  const auto weights = robustWeights(clusters, pose, options);
+  ceres::Problem problem;
+  std::vector<std::pair<ceres::ResidualBlockId, int>> blocks;
+  buildProblem(clusters, &weights, estimate_scale, model, &pose, &problem, &blocks);
+  std::vector<double*> parameters = {pose.q, pose.t};
+  if (estimate_scale) parameters.push_back(&pose.s);
+  return solvers_detail::clusterRobustCovariance(&problem, parameters, blocks, covariance);
 }
 
 // Mean pixel distance of LiDAR edge k's points (projected) to image line j.
@@ -632,25 +739,6 @@ void fillResidualFigures(const std::vector<View>& views, const std::vector<Prepa
   sol->line_rms_mm = line_count ? 1000.0 * std::sqrt(line_sq / line_count) : 0.0;
 }
 
-std::vector<LinearisedResidual> linearise(const std::vector<Cluster>& clusters, const Pose& pose) {
-  const Eigen::Isometry3d T = pose.isometry();
-  std::vector<LinearisedResidual> out;
-  for (const Cluster& cl : clusters) {
-    for (const auto& p : *cl.points) {
-      LinearisedResidual lr;
-      const Eigen::Vector3d rp = T.linear() * p;
-      lr.r = cl.normal.dot(rp + T.translation()) - (cl.scaled ? pose.s : 1.0) * cl.offset;
-      lr.j.head<3>() = rp.cross(cl.normal);
-      lr.j.segment<3>(3) = cl.normal;
-      lr.j(6) = cl.scaled ? -cl.offset : 0.0;
-      lr.w = cl.weight;
-      lr.cluster = cl.id;
-      out.push_back(lr);
-    }
-  }
-  return out;
-}
-
 }  // namespace
 
 CalibrationSolution calibrate(const std::vector<View>& views, Method method, const SolverOptions& options,
@@ -726,10 +814,28 @@ CalibrationSolution calibrate(const std::vector<View>& views, Method method, con
     return outcome.usable;
   };
   std::vector<Cluster> final_terms;
+  PlaneErrorModel plane_model;
   bool ok = true;
   if (method == Method::kPpc) {
     final_terms = buildClusters(prepared, true, false, false, lw);
     ok = run(final_terms, false, true);
+    // Then weight each view's offset and tilts by the camera plane error estimated from the
+    // residuals (a few rounds: the estimate and the pose settle together).
+    for (int round = 0; ok && options.ppc_plane_error_model && round < kPlaneErrorRounds; ++round) {
+      plane_model = estimatePlaneErrorModel(final_terms, pose, options);
+      if (!plane_model.enabled) break;
+      outcome = solveStage(final_terms, false, options, false, &pose, plane_model);
+      sol.iterations += outcome.iterations;
+      ok = outcome.usable;
+    }
+    if (plane_model.enabled) {
+      std::ostringstream note;
+      note.precision(3);
+      note << "PPC views weighted by the camera plane error estimated from the residuals: offset "
+           << 1000.0 * std::sqrt(plane_model.offset_var) << " mm, tilt " << std::sqrt(plane_model.tilt_var) * kDegPerRad
+           << " deg per axis (1 sigma)";
+      sol.notes.push_back(note.str());
+    }
   } else {
     const bool planes = options.pbpc_use_plane_terms;
     if (options.pbpc_schedule == PbpcSchedule::kSequential) {
@@ -756,10 +862,7 @@ CalibrationSolution calibrate(const std::vector<View>& views, Method method, con
   fillResidualFigures(views, prepared, method, &sol);
 
   if (options.compute_covariance) {
-    const int dim = use_scale ? 7 : 6;
-    const bool cov_ok =
-        solvers_detail::sandwichCovariance(linearise(final_terms, pose), dim, options.loss, options.loss_scale_m,
-                                           &sol.covariance);
+    const bool cov_ok = finalCovariance(final_terms, use_scale, plane_model, options, pose, &sol.covariance);
     if (!cov_ok) sol.covariance.setConstant(std::numeric_limits<double>::infinity());
     sol.stddev = solvers_detail::stddevFromCovariance(sol.covariance);
     sol.observability =
