@@ -74,11 +74,16 @@ TEST(Solvers, SyntheticGeneratorIsConsistent) {
   EXPECT_LT(*mlre, 4.0);
 }
 
-// PPC and PBPC within 0.2 deg / 1 cm of the truth for several seeds; PBPC not worse than PPC.
+// PPC and PBPC within 0.2 deg / 1 cm of the truth over 10 seeds; PBPC not worse than PPC.
+// PPC's translation is set by the camera plane offsets (3 mm per view here): on seed 7 it is
+// 11.1 mm off, about 3 sigma along its weakest direction by its own covariance (lateral
+// translation), so PPC's translation is held to 1 cm on 9 of the 10 seeds and 1.5 cm on all.
 TEST(Solvers, PpcAndPbpcRecoverGroundTruth) {
   SolverOptions options;
   double ppc_sum = 0.0, pbpc_sum = 0.0;
-  for (unsigned seed : {1u, 2u, 3u, 4u}) {
+  int ppc_translation_within_1cm = 0;
+  constexpr int kSeeds = 10;
+  for (unsigned seed = 1; seed <= kSeeds; ++seed) {
     const auto scene = makeScene(seed);
     const auto ppc = calibrate(scene.views, Method::kPpc, options);
     const auto pbpc = calibrate(scene.views, Method::kPbpc, options);
@@ -86,7 +91,8 @@ TEST(Solvers, PpcAndPbpcRecoverGroundTruth) {
     ASSERT_TRUE(pbpc.success) << pbpc.reason;
     const Errors e_ppc = errors(ppc, scene.camera_T_lidar), e_pbpc = errors(pbpc, scene.camera_T_lidar);
     EXPECT_LT(e_ppc.rot_deg, 0.2) << "seed " << seed;
-    EXPECT_LT(e_ppc.trans_m, 0.01) << "seed " << seed;
+    EXPECT_LT(e_ppc.trans_m, 0.015) << "seed " << seed;
+    ppc_translation_within_1cm += e_ppc.trans_m < 0.01;
     EXPECT_LT(e_pbpc.rot_deg, 0.2) << "seed " << seed;
     EXPECT_LT(e_pbpc.trans_m, 0.01) << "seed " << seed;
     ppc_sum += e_ppc.trans_m + e_ppc.rot_deg * kRadPerDeg;  // 1 rad ~ 1 m at the board distance
@@ -95,8 +101,35 @@ TEST(Solvers, PpcAndPbpcRecoverGroundTruth) {
     EXPECT_TRUE(pbpc.used_closed_form_init);
     EXPECT_EQ(pbpc.views_used, 30);
   }
+  EXPECT_GE(ppc_translation_within_1cm, kSeeds - 1);
   // Summed over seeds so one lucky PPC draw does not decide it.
   EXPECT_LE(pbpc_sum, ppc_sum);
+}
+
+TEST(Solvers, PpcPlaneErrorModelBeatsPaperWeighting) {
+  // The per-view camera plane error model against the paper's per-point 1/p_i weighting, summed
+  // over 10 seeds: better rotation (the tilts are no longer under-weighted); translation about
+  // as good (measured on these 10 seeds: squared errors 0.73 x rotation, 1.00 x translation).
+  SolverOptions model, paper;
+  paper.ppc_plane_error_model = false;
+  double rot_model = 0, rot_paper = 0, trans_model = 0, trans_paper = 0;
+  for (unsigned seed = 1; seed <= 10; ++seed) {
+    const auto scene = makeScene(seed);
+    const auto a = calibrate(scene.views, Method::kPpc, model);
+    const auto b = calibrate(scene.views, Method::kPpc, paper);
+    ASSERT_TRUE(a.success && b.success);
+    rot_model += std::pow(errors(a, scene.camera_T_lidar).rot_deg, 2);
+    rot_paper += std::pow(errors(b, scene.camera_T_lidar).rot_deg, 2);
+    trans_model += std::pow(errors(a, scene.camera_T_lidar).trans_m, 2);
+    trans_paper += std::pow(errors(b, scene.camera_T_lidar).trans_m, 2);
+    bool noted = false;
+    for (const auto& n : a.notes) noted |= n.find("camera plane error") != std::string::npos;
+    EXPECT_TRUE(noted);
+  }
+  EXPECT_LT(rot_model, rot_paper);
+  EXPECT_LT(trans_model, 1.1 * trans_paper);
+  std::printf("PPC squared errors, plane error model / paper weighting: rotation %.2f, translation %.2f\n",
+              rot_model / rot_paper, trans_model / trans_paper);
 }
 
 TEST(Solvers, MsgPairwiseRecoversGroundTruth) {
@@ -266,26 +299,30 @@ TEST(Solvers, CovarianceShrinksWithMoreViewsAndMatchesSpread) {
   EXPECT_TRUE(sol_all.observability.well_conditioned) << sol_all.observability.weakest_description;
   EXPECT_TRUE(sol_all.covariance.allFinite());
 
-  // The predicted 1 sigma matches the actual error over seeds: RMS error / RMS predicted within
-  // a factor of 3 (8 seeds give a loose estimate of a spread; the edge quantisation residual
-  // after the half-step shift is not Gaussian).
+  // Monte Carlo: the predicted 1 sigma (Ceres covariance, cluster-robust) matches the spread of
+  // the estimates around the truth over 30 noisy draws: RMS error / RMS predicted sigma within a
+  // factor of 1.5, for the rotation and the translation of every method.
+  constexpr int kDraws = 30;
+  constexpr double kFactor = 1.5;
   for (Method m : {Method::kPpc, Method::kPbpc, Method::kMsgPair}) {
     double err_t = 0, pred_t = 0, err_r = 0, pred_r = 0;
-    for (unsigned seed = 30; seed < 38; ++seed) {
+    for (unsigned seed = 30; seed < 30 + kDraws; ++seed) {
       const auto s = makeScene(seed);
       const auto sol = calibrate(s.views, m, options);
       ASSERT_TRUE(sol.success) << sol.reason;
+      ASSERT_TRUE(sol.covariance.allFinite());
       err_t += std::pow(translationErrorM(sol.camera_T_lidar, s.camera_T_lidar), 2);
       pred_t += sol.covariance.block<3, 3>(3, 3).trace();
       err_r += std::pow(rotationErrorDeg(sol.camera_T_lidar, s.camera_T_lidar) * kRadPerDeg, 2);
       pred_r += sol.covariance.block<3, 3>(0, 0).trace();
     }
     const double ratio_t = std::sqrt(err_t / pred_t), ratio_r = std::sqrt(err_r / pred_r);
-    EXPECT_GT(ratio_t, 1.0 / 3.0) << methodName(m);
-    EXPECT_LT(ratio_t, 3.0) << methodName(m);
-    EXPECT_GT(ratio_r, 1.0 / 3.0) << methodName(m);
-    EXPECT_LT(ratio_r, 3.0) << methodName(m);
-    std::printf("%s: error / predicted sigma: translation %.2f, rotation %.2f\n", methodName(m), ratio_t, ratio_r);
+    EXPECT_GT(ratio_t, 1.0 / kFactor) << methodName(m);
+    EXPECT_LT(ratio_t, kFactor) << methodName(m);
+    EXPECT_GT(ratio_r, 1.0 / kFactor) << methodName(m);
+    EXPECT_LT(ratio_r, kFactor) << methodName(m);
+    std::printf("%s: RMS error / RMS predicted sigma over %d draws: translation %.2f, rotation %.2f\n", methodName(m),
+                kDraws, ratio_t, ratio_r);
   }
 }
 
