@@ -47,6 +47,11 @@ if(BOARD_CALIB_TOOLS)
   install(TARGETS ${BOARD_CALIB_TOOLS} RUNTIME DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})
 endif()
 
+# Multi-sensor rig mode of the calibrator nodelet (~rig_file).
+if(TARGET board_calib_calibrator)
+  target_sources(board_calib_calibrator PRIVATE src/nodelets/calibrator_rig_mode.cpp)
+endif()
+
 # Multi-sensor rig mode of calibrate_bag (--config RIG.yaml --method msg).
 if(TARGET calibrate_bag)
   target_sources(calibrate_bag PRIVATE src/tools/calibrate_rig.cpp)

@@ -3,7 +3,7 @@
 # of the simulator's ground truth (the task's acceptance bound; measured 0.15 deg / 2 mm).
 board_calib_core_gtest(test_rig_config
   SOURCES test/core/test_rig_config.cpp
-  MODULES bc_rig bc_msg_graph bc_solvers bc_geometry
+  MODULES bc_rig bc_msg_graph bc_session bc_solvers bc_geometry
   LIBS Ceres::ceres yaml-cpp)
 board_calib_core_gtest(test_rig_session
   SOURCES test/core/test_rig_session.cpp

@@ -1,6 +1,9 @@
 // Calibrator nodelet: collects LiDAR and camera board features into a CalibrationSession (core),
 // solves on ~calibrate off the callback thread, publishes the latched result, broadcasts the
-// static TF and writes the result file with launch/URDF snippets. Thin wiring only.
+// static TF and writes the result file with launch/URDF snippets. With ~rig_file it runs the
+// multi-sensor rig mode instead (calibrator_rig_mode.h). Thin wiring only.
+#include "calibrator_rig_mode.h"
+
 #include <board_calib/CalibrationResult.h>
 #include <board_calib/Calibrate.h>
 #include <board_calib/CalibratorConfig.h>
@@ -66,11 +69,20 @@ class CalibratorNodelet : public nodelet::Nodelet {
   std::unique_ptr<dynamic_reconfigure::Server<CalibratorConfig>> reconfigure_server_;
   std::unique_ptr<diagnostic_updater::Updater> diagnostics_;
   ros::Timer diagnostics_timer_;
+  std::unique_ptr<RigCalibratorMode> rig_mode_;  // set when ~rig_file is given
 };
 
 void CalibratorNodelet::onInit() {
   ros::NodeHandle& nh = getNodeHandle();
   ros::NodeHandle& pnh = getPrivateNodeHandle();
+  std::string rig_file;
+  if (pnh.getParam("rig_file", rig_file) && !rig_file.empty()) {
+    // Rig mode: N cameras and M LiDARs from the rig YAML, solved as one MSG-Cal graph.
+    std::string error;
+    rig_mode_ = RigCalibratorMode::create(nh, pnh, rig_file, &error);
+    if (!rig_mode_) NODELET_FATAL_STREAM("calibrator: ~rig_file: " << error);
+    return;
+  }
   std::string target_file;
   if (!pnh.getParam("target_file", target_file)) {
     NODELET_FATAL("calibrator: private parameter ~target_file (the board description YAML) is required");

@@ -1,0 +1,380 @@
+// Rig mode of the calibrator nodelet (see calibrator_rig_mode.h).
+#include "calibrator_rig_mode.h"
+
+#include <board_calib/CalibrationResult.h>
+#include <board_calib/Calibrate.h>
+#include <board_calib/CalibratorConfig.h>
+#include <board_calib/DropView.h>
+#include <board_calib/SessionFile.h>
+#include <board_calib/conversions.h>
+#include <board_calib/core/msg_graph.h>
+#include <board_calib/core/result_io.h>
+#include <board_calib/core/rig_config.h>
+#include <board_calib/core/rig_report.h>
+#include <board_calib/core/rig_session.h>
+
+#include <diagnostic_updater/diagnostic_updater.h>
+#include <dynamic_reconfigure/server.h>
+#include <std_srvs/Trigger.h>
+#include <tf2_ros/static_transform_broadcaster.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <future>
+#include <iomanip>
+#include <mutex>
+#include <optional>
+#include <sstream>
+
+namespace board_calib {
+
+namespace {
+constexpr char kLog[] = "calibrator";
+}  // namespace
+
+struct RigCalibratorMode::Impl {
+  ros::NodeHandle nh, pnh;
+  RigConfig rig;
+  int reference = 0;
+  std::string rig_file;
+  std::mutex mutex;        // guards session, last_event, last_solution
+  std::mutex solve_mutex;  // one solve at a time
+  std::unique_ptr<msg::RigSession> session;
+  std::string last_event = "waiting for features";
+  std::optional<msg::MsgSolution> last_solution;
+  std::string child_frame_suffix;
+  std::string output_dir;
+  bool broadcast_tf = true;
+
+  std::vector<ros::Subscriber> subscribers;
+  ros::Publisher result_pub;
+  std::vector<ros::ServiceServer> services;
+  std::unique_ptr<tf2_ros::StaticTransformBroadcaster> tf_broadcaster;
+  std::unique_ptr<dynamic_reconfigure::Server<CalibratorConfig>> reconfigure_server;
+  std::unique_ptr<diagnostic_updater::Updater> diagnostics;
+  ros::Timer diagnostics_timer;
+
+  void report(const SessionEvent& e, const std::string& source) {
+    if (e.kind == SessionEvent::Kind::kAccepted) {
+      last_event = source + ": " + e.message;
+      ROS_INFO_STREAM_NAMED(kLog, "calibrator: captured " << e.message << "; " << session->poses().size()
+                                                          << " board poses");
+    } else if (e.kind == SessionEvent::Kind::kRejected) {
+      last_event = source + ": " + e.message;
+      ROS_WARN_STREAM_THROTTLE_NAMED(2.0, kLog, "calibrator: " << source << ": " << e.message);
+    } else if (e.message.find("already saw") != std::string::npos) {
+      last_event = source + ": " + e.message;
+      ROS_INFO_STREAM_THROTTLE_NAMED(5.0, kLog, "calibrator: " << e.message);
+    }
+  }
+
+  void onCamera(int k, const CameraBoardConstPtr& m) {
+    std::lock_guard<std::mutex> lock(mutex);
+    report(session->addCamera(k, fromMsg(*m)), rig.cameras[k].name);
+  }
+
+  void onLidar(int k, const LidarBoardConstPtr& m) {
+    std::lock_guard<std::mutex> lock(mutex);
+    const size_t i = static_cast<size_t>(k) - rig.cameras.size();
+    report(session->addLidar(k, fromMsg(*m)), rig.lidars[i].name);
+  }
+
+  void reconfigure(CalibratorConfig& c, uint32_t) {
+    // The rig file's stamp_tolerance_s stays in force: sync_tolerance is a pair-mode setting.
+    std::lock_guard<std::mutex> lock(mutex);
+    msg::RigSessionOptions o = session->options();
+    o.auto_capture = c.auto_capture;
+    o.still_frames_required = c.still_frames;
+    o.still_max_translation_m = c.still_max_translation;
+    o.still_max_rotation_deg = c.still_max_rotation_deg;
+    o.min_pose_rotation_deg = c.min_view_rotation_deg;
+    o.min_pose_translation_m = c.min_view_translation;
+    if (const std::string why = o.validate(); !why.empty()) {
+      ROS_WARN_STREAM_NAMED(kLog, "calibrator: rejected reconfiguration: " << why);
+      return;
+    }
+    session->setOptions(o);
+  }
+
+  static CalibrationResult pairMsg(const PairEntry& p, const msg::MsgSolution& s) {
+    CalibrationResult m;
+    m.header.stamp = ros::Time::now();
+    m.header.frame_id = p.lidar_frame;
+    m.success = true;
+    m.method = "msg";
+    m.camera_frame = p.camera_frame;
+    m.lidar_frame = p.lidar_frame;
+    m.camera_T_lidar = toTransformMsg(p.camera_T_lidar);
+    m.views_used = static_cast<uint32_t>(std::max(0, s.poses_used));
+    m.mlre_px = p.mlre_px ? *p.mlre_px : std::nan("");
+    m.plane_rms_mm = std::nan("");
+    m.final_cost = s.final_cost;
+    m.covariance.fill(std::nan(""));
+    m.stddev_translation_m.fill(std::nan(""));
+    m.stddev_rotation_deg.fill(std::nan(""));
+    m.notes = s.notes;
+    return m;
+  }
+
+  std::string writeOutputs(const ResultFile& file, const msg::MsgSolution& s) {
+    if (output_dir.empty()) return "";
+    std::error_code error;
+    std::filesystem::create_directories(output_dir, error);
+    if (error) {
+      ROS_ERROR_STREAM_NAMED(kLog, "calibrator: cannot create " << output_dir << ": " << error.message());
+      return "";
+    }
+    const std::string base = output_dir + "/msg_rig";
+    const Status st = writeResultFile(base + "_result.yaml", file);
+    if (!st) {
+      ROS_ERROR_STREAM_NAMED(kLog, "calibrator: " << st.reason);
+      return "";
+    }
+    // One static_transform_publisher per sensor, ready to paste into a bring-up launch file.
+    std::ofstream launch(base + "_static_transforms.launch");
+    launch << std::setprecision(9) << "<launch>\n";
+    const std::string& parent = s.sensors[s.reference_sensor].frame;
+    for (size_t k = 0; k < s.sensors.size(); ++k) {
+      if (static_cast<int>(k) == s.reference_sensor) continue;
+      const auto& e = s.sensors[k];
+      const Eigen::Vector3d t = e.reference_T_sensor.translation();
+      const Eigen::Quaterniond q(e.reference_T_sensor.linear());
+      launch << "  <node pkg=\"tf2_ros\" type=\"static_transform_publisher\" name=\"board_calib_" << e.frame
+             << "\" args=\"" << t.x() << " " << t.y() << " " << t.z() << " " << q.x() << " " << q.y() << " " << q.z()
+             << " " << q.w() << " " << parent << " " << e.frame + child_frame_suffix << "\"/>\n";
+    }
+    launch << "</launch>\n";
+    return base + "_result.yaml";
+  }
+
+  bool calibrate(Calibrate::Request& req, Calibrate::Response& res) {
+    std::lock_guard<std::mutex> solve_lock(solve_mutex);
+    if (!req.method.empty() && req.method != "msg" && req.method != "all") {
+      res.success = false;
+      res.message = "rig mode solves the MSG-Cal graph (method msg); '" + req.method +
+                    "' is a single camera-LiDAR method: start the calibrator without ~rig_file for it";
+      return true;
+    }
+    if (req.use_initial_guess)
+      ROS_WARN_STREAM_NAMED(kLog, "calibrator: rig mode initialises from the pairwise solutions; the guess is ignored");
+    msg::MsgProblem problem;
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      report(session->flush(), "calibrate");
+      problem = session->problem(reference);
+    }
+    if (problem.poses.empty()) {
+      res.success = false;
+      res.message = "no board poses captured yet: hold the board still where at least two sensors see it";
+      return true;
+    }
+    // The solve runs on its own thread; feature callbacks keep flowing meanwhile.
+    auto solving = std::async(std::launch::async, [&]() { return msg::solveMsgGraph(problem, msg::MsgGraphOptions{}); });
+    const msg::MsgSolution solution = solving.get();
+    if (!solution.success) {
+      res.success = false;
+      res.message = "MSG graph failed: " + solution.reason;
+      ROS_WARN_STREAM_NAMED(kLog, "calibrator: " << res.message);
+      return true;
+    }
+    const ResultFile file = msg::msgResultFile(problem, solution);
+    res.success = true;
+    res.message = rigSolutionSummary(rig, solution, file);
+    res.reference_frame = solution.sensors[solution.reference_sensor].frame;
+    for (const auto& s : solution.sensors) {
+      SensorPose p;
+      p.frame = s.frame;
+      p.kind = msg::sensorKindName(s.kind);
+      p.reference_T_sensor = toTransformMsg(s.reference_T_sensor);
+      for (int i = 0; i < 3; ++i) {
+        p.stddev_translation_m[i] = s.stddev.translation_m[i];
+        p.stddev_rotation_deg[i] = s.stddev.rotation_deg[i];
+      }
+      p.poses_used = static_cast<uint32_t>(std::max(0, s.observations));
+      p.poses_rejected = static_cast<uint32_t>(std::max(0, s.observations_rejected));
+      res.sensors.push_back(p);
+    }
+    for (const auto& p : file.pairs) res.all_results.push_back(pairMsg(p, solution));
+    if (!res.all_results.empty()) {
+      res.result = res.all_results.front();
+      result_pub.publish(res.result);
+    }
+    ROS_INFO_STREAM_NAMED(kLog, "calibrator:\n" << res.message);
+
+    if (broadcast_tf) {
+      std::vector<geometry_msgs::TransformStamped> tfs;
+      for (size_t k = 0; k < solution.sensors.size(); ++k) {
+        if (static_cast<int>(k) == solution.reference_sensor) continue;
+        geometry_msgs::TransformStamped tf;
+        tf.header.stamp = ros::Time::now();
+        tf.header.frame_id = res.reference_frame;
+        tf.child_frame_id = solution.sensors[k].frame + child_frame_suffix;
+        tf.transform = toTransformMsg(solution.sensors[k].reference_T_sensor);
+        tfs.push_back(tf);
+      }
+      tf_broadcaster->sendTransform(tfs);
+    }
+    const std::string written = writeOutputs(file, solution);
+    if (!written.empty()) res.message += "result written to " + written + "\n";
+    std::lock_guard<std::mutex> lock(mutex);
+    last_solution = solution;
+    return true;
+  }
+
+  bool capture(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+    std::lock_guard<std::mutex> lock(mutex);
+    const SessionEvent e = session->captureNow();
+    report(e, "capture");
+    res.success = e.kind == SessionEvent::Kind::kAccepted;
+    res.message = e.message;
+    return true;
+  }
+
+  bool reset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+    std::lock_guard<std::mutex> lock(mutex);
+    const size_t dropped = session->poses().size();
+    session->reset();
+    last_solution.reset();
+    res.success = true;
+    res.message = "rig session reset (" + std::to_string(dropped) + " board poses dropped)";
+    ROS_INFO_STREAM_NAMED(kLog, "calibrator: " << res.message);
+    return true;
+  }
+
+  bool save(SessionFile::Request& req, SessionFile::Response& res) {
+    std::lock_guard<std::mutex> lock(mutex);
+    session->flush();
+    const Status st = session->save(req.path);
+    res.success = st.ok;
+    res.views = static_cast<uint32_t>(session->poses().size());
+    res.message = st.ok ? "saved " + std::to_string(res.views) + " board poses to " + req.path : st.reason;
+    return true;
+  }
+
+  bool load(SessionFile::Request& req, SessionFile::Response& res) {
+    std::lock_guard<std::mutex> lock(mutex);
+    const Status st = session->load(req.path);
+    res.success = st.ok;
+    res.views = static_cast<uint32_t>(session->poses().size());
+    res.message = st.ok ? "loaded " + std::to_string(res.views) + " board poses from " + req.path : st.reason;
+    return true;
+  }
+
+  bool drop(DropView::Request& req, DropView::Response& res) {
+    std::lock_guard<std::mutex> lock(mutex);
+    const Status st = session->dropPose(static_cast<int>(req.view_id));
+    res.success = st.ok;
+    res.message = st.ok ? "board pose " + std::to_string(req.view_id) + " dropped" : st.reason;
+    return true;
+  }
+
+  void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
+    std::lock_guard<std::mutex> lock(mutex);
+    using diagnostic_msgs::DiagnosticStatus;
+    std::string silent;
+    for (size_t k = 0; k < session->counts().size(); ++k)
+      if (session->counts()[k].messages == 0) silent += (silent.empty() ? "" : ", ") + session->names()[k];
+    const size_t poses = session->poses().size();
+    if (!silent.empty()) stat.summary(DiagnosticStatus::WARN, "no board features received from " + silent);
+    else if (poses < 3) stat.summary(DiagnosticStatus::WARN, "collecting board poses (" + std::to_string(poses) + ")");
+    else stat.summary(DiagnosticStatus::OK, std::to_string(poses) + " board poses collected");
+    stat.add("rig", rig_file);
+    stat.add("board poses", poses);
+    for (size_t k = 0; k < session->counts().size(); ++k) {
+      const auto& c = session->counts()[k];
+      std::string v = std::to_string(c.found) + "/" + std::to_string(c.messages) + " with the board";
+      if (c.found < c.messages && !c.last_reason.empty()) v += "; last miss: " + c.last_reason;
+      stat.add(session->names()[k] + " (" + session->sensors()[k].frame + ")", v);
+    }
+    stat.add("last event", last_event);
+    if (last_solution) {
+      stat.add("last solve", std::to_string(last_solution->poses_used) + " board poses");
+      stat.add("loop consistency (deg / mm)", std::to_string(last_solution->loop_rotation_max_deg) + " / " +
+                                                  std::to_string(last_solution->loop_translation_max_mm));
+    }
+  }
+};
+
+RigCalibratorMode::RigCalibratorMode() : impl_(std::make_unique<Impl>()) {}
+RigCalibratorMode::~RigCalibratorMode() = default;
+
+std::unique_ptr<RigCalibratorMode> RigCalibratorMode::create(ros::NodeHandle nh, ros::NodeHandle pnh,
+                                                             const std::string& rig_file, std::string* error) {
+  auto rig = loadRigConfig(rig_file);
+  if (!rig) {
+    *error = rig.error();
+    return nullptr;
+  }
+  std::unique_ptr<RigCalibratorMode> mode(new RigCalibratorMode());
+  Impl& m = *mode->impl_;
+  m.nh = nh;
+  m.pnh = pnh;
+  m.rig = *rig;
+  m.rig_file = rig_file;
+  std::string reference = rig->reference;
+  pnh.param("reference", reference, reference);
+  m.reference = rig->sensorIndex(reference);
+  if (m.reference < 0) {
+    *error = "~reference '" + reference + "' is not a sensor of the rig " + rig_file;
+    return nullptr;
+  }
+  pnh.param("child_frame_suffix", m.child_frame_suffix, std::string());
+  pnh.param("broadcast_tf", m.broadcast_tf, true);
+  std::string default_dir;
+  if (const char* ros_home = std::getenv("ROS_HOME")) default_dir = std::string(ros_home) + "/board_calib";
+  else if (const char* home = std::getenv("HOME")) default_dir = std::string(home) + "/.ros/board_calib";
+  pnh.param("output_dir", m.output_dir, default_dir);
+  if (m.output_dir.empty()) m.output_dir = default_dir;
+
+  msg::RigSessionOptions options;
+  options.stamp_tolerance_s = rig->stamp_tolerance_s;
+  options.history_s = std::max(options.history_s, 2.0 * options.stamp_tolerance_s);
+  std::vector<std::string> names;
+  for (const auto& c : rig->cameras) names.push_back(c.name);
+  for (const auto& l : rig->lidars) names.push_back(l.name);
+  m.session = std::make_unique<msg::RigSession>(names, rig->sensorSpecs(), options);
+  std::string session_file;
+  if (pnh.getParam("session_file", session_file) && !session_file.empty()) {
+    const Status st = m.session->load(session_file);
+    if (st) ROS_INFO_STREAM_NAMED(kLog, "calibrator: loaded " << m.session->poses().size() << " board poses from " << session_file);
+    else ROS_ERROR_STREAM_NAMED(kLog, "calibrator: " << st.reason);
+  }
+
+  m.result_pub = nh.advertise<CalibrationResult>("calibration_result", 1, true);
+  m.tf_broadcaster = std::make_unique<tf2_ros::StaticTransformBroadcaster>();
+  m.reconfigure_server = std::make_unique<dynamic_reconfigure::Server<CalibratorConfig>>(pnh);
+  m.reconfigure_server->setCallback([&m](CalibratorConfig& c, uint32_t level) { m.reconfigure(c, level); });
+  m.services.push_back(pnh.advertiseService("calibrate", &Impl::calibrate, &m));
+  m.services.push_back(pnh.advertiseService("capture", &Impl::capture, &m));
+  m.services.push_back(pnh.advertiseService("reset", &Impl::reset, &m));
+  m.services.push_back(pnh.advertiseService("save_session", &Impl::save, &m));
+  m.services.push_back(pnh.advertiseService("load_session", &Impl::load, &m));
+  m.services.push_back(pnh.advertiseService("drop_view", &Impl::drop, &m));
+  m.diagnostics = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
+  m.diagnostics->setHardwareID("board_calib calibrator (rig)");
+  m.diagnostics->add("rig session", [&m](diagnostic_updater::DiagnosticStatusWrapper& s) { m.diagnose(s); });
+  m.diagnostics_timer = nh.createTimer(ros::Duration(1.0), [&m](const ros::TimerEvent&) { m.diagnostics->update(); });
+
+  // Eager subscriptions: the calibrator must see every feature to capture poses.
+  std::ostringstream topics;
+  for (size_t i = 0; i < rig->cameras.size(); ++i) {
+    const int k = static_cast<int>(i);
+    m.subscribers.push_back(nh.subscribe<CameraBoard>(rig->cameras[i].features_topic, 10,
+                                                      [&m, k](const CameraBoardConstPtr& f) { m.onCamera(k, f); }));
+    topics << " " << nh.resolveName(rig->cameras[i].features_topic);
+  }
+  for (size_t i = 0; i < rig->lidars.size(); ++i) {
+    const int k = static_cast<int>(rig->cameras.size() + i);
+    m.subscribers.push_back(nh.subscribe<LidarBoard>(rig->lidars[i].features_topic, 10,
+                                                     [&m, k](const LidarBoardConstPtr& f) { m.onLidar(k, f); }));
+    topics << " " << nh.resolveName(rig->lidars[i].features_topic);
+  }
+  ROS_INFO_STREAM_NAMED(kLog, "calibrator: rig mode (" << rig_file << "): " << rig->cameras.size() << " camera(s), "
+                                                       << rig->lidars.size() << " LiDAR(s), reference " << reference
+                                                       << "; waiting for" << topics.str());
+  return mode;
+}
+
+}  // namespace board_calib

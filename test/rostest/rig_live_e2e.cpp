@@ -1,0 +1,135 @@
+// Rig-mode end-to-end rostest: once the simulated rig bag has played through the detectors into
+// the calibrator (rig mode), ~calibrate solves the MSG graph; every sensor's broadcast static TF
+// (from the reference frame) must match the simulator's ground truth, the result file must list
+// every sensor and pair, and a saved rig session must reload to the same poses.
+#include <board_calib/Calibrate.h>
+#include <board_calib/SessionFile.h>
+#include <board_calib/core/result_io.h>
+#include <board_calib/core/transform.h>
+
+#include <gtest/gtest.h>
+#include <ros/ros.h>
+#include <rosgraph_msgs/Clock.h>
+#include <tf2_eigen/tf2_eigen.h>
+#include <tf2_ros/transform_listener.h>
+
+#include <map>
+#include <optional>
+
+namespace {
+
+// reference_T_sensor of the truth file by frame.
+std::map<std::string, Eigen::Isometry3d> truthPoses(const board_calib::ResultFile& truth) {
+  std::map<std::string, Eigen::Isometry3d> out;
+  for (const auto& s : truth.sensors) out[s.frame] = s.reference_T_sensor;
+  return out;
+}
+
+// Waits (wall time) until /clock has advanced and then stopped: the bag is over.
+bool waitForBagEnd(ros::NodeHandle& nh, double timeout_s) {
+  ros::Time last_clock;
+  ros::WallTime last_change = ros::WallTime::now();
+  ros::Subscriber sub = nh.subscribe<rosgraph_msgs::Clock>("/clock", 10, [&](const rosgraph_msgs::ClockConstPtr& c) {
+    if (c->clock != last_clock) {
+      last_clock = c->clock;
+      last_change = ros::WallTime::now();
+    }
+  });
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
+  constexpr double kQuietS = 4.0;
+  while (ros::ok() && ros::WallTime::now() < deadline) {
+    ros::spinOnce();
+    if (!last_clock.isZero() && (ros::WallTime::now() - last_change).toSec() > kQuietS) return true;
+    ros::WallDuration(0.1).sleep();
+  }
+  return false;
+}
+
+}  // namespace
+
+TEST(RigLiveEndToEnd, EverySensorTfMatchesGroundTruth) {
+  ros::NodeHandle nh;
+  std::string truth_file, output_dir;
+  ros::param::get("~truth_file", truth_file);
+  ros::param::get("~output_dir", output_dir);
+  double timeout_s = 240, rotation_tol_deg = 0.2, translation_tol_m = 0.01;
+  ros::param::param("~timeout", timeout_s, timeout_s);
+  auto truth = board_calib::loadResultFile(truth_file);
+  ASSERT_TRUE(truth.ok()) << truth.error();
+  const auto truth_poses = truthPoses(*truth);
+
+  tf2_ros::Buffer buffer;
+  tf2_ros::TransformListener listener(buffer);
+  ASSERT_TRUE(waitForBagEnd(nh, timeout_s)) << "the bag did not play to its end within " << timeout_s << " s";
+
+  ros::ServiceClient client = nh.serviceClient<board_calib::Calibrate>("calibrator/calibrate");
+  ASSERT_TRUE(client.waitForExistence(ros::Duration(30.0)));
+  board_calib::Calibrate wrong;
+  wrong.request.method = "pbpc";
+  ASSERT_TRUE(client.call(wrong));
+  EXPECT_FALSE(wrong.response.success);
+  EXPECT_NE(wrong.response.message.find("rig mode"), std::string::npos) << wrong.response.message;
+
+  board_calib::Calibrate srv;
+  srv.request.method = "msg";
+  ASSERT_TRUE(client.call(srv));
+  ASSERT_TRUE(srv.response.success) << srv.response.message;
+  std::cout << "[rig_live_e2e]\n" << srv.response.message << std::endl;
+  ASSERT_EQ(srv.response.sensors.size(), 4u);
+  EXPECT_EQ(srv.response.all_results.size(), 4u) << "2 cameras x 2 LiDARs";
+  const std::string reference = srv.response.reference_frame;
+  ASSERT_TRUE(truth_poses.count(reference)) << reference;
+  const Eigen::Isometry3d truth_ref = truth_poses.at(reference);
+  for (const auto& s : srv.response.sensors) {
+    // The simulated rig holds 20 board poses; the capture must have used most of them.
+    EXPECT_GE(s.poses_used, 15u) << s.frame;
+    if (s.frame == reference) continue;
+    ASSERT_TRUE(truth_poses.count(s.frame)) << s.frame;
+    const Eigen::Isometry3d expected = truth_ref.inverse() * truth_poses.at(s.frame);
+    // The broadcast static TF: parent = reference frame, child = the sensor.
+    const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(10.0);
+    while (!buffer.canTransform(reference, s.frame, ros::Time(0)) && ros::WallTime::now() < deadline)
+      ros::WallDuration(0.05).sleep();
+    geometry_msgs::TransformStamped tf;
+    try {
+      tf = buffer.lookupTransform(reference, s.frame, ros::Time(0));
+    } catch (const tf2::TransformException& e) {
+      ADD_FAILURE() << "no static TF " << reference << " -> " << s.frame << ": " << e.what();
+      continue;
+    }
+    const Eigen::Isometry3d got = tf2::transformToEigen(tf);
+    const double rot = board_calib::rotationErrorDeg(got, expected);
+    const double trans = board_calib::translationErrorM(got, expected);
+    std::cout << "[rig_live_e2e] " << reference << " -> " << s.frame << ": " << rot << " deg, " << trans * 1e3
+              << " mm from truth (" << s.poses_used << " poses)" << std::endl;
+    // The target for the simulated rig: every pair within 0.2 deg / 1 cm.
+    EXPECT_LT(rot, rotation_tol_deg) << s.frame;
+    EXPECT_LT(trans, translation_tol_m) << s.frame;
+  }
+
+  // The result file lists every sensor and every camera <- LiDAR pair (DESIGN.md 3.4).
+  auto written = board_calib::loadResultFile(output_dir + "/msg_rig_result.yaml");
+  ASSERT_TRUE(written.ok()) << written.error();
+  EXPECT_EQ(written->sensors.size(), 4u);
+  EXPECT_EQ(written->pairs.size(), 4u);
+
+  // Save, reset, reload: the same number of poses comes back.
+  ros::ServiceClient save = nh.serviceClient<board_calib::SessionFile>("calibrator/save_session");
+  ros::ServiceClient load = nh.serviceClient<board_calib::SessionFile>("calibrator/load_session");
+  board_calib::SessionFile saved, loaded;
+  saved.request.path = output_dir + "/rig_session.yaml";
+  ASSERT_TRUE(save.call(saved));
+  ASSERT_TRUE(saved.response.success) << saved.response.message;
+  loaded.request.path = saved.request.path;
+  ASSERT_TRUE(load.call(loaded));
+  ASSERT_TRUE(loaded.response.success) << loaded.response.message;
+  EXPECT_EQ(loaded.response.views, saved.response.views);
+  EXPECT_GE(saved.response.views, 15u);
+}
+
+int main(int argc, char** argv) {
+  ::testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "rig_live_e2e_test");
+  ros::NodeHandle nh;  // keeps the node alive for the whole test
+  return RUN_ALL_TESTS();
+}
