@@ -6,9 +6,10 @@
 #include <board_calib/core/result_io.h>
 #include <board_calib/core/transform.h>
 
+#include "wait_for_bag_end.h"
+
 #include <gtest/gtest.h>
 #include <ros/ros.h>
-#include <rosgraph_msgs/Clock.h>
 #include <tf2_eigen/tf2_eigen.h>
 #include <tf2_ros/transform_listener.h>
 
@@ -38,24 +39,8 @@ TEST(PipelineEndToEnd, CalibratedTfMatchesGroundTruth) {
   tf2_ros::Buffer buffer;
   tf2_ros::TransformListener listener(buffer);
 
-  // The bag is over when /clock has advanced and then stopped for a while (wall time).
-  ros::Time last_clock;
-  ros::WallTime last_change = ros::WallTime::now();
-  ros::Subscriber clock_sub = nh.subscribe<rosgraph_msgs::Clock>("/clock", 10, [&](const rosgraph_msgs::ClockConstPtr& c) {
-    if (c->clock != last_clock) {
-      last_clock = c->clock;
-      last_change = ros::WallTime::now();
-    }
-  });
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
-  constexpr double kQuietS = 4.0;
-  while (ros::ok() && ros::WallTime::now() < deadline) {
-    ros::spinOnce();
-    if (!last_clock.isZero() && (ros::WallTime::now() - last_change).toSec() > kQuietS) break;
-    ros::WallDuration(0.1).sleep();
-  }
-  ASSERT_FALSE(last_clock.isZero()) << "no /clock from rosbag play";
-  ASSERT_LT(ros::WallTime::now(), deadline) << "the bag did not finish within " << timeout_s << " s";
+  ASSERT_TRUE(board_calib_test::waitForBagEnd(nh, timeout_s))
+      << "the bag did not play to its end within " << timeout_s << " s (or no /clock from rosbag play)";
 
   ros::ServiceClient client = nh.serviceClient<board_calib::Calibrate>("calibrator/calibrate");
   ASSERT_TRUE(client.waitForExistence(ros::Duration(30.0)));

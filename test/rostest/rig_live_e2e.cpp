@@ -7,9 +7,10 @@
 #include <board_calib/core/result_io.h>
 #include <board_calib/core/transform.h>
 
+#include "wait_for_bag_end.h"
+
 #include <gtest/gtest.h>
 #include <ros/ros.h>
-#include <rosgraph_msgs/Clock.h>
 #include <tf2_eigen/tf2_eigen.h>
 #include <tf2_ros/transform_listener.h>
 
@@ -23,26 +24,6 @@ std::map<std::string, Eigen::Isometry3d> truthPoses(const board_calib::ResultFil
   std::map<std::string, Eigen::Isometry3d> out;
   for (const auto& s : truth.sensors) out[s.frame] = s.reference_T_sensor;
   return out;
-}
-
-// Waits (wall time) until /clock has advanced and then stopped: the bag is over.
-bool waitForBagEnd(ros::NodeHandle& nh, double timeout_s) {
-  ros::Time last_clock;
-  ros::WallTime last_change = ros::WallTime::now();
-  ros::Subscriber sub = nh.subscribe<rosgraph_msgs::Clock>("/clock", 10, [&](const rosgraph_msgs::ClockConstPtr& c) {
-    if (c->clock != last_clock) {
-      last_clock = c->clock;
-      last_change = ros::WallTime::now();
-    }
-  });
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
-  constexpr double kQuietS = 4.0;
-  while (ros::ok() && ros::WallTime::now() < deadline) {
-    ros::spinOnce();
-    if (!last_clock.isZero() && (ros::WallTime::now() - last_change).toSec() > kQuietS) return true;
-    ros::WallDuration(0.1).sleep();
-  }
-  return false;
 }
 
 }  // namespace
@@ -60,7 +41,7 @@ TEST(RigLiveEndToEnd, EverySensorTfMatchesGroundTruth) {
 
   tf2_ros::Buffer buffer;
   tf2_ros::TransformListener listener(buffer);
-  ASSERT_TRUE(waitForBagEnd(nh, timeout_s)) << "the bag did not play to its end within " << timeout_s << " s";
+  ASSERT_TRUE(board_calib_test::waitForBagEnd(nh, timeout_s)) << "the bag did not play to its end within " << timeout_s << " s";
 
   ros::ServiceClient client = nh.serviceClient<board_calib::Calibrate>("calibrator/calibrate");
   ASSERT_TRUE(client.waitForExistence(ros::Duration(30.0)));
