@@ -205,12 +205,20 @@ struct SolveOutcome {
 };
 
 // Per-view error of the camera plane (PPC): variance of its offset (m^2) and of its tilt about
-// each in-plane axis (rad^2), shared by all points of the view. Disabled: the paper's model
-// (every point an independent residual, weight 1/p_i).
+// each in-plane axis (rad^2), shared by all points of the view, at the reference distance and
+// scaled by (distance / reference)^distance_power (0: the same for every view; 4: as a PnP's
+// error, which grows with the square of the distance). Disabled: the paper's model (every
+// point an independent residual, weight 1/p_i).
 struct PlaneErrorModel {
   bool enabled = false;
   double offset_var = 0.0;
   double tilt_var = 0.0;
+  double distance_power = 0.0;
+  double reference_distance_m = 1.0;
+
+  double factor(const Eigen::Vector3d& point_in_camera) const {
+    return distance_power == 0.0 ? 1.0 : std::pow(point_in_camera.norm() / reference_distance_m, distance_power);
+  }
 };
 
 // Weighted moments of one cluster's points: W = sum w, mean, scatter eigen-decomposition
@@ -250,14 +258,15 @@ double pointVariance(const Moments& m) {
 // residuals). Plane-error model (plane clusters): the offset at the mean and the two tilts
 // n . R v_k whitened by their variances, offset_var + s^2/W and tilt_var + s^2/lambda_k
 // (s^2 the point variance): generalised least squares over the view's shared plane error.
-ceres::CostFunction* clusterCost(const Cluster& cl, const Moments& m, bool scaled, const PlaneErrorModel& model) {
+ceres::CostFunction* clusterCost(const Cluster& cl, const Moments& m, bool scaled, const PlaneErrorModel& model,
+                                 const Eigen::Isometry3d& T) {
   double sqrt_weight = 0.0;
   Eigen::Matrix3d axes = Eigen::Matrix3d::Zero();
   if (model.enabled && cl.plane) {
-    const double s2 = pointVariance(m);
-    sqrt_weight = 1.0 / std::sqrt(model.offset_var + s2 / m.W);
+    const double s2 = pointVariance(m), f = model.factor(T * m.mean);
+    sqrt_weight = 1.0 / std::sqrt(f * model.offset_var + s2 / m.W);
     for (int k = 1; k < 3; ++k)
-      if (m.lambda(k) > 0.0) axes.col(k) = m.axes.col(k) / std::sqrt(model.tilt_var + s2 / m.lambda(k));
+      if (m.lambda(k) > 0.0) axes.col(k) = m.axes.col(k) / std::sqrt(f * model.tilt_var + s2 / m.lambda(k));
   } else {
     sqrt_weight = std::sqrt(cl.weight * m.W);
     axes = m.axes * (cl.weight * m.lambda).cwiseSqrt().asDiagonal();
@@ -279,12 +288,13 @@ void buildProblem(const std::vector<Cluster>& clusters, const std::vector<std::v
     problem->SetParameterLowerBound(&pose->s, 0, kPlaneScaleMin);
     problem->SetParameterUpperBound(&pose->s, 0, kPlaneScaleMax);
   }
+  const Eigen::Isometry3d T = pose->isometry();
   for (size_t c = 0; c < clusters.size(); ++c) {
     const Cluster& cl = clusters[c];
     const Moments m = moments(*cl.points, point_weights ? &(*point_weights)[c] : nullptr);
     if (!(m.W > 0.0)) continue;
     const bool scaled = estimate_scale && cl.scaled;
-    ceres::CostFunction* cost = clusterCost(cl, m, scaled, model);
+    ceres::CostFunction* cost = clusterCost(cl, m, scaled, model, T);
     const ceres::ResidualBlockId id = scaled ? problem->AddResidualBlock(cost, nullptr, pose->q, pose->t, &pose->s)
                                              : problem->AddResidualBlock(cost, nullptr, pose->q, pose->t);
     if (blocks) blocks->emplace_back(id, cl.id);
@@ -386,18 +396,24 @@ SolveOutcome solveStage(const std::vector<Cluster>& clusters, bool estimate_scal
   return out;
 }
 
-// Variance components of the camera planes from the residuals at the pose: per plane cluster
-// the squared offset at the mean of the (robustly weighted) points minus its LiDAR share s^2/W,
-// and the squared tilts minus s^2/lambda_k, averaged with the degrees of freedom the pose
-// takes (3 of the offsets for the translation, 3 of the tilts for the rotation). Disabled when
-// too few views.
+// Variance components of the camera planes from the residuals at the pose, for a distance
+// power: per plane cluster the squared offset at the mean of the (robustly weighted) points
+// minus its LiDAR share s^2/W, and the squared tilts minus s^2/lambda_k, each divided by the
+// view's distance factor, averaged with the degrees of freedom the pose takes (3 of the
+// offsets for the translation, 3 of the tilts for the rotation). `nll` receives the Gaussian
+// negative log-likelihood of those residuals under the model, to compare distance powers.
+// Disabled when too few views.
 PlaneErrorModel estimatePlaneErrorModel(const std::vector<Cluster>& clusters, const Pose& pose,
-                                        const SolverOptions& options) {
+                                        const SolverOptions& options, double distance_power, double* nll) {
   constexpr double kPoseDofPerKind = 3.0;
+  struct ViewTerms {
+    double f, s2_offset, offset_sq;
+    std::array<double, 2> s2_tilt, tilt_sq;
+  };
   const auto weights = robustWeights(clusters, pose, options);
   const Eigen::Isometry3d T = pose.isometry();
-  double offset_sum = 0.0, tilt_sum = 0.0;
-  int views = 0;
+  std::vector<ViewTerms> views;
+  std::vector<double> distances;
   for (size_t c = 0; c < clusters.size(); ++c) {
     const Cluster& cl = clusters[c];
     if (!cl.plane) continue;
@@ -405,19 +421,54 @@ PlaneErrorModel estimatePlaneErrorModel(const std::vector<Cluster>& clusters, co
     if (!(m.W > 0.0) || !(m.lambda(1) > 0.0)) continue;
     const double s2 = pointVariance(m);
     const double ro = residualOf(cl, T, pose.s, m.mean);
-    offset_sum += ro * ro - s2 / m.W;
+    ViewTerms v{};
+    v.f = (T * m.mean).norm();  // distance for now, the factor below
+    v.s2_offset = s2 / m.W;
+    v.offset_sq = ro * ro;
     for (int k = 1; k < 3; ++k) {
       const double tilt = cl.normal.dot(T.linear() * m.axes.col(k));
-      tilt_sum += tilt * tilt - s2 / m.lambda(k);
+      v.s2_tilt[k - 1] = s2 / m.lambda(k);
+      v.tilt_sq[k - 1] = tilt * tilt;
     }
-    ++views;
+    distances.push_back(v.f);
+    views.push_back(v);
   }
   PlaneErrorModel model;
-  if (views <= kPoseDofPerKind) return model;
+  if (views.size() <= kPoseDofPerKind) return model;
+  std::nth_element(distances.begin(), distances.begin() + distances.size() / 2, distances.end());
+  model.distance_power = distance_power;
+  model.reference_distance_m = distances[distances.size() / 2];
+  double offset_sum = 0.0, tilt_sum = 0.0;
+  for (ViewTerms& v : views) {
+    v.f = std::pow(v.f / model.reference_distance_m, distance_power);
+    offset_sum += (v.offset_sq - v.s2_offset) / v.f;
+    for (int k = 0; k < 2; ++k) tilt_sum += (v.tilt_sq[k] - v.s2_tilt[k]) / v.f;
+  }
+  const double n = static_cast<double>(views.size());
   model.enabled = true;
-  model.offset_var = std::max(offset_sum / (views - kPoseDofPerKind), 0.0);
-  model.tilt_var = std::max(tilt_sum / (2.0 * views - kPoseDofPerKind), 0.0);
+  model.offset_var = std::max(offset_sum / (n - kPoseDofPerKind), 0.0);
+  model.tilt_var = std::max(tilt_sum / (2.0 * n - kPoseDofPerKind), 0.0);
+  *nll = 0.0;
+  for (const ViewTerms& v : views) {
+    const double vo = v.f * model.offset_var + v.s2_offset;
+    *nll += std::log(vo) + v.offset_sq / vo;
+    for (int k = 0; k < 2; ++k) {
+      const double vt = v.f * model.tilt_var + v.s2_tilt[k];
+      *nll += std::log(vt) + v.tilt_sq[k] / vt;
+    }
+  }
   return model;
+}
+
+// The better (by likelihood) of a distance-independent camera plane error and one growing as a
+// PnP's (distance^4 in variance).
+PlaneErrorModel choosePlaneErrorModel(const std::vector<Cluster>& clusters, const Pose& pose,
+                                      const SolverOptions& options) {
+  constexpr double kPnpDistancePower = 4.0;
+  double nll_flat = 0.0, nll_pnp = 0.0;
+  const PlaneErrorModel flat = estimatePlaneErrorModel(clusters, pose, options, 0.0, &nll_flat);
+  const PlaneErrorModel pnp = estimatePlaneErrorModel(clusters, pose, options, kPnpDistancePower, &nll_pnp);
+  return pnp.enabled && nll_pnp < nll_flat ? pnp : flat;
 }
 
 // The covariance of the final problem (the clusters with the robust weights at the final pose,
@@ -822,7 +873,7 @@ CalibrationSolution calibrate(const std::vector<View>& views, Method method, con
     // Then weight each view's offset and tilts by the camera plane error estimated from the
     // residuals (a few rounds: the estimate and the pose settle together).
     for (int round = 0; ok && options.ppc_plane_error_model && round < kPlaneErrorRounds; ++round) {
-      plane_model = estimatePlaneErrorModel(final_terms, pose, options);
+      plane_model = choosePlaneErrorModel(final_terms, pose, options);
       if (!plane_model.enabled) break;
       outcome = solveStage(final_terms, false, options, false, &pose, plane_model);
       sol.iterations += outcome.iterations;
@@ -833,7 +884,10 @@ CalibrationSolution calibrate(const std::vector<View>& views, Method method, con
       note.precision(3);
       note << "PPC views weighted by the camera plane error estimated from the residuals: offset "
            << 1000.0 * std::sqrt(plane_model.offset_var) << " mm, tilt " << std::sqrt(plane_model.tilt_var) * kDegPerRad
-           << " deg per axis (1 sigma)";
+           << " deg per axis (1 sigma"
+           << (plane_model.distance_power > 0.0
+                   ? ", at " + std::to_string(plane_model.reference_distance_m).substr(0, 4) + " m, growing with distance^2)"
+                   : ", the same for every view)");
       sol.notes.push_back(note.str());
     }
   } else {
