@@ -76,6 +76,41 @@ Eigen::Vector2d intersect(const Eigen::Vector3d& l1, const Eigen::Vector3d& l2) 
   return p.head<2>() / p.z();
 }
 
+// PnP by Gauss-Newton on the reprojection error of the board corners, from a start near the
+// optimum (the true pose): the pose the detector's PnP (IPPE + LM) converges to.
+Eigen::Isometry3d refinePnp(const std::array<Eigen::Vector3d, 4>& object, const std::array<Eigen::Vector2d, 4>& image,
+                            const Eigen::Matrix3d& K, Eigen::Isometry3d T) {
+  constexpr int kIterations = 20;
+  constexpr double kStep = 1e-7;  // numerical derivative step, rad / m
+  auto residuals = [&](const Eigen::Isometry3d& pose) {
+    Eigen::Matrix<double, 8, 1> r;
+    for (int i = 0; i < 4; ++i) {
+      const Eigen::Vector3d uv = K * (pose * object[i]);
+      r.segment<2>(2 * i) = uv.head<2>() / uv.z() - image[i];
+    }
+    return r;
+  };
+  auto perturbed = [](const Eigen::Isometry3d& pose, const Eigen::Matrix<double, 6, 1>& d) {
+    Eigen::Isometry3d out = pose;
+    out.linear() = expSO3(d.head<3>()) * pose.linear();
+    out.translation() += d.tail<3>();
+    return out;
+  };
+  for (int it = 0; it < kIterations; ++it) {
+    const Eigen::Matrix<double, 8, 1> r = residuals(T);
+    Eigen::Matrix<double, 8, 6> J;
+    for (int k = 0; k < 6; ++k) {
+      Eigen::Matrix<double, 6, 1> d = Eigen::Matrix<double, 6, 1>::Zero();
+      d(k) = kStep;
+      J.col(k) = (residuals(perturbed(T, d)) - r) / kStep;
+    }
+    const Eigen::Matrix<double, 6, 1> step = (J.transpose() * J).ldlt().solve(-J.transpose() * r);
+    T = perturbed(T, step);
+    if (step.norm() < 1e-12) break;
+  }
+  return T;
+}
+
 }  // namespace
 
 std::string SyntheticFeatureOptions::validate() const {
@@ -293,6 +328,24 @@ Expected<SyntheticScene> generateSyntheticViews(const SyntheticFeatureOptions& o
     cam.plane.offset = cam.plane.normal.dot(declared.linear() * Eigen::Vector3d(w / 2, h / 2, 0) * o.declared_size_factor +
                                            declared.translation()) +
                        o.camera_plane_offset_noise_m * normal(rng);
+    if (o.camera_plane_from_pnp) {
+      // corners_px[j] is the image corner named[j] (edges j and j + 1 meet there).
+      std::array<Eigen::Vector3d, 4> object;
+      std::array<Eigen::Vector2d, 4> image;
+      for (int j = 0; j < 4; ++j) {
+        object[j] = board_corners[named[j]] * o.declared_size_factor;
+        image[j] = cam.corners_px[j];
+      }
+      Eigen::Isometry3d start = camera_T_board;
+      start.translation() *= o.declared_size_factor;
+      cam.camera_T_board = refinePnp(object, image, K, start);
+      cam.plane.normal = cam.camera_T_board.linear().col(2);
+      cam.plane.offset = cam.plane.normal.dot(cam.camera_T_board.translation());
+      if (cam.plane.offset < 0) {
+        cam.plane.normal = -cam.plane.normal;
+        cam.plane.offset = -cam.plane.offset;
+      }
+    }
     scene.views.push_back(view);
     scene.camera_T_board.push_back(camera_T_board);
   }
