@@ -75,15 +75,13 @@ TEST(Solvers, SyntheticGeneratorIsConsistent) {
 }
 
 // PPC and PBPC within 0.2 deg / 1 cm of the truth over 10 seeds; PBPC not worse than PPC.
-// PPC's translation is set by the camera plane offsets (3 mm per view here): on seed 7 it is
-// 11.1 mm off, about 3 sigma along its weakest direction by its own covariance (lateral
-// translation), so PPC's translation is held to 1 cm on 9 of the 10 seeds and 1.5 cm on all.
+// (Camera planes from a PnP on the noisy corners; with the earlier distance-free plane noise,
+// PPC's translation on one of the bench's 10 seeds was 11.1 mm off, about 3 sigma along its
+// weakest direction by its own covariance: see docs/BENCHMARKS.md.)
 TEST(Solvers, PpcAndPbpcRecoverGroundTruth) {
   SolverOptions options;
   double ppc_sum = 0.0, pbpc_sum = 0.0;
-  int ppc_translation_within_1cm = 0;
-  constexpr int kSeeds = 10;
-  for (unsigned seed = 1; seed <= kSeeds; ++seed) {
+  for (unsigned seed = 1; seed <= 10; ++seed) {
     const auto scene = makeScene(seed);
     const auto ppc = calibrate(scene.views, Method::kPpc, options);
     const auto pbpc = calibrate(scene.views, Method::kPbpc, options);
@@ -91,8 +89,7 @@ TEST(Solvers, PpcAndPbpcRecoverGroundTruth) {
     ASSERT_TRUE(pbpc.success) << pbpc.reason;
     const Errors e_ppc = errors(ppc, scene.camera_T_lidar), e_pbpc = errors(pbpc, scene.camera_T_lidar);
     EXPECT_LT(e_ppc.rot_deg, 0.2) << "seed " << seed;
-    EXPECT_LT(e_ppc.trans_m, 0.015) << "seed " << seed;
-    ppc_translation_within_1cm += e_ppc.trans_m < 0.01;
+    EXPECT_LT(e_ppc.trans_m, 0.01) << "seed " << seed;
     EXPECT_LT(e_pbpc.rot_deg, 0.2) << "seed " << seed;
     EXPECT_LT(e_pbpc.trans_m, 0.01) << "seed " << seed;
     ppc_sum += e_ppc.trans_m + e_ppc.rot_deg * kRadPerDeg;  // 1 rad ~ 1 m at the board distance
@@ -101,15 +98,15 @@ TEST(Solvers, PpcAndPbpcRecoverGroundTruth) {
     EXPECT_TRUE(pbpc.used_closed_form_init);
     EXPECT_EQ(pbpc.views_used, 30);
   }
-  EXPECT_GE(ppc_translation_within_1cm, kSeeds - 1);
   // Summed over seeds so one lucky PPC draw does not decide it.
   EXPECT_LE(pbpc_sum, ppc_sum);
 }
 
 TEST(Solvers, PpcPlaneErrorModelBeatsPaperWeighting) {
   // The per-view camera plane error model against the paper's per-point 1/p_i weighting, summed
-  // over 10 seeds: better rotation (the tilts are no longer under-weighted); translation about
-  // as good (measured on these 10 seeds: squared errors 0.73 x rotation, 1.00 x translation).
+  // over 10 seeds: better rotation (the tilts are no longer under-weighted) and translation
+  // (measured on these 10 seeds: squared errors 0.23 x rotation, 0.64 x translation; 0.73 x and
+  // 1.00 x with the earlier distance-free camera plane noise).
   SolverOptions model, paper;
   paper.ppc_plane_error_model = false;
   double rot_model = 0, rot_paper = 0, trans_model = 0, trans_paper = 0;
@@ -127,7 +124,7 @@ TEST(Solvers, PpcPlaneErrorModelBeatsPaperWeighting) {
     EXPECT_TRUE(noted);
   }
   EXPECT_LT(rot_model, rot_paper);
-  EXPECT_LT(trans_model, 1.1 * trans_paper);
+  EXPECT_LT(trans_model, trans_paper);
   std::printf("PPC squared errors, plane error model / paper weighting: rotation %.2f, translation %.2f\n",
               rot_model / rot_paper, trans_model / trans_paper);
 }
@@ -229,10 +226,11 @@ TEST(Solvers, RandomInitialisationRobustness) {
   robustness.trials = 100;
   SolverOptions options;
   for (Method m : {Method::kPpc, Method::kPbpc, Method::kMsgPair}) {
-    const auto report = evaluateRandomInitialisation(scene.views, m, options, robustness, scene.camera_T_lidar);
+    // Convergence to the method's own minimum (the solve from the closed-form start) within
+    // 0.5 deg / 2 cm; accuracy against the truth is the other tests' business (MSG pairwise is
+    // 26 mm off the truth on this seed with camera planes from PnP).
+    const auto report = evaluateRandomInitialisation(scene.views, m, options, robustness);
     ASSERT_TRUE(report.success) << report.reason;
-    // The reference is the truth here, so the convergence tolerance (0.5 deg / 2 cm) also
-    // covers each method's own estimation error.
     if (m == Method::kMsgPair)
       EXPECT_GE(report.convergence_rate, 0.95) << methodName(m);
     else
@@ -377,9 +375,14 @@ TEST(Solvers, WeakDirectionDetected) {
   const auto sol = calibrate(scene.views, Method::kPpc, options);
   ASSERT_TRUE(sol.success) << sol.reason;
   EXPECT_FALSE(sol.observability.well_conditioned) << sol.observability.weakest_description;
+  // Two directions are weak here: the rotation about the optical axis (the normals barely
+  // differ) and the translation across it. Which one is weakest depends on the camera plane
+  // noise (PnP planes: the rotation, 1.3 deg; distance-free noise: the translation, 20 mm).
   const Vector6d& v = sol.observability.weakest_direction;
-  EXPECT_GT(v.segment<2>(3).norm(), 0.7) << v.transpose();
-  EXPECT_NE(sol.observability.weakest_description.find("translation"), std::string::npos)
+  const bool rotation_about_z = std::abs(v(2)) > 0.7, translation_across = v.segment<2>(3).norm() > 0.7;
+  EXPECT_TRUE(rotation_about_z || translation_across) << v.transpose();
+  EXPECT_NE(sol.observability.weakest_description.find(rotation_about_z ? "rotation about camera z" : "translation"),
+            std::string::npos)
       << sol.observability.weakest_description;
 }
 
