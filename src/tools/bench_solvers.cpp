@@ -149,10 +149,10 @@ int main(int argc, char** argv) {
   paper_ppc.ppc_plane_error_model = false;
   synth::SyntheticFeatureOptions flat = o;
   flat.camera_plane_from_pnp = false;
-  printAccuracy("ppc plane error model (default), pnp planes", accuracy(Method::kPpc, defaults, seeds, o));
-  printAccuracy("ppc paper 1/p_i weighting, pnp planes", accuracy(Method::kPpc, paper_ppc, seeds, o));
-  printAccuracy("ppc plane error model, distance-free noise", accuracy(Method::kPpc, defaults, seeds, flat));
-  printAccuracy("ppc paper 1/p_i weighting, distance-free noise", accuracy(Method::kPpc, paper_ppc, seeds, flat));
+  printAccuracy("ppc error model (default), pnp planes", accuracy(Method::kPpc, defaults, seeds, o));
+  printAccuracy("ppc 1/p_i (paper), pnp planes", accuracy(Method::kPpc, paper_ppc, seeds, o));
+  printAccuracy("ppc error model, distance-free noise", accuracy(Method::kPpc, defaults, seeds, flat));
+  printAccuracy("ppc 1/p_i (paper), distance-free noise", accuracy(Method::kPpc, paper_ppc, seeds, flat));
   printAccuracy("pbpc, distance-free noise", accuracy(Method::kPbpc, defaults, seeds, flat));
   printAccuracy("msg pairwise, distance-free noise", accuracy(Method::kMsgPair, defaults, seeds, flat));
 

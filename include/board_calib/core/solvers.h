@@ -59,9 +59,11 @@ struct SolverOptions {
 
   /// PPC: after the paper's solve (every point weighted 1/p_i), weight each view's plane offset
   /// and its two tilts by the camera plane error estimated from the residuals (variance
-  /// components; generalised least squares). The points of a view share its camera plane error,
-  /// which the per-point weighting treats as independent noise and so under-weights the tilts
-  /// (measured: worst rotation error over 10 seeds 0.258 -> 0.13 deg, docs/BENCHMARKS.md).
+  /// components; generalised least squares), either the same for every view or growing as a
+  /// PnP's with the distance, whichever is more likely. The points of a view share its camera
+  /// plane error, which the per-point weighting treats as independent noise, so it under-weights
+  /// the tilts and the near views (measured over 10 seeds, PnP planes: worst error 0.372 deg /
+  /// 10.6 mm -> 0.196 deg / 5.2 mm; docs/BENCHMARKS.md). false: the paper's weighting only.
   bool ppc_plane_error_model = true;
 
   PbpcSchedule pbpc_schedule = PbpcSchedule::kSequential;
