@@ -1,6 +1,7 @@
 // Benchmark of the camera board detector: single-threaded detection time per frame on simulated
 // 1920x1200 images (plain board, checkerboard, AprilTag grid) with their corner accuracy.
 // Usage (from the package root): bench_image_detector [--frames N] [--targets DIR (default config/targets)]
+//   [--board plain|checkerboard|apriltag_grid (default all)] [--tag-decimate X] [--tag-sigma PX] [--tag-refine 0|1]
 #include <board_calib/core/image_board_detector.h>
 #include <board_calib/core/sim/simulator.h>
 #include <board_calib/core/transform.h>
@@ -32,24 +33,31 @@ CameraModel benchCamera() {
 
 int main(int argc, char** argv) {
   int frames = 10;
-  std::string targets_dir = "config/targets";
+  std::string targets_dir = "config/targets", only;
+  ImageBoardDetectorOptions options;
   for (int i = 1; i + 1 < argc; ++i) {
     if (std::strcmp(argv[i], "--frames") == 0) frames = std::max(1, std::atoi(argv[i + 1]));
     if (std::strcmp(argv[i], "--targets") == 0) targets_dir = argv[i + 1];
+    if (std::strcmp(argv[i], "--board") == 0) only = argv[i + 1];
+    if (std::strcmp(argv[i], "--tag-decimate") == 0) options.tag_decimate = std::atof(argv[i + 1]);
+    if (std::strcmp(argv[i], "--tag-sigma") == 0) options.tag_sigma = std::atof(argv[i + 1]);
+    if (std::strcmp(argv[i], "--tag-refine") == 0) options.tag_refine_edges = std::atoi(argv[i + 1]) != 0;
   }
   cv::setNumThreads(1);  // single-threaded figures
   const CameraModel camera = benchCamera();
   Eigen::Matrix3d R;
   R << 0, 0, 1, -1, 0, 0, 0, -1, 0;
   const Eigen::Isometry3d world_T_camera = makeTransform(R, Eigen::Vector3d(0, 0, 0.2));
-  std::printf("%-14s %8s %8s %8s %10s %12s\n", "board", "found", "mean_ms", "max_ms", "rms_px", "max_err_px");
+  std::printf("%-14s %8s %8s %8s %10s %12s %14s\n", "board", "found", "mean_ms", "max_ms", "rms_px", "max_err_px",
+              "max_point_px");
   for (const std::string name : {"plain_1016.yaml", "checkerboard_7x5.yaml", "apriltag_grid_4x4.yaml"}) {
     auto target = loadTarget(targets_dir + "/" + name);
     if (!target) {
       std::fprintf(stderr, "%s\n", target.error().c_str());
       return 1;
     }
-    auto detector = ImageBoardDetector::create(*target, ImageBoardDetectorOptions{});
+    if (!only.empty() && only != targetTypeName(target->type)) continue;
+    auto detector = ImageBoardDetector::create(*target, options);
     if (!detector) {
       std::fprintf(stderr, "%s\n", detector.error().c_str());
       return 1;
@@ -59,7 +67,7 @@ int main(int argc, char** argv) {
     scene.room = target->type != TargetType::kPlain;  // see test_image_detector: grey-on-grey room
     std::mt19937 rng(1);
     std::uniform_real_distribution<double> dist(2.0, 5.0), angle(-20, 20);
-    double sum_ms = 0, max_ms = 0, sum_rms = 0, max_err = 0;
+    double sum_ms = 0, max_ms = 0, sum_rms = 0, max_err = 0, max_point_err = 0;
     int found = 0;
     for (int f = 0; f < frames; ++f) {
       const double roll = (target->type == TargetType::kPlain ? 45 : 15) + angle(rng) / 4;
@@ -76,6 +84,11 @@ int main(int argc, char** argv) {
       if (!d.features.found) continue;
       ++found;
       sum_rms += d.features.reprojection_rms_px;
+      for (const auto& o : d.features.pattern) {  // pattern points (checkerboard, tag corners) vs truth
+        Eigen::Vector2d truth;
+        camera.projectUndistorted(camera_T_board * o.board_point, &truth);
+        max_point_err = std::max(max_point_err, (o.pixel - truth).norm());
+      }
       const auto outer = target->outerCorners();
       for (int j = 0; j < 4; ++j) {  // outer corners vs truth (all types report them)
         Eigen::Vector2d truth;
@@ -85,8 +98,8 @@ int main(int argc, char** argv) {
         max_err = std::max(max_err, best);
       }
     }
-    std::printf("%-14s %5d/%-3d %8.1f %8.1f %10.3f %12.3f\n", targetTypeName(target->type), found, frames,
-                sum_ms / frames, max_ms, found ? sum_rms / found : 0.0, max_err);
+    std::printf("%-14s %5d/%-3d %8.1f %8.1f %10.3f %12.3f %14.3f\n", targetTypeName(target->type), found, frames,
+                sum_ms / frames, max_ms, found ? sum_rms / found : 0.0, max_err, max_point_err);
   }
   return 0;
 }
