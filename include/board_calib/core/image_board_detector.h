@@ -46,7 +46,7 @@ struct ImageBoardDetectorOptions {
   int subpix_window_px = 5;               ///< px, half window of cornerSubPix (clamped to the square size)
   // --- AprilTag grid ---
   double tag_decimate = 2.0;              ///< libapriltag quad_decimate (1 = full resolution)
-  double tag_sigma = 0.0;                 ///< px, libapriltag quad_sigma (Gaussian blur before quads)
+  double tag_sigma = 0.8;                 ///< px, libapriltag quad_sigma: blur before quads (its decimation only subsamples: noise makes false quads); decoding uses the sharp image
   int tag_threads = 1;                    ///< libapriltag worker threads
   bool tag_refine_edges = true;           ///< libapriltag refine_edges
   int tag_max_hamming = 1;                ///< bits corrected per tag (0..2; more = more false ids)
