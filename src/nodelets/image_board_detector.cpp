@@ -33,6 +33,7 @@ ImageBoardDetectorOptions optionsFromConfig(const ImageBoardDetectorConfig& c) {
   o.min_solidity = c.min_solidity;
   o.max_flat_gradient = c.max_flat_gradient;
   o.max_interior_texture = c.max_interior_texture;
+  o.max_board_candidates = c.max_board_candidates;
   o.border_margin_px = c.border_margin;
   o.coarse_search_px = c.coarse_search;
   o.fine_search_px = c.fine_search;

@@ -264,5 +264,57 @@ TEST(ImageDetectorSim, PlainBoardEdgeAlongBorderIsNotAnEdge) {
   EXPECT_TRUE(d.features.found) << d.features.reason;
 }
 
+
+// Plain board in the simulator's textured room (grey flat panels, tiles, a person behind the
+// board): the board must be found in most frames where it is largely visible, as in
+// config/scenarios/plain_*.yaml (1.5-6 m, held as a diamond, tilted both ways).
+TEST(ImageDetectorSim, PlainBoardInTexturedRoom) {
+  const CameraModel camera = testCamera();
+  const Target target = configTarget("plain_1016.yaml");
+  auto det = ImageBoardDetector::create(target, ImageBoardDetectorOptions{});
+  ASSERT_TRUE(det.ok()) << det.error();
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> distance(1.5, 6.0), unit(-1.0, 1.0);
+  constexpr int kFrames = 30;
+  int visible = 0, found = 0, edges_checked = 0, edges_off = 0;
+  for (int i = 0; i < kFrames; ++i) {
+    const double z = distance(rng);
+    const Eigen::Vector3d centre(0.3 * z * unit(rng), 0.15 * z * unit(rng), z);
+    const Eigen::Isometry3d truth = cameraTBoard(target, centre, 45 + 10 * unit(rng), 30 * unit(rng), 25 * unit(rng));
+    const Rendered r = render(camera, target, truth, rng);
+    // Visible part: fraction of a 21x21 grid of board points inside the image.
+    int inside = 0;
+    for (int a = 0; a <= 20; ++a)
+      for (int b = 0; b <= 20; ++b)
+        inside += insideImage(camera, projectTruth(truth, Eigen::Vector3d(target.width * a / 20, target.height * b / 20, 0), camera));
+    const double fraction = inside / 441.0;
+    const ImageDetection d = det->detect(r.image, camera);
+    writeDebug("sim_plain_room_" + std::to_string(i), r.image, camera, d);
+    if (fraction < 0.7) continue;
+    ++visible;
+    found += d.features.found;
+    double worst_px = 0;  // found edges vs truth at the true edge midpoint
+    const auto outer = target.outerCorners();
+    for (int j = 0; j < kNumEdges && d.features.found; ++j) {
+      const Eigen::Vector2d mid = 0.5 * (projectTruth(truth, outer[(j + 3) % 4], camera) + projectTruth(truth, outer[j], camera));
+      const Eigen::Vector3d& l = d.features.edge_lines[j];
+      const double off = std::abs(l.head<2>().dot(mid) + l.z());
+      ++edges_checked;
+      edges_off += off > 1.0;
+      worst_px = std::max(worst_px, off);
+    }
+    std::printf("room frame %2d: %.1f m, visible %.2f, found %d, worst edge %.2f px, rms %.2f %s\n", i, z, fraction,
+                d.features.found, worst_px, d.features.reprojection_rms_px, d.features.reason.c_str());
+  }
+  std::printf("textured room: found %d of %d frames with >= 70 %% of the board visible; %d of %d edges off by > 1 px\n",
+              found, visible, edges_off, edges_checked);
+  // Measured 21 of 30 (before trying more than the best-scored region: 0 of 30, the bright
+  // ceiling cut by the image border won). The misses are boards whose top corner reaches the
+  // ceiling (board and ceiling differ by ~5 grey levels: one merged region) and boards at 1.6 m
+  // with an edge shorter than min_edge_length_px. A found board must never be a wrong one.
+  EXPECT_GE(found, visible * 2 / 3);
+  EXPECT_EQ(edges_off, 0);
+}
+
 }  // namespace
 }  // namespace board_calib

@@ -31,6 +31,7 @@ struct ImageBoardDetectorOptions {
   double min_solidity = 0.90;             ///< board region area / convex hull area (a board is convex)
   double max_flat_gradient = 10.0;        ///< grey levels (3x3 max - min, downscaled): below it a pixel is in a flat area
   double max_interior_texture = 0.35;     ///< interior grey stddev / board-background contrast (a board is uniform)
+  int max_board_candidates = 4;           ///< board-like regions tried, best score first, until one gives a complete board
   double border_margin_px = 3.0;          ///< px; edge pixels closer than this to the image border are not board edges
   double coarse_search_px = 10.0;         ///< px, half width of the first edge search around the coarse outline
   double fine_search_px = 3.0;            ///< px, half width of the refinement search around the fitted line

@@ -22,6 +22,7 @@ std::string ImageBoardDetectorOptions::validate() const {
   if (!(min_solidity > 0 && min_solidity <= 1)) return "min_solidity must be in (0, 1]";
   if (!(max_flat_gradient > 0)) return "max_flat_gradient must be > 0";
   if (!(max_interior_texture > 0)) return "max_interior_texture must be > 0";
+  if (max_board_candidates < 1) return "max_board_candidates must be >= 1";
   if (!(border_margin_px >= 0)) return "border_margin_px must be >= 0";
   if (!(coarse_search_px >= fine_search_px && fine_search_px >= 1)) return "need coarse_search_px >= fine_search_px >= 1";
   if (!(sample_step_px >= 0.5)) return "sample_step_px must be >= 0.5";

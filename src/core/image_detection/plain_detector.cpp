@@ -44,14 +44,14 @@ struct Candidate {
 // Scores one proposed region: a board is large, convex and uniform, and differs from its
 // surroundings. Returns false (with the rejection) when it is not board-like.
 bool scoreRegion(const std::vector<cv::Point>& contour, const cv::Mat& blurred, const ImageBoardDetectorOptions& o,
-                 Candidate* best, std::string* rejection) {
+                 Candidate* candidate, std::string* rejection) {
   static const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5));
   const double area = cv::contourArea(contour);
   std::vector<cv::Point> hull;
   cv::convexHull(contour, hull);
   const double solidity = area / std::max(1.0, cv::contourArea(hull));
   if (solidity < o.min_solidity) {
-    *rejection = cv::format("largest region not convex (solidity %.2f < %.2f)", solidity, o.min_solidity);
+    *rejection = cv::format("region not convex (solidity %.2f < %.2f)", solidity, o.min_solidity);
     return false;
   }
   const cv::Rect box = cv::boundingRect(hull);
@@ -78,17 +78,15 @@ bool scoreRegion(const std::vector<cv::Point>& contour, const cv::Mat& blurred, 
     *rejection = cv::format("region not uniform (texture %.2f > %.2f)", texture, o.max_interior_texture);
     return false;
   }
-  const double score = area * std::pow(solidity, 4) / (1.0 + texture);
-  if (score > best->score) {
-    best->score = score;
-    best->contour = std::move(hull);
-  }
+  candidate->score = area * std::pow(solidity, 4) / (1.0 + texture);
+  candidate->contour = std::move(hull);
   return true;
 }
 
-// Finds the board region. Proposals come from brightness (Otsu, both polarities) and, failing
-// those, from uniformity (connected low-gradient areas); convexity, uniformity and size decide.
-bool segmentBoard(const cv::Mat& small, const ImageBoardDetectorOptions& o, Candidate* best, std::string* reason) {
+// Proposes board regions, best first. Proposals come from brightness (Otsu, both polarities) and
+// uniformity (connected low-gradient areas: they separate a board from an equally bright
+// neighbour, e.g. a ceiling, across a faint edge); convexity, uniformity and size decide.
+std::vector<Candidate> segmentBoard(const cv::Mat& small, const ImageBoardDetectorOptions& o, std::string* reason) {
   cv::Mat blurred, bright, gradient, flat;
   cv::GaussianBlur(small, blurred, cv::Size(5, 5), 0);
   cv::threshold(blurred, bright, 0, 255, cv::THRESH_BINARY | cv::THRESH_OTSU);
@@ -101,11 +99,9 @@ bool segmentBoard(const cv::Mat& small, const ImageBoardDetectorOptions& o, Cand
   const cv::Mat wide_kernel = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(kFlatOpeningPx, kFlatOpeningPx));
   int proposals = 0;
   std::string last_rejection = "no region large enough";
-  // Brightness classes first; flat (uniform) areas only when no brightness class gives a
-  // board-like region (a board as bright as its background on several sides).
+  std::vector<Candidate> candidates;
   for (const cv::Mat& proposal : {bright, cv::Mat(255 - bright), flat}) {
     const bool is_flat = proposal.data == flat.data;
-    if (is_flat && best->score > 0) break;
     cv::Mat mask;
     cv::morphologyEx(proposal, mask, cv::MORPH_OPEN, is_flat ? wide_kernel : kernel);
     // A flat area stops where the blurred edge starts to rise: grow it back to the edge itself.
@@ -115,14 +111,14 @@ bool segmentBoard(const cv::Mat& small, const ImageBoardDetectorOptions& o, Cand
     for (auto& contour : contours) {
       if (cv::contourArea(contour) < min_area) continue;
       ++proposals;
-      scoreRegion(contour, blurred, o, best, &last_rejection);
+      Candidate c;
+      if (scoreRegion(contour, blurred, o, &c, &last_rejection)) candidates.push_back(std::move(c));
     }
   }
-  if (best->score <= 0) {
+  std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
+  if (candidates.empty())
     *reason = proposals == 0 ? "board not found: no region large enough" : "board not found: " + last_rejection;
-    return false;
-  }
-  return true;
+  return candidates;
 }
 
 struct CoarseEdge {
@@ -347,29 +343,18 @@ EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseE
   return fit;
 }
 
-}  // namespace
-
-void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& target,
-                 const ImageBoardDetectorOptions& o, ImageDetection* out) {
+// Fits the board edges, corners and pose to one proposed region; false (reason in f) when it is
+// not a complete board.
+bool fitCandidate(const cv::Mat& gray, const CameraModel& camera, const Target& target, const ImageBoardDetectorOptions& o,
+                  const Candidate& board, double sx, cv::Size small_size, ImageDetection* out) {
   CameraBoardFeatures& f = out->features;
   ImageDetectionDetails& d = out->details;
-  const double scale = std::max(1.0, static_cast<double>(gray.cols) / o.segmentation_width_px);
-  cv::Mat small;
-  if (scale > 1.0)
-    cv::resize(gray, small, cv::Size(static_cast<int>(std::lround(gray.cols / scale)),
-                                      static_cast<int>(std::lround(gray.rows / scale))),
-               0, 0, cv::INTER_AREA);
-  else
-    small = gray;
-  const double sx = static_cast<double>(gray.cols) / small.cols;
-  Candidate board;
-  if (!segmentBoard(small, o, &board, &f.reason)) return;
   for (const auto& p : board.contour) d.outline_raw.emplace_back((p.x + 0.5) * sx - 0.5, (p.y + 0.5) * sx - 0.5);
   Eigen::Vector2d centroid;
-  const std::vector<CoarseEdge> sides = coarseEdges(board.contour, sx, small.size(), o, &centroid);
+  const std::vector<CoarseEdge> sides = coarseEdges(board.contour, sx, small_size, o, &centroid);
   if (sides.size() < 2) {
     f.reason = "board not found: " + std::to_string(sides.size()) + " straight board edge(s) in the outline";
-    return;
+    return false;
   }
   std::vector<double> angles, weights;
   for (const auto& s : sides) {
@@ -395,14 +380,14 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     if (f.edge_valid[j] && f.edge_valid[(j + 1) % 4] &&
         !intersectLines(f.edge_lines[j], f.edge_lines[(j + 1) % 4], &f.corners_px[j])) {
       f.reason = std::string("board not found: edges ") + edgeName(j) + " and " + edgeName((j + 1) % 4) + " are parallel";
-      return;
+      return false;
     }
   if (valid < kNumEdges) {
     std::string why;
     for (int j = 0; j < kNumEdges; ++j)
       if (!f.edge_valid[j]) why += std::string(why.empty() ? "" : "; ") + edgeName(j) + ": " + d.edge_reason[j];
     f.reason = "board edges missing (" + std::to_string(valid) + " of 4 valid): " + why;
-    return;
+    return false;
   }
   // The four corners must form a convex quadrilateral in clockwise image order with sides of a
   // usable length; otherwise the edges were mislabelled or belong to something else.
@@ -411,11 +396,11 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     const Eigen::Vector2d e2 = f.corners_px[(j + 2) % 4] - f.corners_px[(j + 1) % 4];
     if (e1.x() * e2.y() - e1.y() * e2.x() <= 0) {
       f.reason = "board not found: edge lines do not form a convex quadrilateral";
-      return;
+      return false;
     }
     if (e1.norm() < o.min_board_size_px) {
       f.reason = cv::format("board too small: side %.0f px", e1.norm());
-      return;
+      return false;
     }
   }
   const auto outer = target.outerCorners();
@@ -424,7 +409,7 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
   const PoseFit pose = fitPose(obj, img, f.K, o.pixel_sigma_px);
   if (!pose.ok) {
     f.reason = pose.reason;
-    return;
+    return false;
   }
   f.camera_T_board = pose.camera_T_board;
   f.plane = planeFromPose(pose.camera_T_board);
@@ -434,9 +419,44 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
   if (pose.rms_px > o.max_plain_corner_rms_px) {
     f.reason = cv::format("corners do not fit a %.3f x %.3f m board (rms %.2f px)", target.width, target.height,
                           pose.rms_px);
-    return;
+    return false;
   }
   f.found = true;
+  return true;
+}
+
+}  // namespace
+
+void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& target,
+                 const ImageBoardDetectorOptions& o, ImageDetection* out) {
+  const double scale = std::max(1.0, static_cast<double>(gray.cols) / o.segmentation_width_px);
+  cv::Mat small;
+  if (scale > 1.0)
+    cv::resize(gray, small, cv::Size(static_cast<int>(std::lround(gray.cols / scale)),
+                                      static_cast<int>(std::lround(gray.rows / scale))),
+               0, 0, cv::INTER_AREA);
+  else
+    small = gray;
+  const double sx = static_cast<double>(gray.cols) / small.cols;
+  const std::vector<Candidate> candidates = segmentBoard(small, o, &out->features.reason);
+  // The best-scored region is not always the board (a bright ceiling cut by the image border, a
+  // board merged with an equally bright neighbour): try the next ones. When none is a complete
+  // board, report the attempt that got furthest (most valid edges, then the better score).
+  const ImageDetection fresh = *out;
+  int best_valid = -1;
+  for (size_t i = 0; i < candidates.size() && i < static_cast<size_t>(o.max_board_candidates); ++i) {
+    ImageDetection attempt = fresh;
+    if (fitCandidate(gray, camera, target, o, candidates[i], sx, small.size(), &attempt)) {
+      *out = std::move(attempt);
+      return;
+    }
+    int valid = 0;
+    for (int j = 0; j < kNumEdges; ++j) valid += attempt.features.edge_valid[j];
+    if (valid > best_valid) {
+      best_valid = valid;
+      *out = std::move(attempt);
+    }
+  }
 }
 
 }  // namespace image_detection
