@@ -2,7 +2,7 @@
 //  * basler_os1_plain: plain board held as a diamond and cut by the image border; lines compared
 //    with independent reference lines (../shared/tools/mlre/ref_basler_os1_plain, never used by
 //    the detector);
-//  * left_vlp32_checker: 9x6 checkerboard, every frame, reprojection RMS < 0.3 px.
+//  * left_vlp32_checker: 9x6 checkerboard, every frame (issue target RMS < 0.3 px: see the test).
 // Set BOARD_CALIB_DEBUG_DIR to write the debug images there.
 #include <board_calib/bag_reader.h>
 #include <board_calib/core/image_board_detector.h>
@@ -105,7 +105,8 @@ TEST(ImageDetectorReal, PlainBoardBaslerOs1) {
       RecordProperty("frame" + std::to_string(i) + "_" + edgeName(j) + "_dist_px", std::to_string(dist));
       if (dist > 1.0) ADD_FAILURE() << "frame " << i << " edge " << edgeName(j) << " is " << dist << " px from the reference";
     }
-    std::printf("frame %2zu: found %d edges %d%d%d%d rms_edges %.2f %.2f %.2f %.2f  %.1f ms  %s\n", i, f.found,
+    std::printf("frame %2zu: found %d corner rms %.2f px, edges %d%d%d%d rms_edges %.2f %.2f %.2f %.2f  %.1f ms  %s\n", i,
+                f.found, f.reprojection_rms_px,
                 f.edge_valid[0], f.edge_valid[1], f.edge_valid[2], f.edge_valid[3], d.details.edge_rms_px[0],
                 d.details.edge_rms_px[1], d.details.edge_rms_px[2], d.details.edge_rms_px[3], d.details.time_ms,
                 f.reason.c_str());
@@ -127,17 +128,25 @@ TEST(ImageDetectorReal, CheckerboardLeftVlp32) {
   auto det = ImageBoardDetector::create(*target, ImageBoardDetectorOptions{});
   ASSERT_TRUE(det.ok()) << det.error();
   double worst_rms = 0;
+  int below_target = 0;
   std::vector<double> rms;
   for (size_t i = 0; i < s.frames.size(); ++i) {
     const ImageDetection d = det->detect(s.frames[i].image, *s.camera);
     writeDebug("checker_" + std::to_string(i), s.frames[i].image, *s.camera, d);
     const CameraBoardFeatures& f = d.features;
     ASSERT_TRUE(f.found) << "frame " << i << ": " << f.reason;
-    // Issue target was RMS < 0.3 px on every frame; measured 0.15-0.55 px. The residual is the
-    // print itself (a plastic-covered sheet that bows): cornerSubPix windows 3-9 px and OpenCV's
-    // findChessboardCornersSB give the same worst frame (0.53-0.56 px). Bound it at 0.6 px and
-    // the median at 0.35 px so a regression in corner accuracy still fails.
-    EXPECT_LT(f.reprojection_rms_px, 0.6) << "frame " << i;
+    // Issue target was RMS < 0.3 px on every frame; measured median 0.29, worst 0.55 px, 18 of 32
+    // frames below 0.3 px. The residual is the board, not the corner finder: cornerSubPix windows
+    // 3-11 px, a second pass, the green channel alone (against the lens's colour fringes) and
+    // findChessboardCornersSB (EXHAUSTIVE | ACCURACY, 2.8 s a frame) give median 0.29 and worst
+    // 0.53-0.56 px, and the corner sets agree to 0.15 px RMS; PnP with the distortion model on raw
+    // corners gives the same RMS as PnP on undistorted corners, and scaling f or the aspect ratio
+    // by up to 3 % changes it by < 0.03 px. Even a free homography (8 dof) leaves median 0.24,
+    // worst 0.45 px, and a cubic warp (20 dof) 0.22 / 0.39 px: the corners deviate from any smooth
+    // plane-to-image map by ~1 mm (the print wrinkles under its plastic cover, ~3 mm per px here).
+    // Bounds with a small margin so a regression in corner accuracy fails.
+    EXPECT_LT(f.reprojection_rms_px, 0.58) << "frame " << i;
+    below_target += f.reprojection_rms_px < 0.3;
     worst_rms = std::max(worst_rms, f.reprojection_rms_px);
     rms.push_back(f.reprojection_rms_px);
     EXPECT_EQ(f.pattern.size(), 54u);
@@ -147,9 +156,10 @@ TEST(ImageDetectorReal, CheckerboardLeftVlp32) {
     EXPECT_GT(f.plane.offset, 0.5) << "frame " << i;
   }
   std::nth_element(rms.begin(), rms.begin() + rms.size() / 2, rms.end());
-  std::printf("checkerboard: median reprojection rms %.3f px, worst %.3f px over 32 frames\n", rms[rms.size() / 2],
-              worst_rms);
-  EXPECT_LT(rms[rms.size() / 2], 0.35);
+  std::printf("checkerboard: median reprojection rms %.3f px, worst %.3f px over 32 frames, %d below 0.3 px\n",
+              rms[rms.size() / 2], worst_rms, below_target);
+  EXPECT_LT(rms[rms.size() / 2], 0.31);
+  EXPECT_GE(below_target, 16);
 }
 
 }  // namespace
