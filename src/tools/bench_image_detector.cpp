@@ -2,6 +2,7 @@
 // 1920x1200 images (plain board, checkerboard, AprilTag grid) with their corner accuracy.
 // Usage (from the package root): bench_image_detector [--frames N] [--targets DIR (default config/targets)]
 //   [--board plain|checkerboard|apriltag_grid (default all)] [--tag-decimate X] [--tag-sigma PX] [--tag-refine 0|1]
+//   [--per-frame]
 #include <board_calib/core/image_board_detector.h>
 #include <board_calib/core/sim/simulator.h>
 #include <board_calib/core/transform.h>
@@ -35,6 +36,8 @@ int main(int argc, char** argv) {
   int frames = 10;
   std::string targets_dir = "config/targets", only;
   ImageBoardDetectorOptions options;
+  bool per_frame = false;
+  for (int i = 1; i < argc; ++i) per_frame |= std::strcmp(argv[i], "--per-frame") == 0;
   for (int i = 1; i + 1 < argc; ++i) {
     if (std::strcmp(argv[i], "--frames") == 0) frames = std::max(1, std::atoi(argv[i + 1]));
     if (std::strcmp(argv[i], "--targets") == 0) targets_dir = argv[i + 1];
@@ -80,6 +83,7 @@ int main(int argc, char** argv) {
                                                    sim::RenderOptions(), rng);
       const ImageDetection d = detector->detect(image, camera);
       sum_ms += d.details.time_ms;
+      if (per_frame) std::printf("  frame %d: %.1f ms\n", f, d.details.time_ms);
       max_ms = std::max(max_ms, d.details.time_ms);
       if (!d.features.found) continue;
       ++found;
