@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -130,20 +131,27 @@ TEST(Solvers, PpcPlaneErrorModelBeatsPaperWeighting) {
 }
 
 TEST(Solvers, MsgPairwiseRecoversGroundTruth) {
+  // The target is 0.5 deg / 2 cm; with the offsets compared at the boards and the views
+  // weighted by distance it holds with a factor of two to spare on every seed (camera planes
+  // from PnP; seed 21 was 26 mm with the offsets compared at the sensor origins).
   SolverOptions options;
-  for (unsigned seed : {1u, 2u, 3u}) {
+  double worst_rot = 0.0, worst_trans = 0.0;
+  for (unsigned seed : {1u, 2u, 3u, 4u, 5u, 6u, 7u, 8u, 9u, 10u, 21u}) {
     const auto scene = makeScene(seed);
     const auto msg = calibrate(scene.views, Method::kMsgPair, options);
     ASSERT_TRUE(msg.success) << msg.reason;
     const Errors e = errors(msg, scene.camera_T_lidar);
-    EXPECT_LT(e.rot_deg, 0.5) << "seed " << seed;
-    EXPECT_LT(e.trans_m, 0.02) << "seed " << seed;
+    EXPECT_LT(e.rot_deg, 0.25) << "seed " << seed;
+    EXPECT_LT(e.trans_m, 0.01) << "seed " << seed;
+    worst_rot = std::max(worst_rot, e.rot_deg);
+    worst_trans = std::max(worst_trans, e.trans_m);
     // Quality figures as for the other methods (edges are not used by MSG, only measured).
     EXPECT_TRUE(msg.mlre_px.has_value());
     EXPECT_GT(msg.line_rms_mm, 0.0);
     EXPECT_GT(msg.plane_rms_mm, 0.0);
     EXPECT_TRUE(msg.covariance.allFinite());
   }
+  std::printf("MSG pairwise, worst over 11 seeds: %.3f deg, %.1f mm\n", worst_rot, 1000.0 * worst_trans);
 }
 
 TEST(Solvers, PlaneToPlaneBetweenTwoLidars) {
@@ -228,7 +236,8 @@ TEST(Solvers, RandomInitialisationRobustness) {
   for (Method m : {Method::kPpc, Method::kPbpc, Method::kMsgPair}) {
     // Convergence to the method's own minimum (the solve from the closed-form start) within
     // 0.5 deg / 2 cm; accuracy against the truth is the other tests' business (MSG pairwise is
-    // 26 mm off the truth on this seed with camera planes from PnP).
+    // 7.6 mm off the truth on this seed with camera planes from PnP; 26 mm before its offsets
+    // were compared at the boards).
     const auto report = evaluateRandomInitialisation(scene.views, m, options, robustness);
     ASSERT_TRUE(report.success) << report.reason;
     if (m == Method::kMsgPair)

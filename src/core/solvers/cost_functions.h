@@ -102,29 +102,45 @@ class NormalAlignmentCost {
   const double weight_;
 };
 
-// MSG pairwise plane distance: plane b {n_b . x = d_b} mapped into a has offset
-// d_b + n_a . t (with n_a = R n_b), which must equal d_a:
-//   r = n_a . t + d_b - d_a          [m]
-class PlaneOffsetCost {
+// MSG pairwise plane distance, measured at the boards. c_a and c_b are points of the board in
+// each sensor's frame where that sensor's plane is best determined (camera: the centre of the
+// PnP data; LiDAR: the centroid of the board points), each on its own plane. The gap between
+// plane a and plane b mapped into a, {(q n_b) . x = d_b + (q n_b) . t}, is taken at their
+// midpoint p = (c_a + q c_b + t) / 2:
+//   r = w ((n_a . p - d_a) - ((q n_b) . (p - t) - d_b))      [m, w = 1 unless whitened per view]
+// = m . t + d_b - d_a + (n_a - q n_b) . (c_a + q c_b) / 2,   m = (n_a + q n_b) / 2.
+// At the origin (c_a = c_b = 0) it is the offset difference m . t + d_b - d_a, whose error is
+// each plane's normal error times the board distance; at the boards it is the two planes'
+// offset errors there, independent of the normal errors that the normal term already carries.
+class PlaneGapCost {
  public:
-  PlaneOffsetCost(const Eigen::Vector3d& normal_a, double offset_a, double offset_b)
-      : normal_a_(normal_a), offset_a_(offset_a), offset_b_(offset_b) {}
+  PlaneGapCost(const Eigen::Vector3d& normal_a, double offset_a, const Eigen::Vector3d& point_a,
+               const Eigen::Vector3d& normal_b, double offset_b, const Eigen::Vector3d& point_b, double weight)
+      : normal_a_(normal_a), point_a_(point_a), normal_b_(normal_b), point_b_(point_b), offset_a_(offset_a),
+        offset_b_(offset_b), weight_(weight) {}
 
   template <typename T>
-  bool operator()(const T* const t_ptr, T* residual) const {
+  bool operator()(const T* const q_ptr, const T* const t_ptr, T* residual) const {
+    const Eigen::Map<const Eigen::Quaternion<T>> q(q_ptr);
     const Eigen::Map<const Eigen::Matrix<T, 3, 1>> t(t_ptr);
-    residual[0] = normal_a_.cast<T>().dot(t) + T(offset_b_ - offset_a_);
+    const Eigen::Matrix<T, 3, 1> na = normal_a_.cast<T>();
+    const Eigen::Matrix<T, 3, 1> nb = q * normal_b_.cast<T>();
+    const Eigen::Matrix<T, 3, 1> p = (point_a_.cast<T>() + q * point_b_.cast<T>() + t) * T(0.5);
+    residual[0] = T(weight_) * ((na.dot(p) - T(offset_a_)) - (nb.dot(p - t) - T(offset_b_)));
     return true;
   }
 
-  static ceres::CostFunction* Create(const Eigen::Vector3d& normal_a, double offset_a, double offset_b) {
-    return new ceres::AutoDiffCostFunction<PlaneOffsetCost, 1, 3>(new PlaneOffsetCost(normal_a, offset_a, offset_b));
+  static ceres::CostFunction* Create(const Eigen::Vector3d& normal_a, double offset_a, const Eigen::Vector3d& point_a,
+                                     const Eigen::Vector3d& normal_b, double offset_b, const Eigen::Vector3d& point_b,
+                                     double weight = 1.0) {
+    return new ceres::AutoDiffCostFunction<PlaneGapCost, 1, 4, 3>(
+        new PlaneGapCost(normal_a, offset_a, point_a, normal_b, offset_b, point_b, weight));
   }
 
  private:
-  const Eigen::Vector3d normal_a_;
-  const double offset_a_;
-  const double offset_b_;
+  const Eigen::Vector3d normal_a_, point_a_, normal_b_, point_b_;
+  const double offset_a_, offset_b_;
+  const double weight_;
 };
 
 }  // namespace solvers_detail

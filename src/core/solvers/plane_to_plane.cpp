@@ -15,13 +15,27 @@ namespace {
 
 constexpr int kMinCorrespondences = 3;  // three non-coplanar planes fix the translation
 constexpr double kUnitTolerance = 1e-3;
+// Per-view weights: a view's distance counts at least this fraction of the RMS distance (no
+// runaway weight for a board next to the sensor).
+constexpr double kMinRelativeDistance = 0.2;
 
 bool validPlane(const Plane& p) {
   return p.normal.allFinite() && std::isfinite(p.offset) && std::abs(p.normal.norm() - 1.0) <= kUnitTolerance;
 }
 
+using solvers_detail::BoardPointPair;
+
+// The board point of correspondence k (the origins when none are given).
+BoardPointPair pointsOf(const std::vector<BoardPointPair>& points, size_t k) {
+  return points.empty() ? BoardPointPair() : points[k];
+}
+
 // Checks the correspondences; empty when solvable.
-std::string checkCorrespondences(const std::vector<PlaneCorrespondence>& c, const SolverOptions& options) {
+std::string checkCorrespondences(const std::vector<PlaneCorrespondence>& c, const std::vector<BoardPointPair>& points,
+                                 const SolverOptions& options) {
+  if (!points.empty() && points.size() != c.size())
+    return std::to_string(points.size()) + " board point pairs for " + std::to_string(c.size()) +
+           " plane correspondences";
   if (c.size() < static_cast<size_t>(kMinCorrespondences))
     return "only " + std::to_string(c.size()) + " plane correspondence(s); MSG pairwise needs >= " +
            std::to_string(kMinCorrespondences) + " non-coplanar board poses";
@@ -32,6 +46,9 @@ std::string checkCorrespondences(const std::vector<PlaneCorrespondence>& c, cons
              ") has a non-finite plane or a non-unit normal";
     if (!std::isfinite(c[i].weight) || c[i].weight <= 0.0)
       return "plane correspondence " + std::to_string(i) + " has a non-positive weight";
+    if (!pointsOf(points, i).in_a.allFinite() || !pointsOf(points, i).in_b.allFinite())
+      return "plane correspondence " + std::to_string(i) + " (view " + std::to_string(c[i].view_id) +
+             ") has a non-finite board point";
     normals.push_back(c[i].in_a.normal);
   }
   const double parallel = solvers_detail::normalSpreadDeg(normals, 1);
@@ -52,6 +69,32 @@ std::string checkCorrespondences(const std::vector<PlaneCorrespondence>& c, cons
   return "";
 }
 
+// Per-correspondence 1-sigma of the normal and gap residuals relative to the options' sigmas.
+struct ViewScale {
+  double normal = 1.0, gap = 1.0;
+};
+
+// Per-view weights at the boards: a camera plane from PnP has a normal error growing with the
+// board distance D and an offset error at the board growing with D^2 (docs/BENCHMARKS.md,
+// PnP Monte Carlo), so each view's normal residual sigma is scaled by D / D_rms and its gap
+// sigma by (D / D_rms)^2. Measured over the 10 bench seeds against flat weights and against the
+// most likely mix of flat and growing errors (estimated from the residuals, too noisy with 30
+// views): this law gave the smallest worst-case error (docs/BENCHMARKS.md, Solvers).
+std::vector<ViewScale> distanceScales(const std::vector<BoardPointPair>& points) {
+  if (points.empty()) return {};
+  double d2 = 0.0;
+  for (const auto& at : points) d2 += std::pow(0.5 * (at.in_a.norm() + at.in_b.norm()), 2);
+  const double d_ref = std::sqrt(d2 / points.size());
+  if (!(d_ref > 0.0)) return {};
+  std::vector<ViewScale> scales(points.size());
+  for (size_t k = 0; k < points.size(); ++k) {
+    const double u = std::max(0.5 * (points[k].in_a.norm() + points[k].in_b.norm()) / d_ref, kMinRelativeDistance);
+    scales[k].normal = u;
+    scales[k].gap = u * u;
+  }
+  return scales;
+}
+
 struct PairOutcome {
   bool usable = false;
   bool covariance_ok = false;
@@ -63,8 +106,9 @@ struct PairOutcome {
 
 // One solve; with `covariance`, also the cluster-robust covariance of the solved problem (each
 // correspondence's normal and offset residuals share the plane errors: one cluster).
-PairOutcome solvePair(const std::vector<PlaneCorrespondence>& c, RobustLoss loss, const SolverOptions& options,
-                      double* q, double* t, bool covariance = false) {
+PairOutcome solvePair(const std::vector<PlaneCorrespondence>& c, const std::vector<BoardPointPair>& points,
+                      const std::vector<ViewScale>& scales, RobustLoss loss, const SolverOptions& options, double* q,
+                      double* t, bool covariance = false) {
   ceres::Problem problem;
   problem.AddParameterBlock(q, 4, new ceres::EigenQuaternionManifold());
   problem.AddParameterBlock(t, 3);
@@ -74,13 +118,17 @@ PairOutcome solvePair(const std::vector<PlaneCorrespondence>& c, RobustLoss loss
   for (size_t k = 0; k < c.size(); ++k) {
     const PlaneCorrespondence& pc = c[k];
     const double w = pc.weight;
+    const BoardPointPair at = pointsOf(points, k);
+    const double sn = scales.empty() ? 1.0 : 1.0 / scales[k].normal;
+    const double sd = scales.empty() ? 1.0 : 1.0 / scales[k].gap;
     blocks.emplace_back(
-        problem.AddResidualBlock(solvers_detail::NormalAlignmentCost::Create(pc.in_a.normal, pc.in_b.normal, normal_weight),
+        problem.AddResidualBlock(solvers_detail::NormalAlignmentCost::Create(pc.in_a.normal, pc.in_b.normal, normal_weight * sn),
                                  new ceres::ScaledLoss(solvers_detail::makeLoss(loss, options.loss_scale_m), w, ceres::TAKE_OWNERSHIP), q),
         static_cast<int>(k));
     blocks.emplace_back(
-        problem.AddResidualBlock(solvers_detail::PlaneOffsetCost::Create(pc.in_a.normal, pc.in_a.offset, pc.in_b.offset),
-                                 new ceres::ScaledLoss(solvers_detail::makeLoss(loss, options.loss_scale_m), w, ceres::TAKE_OWNERSHIP), t),
+        problem.AddResidualBlock(solvers_detail::PlaneGapCost::Create(pc.in_a.normal, pc.in_a.offset, at.in_a,
+                                                                      pc.in_b.normal, pc.in_b.offset, at.in_b, sd),
+                                 new ceres::ScaledLoss(solvers_detail::makeLoss(loss, options.loss_scale_m), w, ceres::TAKE_OWNERSHIP), q, t),
         static_cast<int>(k));
   }
   ceres::Solver::Options so;
@@ -114,9 +162,13 @@ std::vector<PlaneCorrespondence> planeCorrespondences(const std::vector<View>& v
   return out;
 }
 
-Expected<Eigen::Isometry3d> closedFormPlaneToPlane(const std::vector<PlaneCorrespondence>& correspondences,
-                                                   const SolverOptions& options) {
-  const std::string why = checkCorrespondences(correspondences, options);
+namespace {
+
+// Rotation by Kabsch on the normals; translation from the gaps at the boards (PlaneGapCost is
+// linear in t for a fixed rotation: m . t = d_a - d_b - (n_a - R n_b) . (c_a + R c_b) / 2).
+Expected<Eigen::Isometry3d> closedFormAtBoards(const std::vector<PlaneCorrespondence>& correspondences,
+                                               const std::vector<BoardPointPair>& points, const SolverOptions& options) {
+  const std::string why = checkCorrespondences(correspondences, points, options);
   if (!why.empty()) return Expected<Eigen::Isometry3d>::failure(why);
   std::vector<Eigen::Vector3d> a, b;
   std::vector<double> w;
@@ -127,12 +179,16 @@ Expected<Eigen::Isometry3d> closedFormPlaneToPlane(const std::vector<PlaneCorres
   }
   auto R = solvers_detail::alignVectors(a, b, w);
   if (!R) return Expected<Eigen::Isometry3d>::failure(R.error());
-  // n_a . t = d_a - d_b (n_a . R n_b) in least squares.
   Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
   Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
-  for (const auto& c : correspondences) {
-    A += c.weight * c.in_a.normal * c.in_a.normal.transpose();
-    rhs += c.weight * c.in_a.normal * (c.in_a.offset - c.in_b.offset * c.in_a.normal.dot(*R * c.in_b.normal));
+  for (size_t k = 0; k < correspondences.size(); ++k) {
+    const PlaneCorrespondence& c = correspondences[k];
+    const BoardPointPair at = pointsOf(points, k);
+    const Eigen::Vector3d rnb = *R * c.in_b.normal;
+    const Eigen::Vector3d m = 0.5 * (c.in_a.normal + rnb);
+    const double y = c.in_a.offset - c.in_b.offset - 0.5 * (c.in_a.normal - rnb).dot(at.in_a + *R * at.in_b);
+    A += c.weight * m * m.transpose();
+    rhs += c.weight * m * y;
   }
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.linear() = *R;
@@ -140,15 +196,74 @@ Expected<Eigen::Isometry3d> closedFormPlaneToPlane(const std::vector<PlaneCorres
   return T;
 }
 
+}  // namespace
+
+Expected<Eigen::Isometry3d> closedFormPlaneToPlane(const std::vector<PlaneCorrespondence>& correspondences,
+                                                   const SolverOptions& options) {
+  return closedFormAtBoards(correspondences, {}, options);
+}
+
 PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& correspondences,
                                    const SolverOptions& options, const std::optional<Eigen::Isometry3d>& initial_guess) {
+  return solvers_detail::solvePlaneToPlaneAtBoards(correspondences, {}, options, initial_guess);
+}
+
+namespace solvers_detail {
+
+Eigen::Vector3d boardPoint(const LidarBoardFeatures& f) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  int count = 0;
+  for (const auto& p : f.board_points)
+    if (p.allFinite()) {
+      sum += p;
+      ++count;
+    }
+  const Eigen::Vector3d c = count > 0 ? Eigen::Vector3d(sum / count) : Eigen::Vector3d(f.plane.offset * f.plane.normal);
+  return c - f.plane.signedDistance(c) * f.plane.normal;
+}
+
+Eigen::Vector3d boardPoint(const CameraBoardFeatures& f) {
+  Eigen::Vector3d c = f.camera_T_board.translation();
+  if (!f.pattern.empty()) {
+    // PnP on the pattern: its position is best determined at the points' centroid.
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (const auto& o : f.pattern) sum += f.camera_T_board * o.board_point;
+    c = sum / static_cast<double>(f.pattern.size());
+  } else {
+    // PnP on the four outer corners: their centroid on the plane (rays through the image corners).
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    int count = 0;
+    const Eigen::Matrix3d K_inv = f.K.inverse();
+    for (const auto& px : f.corners_px) {
+      const Eigen::Vector3d ray = K_inv * px.homogeneous();
+      const double along = f.plane.normal.dot(ray);
+      if (!ray.allFinite() || !(along > 0.0)) continue;
+      sum += ray * (f.plane.offset / along);
+      ++count;
+    }
+    if (count == kNumEdges) c = sum / count;
+  }
+  if (!c.allFinite()) c = f.plane.offset * f.plane.normal;
+  return c - f.plane.signedDistance(c) * f.plane.normal;
+}
+
+double planeGapM(const Plane& in_a, const Eigen::Vector3d& point_a, const Plane& in_b, const Eigen::Vector3d& point_b,
+                 const Eigen::Isometry3d& a_T_b) {
+  const Eigen::Vector3d rnb = a_T_b.linear() * in_b.normal;
+  const Eigen::Vector3d p = 0.5 * (point_a + a_T_b * point_b);
+  return (in_a.normal.dot(p) - in_a.offset) - (rnb.dot(p - a_T_b.translation()) - in_b.offset);
+}
+
+PairwiseSolution solvePlaneToPlaneAtBoards(const std::vector<PlaneCorrespondence>& correspondences,
+                                           const std::vector<BoardPointPair>& points, const SolverOptions& options,
+                                           const std::optional<Eigen::Isometry3d>& initial_guess) {
   PairwiseSolution sol;
   const std::string invalid = options.validate();
   if (!invalid.empty()) {
     sol.reason = "invalid solver options: " + invalid;
     return sol;
   }
-  const std::string why = checkCorrespondences(correspondences, options);
+  const std::string why = checkCorrespondences(correspondences, points, options);
   if (!why.empty()) {
     sol.reason = why;
     return sol;
@@ -160,7 +275,7 @@ PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& corre
     }
     sol.initial_guess = *initial_guess;
   } else {
-    auto guess = closedFormPlaneToPlane(correspondences, options);
+    auto guess = closedFormAtBoards(correspondences, points, options);
     if (!guess) {
       sol.reason = guess.error();
       return sol;
@@ -173,13 +288,14 @@ PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& corre
   double q[4] = {q0.x(), q0.y(), q0.z(), q0.w()};
   double t[3] = {sol.initial_guess.translation().x(), sol.initial_guess.translation().y(),
                  sol.initial_guess.translation().z()};
+  const std::vector<ViewScale> scales = distanceScales(points);
   PairOutcome outcome;
   if (options.warm_start_unrobust && options.loss != RobustLoss::kNone) {
-    outcome = solvePair(correspondences, RobustLoss::kNone, options, q, t);
+    outcome = solvePair(correspondences, points, scales, RobustLoss::kNone, options, q, t);
     sol.iterations += outcome.iterations;
   }
   if (!(options.warm_start_unrobust && options.loss != RobustLoss::kNone) || outcome.usable) {
-    outcome = solvePair(correspondences, options.loss, options, q, t, options.compute_covariance);
+    outcome = solvePair(correspondences, points, scales, options.loss, options, q, t, options.compute_covariance);
     sol.iterations += outcome.iterations;
   }
   sol.final_cost = outcome.cost;
@@ -196,11 +312,13 @@ PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& corre
   // Residual figures.
   const Eigen::Matrix3d R = sol.a_T_b.linear();
   double angle_sq = 0.0, offset_sq = 0.0;
-  for (const auto& c : correspondences) {
+  for (size_t k = 0; k < correspondences.size(); ++k) {
+    const PlaneCorrespondence& c = correspondences[k];
     const Eigen::Vector3d rnb = R * c.in_b.normal;
     const double angle = std::atan2(c.in_a.normal.cross(rnb).norm(), c.in_a.normal.dot(rnb));
     angle_sq += angle * angle;
-    const double ro = c.in_a.normal.dot(sol.a_T_b.translation()) + c.in_b.offset - c.in_a.offset;
+    const BoardPointPair at = pointsOf(points, k);
+    const double ro = planeGapM(c.in_a, at.in_a, c.in_b, at.in_b, sol.a_T_b);
     offset_sq += ro * ro;
   }
   const double n = static_cast<double>(correspondences.size());
@@ -219,13 +337,12 @@ PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& corre
   return sol;
 }
 
-namespace solvers_detail {
-
 CalibrationSolution calibrateMsgPair(const std::vector<View>& views, const SolverOptions& options,
                                      const std::optional<Eigen::Isometry3d>& initial_guess) {
   CalibrationSolution sol;
   sol.method = Method::kMsgPair;
   std::vector<PlaneCorrespondence> correspondences;
+  std::vector<BoardPointPair> points;
   for (const View& v : views) {
     std::string why;
     if (!v.camera.found) why = "camera found no board";
@@ -246,8 +363,9 @@ CalibrationSolution calibrateMsgPair(const std::vector<View>& views, const Solve
     pc.in_b = v.lidar.plane;
     pc.view_id = v.id;
     correspondences.push_back(pc);
+    points.push_back({boardPoint(v.camera), boardPoint(v.lidar)});
   }
-  const PairwiseSolution pair = solvePlaneToPlane(correspondences, options, initial_guess);
+  const PairwiseSolution pair = solvePlaneToPlaneAtBoards(correspondences, points, options, initial_guess);
   sol.camera_T_lidar = pair.a_T_b;
   sol.initial_guess = pair.initial_guess;
   sol.used_closed_form_init = pair.used_closed_form_init;
