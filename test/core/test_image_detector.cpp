@@ -308,11 +308,13 @@ TEST(ImageDetectorSim, PlainBoardInTexturedRoom) {
   }
   std::printf("textured room: found %d of %d frames with >= 70 %% of the board visible; %d of %d edges off by > 1 px\n",
               found, visible, edges_off, edges_checked);
-  // Measured 21 of 30 (before trying more than the best-scored region: 0 of 30, the bright
-  // ceiling cut by the image border won). The misses are boards whose top corner reaches the
-  // ceiling (board and ceiling differ by ~5 grey levels: one merged region) and boards at 1.6 m
-  // with an edge shorter than min_edge_length_px. A found board must never be a wrong one.
-  EXPECT_GE(found, visible * 2 / 3);
+  // Measured 25 of 30. Before: 0 of 30 (only the best-scored region was tried and the bright
+  // ceiling cut by the image border won); 21 of 30 trying regions best first. The opening of a
+  // rejected region separates a board whose top corner touches the ceiling band. Still missed:
+  // boards overlapping the ceiling over a longer stretch (board and ceiling differ by ~5 grey
+  // levels) and boards at 1.6 m with an edge mostly outside the image. A found board must never
+  // be a wrong one.
+  EXPECT_GE(found, visible * 3 / 4);
   EXPECT_EQ(edges_off, 0);
 }
 

@@ -23,6 +23,9 @@ constexpr double kWeakPeakFraction = 0.3;   // a gradient peak below this fracti
 constexpr double kMadToSigma = 1.4826;
 constexpr int kFinePasses = 2;
 constexpr int kFlatOpeningPx = 11;          // downscaled px, opening of the flat-area proposals
+// Openings of a rejected region, fractions of its inradius (a board touching the ceiling band
+// merges with it; the band is thinner than the board).
+constexpr double kOpeningInradiusFractions[] = {0.33, 0.5};
 
 double sampleBilinear(const cv::Mat& gray, double x, double y) {
   const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
@@ -83,23 +86,70 @@ bool scoreRegion(const std::vector<cv::Point>& contour, const cv::Mat& blurred, 
   return true;
 }
 
-// Proposes board regions, best first. Proposals come from brightness (Otsu, both polarities) and
-// uniformity (connected low-gradient areas: they separate a board from an equally bright
-// neighbour, e.g. a ceiling, across a faint edge); convexity, uniformity and size decide.
-std::vector<Candidate> segmentBoard(const cv::Mat& small, const ImageBoardDetectorOptions& o, std::string* reason) {
-  cv::Mat blurred, bright, gradient, flat;
-  cv::GaussianBlur(small, blurred, cv::Size(5, 5), 0);
-  cv::threshold(blurred, bright, 0, 255, cv::THRESH_BINARY | cv::THRESH_OTSU);
-  cv::morphologyEx(blurred, gradient, cv::MORPH_GRADIENT, cv::Mat());
+// Openings of one region by discs of kOpeningInradiusFractions x its inradius (distance
+// transforms: fast for any radius); returns the remaining parts large enough to be a board.
+std::vector<std::vector<cv::Point>> openRegion(const std::vector<cv::Point>& contour, cv::Size size, double min_area) {
+  std::vector<std::vector<cv::Point>> parts;
+  cv::Mat mask = cv::Mat::zeros(size, CV_8U);
+  cv::drawContours(mask, std::vector<std::vector<cv::Point>>{contour}, 0, 255, cv::FILLED);
+  cv::Mat inside, outside;
+  cv::distanceTransform(mask, inside, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  double inradius = 0;
+  cv::minMaxLoc(inside, nullptr, &inradius);
+  for (const double fraction : kOpeningInradiusFractions) {
+    const double radius = fraction * inradius;
+    if (radius < 1) continue;
+    const cv::Mat core = inside > radius;  // erosion
+    cv::distanceTransform(255 - core, outside, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+    const cv::Mat opened = outside <= radius;  // dilation of the eroded set
+    std::vector<std::vector<cv::Point>> contours;
+    cv::findContours(opened, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+    for (auto& c : contours)
+      if (cv::contourArea(c) >= min_area) parts.push_back(std::move(c));
+  }
+  return parts;
+}
+
+// Board region proposals on the downscaled image.
+struct Segmentation {
+  cv::Mat blurred;
+  std::vector<Candidate> candidates;                  ///< board-like regions, best first
+  std::vector<std::vector<cv::Point>> rejected;       ///< large regions that are not board-like
+  int proposals = 0;
+  std::string last_rejection = "no region large enough";
+  double min_area = 0;
+
+  std::string reason() const {
+    return proposals == 0 ? "board not found: no region large enough" : "board not found: " + last_rejection;
+  }
+  void add(const std::vector<cv::Point>& contour, const ImageBoardDetectorOptions& o, bool keep_rejected) {
+    ++proposals;
+    Candidate c;
+    if (scoreRegion(contour, blurred, o, &c, &last_rejection))
+      candidates.push_back(std::move(c));
+    else if (keep_rejected)
+      rejected.push_back(contour);
+  }
+  void sort() {
+    std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
+  }
+};
+
+// Proposes board regions. Proposals come from brightness (Otsu, both polarities) and uniformity
+// (connected low-gradient areas: they separate a board from an equally bright neighbour across
+// a faint edge); convexity, uniformity and size decide.
+Segmentation segmentBoard(const cv::Mat& small, const ImageBoardDetectorOptions& o) {
+  Segmentation seg;
+  cv::Mat bright, gradient, flat;
+  cv::GaussianBlur(small, seg.blurred, cv::Size(5, 5), 0);
+  cv::threshold(seg.blurred, bright, 0, 255, cv::THRESH_BINARY | cv::THRESH_OTSU);
+  cv::morphologyEx(seg.blurred, gradient, cv::MORPH_GRADIENT, cv::Mat());
   cv::threshold(gradient, flat, o.max_flat_gradient, 255, cv::THRESH_BINARY_INV);
   const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5));
-  const double min_area = o.min_board_area_fraction * small.total();
+  seg.min_area = o.min_board_area_fraction * small.total();
   // Flat areas leak into the background through short stretches of low-contrast edge: a larger
   // opening cuts those bridges (the board is far wider than them).
   const cv::Mat wide_kernel = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(kFlatOpeningPx, kFlatOpeningPx));
-  int proposals = 0;
-  std::string last_rejection = "no region large enough";
-  std::vector<Candidate> candidates;
   for (const cv::Mat& proposal : {bright, cv::Mat(255 - bright), flat}) {
     const bool is_flat = proposal.data == flat.data;
     cv::Mat mask;
@@ -108,17 +158,23 @@ std::vector<Candidate> segmentBoard(const cv::Mat& small, const ImageBoardDetect
     if (is_flat) cv::dilate(mask, mask, kernel);
     std::vector<std::vector<cv::Point>> contours;
     cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
-    for (auto& contour : contours) {
-      if (cv::contourArea(contour) < min_area) continue;
-      ++proposals;
-      Candidate c;
-      if (scoreRegion(contour, blurred, o, &c, &last_rejection)) candidates.push_back(std::move(c));
-    }
+    for (auto& contour : contours)
+      if (cv::contourArea(contour) >= seg.min_area) seg.add(contour, o, !is_flat);
   }
-  std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
-  if (candidates.empty())
-    *reason = proposals == 0 ? "board not found: no region large enough" : "board not found: " + last_rejection;
-  return candidates;
+  seg.sort();
+  return seg;
+}
+
+// Second chance: a board merged with a neighbour of nearly its brightness (the ceiling band
+// above a board held high) makes one rejected region; openings of it cut the thinner neighbour
+// off and keep the board (corners rounded; the edges are refined at full resolution).
+void proposeOpenedRegions(cv::Size size, const ImageBoardDetectorOptions& o, Segmentation* seg) {
+  seg->candidates.clear();
+  const auto rejected = std::move(seg->rejected);
+  seg->rejected.clear();
+  for (const auto& contour : rejected)
+    for (const auto& part : openRegion(contour, size, seg->min_area)) seg->add(part, o, false);
+  seg->sort();
 }
 
 struct CoarseEdge {
@@ -438,25 +494,29 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
   else
     small = gray;
   const double sx = static_cast<double>(gray.cols) / small.cols;
-  const std::vector<Candidate> candidates = segmentBoard(small, o, &out->features.reason);
-  // The best-scored region is not always the board (a bright ceiling cut by the image border, a
-  // board merged with an equally bright neighbour): try the next ones. When none is a complete
+  Segmentation seg = segmentBoard(small, o);
+  // The best-scored region is not always the board (a bright ceiling cut by the image border):
+  // try them best first, then the openings of the rejected regions. When none is a complete
   // board, report the attempt that got furthest (most valid edges, then the better score).
   const ImageDetection fresh = *out;
   int best_valid = -1;
-  for (size_t i = 0; i < candidates.size() && i < static_cast<size_t>(o.max_board_candidates); ++i) {
-    ImageDetection attempt = fresh;
-    if (fitCandidate(gray, camera, target, o, candidates[i], sx, small.size(), &attempt)) {
-      *out = std::move(attempt);
-      return;
-    }
-    int valid = 0;
-    for (int j = 0; j < kNumEdges; ++j) valid += attempt.features.edge_valid[j];
-    if (valid > best_valid) {
-      best_valid = valid;
-      *out = std::move(attempt);
+  for (int stage = 0; stage < 2; ++stage) {
+    if (stage == 1) proposeOpenedRegions(small.size(), o, &seg);
+    for (size_t i = 0; i < seg.candidates.size() && i < static_cast<size_t>(o.max_board_candidates); ++i) {
+      ImageDetection attempt = fresh;
+      if (fitCandidate(gray, camera, target, o, seg.candidates[i], sx, small.size(), &attempt)) {
+        *out = std::move(attempt);
+        return;
+      }
+      int valid = 0;
+      for (int j = 0; j < kNumEdges; ++j) valid += attempt.features.edge_valid[j];
+      if (valid > best_valid) {
+        best_valid = valid;
+        *out = std::move(attempt);
+      }
     }
   }
+  if (best_valid < 0) out->features.reason = seg.reason();
 }
 
 }  // namespace image_detection
