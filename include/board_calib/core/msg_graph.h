@@ -4,9 +4,11 @@
 // Nodes: every sensor's pose reference_T_sensor (one sensor fixed, the reference). Edges:
 //  * plane to plane, for every pair of sensors that saw the same board pose:
 //      r_n = (R_a n_a - R_b n_b) / sigma_n_ab                        (3, whitened)
-//      r_d = (m . (t_b - t_a) + d_b - d_a) / sigma_d_ab,  m = (R_a n_a + R_b n_b) / 2
-//    (both planes mapped into the reference frame must coincide; sigma_ab^2 = sigma_a^2 +
-//    sigma_b^2 from the per-sensor confidences);
+//      r_d = gap between the two mapped planes at the midpoint of the sensors' board points
+//            (LiDAR: board points' centroid; camera: PnP data centre) / sigma_d_ab
+//    (both planes mapped into the reference frame must coincide; the offsets are compared at
+//    the board, not at the origin, where each plane's normal error would be multiplied by the
+//    board distance; sigma_ab^2 = sigma_a^2 + sigma_b^2 from the per-sensor confidences);
 //  * camera <-> camera on individual pattern corners (AprilTag / checkerboard): every board pose
 //    seen with corners by two or more cameras gets a free board pose reference_T_board, and each
 //    camera's corners are reprojected through it (a bundle adjustment; triangulation-free and
@@ -14,7 +16,8 @@
 //    such poses the camera<->camera plane terms are dropped (they come from the same corners);
 //  * optional PBPC line terms for LiDAR <-> camera pairs: LiDAR edge points against the plane
 //    back-projected from the matching image line (edges re-associated by projection).
-// Initialisation: pairwise plane-to-plane solutions (solvePlaneToPlane) with per-pair gating,
+// Initialisation: pairwise plane-to-plane solutions (as solvePlaneToPlane, with the offsets
+// compared at the boards and the views weighted by distance) with per-pair gating,
 // then a maximum spanning tree over the sensor graph (most shared views first) from the
 // reference sensor; a disconnected graph is refused with the sensors that cannot be reached.
 // Robustness: squared-loss plane stage first (wide basin), then a robust loss on every whitened
@@ -47,7 +50,7 @@ struct SensorSpec {
   std::string frame;
   SensorKind kind = SensorKind::kCamera;
   double normal_sigma_deg = 0.0;  ///< deg, RMS angle of this sensor's board-plane normal error
-  double offset_sigma_m = 0.0;    ///< m, 1 sigma of its board-plane offset
+  double offset_sigma_m = 0.0;    ///< m, 1 sigma of its board-plane offset at the board
   double pixel_sigma_px = 0.0;    ///< px, cameras: 1 sigma of a pattern corner
   double edge_sigma_m = 0.0;      ///< m, LiDARs: 1 sigma of an edge point across the edge
 };

@@ -16,15 +16,20 @@ template <typename T>
 using Vec3 = Eigen::Matrix<T, 3, 1>;
 
 // Plane to plane between sensors a and b for one board pose. Plane {n . x = d} of a sensor maps
-// into the reference frame as {(R n) . x = d + (R n) . t}; both images must coincide:
+// into the reference frame as {(R n) . x = d + (R n) . t}; both images must coincide. c_a, c_b
+// are each sensor's board point (solvers_detail::boardPoint: where its plane is best
+// determined, on the plane), and the offsets are compared at their midpoint in the reference
+// frame, p = (R_a c_a + t_a + R_b c_b + t_b) / 2:
 //   r[0..2] = (R_a n_a - R_b n_b) / sigma_n
-//   r[3]    = (m . (t_b - t_a) + d_b - d_a) / sigma_d,   m = (R_a n_a + R_b n_b) / 2
-// m is the symmetric normal (no normalisation: smooth even far from the solution).
+//   r[3]    = ((N_a . (p - t_a) - d_a) - (N_b . (p - t_b) - d_b)) / sigma_d,   N = R n
+// (with c_a = c_b = 0 it is m . (t_b - t_a) + d_b - d_a, m = (N_a + N_b) / 2: the offsets
+// compared at the origin, where each plane's normal error is multiplied by the board distance).
 class PlanePairCost {
  public:
-  PlanePairCost(const Eigen::Vector3d& n_a, double d_a, const Eigen::Vector3d& n_b, double d_b, double sigma_n,
-                double sigma_d)
-      : n_a_(n_a), n_b_(n_b), d_a_(d_a), d_b_(d_b), inv_sigma_n_(1.0 / sigma_n), inv_sigma_d_(1.0 / sigma_d) {}
+  PlanePairCost(const Eigen::Vector3d& n_a, double d_a, const Eigen::Vector3d& c_a, const Eigen::Vector3d& n_b,
+                double d_b, const Eigen::Vector3d& c_b, double sigma_n, double sigma_d)
+      : n_a_(n_a), n_b_(n_b), c_a_(c_a), c_b_(c_b), d_a_(d_a), d_b_(d_b), inv_sigma_n_(1.0 / sigma_n),
+        inv_sigma_d_(1.0 / sigma_d) {}
 
   template <typename T>
   bool operator()(const T* const qa, const T* const ta, const T* const qb, const T* const tb, T* r) const {
@@ -33,22 +38,23 @@ class PlanePairCost {
     const Vec3<T> na = q_a * n_a_.cast<T>();
     const Vec3<T> nb = q_b * n_b_.cast<T>();
     const Vec3<T> rn = (na - nb) * T(inv_sigma_n_);
-    const Vec3<T> m = (na + nb) * T(0.5);
+    const Vec3<T> p = (q_a * c_a_.cast<T>() + t_a + q_b * c_b_.cast<T>() + t_b) * T(0.5);
     r[0] = rn[0];
     r[1] = rn[1];
     r[2] = rn[2];
-    r[3] = (m.dot(t_b - t_a) + T(d_b_ - d_a_)) * T(inv_sigma_d_);
+    r[3] = ((na.dot(p - t_a) - T(d_a_)) - (nb.dot(p - t_b) - T(d_b_))) * T(inv_sigma_d_);
     return true;
   }
 
-  static ceres::CostFunction* Create(const Eigen::Vector3d& n_a, double d_a, const Eigen::Vector3d& n_b, double d_b,
-                                     double sigma_n, double sigma_d) {
+  static ceres::CostFunction* Create(const Eigen::Vector3d& n_a, double d_a, const Eigen::Vector3d& c_a,
+                                     const Eigen::Vector3d& n_b, double d_b, const Eigen::Vector3d& c_b, double sigma_n,
+                                     double sigma_d) {
     return new ceres::AutoDiffCostFunction<PlanePairCost, 4, 4, 3, 4, 3>(
-        new PlanePairCost(n_a, d_a, n_b, d_b, sigma_n, sigma_d));
+        new PlanePairCost(n_a, d_a, c_a, n_b, d_b, c_b, sigma_n, sigma_d));
   }
 
  private:
-  const Eigen::Vector3d n_a_, n_b_;
+  const Eigen::Vector3d n_a_, n_b_, c_a_, c_b_;
   const double d_a_, d_b_;
   const double inv_sigma_n_, inv_sigma_d_;
 };

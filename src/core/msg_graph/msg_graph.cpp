@@ -2,6 +2,7 @@
 // outlier-observation rejection (see msg_graph.h for the formulation).
 #include "msg_costs.h"
 #include "../solvers/ceres_helpers.h"  // shared with the pairwise solvers (bc_solvers)
+#include "../solvers/internal.h"       // board points and the plane gap of the pairwise solver
 
 #include <ceres/product_manifold.h>
 
@@ -54,6 +55,7 @@ struct Sigmas {
 struct Obs {
   bool active = false;
   Plane plane;
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();  // board point on the plane (solvers_detail::boardPoint)
   const CameraBoardFeatures* camera = nullptr;
   const LidarBoardFeatures* lidar = nullptr;
 };
@@ -112,13 +114,13 @@ double pairOffsetSigma(const Sigmas& a, const Sigmas& b) {
 struct PlanePairError {
   double angle_rad = 0.0, offset_m = 0.0, whitened = 0.0;
 };
-PlanePairError planePairError(const Plane& pa, const Plane& pb, const Eigen::Isometry3d& a_T_b, const Sigmas& sa,
+PlanePairError planePairError(const Obs& oa, const Obs& ob, const Eigen::Isometry3d& a_T_b, const Sigmas& sa,
                               const Sigmas& sb) {
   PlanePairError e;
-  const Eigen::Vector3d rnb = a_T_b.linear() * pb.normal;
+  const Plane& pa = oa.plane;
+  const Eigen::Vector3d rnb = a_T_b.linear() * ob.plane.normal;
   e.angle_rad = std::atan2(pa.normal.cross(rnb).norm(), pa.normal.dot(rnb));
-  const Eigen::Vector3d m = 0.5 * (pa.normal + rnb);
-  e.offset_m = m.dot(a_T_b.translation()) + pb.offset - pa.offset;
+  e.offset_m = solvers_detail::planeGapM(pa, oa.point, ob.plane, ob.point, a_T_b);
   const double sn = std::sqrt(sa.normal_rad * sa.normal_rad + sb.normal_rad * sb.normal_rad);
   const double sd = pairOffsetSigma(sa, sb);
   e.whitened = std::sqrt(0.5 * (std::pow(e.angle_rad / sn, 2) + std::pow(e.offset_m / sd, 2)));
@@ -238,8 +240,8 @@ class Graph {
           if (!obs_[p][b].active) continue;
           if (corner_set.count(a) && corner_set.count(b)) continue;
           problem->AddResidualBlock(
-              detail::PlanePairCost::Create(obs_[p][a].plane.normal, obs_[p][a].plane.offset, obs_[p][b].plane.normal,
-                                            obs_[p][b].plane.offset,
+              detail::PlanePairCost::Create(obs_[p][a].plane.normal, obs_[p][a].plane.offset, obs_[p][a].point,
+                                            obs_[p][b].plane.normal, obs_[p][b].plane.offset, obs_[p][b].point,
                                             inflate * pairNormalSigmaComponent(sigmas_[a], sigmas_[b]),
                                             inflate * pairOffsetSigma(sigmas_[a], sigmas_[b])),
               solvers_detail::makeLoss(loss, scale), poses_[a].q, poses_[a].t, poses_[b].q, poses_[b].t);
@@ -311,7 +313,7 @@ class Graph {
         for (int b = a + 1; b < n_; ++b) {
           if (!obs_[p][b].active) continue;
           const Eigen::Isometry3d a_T_b = poses_[a].iso().inverse() * poses_[b].iso();
-          const PlanePairError e = planePairError(obs_[p][a].plane, obs_[p][b].plane, a_T_b, sigmas_[a], sigmas_[b]);
+          const PlanePairError e = planePairError(obs_[p][a], obs_[p][b], a_T_b, sigmas_[a], sigmas_[b]);
           (*entries)[p][a].push_back(e.whitened);
           (*entries)[p][b].push_back(e.whitened);
           if (corner_set.count(a) && corner_set.count(b)) continue;  // not a graph term
@@ -463,6 +465,7 @@ Sigmas resolveSigmas(const SensorSpec& spec, const MsgGraphOptions& o) {
 void solvePair(const std::vector<std::vector<Obs>>& obs, const Sigmas& sa, const Sigmas& sb,
                const MsgGraphOptions& options, PairLink* link) {
   std::vector<PlaneCorrespondence> all;
+  std::vector<solvers_detail::BoardPointPair> all_points;
   for (size_t p = 0; p < obs.size(); ++p) {
     const Obs& a = obs[p][link->a];
     const Obs& b = obs[p][link->b];
@@ -472,6 +475,7 @@ void solvePair(const std::vector<std::vector<Obs>>& obs, const Sigmas& sa, const
     pc.in_b = b.plane;
     pc.view_id = static_cast<int>(p);
     all.push_back(pc);
+    all_points.push_back({a.point, b.point});
   }
   link->shared_views = static_cast<int>(all.size());
   if (link->shared_views < options.min_shared_views) {
@@ -493,14 +497,22 @@ void solvePair(const std::vector<std::vector<Obs>>& obs, const Sigmas& sa, const
   so.min_normal_spread_deg = options.min_normal_spread_deg;
   so.compute_covariance = false;
   std::vector<PlaneCorrespondence> used = all;
-  PairwiseSolution sol = solvePlaneToPlane(used, so);
+  std::vector<solvers_detail::BoardPointPair> used_points = all_points;
+  PairwiseSolution sol = solvers_detail::solvePlaneToPlaneAtBoards(used, used_points, so);
   for (int round = 0; sol.success && round < std::max(1, options.outlier_rounds); ++round) {
     std::vector<PlaneCorrespondence> kept;
-    for (const auto& pc : used)
-      if (planePairError(pc.in_a, pc.in_b, sol.a_T_b, sa, sb).whitened <= options.outlier_gate_sigma) kept.push_back(pc);
+    std::vector<solvers_detail::BoardPointPair> kept_points;
+    for (size_t k = 0; k < used.size(); ++k) {
+      const Obs oa{true, used[k].in_a, used_points[k].in_a}, ob{true, used[k].in_b, used_points[k].in_b};
+      if (planePairError(oa, ob, sol.a_T_b, sa, sb).whitened <= options.outlier_gate_sigma) {
+        kept.push_back(used[k]);
+        kept_points.push_back(used_points[k]);
+      }
+    }
     if (kept.size() == used.size() || static_cast<int>(kept.size()) < options.min_shared_views) break;
     used = kept;
-    sol = solvePlaneToPlane(used, so, sol.a_T_b);
+    used_points = kept_points;
+    sol = solvers_detail::solvePlaneToPlaneAtBoards(used, used_points, so, sol.a_T_b);
   }
   link->success = sol.success;
   link->reason = sol.reason;
@@ -586,14 +598,14 @@ MsgSolution solveMsgGraph(const MsgProblem& problem, const MsgGraphOptions& opti
         ++skipped;
         continue;
       }
-      obs[p][s] = {true, f.plane, &f, nullptr};
+      obs[p][s] = {true, f.plane, solvers_detail::boardPoint(f), &f, nullptr};
     }
     for (const auto& [s, f] : pose.lidars) {
       if (!f.found || !validPlane(f.plane)) {
         ++skipped;
         continue;
       }
-      obs[p][s] = {true, f.plane, nullptr, &f};
+      obs[p][s] = {true, f.plane, solvers_detail::boardPoint(f), nullptr, &f};
     }
   }
   if (skipped > 0)
