@@ -28,6 +28,7 @@ constexpr double kUnitTolerance = 1e-3;   // |n| - 1 accepted for a plane normal
 constexpr double kMinCornerDepthM = 1e-3; // corner terms reject steps putting a corner behind
 constexpr double kSqrtHalf = 0.70710678118654752;
 constexpr int kMinSensors = 2;
+constexpr double kRotationPerQuaternionTangent = 2.0;  // EigenQuaternionManifold: rotation vector = 2 d
 
 using Clock = std::chrono::steady_clock;
 double msSince(Clock::time_point start) {
@@ -800,10 +801,12 @@ MsgSolution solveMsgGraph(const MsgProblem& problem, const MsgGraphOptions& opti
         covariance.GetCovarianceBlockInTangentSpace(poses[s].q, poses[s].q, qq.data());
         covariance.GetCovarianceBlockInTangentSpace(poses[s].q, poses[s].t, qt.data());
         covariance.GetCovarianceBlockInTangentSpace(poses[s].t, poses[s].t, tt.data());
+        // Ceres' quaternion tangent d rotates by 2|d| (Plus: [cos|d|, sin|d| d/|d|] * q), so the
+        // rotation vector is 2 d: rotation block x4, rotation-translation block x2.
         Matrix6d& C = sol.sensors[s].covariance;
-        C.topLeftCorner<3, 3>() = qq;
-        C.topRightCorner<3, 3>() = qt;
-        C.bottomLeftCorner<3, 3>() = qt.transpose();
+        C.topLeftCorner<3, 3>() = kRotationPerQuaternionTangent * kRotationPerQuaternionTangent * qq;
+        C.topRightCorner<3, 3>() = kRotationPerQuaternionTangent * qt;
+        C.bottomLeftCorner<3, 3>() = kRotationPerQuaternionTangent * qt.transpose();
         C.bottomRightCorner<3, 3>() = tt;
         for (int i = 0; i < 3; ++i) {
           sol.sensors[s].stddev.rotation_deg(i) = std::sqrt(std::max(C(i, i), 0.0)) * kDegPerRad;
@@ -811,8 +814,8 @@ MsgSolution solveMsgGraph(const MsgProblem& problem, const MsgGraphOptions& opti
         }
       }
       sol.notes.push_back(
-          "1-sigma figures assume independent plane-pair terms (each plane enters several pairs): read them as a lower "
-          "bound");
+          "1-sigma figures follow from the sensors' noise sigmas (given or estimated); errors shared by every board pose "
+          "(e.g. a LiDAR's ring range offsets, wrong intrinsics) are not in them: read them as a lower bound");
     } else {
       sol.notes.push_back("covariance not available: the graph is rank deficient at the solution");
       for (int s = 0; s < n; ++s)
