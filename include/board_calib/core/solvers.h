@@ -216,7 +216,8 @@ struct PairwiseSolution {
   int iterations = 0;
   std::string termination;
   double normal_rms_deg = 0.0;   ///< angle between n_a and R n_b
-  double offset_rms_mm = 0.0;    ///< n_a . t + d_b - d_a
+  double offset_rms_mm = 0.0;    ///< plane gap: at the sensor origin (n_a . t + d_b - d_a) for
+                                 ///< solvePlaneToPlane, at the boards for calibrate(kMsgPair) and the graph
   Matrix6d covariance = Matrix6d::Zero();  ///< see the convention at the top (frame a)
   PoseStddev stddev;
   Observability observability;
@@ -228,7 +229,10 @@ Expected<Eigen::Isometry3d> closedFormPlaneToPlane(const std::vector<PlaneCorres
                                                    const SolverOptions& options);
 
 /// Plane-to-plane solve (Ceres, quaternion manifold). Needs >= 3 correspondences whose normals
-/// span 3D. Uses loss, msg_* sigmas, iteration and tolerance options of SolverOptions.
+/// span 3D. Uses loss, msg_* sigmas, iteration and tolerance options of SolverOptions. Planes
+/// alone carry no board position, so offsets are compared at the sensor origin (the normal error
+/// times the board distance enters them); calibrate(..., kMsgPair) and the MSG graph, which have
+/// the board points, compare them at the boards instead and are more accurate.
 PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& correspondences,
                                    const SolverOptions& options,
                                    const std::optional<Eigen::Isometry3d>& initial_guess = std::nullopt);
