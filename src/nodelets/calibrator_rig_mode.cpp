@@ -160,14 +160,18 @@ struct RigCalibratorMode::Impl {
     if (req.use_initial_guess)
       ROS_WARN_STREAM_NAMED(kLog, "calibrator: rig mode initialises from the pairwise solutions; the guess is ignored");
     msg::MsgProblem problem;
+    std::vector<std::string> problems;  // sensors that take part in no pose, and why
     {
       std::lock_guard<std::mutex> lock(mutex);
       report(session->flush(), "calibrate");
       problem = session->problem(reference);
+      problems = session->problems();
     }
+    for (const auto& p : problems) ROS_WARN_STREAM_NAMED(kLog, "calibrator: " << p);
     if (problem.poses.empty()) {
       res.success = false;
       res.message = "no board poses captured yet: hold the board still where at least two sensors see it";
+      for (const auto& p : problems) res.message += "; " + p;
       return true;
     }
     // The solve runs on its own thread; feature callbacks keep flowing meanwhile.
@@ -182,6 +186,7 @@ struct RigCalibratorMode::Impl {
     const ResultFile file = msg::msgResultFile(problem, solution);
     res.success = true;
     res.message = rigSolutionSummary(rig, solution, file);
+    for (const auto& p : problems) res.message += "warning: " + p + "\n";
     res.reference_frame = solution.sensors[solution.reference_sensor].frame;
     for (const auto& s : solution.sensors) {
       SensorPose p;
@@ -273,18 +278,19 @@ struct RigCalibratorMode::Impl {
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
     std::lock_guard<std::mutex> lock(mutex);
     using diagnostic_msgs::DiagnosticStatus;
-    std::string silent;
-    for (size_t k = 0; k < session->counts().size(); ++k)
-      if (session->counts()[k].messages == 0) silent += (silent.empty() ? "" : ", ") + session->names()[k];
+    const std::vector<std::string> problems = session->problems();
+    const std::vector<int> in_poses = session->posesPerSensor();
     const size_t poses = session->poses().size();
-    if (!silent.empty()) stat.summary(DiagnosticStatus::WARN, "no board features received from " + silent);
+    if (!problems.empty()) stat.summary(DiagnosticStatus::WARN, problems.front());
     else if (poses < 3) stat.summary(DiagnosticStatus::WARN, "collecting board poses (" + std::to_string(poses) + ")");
     else stat.summary(DiagnosticStatus::OK, std::to_string(poses) + " board poses collected");
     stat.add("rig", rig_file);
     stat.add("board poses", poses);
+    for (size_t i = 0; i < problems.size(); ++i) stat.add("problem " + std::to_string(i + 1), problems[i]);
     for (size_t k = 0; k < session->counts().size(); ++k) {
       const auto& c = session->counts()[k];
-      std::string v = std::to_string(c.found) + "/" + std::to_string(c.messages) + " with the board";
+      std::string v = std::to_string(c.found) + "/" + std::to_string(c.messages) + " with the board, in " +
+                      std::to_string(in_poses[k]) + " poses";
       if (c.found < c.messages && !c.last_reason.empty()) v += "; last miss: " + c.last_reason;
       stat.add(session->names()[k] + " (" + session->sensors()[k].frame + ")", v);
     }

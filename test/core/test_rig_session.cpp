@@ -215,6 +215,46 @@ TEST_F(RigSessionTest, ManualCaptureAndABagRestartKeepThePoses) {
   EXPECT_GE(session.poses().size(), scene.problem.poses.size());
 }
 
+TEST_F(RigSessionTest, ASensorWithOffsetStampsIsNamedWithItsOffset) {
+  // The OS1 driver stamps 10 s late (another clock): it sees the board but never within the
+  // tolerance of the others, so the poses go ahead without it, it does not stall them, and
+  // problems() says why. (An offset shorter than a hold cannot be told from good data here.)
+  RigSession session = makeSession();
+  const std::vector<double> offset_os1 = {10.0};
+  double t = 100.0;
+  for (const auto& pose : scene.problem.poses) {
+    for (int i = 0; i < 4; ++i, t += kFramePeriodS) {
+      for (auto [k, f] : pose.cameras) {
+        f.stamp = t;
+        session.addCamera(k, f);
+      }
+      for (auto [k, f] : pose.lidars) {
+        f.stamp = t + (k == 3 ? offset_os1[0] : 0.0);
+        session.addLidar(k, f);
+      }
+    }
+  }
+  session.flush();
+  EXPECT_EQ(session.poses().size(), scene.problem.poses.size());
+  EXPECT_EQ(session.posesPerSensor()[3], 0);
+  EXPECT_GT(session.posesPerSensor()[2], 0);
+  const auto problems = session.problems();
+  ASSERT_EQ(problems.size(), 1u);
+  EXPECT_NE(problems[0].find("os1: saw the board"), std::string::npos) << problems[0];
+  EXPECT_NE(problems[0].find("10.000 s from the others"), std::string::npos) << problems[0];
+
+  // A sensor whose detector never publishes, and one that never finds the board, are named too.
+  RigSession quiet = makeSession();
+  for (const auto& [k, f] : scene.problem.poses.front().cameras) quiet.addCamera(k, f);
+  LidarBoardFeatures missed;
+  missed.reason = "no plane with the board's size";
+  quiet.addLidar(2, missed);
+  const auto named = quiet.problems();
+  ASSERT_EQ(named.size(), 2u);
+  EXPECT_NE(named[0].find("vlp32: never saw the board in 1 messages (last: no plane"), std::string::npos) << named[0];
+  EXPECT_NE(named[1].find("os1: no board features received"), std::string::npos) << named[1];
+}
+
 }  // namespace
 }  // namespace msg
 }  // namespace board_calib

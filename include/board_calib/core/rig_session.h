@@ -14,6 +14,7 @@
 #include <board_calib/core/session.h>
 
 #include <functional>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -47,6 +48,7 @@ struct RigSensorCounts {
   int messages = 0;
   int found = 0;
   std::string last_reason;  ///< newest "not found" reason
+  double newest_stamp = -std::numeric_limits<double>::infinity();  ///< s, newest message (since a restart)
 };
 
 class RigSession {
@@ -73,6 +75,12 @@ class RigSession {
   const std::vector<std::string>& names() const { return names_; }
   const std::vector<RigSensorCounts>& counts() const { return counts_; }
   const RigSessionOptions& options() const { return options_; }
+  /// Captured poses each sensor takes part in (index as the specs).
+  std::vector<int> posesPerSensor() const;
+  /// Specific hints about sensors that do not join the poses: never saw the board (with the last
+  /// reason), or saw it often but never within stamp_tolerance_s of the others (stamps offset,
+  /// with the measured offset of its newest message). Empty when every sensor takes part.
+  std::vector<std::string> problems() const;
   void setOptions(const RigSessionOptions& options) { options_ = options; }
 
   /// Saves / loads the captured poses (features, not images) as YAML. Loading checks that the
@@ -103,6 +111,7 @@ class RigSession {
                    const std::string& frame, const std::string& reason, const std::function<void(Stream&)>& keep);
   SessionEvent assemble(const Pending& pending);
   void prune();
+  bool readyToAssemble(const Pending& pending) const;
   bool seenBefore(int sensor, const Summary& s, int* pose_id) const;
   std::optional<Summary> summaryOf(int sensor, const BoardPoseObservation& o) const;
 
@@ -113,7 +122,6 @@ class RigSession {
   std::vector<RigSensorCounts> counts_;
   std::vector<RigSessionPose> poses_;
   std::optional<Pending> pending_;
-  double newest_stamp_ = 0.0;
   int next_id_ = 0;
 };
 

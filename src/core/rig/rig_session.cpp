@@ -5,6 +5,7 @@
 #include <cmath>
 #include <functional>
 #include <iomanip>
+#include <limits>
 #include <sstream>
 
 namespace board_calib {
@@ -107,21 +108,22 @@ SessionEvent RigSession::add(int sensor, double stamp, bool found, const std::op
                              const std::string& frame, const std::string& reason,
                              const std::function<void(Stream&)>& keep) {
   SessionEvent result = event(SessionEvent::Kind::kWaiting, "waiting for the board to be held still");
-  RigSensorCounts& count = counts_[sensor];
-  ++count.messages;
-  if (!found) count.last_reason = reason;
   if (!std::isfinite(stamp)) return event(SessionEvent::Kind::kRejected, names_[sensor] + ": non-finite stamp");
-
-  if (stamp < newest_stamp_ - kTimeJumpBackS) {
-    // The source restarted: keep the poses, forget the streams (their stamps no longer compare).
+  RigSensorCounts& count = counts_[sensor];
+  if (count.messages > 0 && stamp < count.newest_stamp - kTimeJumpBackS) {
+    // This sensor's time went back: the source restarted (a bag looped). Keep the poses, forget
+    // the streams (their stamps no longer compare). Judged per sensor, so a sensor whose clock
+    // is offset from the others' does not look like a restart.
     result = stronger(result, flush());
     for (auto& st : streams_) st = Stream{};
-    newest_stamp_ = stamp;
+    for (auto& c : counts_) c.newest_stamp = -std::numeric_limits<double>::infinity();
   }
+  ++count.messages;
+  if (!found) count.last_reason = reason;
+  count.newest_stamp = std::max(count.newest_stamp, stamp);
   Stream& st = streams_[sensor];
   if (found) keep(st);
-  newest_stamp_ = std::max(newest_stamp_, stamp);
-  if (pending_ && newest_stamp_ > pending_->stamp + options_.stamp_tolerance_s) {
+  if (pending_ && readyToAssemble(*pending_)) {
     const Pending p = *pending_;
     pending_.reset();
     result = stronger(result, assemble(p));
@@ -157,7 +159,7 @@ SessionEvent RigSession::add(int sensor, double stamp, bool found, const std::op
       pending_ = Pending{sensor, stamp,
                          "auto: " + names_[sensor] + " saw the board still for " + std::to_string(st.still_count) +
                              " frames"};
-      if (newest_stamp_ > stamp + options_.stamp_tolerance_s) {
+      if (readyToAssemble(*pending_)) {
         const Pending p = *pending_;
         pending_.reset();
         result = stronger(result, assemble(p));
@@ -166,6 +168,19 @@ SessionEvent RigSession::add(int sensor, double stamp, bool found, const std::op
   }
   prune();
   return result;
+}
+
+bool RigSession::readyToAssemble(const Pending& p) const {
+  // Every stream that can still contribute has moved past the window. A stream far from the
+  // trigger stamp (silent for a while, or offset clock) cannot and is not waited for; the
+  // trigger's own stream moving on by history_s ends any wait.
+  if (counts_[p.sensor].newest_stamp > p.stamp + options_.history_s) return true;
+  for (size_t k = 0; k < counts_.size(); ++k) {
+    const double newest = counts_[k].newest_stamp;
+    if (counts_[k].messages == 0 || !std::isfinite(newest) || std::abs(newest - p.stamp) > options_.history_s) continue;
+    if (newest <= p.stamp + options_.stamp_tolerance_s) return false;
+  }
+  return true;
 }
 
 bool RigSession::seenBefore(int sensor, const Summary& s, int* pose_id) const {
@@ -229,9 +244,12 @@ SessionEvent RigSession::assemble(const Pending& pending) {
 }
 
 void RigSession::prune() {
-  double keep_from = newest_stamp_ - options_.history_s;
-  if (pending_) keep_from = std::min(keep_from, pending_->stamp - options_.stamp_tolerance_s);
-  for (auto& st : streams_) {
+  // Per stream, relative to its own newest stamp (clocks of different sensors may be offset);
+  // whatever a pending capture may still take is kept.
+  for (size_t k = 0; k < streams_.size(); ++k) {
+    Stream& st = streams_[k];
+    double keep_from = counts_[k].newest_stamp - options_.history_s;
+    if (pending_) keep_from = std::min(keep_from, pending_->stamp - options_.stamp_tolerance_s);
     auto old_camera = [&](const CameraBoardFeatures& f) { return f.stamp < keep_from; };
     auto old_lidar = [&](const LidarBoardFeatures& f) { return f.stamp < keep_from; };
     st.cameras.erase(std::remove_if(st.cameras.begin(), st.cameras.end(), old_camera), st.cameras.end());
@@ -268,6 +286,43 @@ SessionEvent RigSession::captureNow() {
   return assemble(Pending{sensor, stamp, "manual capture at " + names_[sensor] + "'s newest board"});
 }
 
+std::vector<int> RigSession::posesPerSensor() const {
+  std::vector<int> n(sensors_.size(), 0);
+  for (const auto& p : poses_) {
+    for (const auto& c : p.observation.cameras) ++n[c.first];
+    for (const auto& l : p.observation.lidars) ++n[l.first];
+  }
+  return n;
+}
+
+std::vector<std::string> RigSession::problems() const {
+  // A sensor with the board in this many frames but in no pose is not a matter of bad luck.
+  constexpr int kFoundButUnused = 5;
+  std::vector<std::string> out;
+  const std::vector<int> in_poses = posesPerSensor();
+  for (size_t k = 0; k < sensors_.size(); ++k) {
+    const RigSensorCounts& c = counts_[k];
+    if (in_poses[k] > 0) continue;
+    if (c.messages == 0) {
+      out.push_back(names_[k] + ": no board features received (is its detector running and publishing?)");
+    } else if (c.found == 0) {
+      out.push_back(names_[k] + ": never saw the board in " + std::to_string(c.messages) + " messages" +
+                    (c.last_reason.empty() ? "" : " (last: " + c.last_reason + ")"));
+    } else if (c.found >= kFoundButUnused && !poses_.empty()) {
+      // Offset of its newest stamp to the newest stamp of any other sensor.
+      double other = -std::numeric_limits<double>::infinity();
+      for (size_t j = 0; j < counts_.size(); ++j)
+        if (j != k && counts_[j].messages > 0) other = std::max(other, counts_[j].newest_stamp);
+      std::string offset;
+      if (std::isfinite(other) && std::isfinite(c.newest_stamp)) offset = ", its newest stamp is " + fixed(c.newest_stamp - other, 3) + " s from the others'";
+      out.push_back(names_[k] + ": saw the board in " + std::to_string(c.found) + " frames but is in none of the " +
+                    std::to_string(poses_.size()) + " poses: its stamps may be offset from the other sensors" +
+                    offset + " (stamp_tolerance_s " + fixed(options_.stamp_tolerance_s, 3) + " s)");
+    }
+  }
+  return out;
+}
+
 MsgProblem RigSession::problem(int reference_sensor) const {
   MsgProblem p;
   p.sensors = sensors_;
@@ -289,7 +344,7 @@ void RigSession::reset() {
   poses_.clear();
   for (auto& st : streams_) st = Stream{};
   pending_.reset();
-  newest_stamp_ = 0.0;
+  for (auto& c : counts_) c.newest_stamp = -std::numeric_limits<double>::infinity();
   next_id_ = 0;
 }
 
