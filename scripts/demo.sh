@@ -30,4 +30,4 @@ echo "== 3. result file (${out}/result.yaml)"
 cat "${out}/result.yaml"
 echo
 echo "Report with per-view residuals and overlay images: ${out}/report/report.md"
-echo "Live: roslaunch board_calib calibration.launch (see README.md)."
+echo "Live: roslaunch board_calib calibration.launch (see README.md); several cameras and LiDARs: rig_calibration.launch (docs/MSG.md)."
