@@ -42,6 +42,17 @@ if(TARGET test_conversions)
   target_link_libraries(test_conversions board_calib_ros board_calib_core ${catkin_LIBRARIES} GTest::gtest_main)
 endif()
 
+# The detector nodelets' dynamic_reconfigure defaults equal the core defaults.
+catkin_add_gtest(test_config_defaults test/ros/test_config_defaults.cpp)
+if(TARGET test_config_defaults)
+  target_compile_options(test_config_defaults PRIVATE ${BOARD_CALIB_WARNINGS})
+  target_include_directories(test_config_defaults PRIVATE ${CMAKE_CURRENT_SOURCE_DIR}/src/nodelets)
+  target_link_libraries(test_config_defaults board_calib_core ${catkin_LIBRARIES} GTest::gtest_main)
+  if(TARGET ${PROJECT_NAME}_gencfg)
+    add_dependencies(test_config_defaults ${PROJECT_NAME}_gencfg)
+  endif()
+endif()
+
 # Every class in nodelet_plugins.xml loads through pluginlib (a rostest: constructors may need a master).
 add_rostest_gtest(test_nodelet_plugins test/rostest/nodelet_plugins.test test/ros/test_nodelet_plugins.cpp)
 target_compile_definitions(test_nodelet_plugins PRIVATE BOARD_CALIB_SOURCE_DIR="${CMAKE_CURRENT_SOURCE_DIR}")

@@ -2,7 +2,8 @@
 // Wiring only: PointCloud2 -> core LidarCloud -> detectLidarBoard -> board_calib/LidarBoard.
 // Lazy: subscribes to `points` only while an output has a subscriber (or a background capture
 // is running); debug outputs are built only when someone listens.
-#include <board_calib/CloudBoardDetectorConfig.h>
+#include "cloud_detector_options.h"
+
 #include <board_calib/conversions.h>
 #include <board_calib/core/lidar_board_detector.h>
 
@@ -28,37 +29,6 @@ constexpr double kWarnThrottleS = 10.0;
 constexpr double kMarkerLineWidthM = 0.01;
 constexpr double kCornerMarkerSizeM = 0.04;
 constexpr double kNormalArrowLengthM = 0.3;
-
-LidarBoardDetectorOptions optionsFromConfig(const CloudBoardDetectorConfig& c) {
-  LidarBoardDetectorOptions o;
-  o.min_range_m = c.min_range;
-  o.max_range_m = c.max_range;
-  o.use_roi = c.use_roi;
-  o.roi.min = {c.roi_min_x, c.roi_min_y, c.roi_min_z};
-  o.roi.max = {c.roi_max_x, c.roi_max_y, c.roi_max_z};
-  o.voxel_size_m = c.voxel_size;
-  o.max_voxel_thickness_m = c.max_voxel_thickness;
-  o.max_voxel_offset_m = c.max_voxel_offset;
-  o.max_voxel_normal_angle_deg = c.max_voxel_normal_angle_deg;
-  o.min_board_points = c.min_board_points;
-  o.min_size_ratio = c.min_size_ratio;
-  o.max_size_ratio = c.max_size_ratio;
-  o.min_fill_ratio = c.min_fill_ratio;
-  o.max_candidate_rms_m = c.max_candidate_rms;
-  o.reject_ambiguous = c.reject_ambiguous;
-  o.ambiguity_ratio = c.ambiguity_ratio;
-  o.plane_distance_threshold_m = c.plane_distance_threshold;
-  o.ransac_iterations = c.ransac_iterations;
-  o.elevation_gap_deg = c.elevation_gap_deg;
-  o.min_edge_points = c.min_edge_points;
-  o.edge_inlier_threshold_m = c.edge_inlier_threshold;
-  o.max_edge_rms_m = c.max_edge_rms;
-  o.max_corner_angle_error_deg = c.max_corner_angle_error_deg;
-  o.correct_edge_sampling_bias = c.correct_edge_sampling_bias;
-  o.beam_divergence_deg = c.beam_divergence_deg;
-  o.size_doubt_ratio = c.size_doubt_ratio;
-  return o;
-}
 
 geometry_msgs::Point toPointMsg(const Eigen::Vector3d& p) {
   geometry_msgs::Point q;

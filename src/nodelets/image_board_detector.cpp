@@ -2,7 +2,8 @@
 // Wiring only: Image + CameraInfo -> core image + CameraModel -> ImageBoardDetector ->
 // board_calib/CameraBoard (header = image header). Lazy: subscribes to the camera only while
 // `camera_board` or `debug_image` has a subscriber; the debug image is drawn only when watched.
-#include <board_calib/ImageBoardDetectorConfig.h>
+#include "image_detector_options.h"
+
 #include <board_calib/conversions.h>
 #include <board_calib/core/image_board_detector.h>
 
@@ -25,39 +26,6 @@ namespace {
 constexpr double kDiagnosticsPeriodS = 1.0;
 constexpr double kStatsWindowS = 10.0;  // input rate and detection ratio over this window
 constexpr double kWarnThrottleS = 10.0;
-
-ImageBoardDetectorOptions optionsFromConfig(const ImageBoardDetectorConfig& c) {
-  ImageBoardDetectorOptions o;
-  o.segmentation_width_px = c.segmentation_width;
-  o.min_board_area_fraction = c.min_board_area_fraction;
-  o.min_solidity = c.min_solidity;
-  o.max_flat_gradient = c.max_flat_gradient;
-  o.max_interior_texture = c.max_interior_texture;
-  o.max_board_candidates = c.max_board_candidates;
-  o.border_margin_px = c.border_margin;
-  o.coarse_search_px = c.coarse_search;
-  o.fine_search_px = c.fine_search;
-  o.sample_step_px = c.sample_step;
-  o.corner_exclusion_px = c.corner_exclusion;
-  o.min_edge_contrast = c.min_edge_contrast;
-  o.min_edge_length_px = c.min_edge_length;
-  o.min_edge_points = c.min_edge_points;
-  o.edge_inlier_px = c.edge_inlier;
-  o.max_edge_rms_px = c.max_edge_rms;
-  o.max_plain_corner_rms_px = c.max_plain_corner_rms;
-  o.fast_check_width_px = c.fast_check_width;
-  o.subpix_window_px = c.subpix_window;
-  o.tag_decimate = c.tag_decimate;
-  o.tag_sigma = c.tag_sigma;
-  o.tag_threads = c.tag_threads;
-  o.tag_refine_edges = c.tag_refine_edges;
-  o.tag_max_hamming = c.tag_max_hamming;
-  o.min_tags = c.min_tags;
-  o.min_board_size_px = c.min_board_size;
-  o.max_reprojection_rms_px = c.max_reprojection_rms;
-  o.pixel_sigma_px = c.pixel_sigma;
-  return o;
-}
 
 // Same calibration as the cached one (CameraInfo arrives with every image).
 bool sameCalibration(const sensor_msgs::CameraInfo& a, const sensor_msgs::CameraInfo& b) {

@@ -1,0 +1,31 @@
+// The dynamic_reconfigure defaults of the detector nodelets must equal the core defaults: the
+// core defaults are the measured ones (docs/BENCHMARKS.md), and a stale .cfg default silently
+// makes the live nodelets worse than calibrate_bag.
+#include "cloud_detector_options.h"
+#include "image_detector_options.h"
+
+#include <gtest/gtest.h>
+
+namespace board_calib {
+namespace {
+
+TEST(ConfigDefaults, CloudBoardDetectorCfgMatchesTheCore) {
+  const LidarBoardDetectorOptions mapped = optionsFromConfig(CloudBoardDetectorConfig::__getDefault__());
+  const LidarBoardDetectorOptions core;
+#define BOARD_CALIB_EXPECT_SAME(cfg, member) \
+  EXPECT_EQ(mapped.member, core.member) << "cfg/CloudBoardDetector.cfg default of '" #cfg "'";
+  BOARD_CALIB_CLOUD_DETECTOR_FIELDS(BOARD_CALIB_EXPECT_SAME)
+#undef BOARD_CALIB_EXPECT_SAME
+}
+
+TEST(ConfigDefaults, ImageBoardDetectorCfgMatchesTheCore) {
+  const ImageBoardDetectorOptions mapped = optionsFromConfig(ImageBoardDetectorConfig::__getDefault__());
+  const ImageBoardDetectorOptions core;
+#define BOARD_CALIB_EXPECT_SAME(cfg, member) \
+  EXPECT_EQ(mapped.member, core.member) << "cfg/ImageBoardDetector.cfg default of '" #cfg "'";
+  BOARD_CALIB_IMAGE_DETECTOR_FIELDS(BOARD_CALIB_EXPECT_SAME)
+#undef BOARD_CALIB_EXPECT_SAME
+}
+
+}  // namespace
+}  // namespace board_calib
