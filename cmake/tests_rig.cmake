@@ -28,4 +28,10 @@ if(TARGET simulate_bag AND TARGET calibrate_bag)
     COMMAND /usr/bin/python3 ${CMAKE_CURRENT_SOURCE_DIR}/test/check_rig_result.py
       ${_rig_dir}/result.yaml ${_rig_dir}/rig.truth.yaml 0.2 0.01)
   set_tests_properties(rig_e2e_result_file PROPERTIES FIXTURES_REQUIRED rig_bag DEPENDS rig_e2e_calibrate TIMEOUT 30)
+  # The live capture rule offline (one pose per still period, msg::RigSession): the same limits.
+  add_test(NAME rig_e2e_calibrate_still
+    COMMAND $<TARGET_FILE:calibrate_bag> --config ${CMAKE_CURRENT_SOURCE_DIR}/config/rigs/multi_rig_apriltag.yaml
+      --bag ${_rig_dir}/rig.bag --method msg --capture still --truth ${_rig_dir}/rig.truth.yaml
+      --check-truth 0.2 0.01 --quiet)
+  set_tests_properties(rig_e2e_calibrate_still PROPERTIES FIXTURES_REQUIRED rig_bag TIMEOUT 120)
 endif()

@@ -41,7 +41,8 @@ const char* kUsage =
     "         [--child-frame F] [--save-session FILE] [--load-session FILE] [--truth TRUTH.yaml]\n"
     "         [--check-truth ROT_DEG TRANS_M] [--edge-shift STEPS] [--quiet]\n"
     "       calibrate_bag --config RIG.yaml --bag FILE [--bag FILE...] --method msg [--output result.yaml]\n"
-    "         [--report DIR] [--truth TRUTH.yaml [--check-truth ROT_DEG TRANS_M]] [--quiet]   (docs/MSG.md)\n"
+    "         [--report DIR] [--truth TRUTH.yaml [--check-truth ROT_DEG TRANS_M]] [--capture all|still]\n"
+    "         [--quiet]   (docs/MSG.md)\n"
     "\n"
     "  --initial-guess     camera_T_lidar (p_camera = R p_lidar + t); default: closed-form initialisation\n"
     "  --still-frames N    synchronised frames the board must stay still (default: 1 when captures are\n"
@@ -52,7 +53,9 @@ const char* kUsage =
     "  --check-truth R T   with --truth: exit non-zero if the reported result is off by more than R deg or T m\n"
     "  --edge-shift STEPS  shift LiDAR edge points outward by STEPS horizontal steps (default 0: beam\n"
     "                      divergence cancels the extremes' inset)\n"
-    "  --loss, --loss-scale  robust loss on point residuals (default tukey, 0.02 m)\n";
+    "  --loss, --loss-scale  robust loss on point residuals (default tukey, 0.02 m)\n"
+    "  --capture MODE      rig: 'all' (default) makes a board pose of every stamp group; 'still' captures\n"
+    "                      one pose per still period, as the calibrator's rig mode does live\n";
 
 struct Args {
   std::vector<std::string> bags;
@@ -67,6 +70,7 @@ struct Args {
   std::string config;  // multi-sensor rig (MSG-Cal): everything else comes from the rig file
   double check_rot_deg = 0, check_trans_m = 0;
   double edge_shift = -1;  // horizontal steps; < 0: solver default
+  std::string capture = "all";  // rig: all | still
 };
 
 // One-line failure, as the contract asks.
@@ -116,6 +120,7 @@ Args parseArgs(int argc, char** argv) {
     else if (f == "--quiet") a.quiet = true;
     else if (f == "--edge-shift") a.edge_shift = parseNumber(f, need(i, f));
     else if (f == "--config") a.config = need(i, f);
+    else if (f == "--capture") a.capture = need(i, f);
     else if (f == "--check-truth") {
       a.check_rot_deg = parseNumber(f, need(i, f));
       a.check_trans_m = parseNumber(f, need(i, f));
@@ -175,7 +180,7 @@ int main(int argc, char** argv) {
   const Args args = parseArgs(argc, argv);
   if (!args.config.empty())
     return runRigCalibration({args.config, args.bags, args.output, args.report, args.truth, args.check_rot_deg,
-                              args.check_trans_m, args.quiet});
+                              args.check_trans_m, args.quiet, args.capture});
   const auto wall_start = std::chrono::steady_clock::now();
 
   std::vector<Method> methods;

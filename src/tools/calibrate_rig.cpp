@@ -13,9 +13,11 @@
 #include <board_calib/core/result_io.h>
 #include <board_calib/core/rig_config.h>
 #include <board_calib/core/rig_report.h>
+#include <board_calib/core/rig_session.h>
 #include <board_calib/core/target.h>
 #include <board_calib/core/transform.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstdio>
@@ -84,6 +86,8 @@ int runRigCalibration(const RigArgs& args) {
   const auto wall_start = std::chrono::steady_clock::now();
   if (args.config.empty()) return failWith("--config is required", kExitUsage);
   if (args.bags.empty()) return failWith("--bag is required with --config", kExitUsage);
+  if (args.capture != "all" && args.capture != "still")
+    return failWith("--capture must be 'all' or 'still', not '" + args.capture + "'", kExitUsage);
   if ((args.check_rotation_deg > 0 || args.check_translation_m > 0) && args.truth.empty())
     return failWith("--check-truth needs --truth", kExitUsage);
 
@@ -211,20 +215,55 @@ int runRigCalibration(const RigArgs& args) {
     lidar_streams[k] = ls.features;
   }
 
-  msg::GroupingOptions grouping;
-  grouping.stamp_tolerance_s = rig->stamp_tolerance_s;
-  auto grouped = msg::groupByStamp(specs, camera_streams, lidar_streams, grouping);
-  if (!grouped) return failWith("grouping: " + grouped.error());
-  if (!args.quiet)
-    std::cerr << "calibrate_bag: " << grouped->poses.size() << " board poses (" << grouped->features_used << "/"
-              << grouped->features_in << " features used, " << grouped->groups_dropped
-              << " stamp groups with fewer than " << grouping.min_sensors << " sensors dropped)\n";
-  if (grouped->poses.empty()) return failWith("no board pose was seen by two sensors at once (check stamp_tolerance_s)");
+  std::vector<msg::BoardPoseObservation> poses;
+  if (args.capture == "still") {
+    // The live rule (msg::RigSession): the features in stamp order, one pose per still period.
+    struct Item {
+      double stamp;
+      int sensor;
+      const CameraBoardFeatures* camera;
+      const LidarBoardFeatures* lidar;
+    };
+    std::vector<Item> items;
+    for (const auto& [k, fs] : camera_streams)
+      for (const auto& f : fs) items.push_back({f.stamp, k, &f, nullptr});
+    for (const auto& [k, fs] : lidar_streams)
+      for (const auto& f : fs) items.push_back({f.stamp, k, nullptr, &f});
+    std::stable_sort(items.begin(), items.end(), [](const Item& a, const Item& b) { return a.stamp < b.stamp; });
+    msg::RigSessionOptions so;
+    so.stamp_tolerance_s = rig->stamp_tolerance_s;
+    so.history_s = std::max(so.history_s, 2.0 * so.stamp_tolerance_s);
+    std::vector<std::string> names;
+    for (const auto& c : rig->cameras) names.push_back(c.name);
+    for (const auto& l : rig->lidars) names.push_back(l.name);
+    msg::RigSession session(names, specs, so);
+    for (const auto& it : items) {
+      if (it.camera) session.addCamera(it.sensor, *it.camera);
+      else session.addLidar(it.sensor, *it.lidar);
+    }
+    session.flush();
+    for (const auto& p : session.poses()) poses.push_back(p.observation);
+    if (!args.quiet) {
+      std::cerr << "calibrate_bag: " << poses.size() << " board poses captured (one per still period)\n";
+      for (const auto& p : session.problems()) std::cerr << "  warning: " << p << "\n";
+    }
+  } else {
+    msg::GroupingOptions grouping;
+    grouping.stamp_tolerance_s = rig->stamp_tolerance_s;
+    auto grouped = msg::groupByStamp(specs, camera_streams, lidar_streams, grouping);
+    if (!grouped) return failWith("grouping: " + grouped.error());
+    if (!args.quiet)
+      std::cerr << "calibrate_bag: " << grouped->poses.size() << " board poses (" << grouped->features_used << "/"
+                << grouped->features_in << " features used, " << grouped->groups_dropped
+                << " stamp groups with fewer than " << grouping.min_sensors << " sensors dropped)\n";
+    poses = grouped->poses;
+  }
+  if (poses.empty()) return failWith("no board pose was seen by two sensors at once (check stamp_tolerance_s)");
 
   msg::MsgProblem problem;
   problem.sensors = specs;
   problem.reference_sensor = rig->sensorIndex(rig->reference);
-  problem.poses = grouped->poses;
+  problem.poses = poses;
   const msg::MsgSolution solution = msg::solveMsgGraph(problem, msg::MsgGraphOptions{});
   if (!solution.success) return failWith("MSG graph failed: " + solution.reason);
 
@@ -269,7 +308,7 @@ int runRigCalibration(const RigArgs& args) {
     for (size_t i = 0; i < lidars.size(); ++i)
       md << "* LiDAR `" << specs[num_cameras + i].frame << "`: board in " << lidars[i].found << "/"
          << lidars[i].clouds << " clouds\n";
-    md << "* " << grouped->poses.size() << " board poses seen by two or more sensors\n\n";
+    md << "* " << poses.size() << " board poses seen by two or more sensors (capture: " << args.capture << ")\n\n";
     md << "## Result\n\n```\n" << out.str() << "```\n";
     if (!solution.rejected.empty()) {
       md << "\n## Rejected observations\n\n";
