@@ -2,6 +2,7 @@
 // solves on ~calibrate off the callback thread, publishes the latched result, broadcasts the
 // static TF and writes the result file with launch/URDF snippets. With ~rig_file it runs the
 // multi-sensor rig mode instead (calibrator_rig_mode.h). Thin wiring only.
+#include "calibrator_options.h"
 #include "calibrator_rig_mode.h"
 
 #include <board_calib/CalibrationResult.h>
@@ -138,16 +139,7 @@ void CalibratorNodelet::onInit() {
 
 void CalibratorNodelet::reconfigure(CalibratorConfig& c, uint32_t) {
   std::lock_guard<std::mutex> lock(mutex_);
-  SessionOptions o = session_->options();
-  o.sync_tolerance_s = c.sync_tolerance;
-  o.still_frames_required = c.still_frames;
-  o.still_max_translation_m = c.still_max_translation;
-  o.still_max_rotation_deg = c.still_max_rotation_deg;
-  o.min_view_rotation_deg = c.min_view_rotation_deg;
-  o.min_view_translation_m = c.min_view_translation;
-  o.max_size_mismatch = c.max_size_mismatch;
-  o.max_plane_angle_deg = c.max_plane_angle_deg;
-  o.max_plane_offset_m = c.max_plane_offset;
+  const SessionOptions o = sessionOptionsFromConfig(c, session_->options());
   if (const std::string why = o.validate(); !why.empty()) {
     NODELET_WARN_STREAM("calibrator: rejected reconfiguration: " << why);
     return;

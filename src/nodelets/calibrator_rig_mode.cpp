@@ -1,6 +1,8 @@
 // Rig mode of the calibrator nodelet (see calibrator_rig_mode.h).
 #include "calibrator_rig_mode.h"
 
+#include "calibrator_options.h"
+
 #include <board_calib/CalibrationResult.h>
 #include <board_calib/Calibrate.h>
 #include <board_calib/CalibratorConfig.h>
@@ -84,13 +86,7 @@ struct RigCalibratorMode::Impl {
   void reconfigure(CalibratorConfig& c, uint32_t) {
     // The rig file's stamp_tolerance_s stays in force: sync_tolerance is a pair-mode setting.
     std::lock_guard<std::mutex> lock(mutex);
-    msg::RigSessionOptions o = session->options();
-    o.auto_capture = c.auto_capture;
-    o.still_frames_required = c.still_frames;
-    o.still_max_translation_m = c.still_max_translation;
-    o.still_max_rotation_deg = c.still_max_rotation_deg;
-    o.min_pose_rotation_deg = c.min_view_rotation_deg;
-    o.min_pose_translation_m = c.min_view_translation;
+    const msg::RigSessionOptions o = rigSessionOptionsFromConfig(c, session->options());
     if (const std::string why = o.validate(); !why.empty()) {
       ROS_WARN_STREAM_NAMED(kLog, "calibrator: rejected reconfiguration: " << why);
       return;
