@@ -330,13 +330,7 @@ std::unique_ptr<RigCalibratorMode> RigCalibratorMode::create(ros::NodeHandle nh,
   pnh.param("output_dir", m.output_dir, default_dir);
   if (m.output_dir.empty()) m.output_dir = default_dir;
 
-  msg::RigSessionOptions options;
-  options.stamp_tolerance_s = rig->stamp_tolerance_s;
-  options.history_s = std::max(options.history_s, 2.0 * options.stamp_tolerance_s);
-  std::vector<std::string> names;
-  for (const auto& c : rig->cameras) names.push_back(c.name);
-  for (const auto& l : rig->lidars) names.push_back(l.name);
-  m.session = std::make_unique<msg::RigSession>(names, rig->sensorSpecs(), options);
+  m.session = std::make_unique<msg::RigSession>(rig->sensorNames(), rig->sensorSpecs(), msg::rigSessionOptionsFor(*rig));
   std::string session_file;
   if (pnh.getParam("session_file", session_file) && !session_file.empty()) {
     const Status st = m.session->load(session_file);

@@ -230,13 +230,7 @@ int runRigCalibration(const RigArgs& args) {
     for (const auto& [k, fs] : lidar_streams)
       for (const auto& f : fs) items.push_back({f.stamp, k, nullptr, &f});
     std::stable_sort(items.begin(), items.end(), [](const Item& a, const Item& b) { return a.stamp < b.stamp; });
-    msg::RigSessionOptions so;
-    so.stamp_tolerance_s = rig->stamp_tolerance_s;
-    so.history_s = std::max(so.history_s, 2.0 * so.stamp_tolerance_s);
-    std::vector<std::string> names;
-    for (const auto& c : rig->cameras) names.push_back(c.name);
-    for (const auto& l : rig->lidars) names.push_back(l.name);
-    msg::RigSession session(names, specs, so);
+    msg::RigSession session(rig->sensorNames(), specs, msg::rigSessionOptionsFor(*rig));
     for (const auto& it : items) {
       if (it.camera) session.addCamera(it.sensor, *it.camera);
       else session.addLidar(it.sensor, *it.lidar);

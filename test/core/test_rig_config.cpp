@@ -59,6 +59,7 @@ TEST(RigConfig, ParsesEveryField) {
   EXPECT_EQ(rig->sensorIndex("left"), 0);
   EXPECT_EQ(rig->sensorIndex("vlp"), 2);
   EXPECT_EQ(rig->sensorIndex("nope"), -1);
+  EXPECT_EQ(rig->sensorNames(), (std::vector<std::string>{"left", "right", "vlp"}));
   const auto specs = rig->sensorSpecs();
   ASSERT_EQ(specs.size(), 3u);
   EXPECT_EQ(specs[2].kind, msg::SensorKind::kLidar);

@@ -52,6 +52,8 @@ struct RigConfig {
   int sensorIndex(const std::string& name) const;
   /// Sensors in MsgProblem order (frames are the sensor names until the bag tells the frame_id).
   std::vector<msg::SensorSpec> sensorSpecs() const;
+  /// Sensor names in the same order.
+  std::vector<std::string> sensorNames() const;
 };
 
 /// Parses a rig YAML; relative `target` paths are resolved against `base_dir` (empty: as is).

@@ -11,6 +11,7 @@
 #pragma once
 
 #include <board_calib/core/msg_graph.h>
+#include <board_calib/core/rig_config.h>
 #include <board_calib/core/session.h>
 
 #include <functional>
@@ -36,6 +37,9 @@ struct RigSessionOptions {
   double history_s = 3.0;               ///< s, features kept per stream for assembly
   std::string validate() const;         ///< empty when usable
 };
+
+/// Defaults with the rig file's stamp tolerance (and a history long enough for it).
+RigSessionOptions rigSessionOptionsFor(const RigConfig& rig);
 
 /// One captured pose with why it was kept.
 struct RigSessionPose {

@@ -176,6 +176,13 @@ std::string RigConfig::validate() const {
   return "";
 }
 
+std::vector<std::string> RigConfig::sensorNames() const {
+  std::vector<std::string> names;
+  for (const auto& c : cameras) names.push_back(c.name);
+  for (const auto& l : lidars) names.push_back(l.name);
+  return names;
+}
+
 int RigConfig::sensorIndex(const std::string& name) const {
   for (size_t i = 0; i < cameras.size(); ++i)
     if (cameras[i].name == name) return static_cast<int>(i);

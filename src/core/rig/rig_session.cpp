@@ -67,6 +67,13 @@ std::string RigSessionOptions::validate() const {
   return "";
 }
 
+RigSessionOptions rigSessionOptionsFor(const RigConfig& rig) {
+  RigSessionOptions o;
+  o.stamp_tolerance_s = rig.stamp_tolerance_s;
+  o.history_s = std::max(o.history_s, 2.0 * o.stamp_tolerance_s);
+  return o;
+}
+
 RigSession::RigSession(std::vector<std::string> names, std::vector<SensorSpec> sensors, RigSessionOptions options)
     : names_(std::move(names)), sensors_(std::move(sensors)), options_(options) {
   names_.resize(sensors_.size());
