@@ -63,6 +63,25 @@ std::string readString(const YAML::Node& node, const std::string& key) {
   return node[key].as<std::string>();
 }
 
+// `stddev: {translation_m: [...], rotation_deg: [...]}` (single-pair block and each pair).
+void emitStddev(YAML::Emitter& out, const PoseStddev& sd) {
+  out << YAML::Key << "stddev" << YAML::Value << YAML::BeginMap;
+  out << YAML::Key << "translation_m" << YAML::Value;
+  emitSeq(out, sd.translation_m.data(), 3);
+  out << YAML::Key << "rotation_deg" << YAML::Value;
+  emitSeq(out, sd.rotation_deg.data(), 3);
+  out << YAML::EndMap;
+}
+
+PoseStddev readStddev(const YAML::Node& node, const std::string& name) {
+  PoseStddev sd;
+  const auto t = readNumbers(node["translation_m"], name + ".translation_m", 3);
+  const auto a = readNumbers(node["rotation_deg"], name + ".rotation_deg", 3);
+  sd.translation_m = {t[0], t[1], t[2]};
+  sd.rotation_deg = {a[0], a[1], a[2]};
+  return sd;
+}
+
 }  // namespace
 
 std::string resultToYaml(const ResultFile& r) {
@@ -78,14 +97,7 @@ std::string resultToYaml(const ResultFile& r) {
   emitTransform(out, r.camera_T_lidar.inverse());
   out << YAML::Key << "views_used" << YAML::Value << r.views_used;
   if (r.mlre_px) out << YAML::Key << "mlre_px" << YAML::Value << *r.mlre_px;
-  if (r.stddev) {
-    out << YAML::Key << "stddev" << YAML::Value << YAML::BeginMap;
-    out << YAML::Key << "translation_m" << YAML::Value;
-    emitSeq(out, r.stddev->translation_m.data(), 3);
-    out << YAML::Key << "rotation_deg" << YAML::Value;
-    emitSeq(out, r.stddev->rotation_deg.data(), 3);
-    out << YAML::EndMap;
-  }
+  if (r.stddev) emitStddev(out, *r.stddev);
   if (!r.quality.empty()) {
     out << YAML::Key << "quality" << YAML::Value << YAML::BeginMap;
     for (const auto& kv : r.quality) out << YAML::Key << kv.first << YAML::Value << kv.second;
@@ -116,6 +128,7 @@ std::string resultToYaml(const ResultFile& r) {
       out << YAML::Key << "lidar_T_camera" << YAML::Value;
       emitTransform(out, p.camera_T_lidar.inverse());
       if (p.mlre_px) out << YAML::Key << "mlre_px" << YAML::Value << *p.mlre_px;
+      if (p.stddev) emitStddev(out, *p.stddev);
       out << YAML::EndMap;
     }
     out << YAML::EndSeq;
@@ -143,14 +156,7 @@ Expected<ResultFile> parseResult(const std::string& text) {
     r.camera_T_lidar = readTransform(root["camera_T_lidar"], "camera_T_lidar");
     if (root["views_used"]) r.views_used = root["views_used"].as<int>();
     if (root["mlre_px"]) r.mlre_px = root["mlre_px"].as<double>();
-    if (const YAML::Node s = root["stddev"]) {
-      PoseStddev sd;
-      const auto t = readNumbers(s["translation_m"], "stddev.translation_m", 3);
-      const auto a = readNumbers(s["rotation_deg"], "stddev.rotation_deg", 3);
-      sd.translation_m = {t[0], t[1], t[2]};
-      sd.rotation_deg = {a[0], a[1], a[2]};
-      r.stddev = sd;
-    }
+    if (const YAML::Node s = root["stddev"]) r.stddev = readStddev(s, "stddev");
     if (const YAML::Node q = root["quality"])
       for (const auto& kv : q) r.quality[kv.first.as<std::string>()] = kv.second.as<double>();
     if (const YAML::Node n = root["notes"])
@@ -172,6 +178,7 @@ Expected<ResultFile> parseResult(const std::string& text) {
         entry.lidar_frame = readString(e, "lidar_frame");
         entry.camera_T_lidar = readTransform(e["camera_T_lidar"], "pairs[].camera_T_lidar");
         if (e["mlre_px"]) entry.mlre_px = e["mlre_px"].as<double>();
+        if (const YAML::Node s = e["stddev"]) entry.stddev = readStddev(s, "pairs[].stddev");
         r.pairs.push_back(entry);
       }
     }

@@ -50,7 +50,8 @@ TEST(ResultFile, WriteReadRoundTrip) {
   r.reference_frame = "os1_lidar";
   r.sensors.push_back({"os1_lidar", "lidar", Eigen::Isometry3d::Identity()});
   r.sensors.push_back({"camera", "camera", r.camera_T_lidar.inverse()});
-  r.pairs.push_back({"camera", "os1_lidar", r.camera_T_lidar, 1.7});
+  r.pairs.push_back({"camera", "os1_lidar", r.camera_T_lidar, 1.7, std::nullopt});
+  r.pairs.push_back({"camera2", "os1_lidar", r.camera_T_lidar, std::nullopt, PoseStddev{{0.004, 0.005, 0.006}, {0.1, 0.2, 0.3}}});
 
   const std::string path = ::testing::TempDir() + "/board_calib_result.yaml";
   ASSERT_TRUE(writeResultFile(path, r).ok);
@@ -70,8 +71,14 @@ TEST(ResultFile, WriteReadRoundTrip) {
   EXPECT_NEAR(back->quality.at("plane_rms_mm"), 12.5, 1e-9);
   ASSERT_EQ(back->notes.size(), 1u);
   ASSERT_EQ(back->sensors.size(), 2u);
-  ASSERT_EQ(back->pairs.size(), 1u);
+  ASSERT_EQ(back->pairs.size(), 2u);
   EXPECT_LT(rotationErrorDeg(back->pairs[0].camera_T_lidar, r.camera_T_lidar), 1e-6);
+  // Per-pair stddev is optional: absent stays absent, present round-trips.
+  EXPECT_FALSE(back->pairs[0].stddev.has_value());
+  EXPECT_FALSE(back->pairs[1].mlre_px.has_value());
+  ASSERT_TRUE(back->pairs[1].stddev.has_value());
+  EXPECT_NEAR(back->pairs[1].stddev->translation_m.y(), 0.005, 1e-9);
+  EXPECT_NEAR(back->pairs[1].stddev->rotation_deg.z(), 0.3, 1e-9);
 }
 
 TEST(ResultFile, ContractKeysPresentAndInverseConsistent) {

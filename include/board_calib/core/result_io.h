@@ -27,6 +27,7 @@ struct PairEntry {
   std::string lidar_frame;
   Eigen::Isometry3d camera_T_lidar = Eigen::Isometry3d::Identity();
   std::optional<double> mlre_px;
+  std::optional<PoseStddev> stddev;  ///< 1 sigma of camera_T_lidar, as the single-pair `stddev`
 };
 
 struct ResultFile {
