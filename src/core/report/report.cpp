@@ -180,7 +180,9 @@ std::string staticTransformLaunchSnippet(const ResultFile& r, const std::string&
   std::ostringstream o;
   o << std::setprecision(9);
   o << "<launch>\n  <!-- board_calib " << r.method << " result: " << r.camera_frame << " in " << r.lidar_frame
-    << " -->\n  <node pkg=\"tf2_ros\" type=\"static_transform_publisher\" name=\"board_calib_"
+    << " -->\n  <!-- Needs tf2_ros's static_transform_publisher (ROS Noetic; Debian's ROS packages lack it: there run"
+    << "\n       roslaunch board_calib publish_calibration.launch result_file:=" << r.method << "_result.yaml) -->"
+    << "\n  <node pkg=\"tf2_ros\" type=\"static_transform_publisher\" name=\"board_calib_"
     << child_frame << "_tf\"\n        args=\"" << t.x() << " " << t.y() << " " << t.z() << " " << q[0] << " " << q[1]
     << " " << q[2] << " " << q[3] << " " << r.lidar_frame << " " << child_frame << "\"/>\n</launch>\n";
   return o.str();
