@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -375,6 +376,78 @@ TEST(MsgGraph, ReferenceSensorChoiceDoesNotChangeTheRelativePoses) {
   EXPECT_EQ(msgResultFile(scene.problem, lidar_ref).reference_frame, "os1_64");
 }
 
+// Pairs (solvers.h convention: a_T_b perturbed on the left in frame a, then the translation),
+// Monte Carlo over random-noise scenes with a LiDAR as the reference, so that both a camera <-
+// LiDAR pair with two free poses (camera_* <- os1_64) and the stereo pair (two free cameras
+// tied by shared corners) need the cross-covariance. 20 scenes x 3 squared components: the RMS
+// ratio has a ~10 % sampling error, so a factor of 1.5 is a real check (measured: see the log).
+struct PairSpread {
+  double err_r = 0.0, pred_r = 0.0, err_t = 0.0, pred_t = 0.0;
+  void add(const Eigen::Isometry3d& est, const Eigen::Isometry3d& truth, const Matrix6d& C) {
+    err_r += logSO3(truth.linear() * est.linear().transpose()).squaredNorm();
+    err_t += (truth.translation() - est.translation()).squaredNorm();
+    pred_r += C.block<3, 3>(0, 0).trace();
+    pred_t += C.block<3, 3>(3, 3).trace();
+  }
+  double rotationRatio() const { return std::sqrt(err_r / pred_r); }
+  double translationRatio() const { return std::sqrt(err_t / pred_t); }
+};
+
+TEST(MsgGraph, PairCovarianceMatchesTheSpreadAndNeedsTheCrossTerms) {
+  constexpr int kScenes = 20;
+  constexpr double kFactor = 1.5;
+  constexpr int kReference = 2;  // vlp32c
+  std::vector<SimSensor> rig = defaultRig();
+  for (auto& sensor : rig) sensor.ring_bias_m = 0.0;  // random noise only
+  MsgGraphOptions options;
+  options.camera_pixel_sigma_px = 0.3;  // as simulated
+  std::map<std::pair<int, int>, PairSpread> pairs;
+  PairSpread stereo, stereo_without_cross;
+  for (unsigned seed = 300; seed < 300u + kScenes; ++seed) {
+    MsgSyntheticScene scene = makeScene(rig, seed);
+    scene.problem.reference_sensor = kReference;
+    const MsgSolution sol = solveMsgGraph(scene.problem, options);
+    ASSERT_TRUE(sol.success) << sol.reason;
+    ASSERT_EQ(sol.pairs.size(), 4u);  // 2 cameras x 2 LiDARs
+    for (const PairEstimate& pair : sol.pairs) {
+      ASSERT_TRUE(pair.has_covariance);
+      const Eigen::Isometry3d truth = scene.sensors[pair.camera].reference_T_sensor.inverse() *
+                                      scene.sensors[pair.lidar].reference_T_sensor;
+      pairs[{pair.camera, pair.lidar}].add(pair.camera_T_lidar, truth, pair.covariance);
+    }
+    const Eigen::Isometry3d stereo_truth =
+        scene.sensors[0].reference_T_sensor.inverse() * scene.sensors[1].reference_T_sensor;
+    const auto with_cross = relativeCovariance(sol, 0, 1);
+    ASSERT_TRUE(with_cross.ok()) << with_cross.error();
+    stereo.add(*sensorTSensor(sol, 0, 1), stereo_truth, *with_cross);
+    // The same propagation as if the two cameras' poses were independent.
+    MsgSolution independent = sol;
+    independent.pose_covariance.block<6, 6>(0, 6).setZero();
+    independent.pose_covariance.block<6, 6>(6, 0).setZero();
+    stereo_without_cross.add(*sensorTSensor(sol, 0, 1), stereo_truth, *relativeCovariance(independent, 0, 1));
+  }
+  for (const auto& [key, spread] : pairs) {
+    const std::string name = rig[key.first].frame + "<-" + rig[key.second].frame;
+    std::printf("%s: RMS error / RMS predicted 1 sigma over %d scenes: rotation %.2f, translation %.2f\n", name.c_str(),
+                kScenes, spread.rotationRatio(), spread.translationRatio());
+    EXPECT_GT(spread.rotationRatio(), 1.0 / kFactor) << name;
+    EXPECT_LT(spread.rotationRatio(), kFactor) << name;
+    EXPECT_GT(spread.translationRatio(), 1.0 / kFactor) << name;
+    EXPECT_LT(spread.translationRatio(), kFactor) << name;
+  }
+  std::printf("stereo pair: with cross terms rotation %.2f, translation %.2f; without: rotation %.2f, translation %.2f\n",
+              stereo.rotationRatio(), stereo.translationRatio(), stereo_without_cross.rotationRatio(),
+              stereo_without_cross.translationRatio());
+  EXPECT_GT(stereo.rotationRatio(), 1.0 / kFactor);
+  EXPECT_LT(stereo.rotationRatio(), kFactor);
+  EXPECT_GT(stereo.translationRatio(), 1.0 / kFactor);
+  EXPECT_LT(stereo.translationRatio(), kFactor);
+  // The two cameras share the board corners: treated as independent, their poses' covariances
+  // add up to a stereo sigma far larger than the observed spread.
+  EXPECT_LT(stereo_without_cross.rotationRatio(), 1.0 / kFactor);
+  EXPECT_LT(stereo_without_cross.translationRatio(), 1.0 / kFactor);
+}
+
 TEST(MsgGraph, ResultFileListsEverySensorAndPair) {
   const MsgSyntheticScene scene = makeScene(defaultRig(), 10, 20);
   const MsgSolution sol = solveMsgGraph(scene.problem, MsgGraphOptions());
@@ -384,7 +457,16 @@ TEST(MsgGraph, ResultFileListsEverySensorAndPair) {
   EXPECT_EQ(file.reference_frame, "camera_left");
   ASSERT_EQ(file.sensors.size(), 4u);
   ASSERT_EQ(file.pairs.size(), 4u);  // 2 cameras x 2 LiDARs
+  // A pair with the reference camera reduces to the LiDAR's own pose covariance.
+  for (const PairEstimate& pair : sol.pairs) {
+    ASSERT_TRUE(pair.has_covariance);
+    if (pair.camera == sol.reference_sensor) {
+      EXPECT_TRUE(pair.covariance.isApprox(sol.sensors[pair.lidar].covariance, 1e-9));
+    }
+  }
   for (const auto& pair : file.pairs) {
+    ASSERT_TRUE(pair.stddev.has_value());
+    EXPECT_GT(pair.stddev->translation_m.minCoeff(), 0.0);
     ASSERT_TRUE(pair.mlre_px.has_value());
     // Synthetic lines carry 0.3 px noise and edge points sit up to one step inside the edge:
     // a few px at most (the paper's MSG figures were 2.6-11.8 px).

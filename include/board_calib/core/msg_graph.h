@@ -169,11 +169,28 @@ struct GraphResiduals {
   double line_rms_mm = 0.0;
 };
 
+/// One camera <- LiDAR pair of the graph: camera_T_lidar = reference_T_camera^-1 * reference_T_lidar.
+struct PairEstimate {
+  int camera = 0;  ///< sensor indices
+  int lidar = 0;
+  Eigen::Isometry3d camera_T_lidar = Eigen::Isometry3d::Identity();
+  /// solvers.h convention (left rotation perturbation expressed in the camera frame, then the
+  /// translation), propagated to first order from both sensors' poses including their
+  /// cross-covariance. Valid only when has_covariance.
+  Matrix6d covariance = Matrix6d::Zero();
+  PoseStddev stddev;
+  bool has_covariance = false;
+};
+
 struct MsgSolution {
   bool success = false;
   std::string reason;
   int reference_sensor = 0;
   std::vector<SensorEstimate> sensors;
+  /// Joint covariance of every sensor pose (6n x 6n, sensor s at rows/columns 6s..6s+5, header
+  /// convention; zero for the reference); empty when not computed or not available.
+  Eigen::MatrixXd pose_covariance;
+  std::vector<PairEstimate> pairs;      ///< every camera <- LiDAR pair (camera-major order)
   std::vector<PairLink> links;          ///< every sensor pair (a < b); unusable ones carry a reason
   std::vector<LoopError> loops;         ///< every triangle of successful pairwise links
   double loop_rotation_max_deg = 0.0;
@@ -198,6 +215,11 @@ MsgSolution solveMsgGraph(const MsgProblem& problem, const MsgGraphOptions& opti
 
 /// a_T_b from a solution (p_a = a_T_b * p_b).
 Expected<Eigen::Isometry3d> sensorTSensor(const MsgSolution& solution, int a, int b);
+
+/// Covariance of a_T_b (solvers.h convention: left rotation perturbation expressed in frame a,
+/// then the translation) from the joint pose covariance, to first order and with the cross
+/// terms; fails when the solution carries no covariance.
+Expected<Matrix6d> relativeCovariance(const MsgSolution& solution, int a, int b);
 
 /// The reference paper's factory-stereo check: T_c1_c2 from the graph against a known one.
 struct StereoConsistency {

@@ -30,9 +30,49 @@ constexpr double kSqrtHalf = 0.70710678118654752;
 constexpr int kMinSensors = 2;
 constexpr double kRotationPerQuaternionTangent = 2.0;  // EigenQuaternionManifold: rotation vector = 2 d
 
+constexpr int kPoseDim = 6;  // tangent size of a pose: rotation vector, translation
+
 using Clock = std::chrono::steady_clock;
 double msSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+PoseStddev stddevOf(const Matrix6d& C) {
+  PoseStddev sd;
+  for (int i = 0; i < 3; ++i) {
+    sd.rotation_deg(i) = std::sqrt(std::max(C(i, i), 0.0)) * kDegPerRad;
+    sd.translation_m(i) = std::sqrt(std::max(C(i + 3, i + 3), 0.0));
+  }
+  return sd;
+}
+
+// Covariance of a_T_b = reference_T_a^-1 * reference_T_b from the joint pose covariance (both
+// poses perturbed on the left in the reference frame: R = Exp(w) R_hat, t = t_hat + v). To first
+// order, with d = t_b - t_a,
+//   a_T_b rotation (left, frame a):  Ra^T (w_b - w_a)
+//   a_T_b translation:               Ra^T (v_b - v_a) + Ra^T [d]x w_a
+// so C_ab = J [C_aa C_ab; C_ba C_bb] J^T with J = [J_a J_b].
+Matrix6d relativeCovarianceOf(const MsgSolution& sol, int a, int b) {
+  const Eigen::Isometry3d& Ta = sol.sensors[a].reference_T_sensor;
+  const Eigen::Isometry3d& Tb = sol.sensors[b].reference_T_sensor;
+  const Eigen::Matrix3d RaT = Ta.linear().transpose();
+  const Eigen::Vector3d d = Tb.translation() - Ta.translation();
+  Eigen::Matrix3d d_cross;
+  d_cross << 0.0, -d.z(), d.y(), d.z(), 0.0, -d.x(), -d.y(), d.x(), 0.0;
+  Eigen::Matrix<double, kPoseDim, 2 * kPoseDim> J = Eigen::Matrix<double, kPoseDim, 2 * kPoseDim>::Zero();
+  J.block<3, 3>(0, 0) = -RaT;
+  J.block<3, 3>(3, 0) = RaT * d_cross;
+  J.block<3, 3>(3, 3) = -RaT;
+  J.block<3, 3>(0, 6) = RaT;
+  J.block<3, 3>(3, 9) = RaT;
+  Eigen::Matrix<double, 2 * kPoseDim, 2 * kPoseDim> joint;
+  const Eigen::MatrixXd& P = sol.pose_covariance;
+  joint.block<kPoseDim, kPoseDim>(0, 0) = P.block<kPoseDim, kPoseDim>(kPoseDim * a, kPoseDim * a);
+  joint.block<kPoseDim, kPoseDim>(0, kPoseDim) = P.block<kPoseDim, kPoseDim>(kPoseDim * a, kPoseDim * b);
+  joint.block<kPoseDim, kPoseDim>(kPoseDim, 0) = P.block<kPoseDim, kPoseDim>(kPoseDim * b, kPoseDim * a);
+  joint.block<kPoseDim, kPoseDim>(kPoseDim, kPoseDim) = P.block<kPoseDim, kPoseDim>(kPoseDim * b, kPoseDim * b);
+  const Matrix6d C = J * joint * J.transpose();
+  return 0.5 * (C + C.transpose());
 }
 
 bool validPlane(const Plane& p) {
@@ -781,37 +821,41 @@ MsgSolution solveMsgGraph(const MsgProblem& problem, const MsgGraphOptions& opti
     }
   }
 
-  // Covariance of every sensor pose (tangent space: left rotation perturbation, translation).
+  // Covariance of every sensor pose (tangent space: left rotation perturbation, translation),
+  // jointly: the pairs need the cross-covariance of their two poses.
   if (options.compute_covariance) {
     ceres::Covariance::Options co;
     co.num_threads = options.num_threads;
     ceres::Covariance covariance(co);
-    std::vector<std::pair<const double*, const double*>> blocks;
+    std::vector<const double*> blocks;
+    std::vector<int> block_sensor;
     auto& poses = graph.poses();
     for (int s = 0; s < n; ++s) {
       if (s == ref) continue;
-      blocks.emplace_back(poses[s].q, poses[s].q);
-      blocks.emplace_back(poses[s].q, poses[s].t);
-      blocks.emplace_back(poses[s].t, poses[s].t);
+      blocks.push_back(poses[s].q);
+      blocks.push_back(poses[s].t);
+      block_sensor.push_back(s);
     }
-    if (covariance.Compute(blocks, graph.keptProblem())) {
+    using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    const int free_dim = kPoseDim * static_cast<int>(block_sensor.size());
+    RowMatrix tangent(free_dim, free_dim);
+    if (covariance.Compute(blocks, graph.keptProblem()) &&
+        covariance.GetCovarianceMatrixInTangentSpace(blocks, tangent.data())) {
+      // Ceres' quaternion tangent d rotates by 2|d| (Plus: [cos|d|, sin|d| d/|d|] * q), so the
+      // rotation vector is 2 d: rotation rows and columns x2.
+      Eigen::VectorXd scale = Eigen::VectorXd::Ones(free_dim);
+      for (size_t k = 0; k < block_sensor.size(); ++k)
+        scale.segment<3>(kPoseDim * k).setConstant(kRotationPerQuaternionTangent);
+      const Eigen::MatrixXd scaled = scale.asDiagonal() * tangent * scale.asDiagonal();
+      sol.pose_covariance = Eigen::MatrixXd::Zero(kPoseDim * n, kPoseDim * n);
+      for (size_t i = 0; i < block_sensor.size(); ++i)
+        for (size_t j = 0; j < block_sensor.size(); ++j)
+          sol.pose_covariance.block<kPoseDim, kPoseDim>(kPoseDim * block_sensor[i], kPoseDim * block_sensor[j]) =
+              scaled.block<kPoseDim, kPoseDim>(kPoseDim * i, kPoseDim * j);
       for (int s = 0; s < n; ++s) {
         if (s == ref) continue;
-        Eigen::Matrix<double, 3, 3, Eigen::RowMajor> qq, qt, tt;
-        covariance.GetCovarianceBlockInTangentSpace(poses[s].q, poses[s].q, qq.data());
-        covariance.GetCovarianceBlockInTangentSpace(poses[s].q, poses[s].t, qt.data());
-        covariance.GetCovarianceBlockInTangentSpace(poses[s].t, poses[s].t, tt.data());
-        // Ceres' quaternion tangent d rotates by 2|d| (Plus: [cos|d|, sin|d| d/|d|] * q), so the
-        // rotation vector is 2 d: rotation block x4, rotation-translation block x2.
-        Matrix6d& C = sol.sensors[s].covariance;
-        C.topLeftCorner<3, 3>() = kRotationPerQuaternionTangent * kRotationPerQuaternionTangent * qq;
-        C.topRightCorner<3, 3>() = kRotationPerQuaternionTangent * qt;
-        C.bottomLeftCorner<3, 3>() = kRotationPerQuaternionTangent * qt.transpose();
-        C.bottomRightCorner<3, 3>() = tt;
-        for (int i = 0; i < 3; ++i) {
-          sol.sensors[s].stddev.rotation_deg(i) = std::sqrt(std::max(C(i, i), 0.0)) * kDegPerRad;
-          sol.sensors[s].stddev.translation_m(i) = std::sqrt(std::max(C(i + 3, i + 3), 0.0));
-        }
+        sol.sensors[s].covariance = sol.pose_covariance.block<kPoseDim, kPoseDim>(kPoseDim * s, kPoseDim * s);
+        sol.sensors[s].stddev = stddevOf(sol.sensors[s].covariance);
       }
       sol.notes.push_back(
           "1-sigma figures follow from the sensors' noise sigmas (given or estimated); errors shared by every board pose "
@@ -820,6 +864,24 @@ MsgSolution solveMsgGraph(const MsgProblem& problem, const MsgGraphOptions& opti
       sol.notes.push_back("covariance not available: the graph is rank deficient at the solution");
       for (int s = 0; s < n; ++s)
         if (s != ref) sol.sensors[s].covariance.setConstant(std::numeric_limits<double>::infinity());
+    }
+  }
+
+  // Every camera <- LiDAR pair, with its covariance when the poses have one.
+  for (int c = 0; c < n; ++c) {
+    if (sol.sensors[c].kind != SensorKind::kCamera) continue;
+    for (int l = 0; l < n; ++l) {
+      if (sol.sensors[l].kind != SensorKind::kLidar) continue;
+      PairEstimate pair;
+      pair.camera = c;
+      pair.lidar = l;
+      pair.camera_T_lidar = sol.sensors[c].reference_T_sensor.inverse() * sol.sensors[l].reference_T_sensor;
+      if (sol.pose_covariance.size() > 0) {
+        pair.covariance = relativeCovarianceOf(sol, c, l);
+        pair.stddev = stddevOf(pair.covariance);
+        pair.has_covariance = pair.covariance.allFinite();
+      }
+      sol.pairs.push_back(pair);
     }
   }
 
@@ -852,6 +914,16 @@ Expected<Eigen::Isometry3d> sensorTSensor(const MsgSolution& solution, int a, in
     return Expected<Eigen::Isometry3d>::failure("sensor index out of range (0.." + std::to_string(n - 1) + ")");
   return Expected<Eigen::Isometry3d>(solution.sensors[a].reference_T_sensor.inverse() *
                                      solution.sensors[b].reference_T_sensor);
+}
+
+Expected<Matrix6d> relativeCovariance(const MsgSolution& solution, int a, int b) {
+  const int n = static_cast<int>(solution.sensors.size());
+  if (!solution.success) return Expected<Matrix6d>::failure("the graph solve did not succeed: " + solution.reason);
+  if (a < 0 || b < 0 || a >= n || b >= n)
+    return Expected<Matrix6d>::failure("sensor index out of range (0.." + std::to_string(n - 1) + ")");
+  if (solution.pose_covariance.rows() != kPoseDim * n || solution.pose_covariance.cols() != kPoseDim * n)
+    return Expected<Matrix6d>::failure("the solution carries no pose covariance");
+  return Expected<Matrix6d>(relativeCovarianceOf(solution, a, b));
 }
 
 Expected<StereoConsistency> stereoConsistency(const MsgSolution& solution, int camera1, int camera2,
@@ -895,18 +967,14 @@ ResultFile msgResultFile(const MsgProblem& problem, const MsgSolution& solution)
   r.reference_frame = solution.sensors[solution.reference_sensor].frame;
   r.views_used = solution.poses_used;
   for (const auto& s : solution.sensors) r.sensors.push_back({s.frame, sensorKindName(s.kind), s.reference_T_sensor});
-  const int n = static_cast<int>(solution.sensors.size());
-  for (int c = 0; c < n; ++c) {
-    if (solution.sensors[c].kind != SensorKind::kCamera) continue;
-    for (int l = 0; l < n; ++l) {
-      if (solution.sensors[l].kind != SensorKind::kLidar) continue;
-      PairEntry e;
-      e.camera_frame = solution.sensors[c].frame;
-      e.lidar_frame = solution.sensors[l].frame;
-      e.camera_T_lidar = *sensorTSensor(solution, c, l);
-      e.mlre_px = pairMlrePx(problem, c, l, e.camera_T_lidar);
-      r.pairs.push_back(e);
-    }
+  for (const PairEstimate& pair : solution.pairs) {
+    PairEntry e;
+    e.camera_frame = solution.sensors[pair.camera].frame;
+    e.lidar_frame = solution.sensors[pair.lidar].frame;
+    e.camera_T_lidar = pair.camera_T_lidar;
+    e.mlre_px = pairMlrePx(problem, pair.camera, pair.lidar, e.camera_T_lidar);
+    if (pair.has_covariance) e.stddev = pair.stddev;
+    r.pairs.push_back(e);
   }
   if (!r.pairs.empty()) {
     const PairEntry& first = r.pairs.front();
@@ -914,6 +982,7 @@ ResultFile msgResultFile(const MsgProblem& problem, const MsgSolution& solution)
     r.lidar_frame = first.lidar_frame;
     r.camera_T_lidar = first.camera_T_lidar;
     r.mlre_px = first.mlre_px;
+    r.stddev = first.stddev;
   }
   r.quality["loop_rotation_max_deg"] = solution.loop_rotation_max_deg;
   r.quality["loop_translation_max_mm"] = solution.loop_translation_max_mm;
