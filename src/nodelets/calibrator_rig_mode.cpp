@@ -94,7 +94,8 @@ struct RigCalibratorMode::Impl {
     session->setOptions(o);
   }
 
-  static CalibrationResult pairMsg(const PairEntry& p, const msg::MsgSolution& s) {
+  // `p` is the result-file entry of `pair` (same order in msgResultFile).
+  static CalibrationResult pairMsg(const PairEntry& p, const msg::PairEstimate& pair, const msg::MsgSolution& s) {
     CalibrationResult m;
     m.header.stamp = ros::Time::now();
     m.header.frame_id = p.lidar_frame;
@@ -110,6 +111,14 @@ struct RigCalibratorMode::Impl {
     m.covariance.fill(std::nan(""));
     m.stddev_translation_m.fill(std::nan(""));
     m.stddev_rotation_deg.fill(std::nan(""));
+    if (pair.has_covariance) {
+      for (int i = 0; i < 3; ++i) {
+        m.stddev_translation_m[i] = pair.stddev.translation_m[i];
+        m.stddev_rotation_deg[i] = pair.stddev.rotation_deg[i];
+      }
+      for (int r = 0; r < 6; ++r)
+        for (int c = 0; c < 6; ++c) m.covariance[r * 6 + c] = pair.covariance(r, c);
+    }
     m.notes = s.notes;
     return m;
   }
@@ -197,7 +206,8 @@ struct RigCalibratorMode::Impl {
       p.poses_rejected = static_cast<uint32_t>(std::max(0, s.observations_rejected));
       res.sensors.push_back(p);
     }
-    for (const auto& p : file.pairs) res.all_results.push_back(pairMsg(p, solution));
+    for (size_t i = 0; i < file.pairs.size() && i < solution.pairs.size(); ++i)
+      res.all_results.push_back(pairMsg(file.pairs[i], solution.pairs[i], solution));
     if (!res.all_results.empty()) {
       res.result = res.all_results.front();
       result_pub.publish(res.result);

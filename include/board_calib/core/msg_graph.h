@@ -235,7 +235,8 @@ std::optional<double> pairMlrePx(const MsgProblem& problem, int camera, int lida
                                  const Eigen::Isometry3d& camera_T_lidar);
 
 /// The result file (DESIGN.md §3.4): `sensors` (every pose in the reference frame), `pairs`
-/// (every camera<->LiDAR pair), the single-pair block from the first pair, quality figures
+/// (solution.pairs in the same order, each with its 1 sigma when the covariance is available),
+/// the single-pair block from the first pair, quality figures
 /// (loop consistency, residuals) and notes.
 ResultFile msgResultFile(const MsgProblem& problem, const MsgSolution& solution);
 

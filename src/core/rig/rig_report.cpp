@@ -32,11 +32,15 @@ std::string rigSolutionSummary(const RigConfig& rig, const msg::MsgSolution& sol
           << 1000.0 * s.stddev.translation_m.maxCoeff() << " mm";
     out << "  (" << s.observations << " poses, " << s.observations_rejected << " rejected)\n";
   }
-  out << "camera <- LiDAR pairs (camera_T_lidar):\n";
+  out << "camera <- LiDAR pairs (camera_T_lidar, MLRE, 1-sigma max rotation / translation):\n";
   for (const auto& p : result.pairs) {
     out << "  " << p.camera_frame << " <- " << p.lidar_frame << ": " << poseLine(p.camera_T_lidar) << ", MLRE ";
-    if (p.mlre_px) out << std::setprecision(2) << *p.mlre_px << " px\n";
-    else out << "n/a (no shared edges)\n";
+    if (p.mlre_px) out << std::setprecision(2) << *p.mlre_px << " px";
+    else out << "n/a (no shared edges)";
+    if (p.stddev)
+      out << "  +-" << std::setprecision(3) << p.stddev->rotation_deg.maxCoeff() << " deg / " << std::setprecision(1)
+          << 1000.0 * p.stddev->translation_m.maxCoeff() << " mm";
+    out << "\n";
   }
   out << std::setprecision(3) << "loop consistency (max over " << solution.loops.size()
       << " triangles of pairwise estimates): " << solution.loop_rotation_max_deg << " deg, " << std::setprecision(1)
