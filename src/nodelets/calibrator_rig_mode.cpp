@@ -139,7 +139,9 @@ struct RigCalibratorMode::Impl {
     }
     // One static_transform_publisher per sensor, ready to paste into a bring-up launch file.
     std::ofstream launch(base + "_static_transforms.launch");
-    launch << std::setprecision(9) << "<launch>\n";
+    launch << std::setprecision(9) << "<launch>\n"
+           << "  <!-- Needs tf2_ros's static_transform_publisher (ROS Noetic; Debian's ROS packages lack it: there run\n"
+           << "       roslaunch board_calib publish_calibration.launch result_file:=msg_rig_result.yaml) -->\n";
     const std::string& parent = s.sensors[s.reference_sensor].frame;
     for (size_t k = 0; k < s.sensors.size(); ++k) {
       if (static_cast<int>(k) == s.reference_sensor) continue;

@@ -14,6 +14,7 @@
 #include <tf2_eigen/tf2_eigen.h>
 #include <tf2_ros/transform_listener.h>
 
+#include <cmath>
 #include <map>
 #include <optional>
 
@@ -58,6 +59,14 @@ TEST(RigLiveEndToEnd, EverySensorTfMatchesGroundTruth) {
   std::cout << "[rig_live_e2e]\n" << srv.response.message << std::endl;
   ASSERT_EQ(srv.response.sensors.size(), 4u);
   EXPECT_EQ(srv.response.all_results.size(), 4u) << "2 cameras x 2 LiDARs";
+  for (const auto& r : srv.response.all_results) {
+    // Every pair says how good it is: a finite, positive 1 sigma from the graph covariance.
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_TRUE(std::isfinite(r.stddev_translation_m[i]) && r.stddev_translation_m[i] > 0.0) << r.camera_frame;
+      EXPECT_TRUE(std::isfinite(r.stddev_rotation_deg[i]) && r.stddev_rotation_deg[i] > 0.0) << r.camera_frame;
+    }
+    EXPECT_LT(r.stddev_translation_m[0], 0.01) << r.camera_frame << " <- " << r.lidar_frame;
+  }
   const std::string reference = srv.response.reference_frame;
   ASSERT_TRUE(truth_poses.count(reference)) << reference;
   const Eigen::Isometry3d truth_ref = truth_poses.at(reference);
