@@ -146,11 +146,17 @@ class CloudBoardDetectorNodelet : public nodelet::Nodelet {
     pnh.param("background_frames", background_frames_, 5);
     if (background_frames_ < 1) background_frames_ = 1;
 
-    auto connect = [this](const ros::SingleSubscriberPublisher&) { updateSubscription(); };
-    board_pub_ = nh.advertise<LidarBoard>("lidar_board", 5, connect, connect);
-    points_pub_ = nh.advertise<sensor_msgs::PointCloud2>("board_points", 1, connect, connect);
-    edges_pub_ = nh.advertise<sensor_msgs::PointCloud2>("edge_points", 1, connect, connect);
-    markers_pub_ = nh.advertise<visualization_msgs::MarkerArray>("markers", 1, connect, connect);
+    {
+      // Connect callbacks run on the manager's threads, possibly while onInit is still here: they
+      // wait for this lock, so they never read a publisher that is not assigned yet (a subscriber
+      // connecting in that window was otherwise never served).
+      std::lock_guard<std::mutex> lock(subscription_mutex_);
+      auto connect = [this](const ros::SingleSubscriberPublisher&) { updateSubscription(); };
+      board_pub_ = nh.advertise<LidarBoard>("lidar_board", 5, connect, connect);
+      points_pub_ = nh.advertise<sensor_msgs::PointCloud2>("board_points", 1, connect, connect);
+      edges_pub_ = nh.advertise<sensor_msgs::PointCloud2>("edge_points", 1, connect, connect);
+      markers_pub_ = nh.advertise<visualization_msgs::MarkerArray>("markers", 1, connect, connect);
+    }
     capture_srv_ = pnh.advertiseService("capture_background", &CloudBoardDetectorNodelet::onCapture, this);
     clear_srv_ = pnh.advertiseService("clear_background", &CloudBoardDetectorNodelet::onClear, this);
 
@@ -170,8 +176,11 @@ class CloudBoardDetectorNodelet : public nodelet::Nodelet {
     diagnostics_.setHardwareID("lidar board detector (" + std::string(targetTypeName(target_.type)) + " " +
                                std::to_string(target_.width) + " x " + std::to_string(target_.height) + " m)");
     diagnostics_.add("cloud_board_detector", this, &CloudBoardDetectorNodelet::diagnose);
-    diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(kDiagnosticsPeriodS),
-                                            [this](const ros::WallTimerEvent&) { diagnostics_.update(); });
+    // The timer also re-checks the lazy subscription: a safety net should a connect callback be missed.
+    diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(kDiagnosticsPeriodS), [this](const ros::WallTimerEvent&) {
+      updateSubscription();
+      diagnostics_.update();
+    });
     NODELET_INFO("cloud_board_detector: target %s %.3f x %.3f m from %s; waiting for subscribers",
                  targetTypeName(target_.type), target_.width, target_.height, target_file.c_str());
   }

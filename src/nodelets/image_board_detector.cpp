@@ -73,8 +73,11 @@ class ImageBoardDetectorNodelet : public nodelet::Nodelet {
     diagnostics_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
     diagnostics_->setHardwareID("camera (" + std::string(targetTypeName(target_.type)) + " board)");
     diagnostics_->add("image board detection", this, &ImageBoardDetectorNodelet::diagnose);
-    diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(kDiagnosticsPeriodS),
-                                            [this](const ros::WallTimerEvent&) { diagnostics_->update(); });
+    // The timer also re-checks the lazy subscription: a safety net should a connect callback be missed.
+    diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(kDiagnosticsPeriodS), [this](const ros::WallTimerEvent&) {
+      connectCb();
+      diagnostics_->update();
+    });
     NODELET_INFO_STREAM("image_board_detector: " << targetTypeName(target_.type) << " board from " << target_file
                                                  << ", transport '" << transport_ << "'");
   }
