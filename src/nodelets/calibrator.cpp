@@ -25,7 +25,6 @@
 #include <visualization_msgs/MarkerArray.h>
 
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <future>
@@ -97,11 +96,7 @@ void CalibratorNodelet::onInit() {
   pnh.param("method", default_method_, default_method_);
   pnh.param("child_frame", child_frame_, std::string());
   pnh.param("broadcast_tf", broadcast_tf_, true);
-  std::string default_dir;
-  if (const char* ros_home = std::getenv("ROS_HOME")) default_dir = std::string(ros_home) + "/board_calib";
-  else if (const char* home = std::getenv("HOME")) default_dir = std::string(home) + "/.ros/board_calib";
-  pnh.param("output_dir", output_dir_, default_dir);
-  if (output_dir_.empty()) output_dir_ = default_dir;
+  output_dir_ = outputDirParam(pnh);
   session_ = std::make_unique<CalibrationSession>(*target, SessionOptions{});
   std::string session_file;
   if (pnh.getParam("session_file", session_file) && !session_file.empty()) {

@@ -1,11 +1,17 @@
-// dynamic_reconfigure config -> session options of the calibrator (pair mode: SessionOptions,
-// rig mode: msg::RigSessionOptions), shared by the nodelet and the test that keeps the .cfg
-// defaults equal to the core defaults (test/ros/test_config_defaults.cpp).
+// Calibrator settings shared by its pair and rig modes: dynamic_reconfigure config -> session
+// options (pair mode: SessionOptions, rig mode: msg::RigSessionOptions; the test
+// test/ros/test_config_defaults.cpp keeps the .cfg defaults equal to the core defaults), and
+// the ~output_dir parameter.
 #pragma once
 
 #include <board_calib/CalibratorConfig.h>
 #include <board_calib/core/rig_session.h>
 #include <board_calib/core/session.h>
+
+#include <ros/node_handle.h>
+
+#include <cstdlib>
+#include <string>
 
 // (cfg parameter, SessionOptions member) of cfg/Calibrator.cfg.
 #define BOARD_CALIB_SESSION_FIELDS(X)                           \
@@ -44,6 +50,16 @@ inline msg::RigSessionOptions rigSessionOptionsFromConfig(const CalibratorConfig
   BOARD_CALIB_RIG_SESSION_FIELDS(BOARD_CALIB_ASSIGN)
 #undef BOARD_CALIB_ASSIGN
   return base;
+}
+
+/// ~output_dir, or when unset or empty $ROS_HOME/board_calib (else ~/.ros/board_calib).
+inline std::string outputDirParam(const ros::NodeHandle& pnh) {
+  std::string default_dir;
+  if (const char* ros_home = std::getenv("ROS_HOME")) default_dir = std::string(ros_home) + "/board_calib";
+  else if (const char* home = std::getenv("HOME")) default_dir = std::string(home) + "/.ros/board_calib";
+  std::string dir;
+  pnh.param("output_dir", dir, default_dir);
+  return dir.empty() ? default_dir : dir;
 }
 
 }  // namespace board_calib

@@ -21,7 +21,6 @@
 #include <tf2_ros/static_transform_broadcaster.h>
 
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <future>
@@ -336,11 +335,7 @@ std::unique_ptr<RigCalibratorMode> RigCalibratorMode::create(ros::NodeHandle nh,
   }
   pnh.param("child_frame_suffix", m.child_frame_suffix, std::string());
   pnh.param("broadcast_tf", m.broadcast_tf, true);
-  std::string default_dir;
-  if (const char* ros_home = std::getenv("ROS_HOME")) default_dir = std::string(ros_home) + "/board_calib";
-  else if (const char* home = std::getenv("HOME")) default_dir = std::string(home) + "/.ros/board_calib";
-  pnh.param("output_dir", m.output_dir, default_dir);
-  if (m.output_dir.empty()) m.output_dir = default_dir;
+  m.output_dir = outputDirParam(pnh);
 
   m.session = std::make_unique<msg::RigSession>(rig->sensorNames(), rig->sensorSpecs(), msg::rigSessionOptionsFor(*rig));
   std::string session_file;

@@ -111,13 +111,15 @@ class RigSession {
     std::string why;
   };
 
-  SessionEvent add(int sensor, double stamp, bool found, const std::optional<Summary>& summary,
+  SessionEvent add(int sensor, double stamp, const std::optional<Summary>& summary,
                    const std::string& frame, const std::string& reason, const std::function<void(Stream&)>& keep);
   SessionEvent assemble(const Pending& pending);
   void prune();
   bool readyToAssemble(const Pending& pending) const;
   bool seenBefore(int sensor, const Summary& s, int* pose_id) const;
   std::optional<Summary> summaryOf(int sensor, const BoardPoseObservation& o) const;
+  static std::optional<Summary> summarize(const CameraBoardFeatures& f);  // nullopt unless found
+  static std::optional<Summary> summarize(const LidarBoardFeatures& f);   // nullopt unless found with points
 
   std::vector<std::string> names_;
   std::vector<SensorSpec> sensors_;

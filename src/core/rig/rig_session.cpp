@@ -87,11 +87,7 @@ SessionEvent RigSession::addCamera(int sensor, const CameraBoardFeatures& f) {
   if (sensor < 0 || sensor >= static_cast<int>(sensors_.size()) || sensors_[sensor].kind != SensorKind::kCamera)
     return event(SessionEvent::Kind::kRejected, "camera features given for sensor " + std::to_string(sensor) +
                                                     ", which is not a camera of this rig");
-  std::optional<Summary> s;
-  if (f.found) {
-    s = Summary{f.camera_T_board.translation(), f.plane.normal};
-  }
-  return add(sensor, f.stamp, f.found, s, f.frame_id, f.reason, [&](Stream& st) {
+  return add(sensor, f.stamp, summarize(f), f.frame_id, f.reason, [&](Stream& st) {
     if (st.cameras.empty() || f.stamp >= st.cameras.back().stamp) st.cameras.push_back(f);
   });
 }
@@ -100,20 +96,15 @@ SessionEvent RigSession::addLidar(int sensor, const LidarBoardFeatures& f) {
   if (sensor < 0 || sensor >= static_cast<int>(sensors_.size()) || sensors_[sensor].kind != SensorKind::kLidar)
     return event(SessionEvent::Kind::kRejected, "LiDAR features given for sensor " + std::to_string(sensor) +
                                                     ", which is not a LiDAR of this rig");
-  std::optional<Summary> s;
-  if (f.found && !f.board_points.empty()) {
-    Eigen::Vector3d c = Eigen::Vector3d::Zero();
-    for (const auto& p : f.board_points) c += p;
-    s = Summary{c / static_cast<double>(f.board_points.size()), f.plane.normal};
-  }
-  return add(sensor, f.stamp, s.has_value(), s, f.frame_id, f.reason, [&](Stream& st) {
+  return add(sensor, f.stamp, summarize(f), f.frame_id, f.reason, [&](Stream& st) {
     if (st.lidars.empty() || f.stamp >= st.lidars.back().stamp) st.lidars.push_back(f);
   });
 }
 
-SessionEvent RigSession::add(int sensor, double stamp, bool found, const std::optional<Summary>& summary,
+SessionEvent RigSession::add(int sensor, double stamp, const std::optional<Summary>& summary,
                              const std::string& frame, const std::string& reason,
                              const std::function<void(Stream&)>& keep) {
+  const bool found = summary.has_value();  // the board seen, with a usable summary
   SessionEvent result = event(SessionEvent::Kind::kWaiting, "waiting for the board to be held still");
   if (!std::isfinite(stamp)) return event(SessionEvent::Kind::kRejected, names_[sensor] + ": non-finite stamp");
   RigSensorCounts& count = counts_[sensor];
@@ -203,14 +194,21 @@ bool RigSession::seenBefore(int sensor, const Summary& s, int* pose_id) const {
   return false;
 }
 
+std::optional<RigSession::Summary> RigSession::summarize(const CameraBoardFeatures& f) {
+  if (!f.found) return std::nullopt;
+  return Summary{f.camera_T_board.translation(), f.plane.normal};
+}
+
+std::optional<RigSession::Summary> RigSession::summarize(const LidarBoardFeatures& f) {
+  if (!f.found || f.board_points.empty()) return std::nullopt;
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const auto& p : f.board_points) c += p;
+  return Summary{c / static_cast<double>(f.board_points.size()), f.plane.normal};
+}
+
 std::optional<RigSession::Summary> RigSession::summaryOf(int sensor, const BoardPoseObservation& o) const {
-  if (auto it = o.cameras.find(sensor); it != o.cameras.end())
-    return Summary{it->second.camera_T_board.translation(), it->second.plane.normal};
-  if (auto it = o.lidars.find(sensor); it != o.lidars.end() && !it->second.board_points.empty()) {
-    Eigen::Vector3d c = Eigen::Vector3d::Zero();
-    for (const auto& p : it->second.board_points) c += p;
-    return Summary{c / static_cast<double>(it->second.board_points.size()), it->second.plane.normal};
-  }
+  if (auto it = o.cameras.find(sensor); it != o.cameras.end()) return summarize(it->second);
+  if (auto it = o.lidars.find(sensor); it != o.lidars.end()) return summarize(it->second);
   return std::nullopt;
 }
 
