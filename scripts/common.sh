@@ -10,7 +10,7 @@ BOARD_CALIB_PACKAGES=(
   libpcl-ros-dev libpcl-conversions-dev libcv-bridge-dev libimage-transport-dev libimage-geometry-dev
   libnodelet-topic-tools-dev libdiagnostic-updater-dev libopencv-dev libpcl-dev libceres-dev
   libeigen3-dev libapriltag-dev libyaml-cpp-dev python3-rostest python3-sensor-msgs libgtest-dev
-  python3-tf2-msgs python3-yaml python3-numpy cmake g++ make rviz xvfb
+  python3-tf2-msgs python3-yaml python3-numpy cmake g++ make rviz xvfb ccache
 )
 
 # Installs whatever is missing (an installed machine skips apt entirely).
@@ -36,10 +36,15 @@ board_calib_ros_env() {
 
 board_calib_build() {
   local targets=("$@")
+  # Paths relative to the build's parent folder so clones elsewhere share the cache.
+  export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$(dirname "${BOARD_CALIB_ROOT}")}"
   mkdir -p "${BOARD_CALIB_BUILD}"
   board_calib_ros_env
   if [ ! -f "${BOARD_CALIB_BUILD}/Makefile" ]; then
-    cmake -S "${BOARD_CALIB_ROOT}" -B "${BOARD_CALIB_BUILD}" -DCMAKE_BUILD_TYPE=Release \
+    # ccache: rebuilds of unchanged translation units (other clones, worktrees) come from the cache.
+    local launcher=()
+    if command -v ccache >/dev/null 2>&1; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache); fi
+    cmake -S "${BOARD_CALIB_ROOT}" -B "${BOARD_CALIB_BUILD}" -DCMAKE_BUILD_TYPE=Release "${launcher[@]}" \
       -DPYTHON_EXECUTABLE=/usr/bin/python3 -DCATKIN_ENABLE_TESTING=ON >"${BOARD_CALIB_BUILD}/configure.log" 2>&1 \
       || { cat "${BOARD_CALIB_BUILD}/configure.log"; return 1; }
   fi
