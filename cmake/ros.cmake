@@ -29,7 +29,7 @@ endforeach()
 # Command-line tools (src/tools/<name>.cpp), run with rosrun.
 set(BOARD_CALIB_TOOLS)
 foreach(tool board_info calibrate_bag simulate_bag publish_calibration bench_solvers bench_lidar_detector bench_image_detector
-        bench_projection bench_sim bench_msg_graph)
+        bench_projection bench_sim bench_msg_graph bench_capture)
   if(EXISTS ${CMAKE_CURRENT_SOURCE_DIR}/src/tools/${tool}.cpp)
     add_executable(${tool} src/tools/${tool}.cpp)
     target_compile_options(${tool} PRIVATE ${BOARD_CALIB_WARNINGS})
@@ -50,6 +50,13 @@ endif()
 # Multi-sensor rig mode of the calibrator nodelet (~rig_file).
 if(TARGET board_calib_calibrator)
   target_sources(board_calib_calibrator PRIVATE src/nodelets/calibrator_rig_mode.cpp)
+endif()
+
+# The capture benchmark runs simulated sessions through the test support's driver.
+if(TARGET bench_capture)
+  target_sources(bench_capture PRIVATE test/support/sim_session.cpp)
+  target_include_directories(bench_capture PRIVATE ${CMAKE_CURRENT_SOURCE_DIR}/test)
+  target_compile_definitions(bench_capture PRIVATE BOARD_CALIB_SOURCE_DIR="${CMAKE_CURRENT_SOURCE_DIR}")
 endif()
 
 # Multi-sensor rig mode of calibrate_bag (--config RIG.yaml --method msg).

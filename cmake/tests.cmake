@@ -24,7 +24,7 @@ board_calib_core_gtest(test_core_geometry
 target_include_directories(test_core_geometry SYSTEM PRIVATE ${OpenCV_INCLUDE_DIRS})
 
 # Module test fragments (cmake/tests_<module>.cmake), added by each module.
-foreach(module solvers sim lidar_detection image_detection session report pipeline projection msg_graph rig)
+foreach(module solvers sim lidar_detection image_detection session verdict report pipeline projection msg_graph rig)
   if(EXISTS ${CMAKE_CURRENT_SOURCE_DIR}/cmake/tests_${module}.cmake)
     include(cmake/tests_${module}.cmake)
   endif()

@@ -96,6 +96,11 @@ std::string resultToYaml(const ResultFile& r) {
   out << YAML::Key << "lidar_T_camera" << YAML::Value;
   emitTransform(out, r.camera_T_lidar.inverse());
   out << YAML::Key << "views_used" << YAML::Value << r.views_used;
+  if (!r.verdict.empty()) {
+    out << YAML::Key << "verdict" << YAML::Value << r.verdict;
+    out << YAML::Key << "verdict_reason" << YAML::Value << r.verdict_reason;
+    out << YAML::Key << "views_to_check" << YAML::Value << YAML::Flow << r.views_to_check;
+  }
   if (r.mlre_px) out << YAML::Key << "mlre_px" << YAML::Value << *r.mlre_px;
   if (r.stddev) emitStddev(out, *r.stddev);
   if (!r.quality.empty()) {
@@ -145,6 +150,13 @@ Status writeResultFile(const std::string& path, const ResultFile& r) {
   return Status::success();
 }
 
+std::string failedResultPath(const std::string& path) {
+  const std::string ext = ".yaml";
+  if (path.size() > ext.size() && path.compare(path.size() - ext.size(), ext.size(), ext) == 0)
+    return path.substr(0, path.size() - ext.size()) + ".failed.yaml";
+  return path + ".failed.yaml";
+}
+
 Expected<ResultFile> parseResult(const std::string& text) {
   try {
     const YAML::Node root = YAML::Load(text);
@@ -156,6 +168,10 @@ Expected<ResultFile> parseResult(const std::string& text) {
     r.camera_T_lidar = readTransform(root["camera_T_lidar"], "camera_T_lidar");
     if (root["views_used"]) r.views_used = root["views_used"].as<int>();
     if (root["mlre_px"]) r.mlre_px = root["mlre_px"].as<double>();
+    if (root["verdict"]) r.verdict = root["verdict"].as<std::string>();
+    if (root["verdict_reason"]) r.verdict_reason = root["verdict_reason"].as<std::string>();
+    if (const YAML::Node v = root["views_to_check"])
+      for (const auto& id : v) r.views_to_check.push_back(id.as<int>());
     if (const YAML::Node s = root["stddev"]) r.stddev = readStddev(s, "stddev");
     if (const YAML::Node q = root["quality"])
       for (const auto& kv : q) r.quality[kv.first.as<std::string>()] = kv.second.as<double>();

@@ -11,6 +11,7 @@
 #include <board_calib/DropView.h>
 #include <board_calib/SessionFile.h>
 #include <board_calib/conversions.h>
+#include <board_calib/core/pipeline/pair_calibration.h>
 #include <board_calib/core/report.h>
 #include <board_calib/core/session.h>
 #include <board_calib/core/transform.h>
@@ -47,8 +48,9 @@ class CalibratorNodelet : public nodelet::Nodelet {
   bool dropView(DropView::Request& req, DropView::Response& res);
   void publishMarkers(const std::vector<View>& views, const std::optional<CalibrationSolution>& solution);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
-  CalibrationResult toResultMsg(const CalibrationSolution& s, const ResultFile& file) const;
+  CalibrationResult toResultMsg(const CalibrationSolution& s, const VerdictReport& verdict, const ResultFile& file) const;
   std::string writeOutputs(const ResultFile& file);
+  std::string writeFailedResult(const ResultFile& file);
 
   std::mutex mutex_;  // guards session_, last_event_, last_solution_
   std::unique_ptr<CalibrationSession> session_;
@@ -68,7 +70,9 @@ class CalibratorNodelet : public nodelet::Nodelet {
   std::unique_ptr<tf2_ros::StaticTransformBroadcaster> tf_broadcaster_;
   std::unique_ptr<dynamic_reconfigure::Server<CalibratorConfig>> reconfigure_server_;
   std::unique_ptr<diagnostic_updater::Updater> diagnostics_;
-  ros::Timer diagnostics_timer_;
+  ros::WallTimer diagnostics_timer_;
+  ros::WallTime last_feature_wall_;
+  static constexpr double kQuietStreamsS = 2.0;  // s of wall time without features
   std::unique_ptr<RigCalibratorMode> rig_mode_;  // set when ~rig_file is given
 };
 
@@ -122,7 +126,16 @@ void CalibratorNodelet::onInit() {
   diagnostics_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
   diagnostics_->setHardwareID("board_calib calibrator");
   diagnostics_->add("calibration session", this, &CalibratorNodelet::diagnose);
-  diagnostics_timer_ = nh.createTimer(ros::Duration(1.0), [this](const ros::TimerEvent&) { diagnostics_->update(); });
+  diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) {
+    diagnostics_->update();
+    // Streams quiet: the images still waiting for frames after them (the last pose of a
+    // recording, a paused bag) are judged with what there is.
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (session_ && ros::WallTime::now() - last_feature_wall_ > ros::WallDuration(kQuietStreamsS)) {
+      const SessionEvent e = session_->finish();
+      if (e.kind != SessionEvent::Kind::kWaiting) report(e, "quiet streams");
+    }
+  });
 
   // The calibrator subscribes eagerly: it must see every feature to collect views.
   lidar_sub_ = nh.subscribe("lidar_board", 10, &CalibratorNodelet::onLidar, this);
@@ -159,6 +172,7 @@ void CalibratorNodelet::report(const SessionEvent& e, const char* source) {
 void CalibratorNodelet::onLidar(const LidarBoardConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex_);
   ++lidar_msgs_;
+  last_feature_wall_ = ros::WallTime::now();
   lidar_frame_ = msg->header.frame_id;
   if (!msg->found) NODELET_DEBUG_STREAM_THROTTLE(5.0, "calibrator: LiDAR sees no board: " << msg->reason);
   report(session_->addLidar(fromMsg(*msg)), "lidar");
@@ -167,12 +181,14 @@ void CalibratorNodelet::onLidar(const LidarBoardConstPtr& msg) {
 void CalibratorNodelet::onCamera(const CameraBoardConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex_);
   ++camera_msgs_;
+  last_feature_wall_ = ros::WallTime::now();
   camera_frame_ = msg->header.frame_id;
   if (!msg->found) NODELET_DEBUG_STREAM_THROTTLE(5.0, "calibrator: camera sees no board: " << msg->reason);
   report(session_->addCamera(fromMsg(*msg)), "camera");
 }
 
-CalibrationResult CalibratorNodelet::toResultMsg(const CalibrationSolution& s, const ResultFile& file) const {
+CalibrationResult CalibratorNodelet::toResultMsg(const CalibrationSolution& s, const VerdictReport& verdict,
+                                                  const ResultFile& file) const {
   CalibrationResult m;
   m.header.stamp = ros::Time::now();
   m.header.frame_id = file.lidar_frame;
@@ -185,15 +201,36 @@ CalibrationResult CalibratorNodelet::toResultMsg(const CalibrationSolution& s, c
   m.views_used = static_cast<uint32_t>(std::max(0, s.views_used));
   m.mlre_px = s.mlre_px ? *s.mlre_px : std::nan("");
   m.plane_rms_mm = s.plane_rms_mm;
+  // The reported uncertainty is the verdict's: never below the cross-validation's spread.
+  const bool judged = s.success && verdict.covariance.diagonal().maxCoeff() > 0;
+  const PoseStddev& sd = judged ? verdict.stddev : s.stddev;
+  const Matrix6d& cov = judged ? verdict.covariance : s.covariance;
   for (int i = 0; i < 3; ++i) {
-    m.stddev_translation_m[i] = s.stddev.translation_m[i];
-    m.stddev_rotation_deg[i] = s.stddev.rotation_deg[i];
+    m.stddev_translation_m[i] = sd.translation_m[i];
+    m.stddev_rotation_deg[i] = sd.rotation_deg[i];
   }
   for (int r = 0; r < 6; ++r)
-    for (int c = 0; c < 6; ++c) m.covariance[r * 6 + c] = s.covariance(r, c);
+    for (int c = 0; c < 6; ++c) m.covariance[r * 6 + c] = cov(r, c);
+  m.verdict = verdictName(verdict.verdict);
+  m.verdict_reason = verdict.reason;
+  m.success = s.success && verdict.verdict != Verdict::kFailed;
+  if (!m.success && m.reason.empty()) m.reason = verdict.reason;
   m.final_cost = s.final_cost;
   m.notes = file.notes;
   return m;
+}
+
+std::string CalibratorNodelet::writeFailedResult(const ResultFile& file) {
+  if (output_dir_.empty()) return "";
+  std::error_code error;
+  std::filesystem::create_directories(output_dir_, error);
+  const std::string path = failedResultPath(output_dir_ + "/" + file.method + "_result.yaml");
+  const Status st = writeResultFile(path, file);
+  if (!st) {
+    NODELET_ERROR_STREAM("calibrator: " << st.reason);
+    return "";
+  }
+  return path;
 }
 
 std::string CalibratorNodelet::writeOutputs(const ResultFile& file) {
@@ -230,54 +267,50 @@ bool CalibratorNodelet::calibrate(Calibrate::Request& req, Calibrate::Response& 
     camera_frame = camera_frame_.empty() && !views.empty() ? views.front().camera.frame_id : camera_frame_;
     lidar_frame = lidar_frame_.empty() && !views.empty() ? views.front().lidar.frame_id : lidar_frame_;
   }
-  std::vector<Method> methods;
-  if (method_name == "all") {
-    methods = {Method::kPpc, Method::kPbpc, Method::kMsgPair};
-  } else {
-    auto m = parseMethod(method_name);
-    if (!m) {
-      res.success = false;
-      res.message = m.error();
-      return true;
-    }
-    methods = {*m};
+  const auto methods = parseMethods(method_name);
+  if (!methods) {
+    res.success = false;
+    res.message = methods.error();
+    return true;
   }
   if (views.empty()) {
     res.success = false;
-    res.message = "no views collected yet: hold the board still in front of both sensors";
+    std::lock_guard<std::mutex> lock(mutex_);
+    res.message = "no views collected yet: hold the board still in front of both sensors (" +
+                  session_->captureStats().summary() + ")";
     return true;
   }
   std::optional<Eigen::Isometry3d> guess;
   if (req.use_initial_guess) guess = fromTransformMsg(req.initial_guess);
-
   // The solve runs on its own thread; feature callbacks keep flowing meanwhile.
   auto solving = std::async(std::launch::async, [&]() {
-    std::vector<CalibrationSolution> out;
-    for (Method m : methods) out.push_back(board_calib::calibrate(views, m, realLidarSolverOptions(), guess));
-    return out;
+    return calibratePair(views, *methods, target, camera_frame, lidar_frame, PairCalibrationOptions{}, guess);
   });
-  const std::vector<CalibrationSolution> solutions = solving.get();
-  const int best = bestSolutionIndex(solutions);
-  for (const auto& s : solutions) {
-    const ResultFile file = makeResultFile(s, views, target, camera_frame, lidar_frame);
-    res.all_results.push_back(toResultMsg(s, file));
+  const PairCalibration run = solving.get();
+  for (const auto& r : run.runs) {
+    ResultFile file = makeResultFile(r.solution, run.used_views, target, camera_frame, lidar_frame);
+    file.verdict = verdictName(r.verdict.verdict);
+    file.verdict_reason = r.verdict.reason;
+    res.all_results.push_back(toResultMsg(r.solution, r.verdict, file));
   }
-  if (best < 0) {
+  const MethodRun& shown = run.runs[run.chosen >= 0 ? static_cast<size_t>(run.chosen) : 0];
+  res.result = toResultMsg(shown.solution, shown.verdict, run.result);
+  res.message = verdictSummary(run);
+  if (run.failed()) {
+    // Never broadcast, never replace a good result file: keep the failed one for inspection.
     res.success = false;
-    res.message = "calibration failed: " + solutions.front().reason;
-    res.result = res.all_results.front();
-    NODELET_WARN_STREAM("calibrator: " << res.message);
+    res.result.success = false;
+    if (res.result.reason.empty()) res.result.reason = run.reason;
+    const std::string kept = writeFailedResult(run.result);
+    if (!kept.empty()) res.message += "failed result kept for inspection in " + kept + "\n";
+    NODELET_WARN_STREAM("calibrator: calibration FAILED: " << run.reason);
+    result_pub_.publish(res.result);
     return true;
   }
-  const CalibrationSolution& chosen = solutions[best];
-  const ResultFile file = makeResultFile(chosen, views, target, camera_frame, lidar_frame);
-  res.result = toResultMsg(chosen, file);
-  if (methods.size() == 1) res.all_results.clear();
   res.success = true;
-  res.message = solutionSummary(chosen);
-  for (const auto& n : file.notes) NODELET_WARN_STREAM("calibrator: " << n);
-  NODELET_INFO_STREAM("calibrator:\n" << res.message);
-  if (methods.size() > 1) NODELET_INFO_STREAM("calibrator:\n" << comparisonTable(solutions));
+  const CalibrationSolution& chosen = shown.solution;
+  if (run.verdict == Verdict::kDoubtful) NODELET_WARN_STREAM("calibrator: calibration DOUBTFUL:\n" << res.message);
+  else NODELET_INFO_STREAM("calibrator:\n" << solutionSummary(chosen) << res.message);
 
   result_pub_.publish(res.result);
   if (broadcast_tf_) {
@@ -288,7 +321,7 @@ bool CalibratorNodelet::calibrate(Calibrate::Request& req, Calibrate::Response& 
     tf.transform = toTransformMsg(chosen.camera_T_lidar.inverse());
     tf_broadcaster_->sendTransform(tf);
   }
-  const std::string written = writeOutputs(file);
+  const std::string written = writeOutputs(run.result);
   if (!written.empty()) res.message += "result written to " + written + "\n";
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -404,6 +437,8 @@ void CalibratorNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& st
   stat.add("lidar feature messages", lidar_msgs_);
   stat.add("camera feature messages", camera_msgs_);
   stat.add("last event", last_event_);
+  stat.add("capture", session_->captureStats().summary());
+  stat.add("stillness", session_->captureStats().last_stillness);
   stat.add("tilt span (deg)", cov.tilt_span_deg);
   stat.add("range (m)", std::to_string(cov.range_min_m) + " - " + std::to_string(cov.range_max_m));
   stat.add("image coverage", cov.image_coverage);

@@ -17,6 +17,7 @@
 #define BOARD_CALIB_SESSION_FIELDS(X)                           \
   X(sync_tolerance, sync_tolerance_s)                           \
   X(still_frames, still_frames_required)                        \
+  X(still_window, still_window_s)                               \
   X(still_max_translation, still_max_translation_m)             \
   X(still_max_rotation_deg, still_max_rotation_deg)             \
   X(min_view_rotation_deg, min_view_rotation_deg)               \

@@ -7,6 +7,7 @@
 
 #include <board_calib/bag_reader.h>
 #include <board_calib/core/pipeline.h>
+#include <board_calib/core/pipeline/pair_calibration.h>
 #include <board_calib/core/projection.h>
 #include <board_calib/core/report.h>
 #include <board_calib/core/transform.h>
@@ -30,8 +31,6 @@ namespace {
 constexpr int kExitOk = 0;
 constexpr int kExitFailed = 1;
 constexpr int kExitUsage = 2;
-// Captures further apart than this are sparse snapshots, each its own board pose.
-constexpr double kSparseCaptureIntervalS = 0.5;
 
 const char* kUsage =
     "usage: calibrate_bag --bag FILE [--bag FILE...] --target TARGET.yaml\n"
@@ -45,8 +44,9 @@ const char* kUsage =
     "         [--quiet]   (docs/MSG.md)\n"
     "\n"
     "  --initial-guess     camera_T_lidar (p_camera = R p_lidar + t); default: closed-form initialisation\n"
-    "  --still-frames N    synchronised frames the board must stay still (default: 1 when captures are\n"
-    "                      more than 0.5 s apart, as in snapshot bags, else 2)\n"
+    "  --still-frames N    frames of the fastest stream that must see the board still around an image,\n"
+    "                      on both sides of it (default 2; 1: no check). Snapshot bags (every stream\n"
+    "                      0.5 s or more between frames) are recognised and need no setting\n"
     "  --sync-tolerance S  max image/cloud stamp difference of one view, s (default 0.05)\n"
     "  --load-session F    solve a saved session (no bag needed); --save-session F keeps the views\n"
     "  --truth FILE        a ground-truth result file (simulate_bag's *.truth.yaml): print the errors\n"
@@ -183,13 +183,9 @@ int main(int argc, char** argv) {
                               args.check_trans_m, args.quiet, args.capture});
   const auto wall_start = std::chrono::steady_clock::now();
 
-  std::vector<Method> methods;
-  if (args.method == "all") methods = {Method::kPpc, Method::kPbpc, Method::kMsgPair};
-  else {
-    auto m = parseMethod(args.method);
-    if (!m) fail(m.error(), kExitUsage);
-    methods = {*m};
-  }
+  const auto parsed_methods = parseMethods(args.method);
+  if (!parsed_methods) fail(parsed_methods.error(), kExitUsage);
+  const std::vector<Method> methods = *parsed_methods;
 
   SolverOptions solver = realLidarSolverOptions();
   if (!args.loss.empty()) {
@@ -221,19 +217,9 @@ int main(int argc, char** argv) {
     session = &loaded_session;  // the session carries its own target
     target = loaded_session.target();
   } else {
-    // Sparse snapshot bags (one capture per board pose) cannot show stillness across frames.
-    auto times = topicTimes(args.bags, args.image_topic);
-    if (!times) fail(times.error());
-    if (times->empty()) fail("topic '" + args.image_topic + "' holds no messages");
-    std::vector<double> gaps;
-    for (size_t i = 1; i < times->size(); ++i) gaps.push_back((*times)[i] - (*times)[i - 1]);
-    std::sort(gaps.begin(), gaps.end());
-    const double median_gap = gaps.empty() ? 0.0 : gaps[gaps.size() / 2];
-    options.session.still_frames_required =
-        args.still_frames > 0 ? args.still_frames : (median_gap > kSparseCaptureIntervalS ? 1 : 2);
-    if (!args.quiet)
-      std::cerr << "calibrate_bag: " << times->size() << " images, median interval " << median_gap
-                << " s: board must be still for " << options.session.still_frames_required << " frame(s)\n";
+    // Stillness is judged by the fastest stream around each image; snapshot recordings (every
+    // stream sparse) are recognised from the measured rates (core/capture/stillness.h).
+    if (args.still_frames > 0) options.session.still_frames_required = args.still_frames;
 
     auto p = CalibrationPipeline::create(*target, options);
     if (!p) fail(p.error());
@@ -278,13 +264,15 @@ int main(int argc, char** argv) {
     };
     const Status read = readBags(args.bags, topics, cb);
     if (!read) fail(read.reason);
+    pipeline->finish();
     if (!intrinsics) fail("no valid camera_info on '" + args.info_topic + "'");
     session = &pipeline->session();
 
     const PipelineStats& st = pipeline->stats();
     if (!args.quiet) {
       std::cerr << "calibrate_bag: board found in " << st.images_with_board << "/" << st.images << " images and "
-                << st.clouds_with_board << "/" << st.clouds << " clouds; " << session->views().size() << " views kept\n";
+                << st.clouds_with_board << "/" << st.clouds << " clouds; " << session->views().size() << " views kept\n"
+                << "  capture: " << session->captureStats().summary() << "\n";
       for (const auto& [why, n] : st.image_failures) std::cerr << "  image: " << n << " x " << why << "\n";
       for (const auto& [why, n] : st.cloud_failures) std::cerr << "  cloud: " << n << " x " << why << "\n";
     }
@@ -301,18 +289,29 @@ int main(int argc, char** argv) {
     if (!st) fail(st.reason);
   }
 
+  // Consistency, every method, the verdict and the choice: the same run as the live calibrator's.
+  PairCalibrationOptions run_options;
+  run_options.solver = solver;
+  const PairCalibration run = calibratePair(views, methods, *target, camera_frame, lidar_frame, run_options, args.guess);
   std::vector<CalibrationSolution> solutions;
-  for (Method m : methods) solutions.push_back(calibrate(views, m, solver, args.guess));
-  const int best = bestSolutionIndex(solutions);
-  for (const auto& s : solutions) std::cout << solutionSummary(s);
+  for (const auto& r : run.runs) solutions.push_back(r.solution);
+  for (const auto& r : run.runs)
+    std::cout << solutionSummary(r.solution) << "  verdict: " << verdictName(r.verdict.verdict) << " - "
+              << r.verdict.reason << "\n";
   if (solutions.size() > 1) std::cout << "\n" << comparisonTable(solutions);
-  if (best < 0) fail("calibration failed: " + solutions.front().reason);
-  const CalibrationSolution& chosen = solutions[best];
-  if (solutions.size() > 1) std::cout << "reported: " << methodName(chosen.method) << " (lowest MLRE)\n";
-
-  const ResultFile result = makeResultFile(chosen, views, *target, camera_frame, lidar_frame);
+  std::cout << "\n" << verdictSummary(run);
+  const CalibrationSolution& chosen = run.runs[run.chosen >= 0 ? static_cast<size_t>(run.chosen) : 0].solution;
+  const ResultFile& result = run.result;
   for (const auto& n : result.notes)
     if (std::find(chosen.notes.begin(), chosen.notes.end(), n) == chosen.notes.end()) std::cout << "note: " << n << "\n";
+  // A failed result is kept for inspection only, under a name no tool mistakes for a calibration.
+  const std::string output = run.failed() && !args.output.empty() ? failedResultPath(args.output) : args.output;
+  if (!output.empty()) {
+    const Status st = writeResultFile(output, result);
+    if (!st) fail(st.reason);
+    std::cout << (run.failed() ? "FAILED result written for inspection to " : "result written to ") << output << "\n";
+  }
+
   const std::string child = args.child_frame.empty() ? camera_frame : args.child_frame;
   if (!args.output.empty()) {
     const Status st = writeResultFile(args.output, result);
@@ -356,6 +355,7 @@ int main(int argc, char** argv) {
       md << "board found in " << st.images_with_board << "/" << st.images << " images and " << st.clouds_with_board
          << "/" << st.clouds << " clouds\n\n";
     }
+    md << "## Verdict: " << verdictName(run.verdict) << "\n\n```\n" << verdictSummary(run) << "```\n\n";
     md << "## Result\n\n```\n";
     for (const auto& s : solutions) md << solutionSummary(s);
     md << "```\n\n";
@@ -373,9 +373,11 @@ int main(int argc, char** argv) {
        << cov.range_max_m << " m, image coverage " << cov.image_coverage * 100 << " %\n\n";
     for (const auto& a : cov.advice) md << "* " << a << "\n";
     writeText(args.report + "/report.md", md.str());
-    (void)writeResultFile(args.report + "/result.yaml", result);
-    writeText(args.report + "/static_transform.launch", staticTransformLaunchSnippet(result, child));
-    writeText(args.report + "/urdf_joint.xml", urdfJointSnippet(result, child));
+    (void)writeResultFile(args.report + (run.failed() ? "/result.failed.yaml" : "/result.yaml"), result);
+    if (!run.failed()) {  // no ready-to-use snippet of a failed calibration
+      writeText(args.report + "/static_transform.launch", staticTransformLaunchSnippet(result, child));
+      writeText(args.report + "/urdf_joint.xml", urdfJointSnippet(result, child));
+    }
     (void)session->save(args.report + "/session.yaml");
     // Overlays: projected cloud and the projected-edges check of every view.
     if (pipeline && pipeline->cameraModel()) {
@@ -396,6 +398,7 @@ int main(int argc, char** argv) {
     }
     std::cout << "report written to " << args.report << "/report.md\n";
   }
+  if (run.failed()) fail("calibration failed: " + run.reason);
   if (!args.quiet)
     std::cerr << "calibrate_bag: done in "
               << std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count() << " s\n";

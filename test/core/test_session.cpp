@@ -3,7 +3,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <functional>
 
 using namespace board_calib;
 
@@ -59,19 +62,73 @@ void feed(CalibrationSession& s, const View& v, SessionEvent* last) {
 
 }  // namespace
 
+// LiDAR and camera at their own rates: the board moves in [0, 0.5) s and is held still from 0.5 s.
+void feedStreams(CalibrationSession& s, const Target& target, double lidar_hz, double camera_hz, double t_end,
+                 const std::function<Eigen::Isometry3d(double)>& pose_at, std::vector<SessionEvent>* events) {
+  double next_lidar = 0.0, next_camera = 0.004;
+  while (std::min(next_lidar, next_camera) < t_end) {
+    if (next_lidar <= next_camera) {
+      View v = makeView(pose_at(next_lidar), next_lidar, target);
+      v.lidar.stamp = next_lidar;
+      events->push_back(s.addLidar(v.lidar));
+      next_lidar += 1.0 / lidar_hz;
+    } else {
+      events->push_back(s.addCamera(makeView(pose_at(next_camera), next_camera, target).camera));
+      next_camera += 1.0 / camera_hz;
+    }
+  }
+}
+
+int countKind(const std::vector<SessionEvent>& events, SessionEvent::Kind kind) {
+  return static_cast<int>(std::count_if(events.begin(), events.end(), [&](const SessionEvent& e) { return e.kind == kind; }));
+}
+
 TEST(Session, AcceptsOnlyAfterTheBoardIsStill) {
   const Target target = plainTarget();
   CalibrationSession s(target, SessionOptions{});
+  std::vector<SessionEvent> events;
+  // Moves 0.6 m/s until 0.5 s, then still until 2 s: one view, of the still board.
+  feedStreams(s, target, 10.0, 10.0, 2.0, [](double t) { return boardPose(0.6 * std::min(t, 0.5), 3, 10, 0); }, &events);
+  ASSERT_EQ(s.views().size(), 1u) << s.captureStats().summary();
+  // The last frame of the move is the LiDAR's at 0.4 s: no frame of it may fall in the window.
+  EXPECT_GT(s.views()[0].view.camera.stamp, 0.4 + SessionOptions{}.still_window_s);
+  EXPECT_GE(s.captureStats().skipped.at("board moving"), 1) << s.captureStats().summary();
+  EXPECT_GE(s.captureStats().skipped.at("pose already taken"), 1) << s.captureStats().summary();
+}
+
+TEST(Session, SlowCameraIsJudgedByTheLidarAroundEachImage) {
+  const Target target = plainTarget();
+  CalibrationSession s(target, SessionOptions{});
+  std::vector<SessionEvent> events;
+  // Camera at 2 Hz, LiDAR at 10 Hz. Holds of 1.5 s with 1 s moves; images land in holds and moves.
+  auto pose_at = [](double t) {
+    const int cycle = static_cast<int>(t / 2.5);
+    const double in_cycle = t - 2.5 * cycle;
+    const double x = 0.8 * cycle + (in_cycle > 1.5 ? 0.8 * (in_cycle - 1.5) : 0.0);
+    return boardPose(x - 1.5, 3 + 0.2 * cycle, 10.0 * (cycle % 3) - 10, 5.0 * (cycle % 2));
+  };
+  feedStreams(s, target, 10.0, 2.0, 12.5, pose_at, &events);
+  s.finish();
+  // 5 holds; every view is an image taken inside a hold, at least 0.25 s from a move.
+  EXPECT_EQ(s.views().size(), 5u) << s.captureStats().summary();
+  for (const auto& v : s.views()) {
+    const double in_cycle = std::fmod(v.view.camera.stamp, 2.5);
+    if (v.view.camera.stamp > 0.3) {  // the first hold starts at 0
+      EXPECT_GT(in_cycle, 0.2) << v.view.camera.stamp;
+    }
+    EXPECT_LT(in_cycle, 1.3) << v.view.camera.stamp;
+  }
+  EXPECT_GE(s.captureStats().skipped.at("board moving"), 3) << s.captureStats().summary();
+}
+
+TEST(Session, SnapshotRecordingsMakeEveryPairACandidate) {
+  const Target target = plainTarget();
+  CalibrationSession s(target, SessionOptions{});
   SessionEvent e;
-  feed(s, makeView(boardPose(0, 3, 10, 0), 0.0, target), &e);
-  EXPECT_EQ(e.kind, SessionEvent::Kind::kWaiting) << e.message;
-  feed(s, makeView(boardPose(0.3, 3, 10, 0), 0.1, target), &e);  // moved 30 cm
-  EXPECT_EQ(e.kind, SessionEvent::Kind::kWaiting) << e.message;
-  feed(s, makeView(boardPose(0.3, 3, 10, 0), 0.2, target), &e);  // still now
-  EXPECT_EQ(e.kind, SessionEvent::Kind::kAccepted) << e.message;
-  feed(s, makeView(boardPose(0.3, 3, 10, 0), 0.3, target), &e);  // same still period: one view only
-  EXPECT_EQ(e.kind, SessionEvent::Kind::kWaiting);
-  EXPECT_EQ(s.views().size(), 1u);
+  for (int k = 0; k < 6; ++k) feed(s, makeView(boardPose(0.3 * k - 0.8, 2.5 + 0.3 * k, 20.0 * (k % 3) - 20, 15.0 * (k % 2)), 2.0 * k, target), &e);
+  s.finish();
+  EXPECT_EQ(s.views().size(), 6u) << s.captureStats().summary();
+  EXPECT_NE(s.captureStats().last_stillness.find("snapshot"), std::string::npos) << s.captureStats().last_stillness;
 }
 
 TEST(Session, RejectsUnsynchronisedAndDuplicatePoses) {
@@ -83,7 +140,7 @@ TEST(Session, RejectsUnsynchronisedAndDuplicatePoses) {
   far.lidar.stamp = 0.5;  // 500 ms apart
   s.addCamera(far.camera);
   SessionEvent e = s.addLidar(far.lidar);
-  EXPECT_EQ(e.kind, SessionEvent::Kind::kWaiting);
+  EXPECT_EQ(e.kind, SessionEvent::Kind::kRejected);
   EXPECT_NE(e.message.find("within"), std::string::npos) << e.message;
 
   feed(s, makeView(boardPose(0, 3, 0, 20), 1.0, target), &e);

@@ -17,7 +17,7 @@ struct PipelineOptions {
   ImageBoardDetectorOptions image;
   SessionOptions session;
   bool keep_view_frames = true;  ///< keep the raw image and cloud of every accepted view (reports)
-  int frame_history = 8;         ///< raw frames kept per stream until their view is decided
+  int frame_history = 64;        ///< raw frames kept per stream at most until their view is decided
   std::string validate() const;
 };
 
@@ -49,6 +49,8 @@ class CalibrationPipeline {
   FrameOutcome addImage(const cv::Mat& image, const CameraIntrinsics& intrinsics, const std::string& frame_id,
                         double stamp);
   FrameOutcome addCloud(const LidarCloud& cloud);
+  /// No more frames: judges the images still waiting for their still window.
+  SessionEvent finish();
 
   CalibrationSession& session();
   const CalibrationSession& session() const;

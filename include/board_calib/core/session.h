@@ -1,12 +1,20 @@
 // Calibration session: pairs LiDAR and camera board features by stamp, accepts a view only
 // when the board is still, both sensors agree and the view adds information, and keeps every
 // accepted view (with why) so it can be saved, reloaded, dropped and solved again.
+//
+// Capture rule: every image that sees the board is a candidate. It is judged once the fastest
+// stream has passed the end of the still window around it (capture/stillness.h): still in
+// every stream -> paired with the nearest cloud and gated; each hold (the board still in one
+// place) gives one view, replaced by a better frame of the same hold (more edges, closer
+// stamps). Snapshot recordings (every stream sparse) make every synchronised pair a candidate.
 #pragma once
 
+#include <board_calib/core/capture/stillness.h>
 #include <board_calib/core/features.h>
 #include <board_calib/core/target.h>
 
 #include <deque>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -14,9 +22,12 @@ namespace board_calib {
 
 struct SessionOptions {
   double sync_tolerance_s = 0.05;          ///< s, max |t_camera - t_lidar| for one view
-  int still_frames_required = 2;           ///< consecutive synchronised pairs that must agree (1 = no check)
-  double still_max_translation_m = 0.03;   ///< m, max board centre motion between those pairs
-  double still_max_rotation_deg = 1.5;     ///< deg, max board normal change between those pairs
+  int still_frames_required = 2;           ///< frames of the fastest stream in the still window, on both
+                                           ///< sides of the image (1 = no stillness check)
+  double still_window_s = 0.25;            ///< s, the board must be still this long before and after the image
+  double still_max_translation_m = 0.03;   ///< m, max board centre motion inside the window (beyond noise)
+  double still_max_rotation_deg = 1.5;     ///< deg, max board normal change inside the window (beyond noise)
+  double snapshot_interval_s = 0.5;        ///< s, both streams sparser than this: one frame per pose
   double min_view_rotation_deg = 5.0;      ///< deg, a new view's normal must differ this much ...
   double min_view_translation_m = 0.20;    ///< m, ... or its centre move this much from every kept view
   double max_size_mismatch = 0.15;         ///< relative, LiDAR-measured board size vs the target
@@ -24,8 +35,9 @@ struct SessionOptions {
   double max_plane_offset_m = 0.15;        ///< m, plane agreement once an estimate exists
   int min_board_points = 30;               ///< LiDAR board points a view needs
   int max_views = 200;                     ///< views kept at most
-  int history = 30;                        ///< features kept per stream for association
+  int history = 400;                       ///< features kept per stream at most (also pruned by time)
   std::string validate() const;
+  StillnessOptions stillness() const;
 };
 
 /// A kept view with its provenance.
@@ -34,7 +46,7 @@ struct SessionView {
   std::string why;  ///< why it was accepted (e.g. "auto: still 2 frames, 12.4 deg from view 3")
 };
 
-/// What happened to a pair of features.
+/// What happened to a candidate (an image and its cloud).
 struct SessionEvent {
   enum class Kind { kWaiting, kRejected, kAccepted };
   Kind kind = Kind::kWaiting;
@@ -52,6 +64,16 @@ struct CoverageReport {
   std::vector<std::string> advice;
 };
 
+/// Why candidates were not captured, counted by kind ("board moving", "no cloud within the sync
+/// tolerance", "pose already taken", a gate's reason...), for diagnostics and logs.
+struct CaptureStats {
+  int candidates = 0;   ///< images with the board that were judged
+  int captured = 0;     ///< views accepted (a hold's later, better frame counts once more)
+  std::map<std::string, int> skipped;  ///< kind -> count
+  std::string last_stillness;          ///< the last judgement in words
+  std::string summary() const;         ///< one line, most frequent reasons first
+};
+
 class CalibrationSession {
  public:
   CalibrationSession(const Target& target, const SessionOptions& options);
@@ -67,6 +89,10 @@ class CalibrationSession {
   /// Forces a capture of the newest synchronised pair (skips stillness and diversity, keeps
   /// the sanity gates).
   SessionEvent captureNow();
+  /// Judges every image still waiting for later frames with what is there (end of a bag, or the
+  /// streams went quiet). Returns the most significant event.
+  SessionEvent finish();
+  const CaptureStats& captureStats() const { return stats_; }
   void setAutoCapture(bool enabled) { auto_capture_ = enabled; }
   bool autoCapture() const { return auto_capture_; }
 
@@ -90,7 +116,12 @@ class CalibrationSession {
   SessionEvent addView(const View& view, const std::string& why, bool check_diversity);
 
  private:
-  SessionEvent tryPair(bool forced);
+  SessionEvent decidePending(bool ended);
+  SessionEvent decide(const CameraBoardFeatures& camera, bool ended, bool* decided);
+  std::optional<LidarBoardFeatures> nearestLidar(double stamp, double* gap) const;
+  SessionEvent skip(const std::string& kind, const std::string& why);
+  void prune();
+  void updateLastPair();
   SessionEvent gate(const View& view, bool forced) const;
 
   Target target_;
@@ -99,9 +130,13 @@ class CalibrationSession {
   std::optional<Eigen::Isometry3d> estimate_;
   std::deque<LidarBoardFeatures> lidar_;
   std::deque<CameraBoardFeatures> camera_;
-  std::optional<View> last_pair_;  ///< newest synchronised pair
-  int still_count_ = 0;            ///< consecutive agreeing pairs up to last_pair_
-  bool captured_this_still_ = false;  ///< one view per still period
+  std::deque<BoardSample> lidar_samples_, camera_samples_;  ///< stillness cues, parallel to the above
+  StreamClock lidar_clock_, camera_clock_;
+  std::deque<CameraBoardFeatures> pending_;  ///< images with the board awaiting their judgement
+  std::optional<View> last_pair_;  ///< newest synchronised pair (manual capture)
+  int hold_view_id_ = -1;          ///< view taken in the current hold, -1 when none
+  BoardSample hold_reference_;     ///< camera board of the current hold
+  CaptureStats stats_;
   std::vector<SessionView> views_;
   int next_id_ = 0;
 };

@@ -113,6 +113,9 @@ struct SolverOptions {
 /// loss only down-weights (real basler_os1_plain: independent MLRE 5.9 px vs 6.6 px).
 SolverOptions realLidarSolverOptions();
 
+/// 1 sigma per axis of a covariance in the convention above (rotation in deg, translation in m).
+PoseStddev stddevFromCovariance(const Matrix6d& covariance);
+
 /// Residual statistics of one group of residuals (metres).
 struct ResidualStats {
   int count = 0;

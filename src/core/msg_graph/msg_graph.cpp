@@ -37,15 +37,6 @@ double msSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
-PoseStddev stddevOf(const Matrix6d& C) {
-  PoseStddev sd;
-  for (int i = 0; i < 3; ++i) {
-    sd.rotation_deg(i) = std::sqrt(std::max(C(i, i), 0.0)) * kDegPerRad;
-    sd.translation_m(i) = std::sqrt(std::max(C(i + 3, i + 3), 0.0));
-  }
-  return sd;
-}
-
 // Covariance of a_T_b = reference_T_a^-1 * reference_T_b from the joint pose covariance (both
 // poses perturbed on the left in the reference frame: R = Exp(w) R_hat, t = t_hat + v). To first
 // order, with d = t_b - t_a,
@@ -855,7 +846,7 @@ MsgSolution solveMsgGraph(const MsgProblem& problem, const MsgGraphOptions& opti
       for (int s = 0; s < n; ++s) {
         if (s == ref) continue;
         sol.sensors[s].covariance = sol.pose_covariance.block<kPoseDim, kPoseDim>(kPoseDim * s, kPoseDim * s);
-        sol.sensors[s].stddev = stddevOf(sol.sensors[s].covariance);
+        sol.sensors[s].stddev = stddevFromCovariance(sol.sensors[s].covariance);
       }
       sol.notes.push_back(
           "1-sigma figures follow from the sensors' noise sigmas (given or estimated); errors shared by every board pose "
@@ -878,7 +869,7 @@ MsgSolution solveMsgGraph(const MsgProblem& problem, const MsgGraphOptions& opti
       pair.camera_T_lidar = sol.sensors[c].reference_T_sensor.inverse() * sol.sensors[l].reference_T_sensor;
       if (sol.pose_covariance.size() > 0) {
         pair.covariance = relativeCovarianceOf(sol, c, l);
-        pair.stddev = stddevOf(pair.covariance);
+        pair.stddev = stddevFromCovariance(pair.covariance);
         pair.has_covariance = pair.covariance.allFinite();
       }
       sol.pairs.push_back(pair);

@@ -6,6 +6,8 @@
 namespace board_calib {
 namespace {
 
+constexpr double kFrameMarginS = 0.5;  // s, raw frames kept beyond the still window
+
 double elapsedMs(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - since).count();
 }
@@ -41,15 +43,30 @@ struct CalibrationPipeline::Impl {
   std::map<int, cv::Mat> view_images;
   std::map<int, LidarCloud> view_clouds;
 
+  // Raw frames wait until the session has judged them: the still window plus the sync tolerance.
+  template <typename Frames>
+  void trimFrames(Frames& frames) {
+    const double keep_s = options.session.still_window_s + options.session.sync_tolerance_s + kFrameMarginS;
+    while (frames.size() > 1 && (static_cast<int>(frames.size()) > options.frame_history ||
+                                 frames.front().first < frames.back().first - keep_s))
+      frames.pop_front();
+  }
+
+  std::map<int, std::pair<double, double>> view_frame_stamps;  // view id -> (image, cloud) stamps kept
+
+  // Every view whose frames are not kept yet (or were replaced by a better frame of its hold).
   void keepAccepted(const SessionEvent& event) {
     if (event.kind != SessionEvent::Kind::kAccepted || !options.keep_view_frames) return;
-    const auto& views = session.views();
-    const auto it = std::find_if(views.begin(), views.end(), [&](const SessionView& v) { return v.view.id == event.view_id; });
-    if (it == views.end()) return;
-    for (const auto& [stamp, image] : recent_images)
-      if (stamp == it->view.camera.stamp) view_images[event.view_id] = image;
-    for (const auto& [stamp, cloud] : recent_clouds)
-      if (stamp == it->view.lidar.stamp) view_clouds[event.view_id] = cloud;
+    for (const auto& sv : session.views()) {
+      const auto stamps = std::make_pair(sv.view.camera.stamp, sv.view.lidar.stamp);
+      auto known = view_frame_stamps.find(sv.view.id);
+      if (known != view_frame_stamps.end() && known->second == stamps) continue;
+      for (const auto& [stamp, image] : recent_images)
+        if (stamp == stamps.first) view_images[sv.view.id] = image;
+      for (const auto& [stamp, cloud] : recent_clouds)
+        if (stamp == stamps.second) view_clouds[sv.view.id] = cloud;
+      view_frame_stamps[sv.view.id] = stamps;
+    }
   }
 };
 
@@ -95,7 +112,7 @@ FrameOutcome CalibrationPipeline::addImage(const cv::Mat& image, const CameraInt
   else d.stats.image_failures[det.features.reason]++;
   if (d.options.keep_view_frames) {
     d.recent_images.emplace_back(stamp, image);
-    while (static_cast<int>(d.recent_images.size()) > d.options.frame_history) d.recent_images.pop_front();
+    d.trimFrames(d.recent_images);
   }
   out.event = d.session.addCamera(det.features);
   d.keepAccepted(out.event);
@@ -118,11 +135,17 @@ FrameOutcome CalibrationPipeline::addCloud(const LidarCloud& cloud) {
   else d.stats.cloud_failures[std::string(lidarDetectionCodeName(det.code))]++;
   if (d.options.keep_view_frames) {
     d.recent_clouds.emplace_back(cloud.stamp, cloud);
-    while (static_cast<int>(d.recent_clouds.size()) > d.options.frame_history) d.recent_clouds.pop_front();
+    d.trimFrames(d.recent_clouds);
   }
   out.event = d.session.addLidar(det.features);
   d.keepAccepted(out.event);
   return out;
+}
+
+SessionEvent CalibrationPipeline::finish() {
+  const SessionEvent event = impl_->session.finish();
+  impl_->keepAccepted(event);
+  return event;
 }
 
 CalibrationSession& CalibrationPipeline::session() { return impl_->session; }

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 namespace board_calib {
@@ -37,32 +38,234 @@ const char* sessionEventName(SessionEvent::Kind kind) {
 }
 
 std::string SessionOptions::validate() const {
-  if (!(sync_tolerance_s > 0)) return "sync_tolerance_s must be > 0";
-  if (still_frames_required < 1) return "still_frames_required must be >= 1";
-  if (!(still_max_translation_m > 0) || !(still_max_rotation_deg > 0))
-    return "still_max_translation_m and still_max_rotation_deg must be > 0";
-  if (min_view_rotation_deg < 0 || min_view_translation_m < 0) return "view diversity thresholds must be >= 0";
-  if (!(max_size_mismatch > 0)) return "max_size_mismatch must be > 0";
-  if (!(max_plane_angle_deg > 0) || !(max_plane_offset_m > 0)) return "plane agreement thresholds must be > 0";
+  if (!(sync_tolerance_s > 0) || !std::isfinite(sync_tolerance_s) || sync_tolerance_s > 1.0)
+    return "sync_tolerance_s must be in (0, 1] s";
+  if (auto why = stillness().validate(); !why.empty()) return why;
+  if (!(min_view_rotation_deg >= 0) || !(min_view_translation_m >= 0) || !std::isfinite(min_view_rotation_deg) ||
+      !std::isfinite(min_view_translation_m))
+    return "view diversity thresholds must be finite and >= 0";
+  if (!(max_size_mismatch > 0) || !std::isfinite(max_size_mismatch)) return "max_size_mismatch must be finite and > 0";
+  if (!(max_plane_angle_deg > 0) || !(max_plane_offset_m > 0) || !std::isfinite(max_plane_angle_deg) ||
+      !std::isfinite(max_plane_offset_m))
+    return "plane agreement thresholds must be finite and > 0";
   if (min_board_points < 3) return "min_board_points must be >= 3";
-  if (max_views < 1) return "max_views must be >= 1";
-  if (history < 1) return "history must be >= 1";
+  if (max_views < 1 || max_views > 100000) return "max_views must be in [1, 100000]";
+  if (history < 1 || history > 100000) return "history must be in [1, 100000]";
   return {};
+}
+
+StillnessOptions SessionOptions::stillness() const {
+  StillnessOptions o;
+  o.window_s = still_window_s;
+  o.min_frames = still_frames_required;
+  o.max_translation_m = still_max_translation_m;
+  o.max_rotation_deg = still_max_rotation_deg;
+  o.snapshot_interval_s = snapshot_interval_s;
+  return o;
+}
+
+std::string CaptureStats::summary() const {
+  std::vector<std::pair<int, std::string>> order;
+  for (const auto& [kind, n] : skipped) order.emplace_back(-n, kind);
+  std::sort(order.begin(), order.end());
+  std::ostringstream s;
+  s << candidates << " candidate images, " << captured << " captured";
+  for (const auto& [n, kind] : order) s << "; " << -n << " x " << kind;
+  return s.str();
 }
 
 CalibrationSession::CalibrationSession(const Target& target, const SessionOptions& options)
     : target_(target), options_(options) {}
 
+namespace {
+
+// Stillness cues with their own noise: a LiDAR board's centroid and plane fit.
+BoardSample lidarSample(const LidarBoardFeatures& f) {
+  BoardSample s;
+  s.stamp = f.stamp;
+  s.found = f.found && !f.board_points.empty() && f.plane.normal.allFinite();
+  if (!s.found) return s;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : f.board_points) mean += p;
+  mean /= static_cast<double>(f.board_points.size());
+  double spread2 = 0.0;
+  for (const auto& p : f.board_points) spread2 += (p - mean).squaredNorm();
+  const double n = static_cast<double>(f.board_points.size());
+  const double spread = std::sqrt(spread2 / n);
+  s.centre = mean;
+  s.normal = f.plane.normal.normalized();
+  s.centre_sigma_m = f.plane_rms_m / std::sqrt(n);
+  s.normal_sigma_rad = spread > 0 ? f.plane_rms_m / (std::sqrt(n) * spread) : 0.0;
+  return s;
+}
+
+// The camera's board pose: its error grows with distance (lateral ~ D, depth ~ D^2 / size).
+BoardSample cameraSample(const CameraBoardFeatures& f, const Target& target) {
+  constexpr double kMinPixelSigma = 0.2;  // px, a PnP is never better than this
+  BoardSample s;
+  s.stamp = f.stamp;
+  s.found = f.found && f.plane.normal.allFinite() && f.camera_T_board.matrix().allFinite();
+  if (!s.found) return s;
+  s.centre = cameraBoardCentre(f, target);
+  s.normal = f.plane.normal.normalized();
+  const double fx = f.K(0, 0) > 0 ? f.K(0, 0) : 1.0;
+  const double pixel_rad = std::max(f.reprojection_rms_px, kMinPixelSigma) / fx;
+  const double range = s.centre.norm();
+  const double half_size = 0.5 * std::max(1e-3, std::min(target.width, target.height));
+  s.centre_sigma_m = pixel_rad * range * std::max(1.0, range / half_size);
+  s.normal_sigma_rad = pixel_rad * range / half_size;
+  return s;
+}
+
+}  // namespace
+
 SessionEvent CalibrationSession::addLidar(const LidarBoardFeatures& f) {
   lidar_.push_back(f);
-  while (static_cast<int>(lidar_.size()) > options_.history) lidar_.pop_front();
-  return tryPair(false);
+  lidar_samples_.push_back(lidarSample(f));
+  lidar_clock_.add(f.stamp);
+  prune();
+  updateLastPair();
+  return decidePending(false);
 }
 
 SessionEvent CalibrationSession::addCamera(const CameraBoardFeatures& f) {
   camera_.push_back(f);
-  while (static_cast<int>(camera_.size()) > options_.history) camera_.pop_front();
-  return tryPair(false);
+  camera_samples_.push_back(cameraSample(f, target_));
+  camera_clock_.add(f.stamp);
+  updateLastPair();
+  if (f.found) pending_.push_back(f);
+  prune();
+  return decidePending(false);
+}
+
+void CalibrationSession::updateLastPair() {
+  if (camera_.empty()) return;
+  double gap = 0.0;
+  if (auto lidar = nearestLidar(camera_.back().stamp, &gap); lidar && gap <= options_.sync_tolerance_s) {
+    View pair;
+    pair.lidar = *lidar;
+    pair.camera = camera_.back();
+    last_pair_ = pair;
+  }
+}
+
+void CalibrationSession::prune() {
+  // Keep what the still window and the sync tolerance can still reach, plus a margin.
+  const double horizon = 2.0 * options_.still_window_s + 2.0 * options_.sync_tolerance_s + 2.0;
+  const double newest = std::max(lidar_clock_.newest(), camera_clock_.newest());
+  auto trim = [&](auto& items, auto& samples) {
+    while (!items.empty() &&
+           (static_cast<int>(items.size()) > options_.history || items.front().stamp < newest - horizon)) {
+      items.pop_front();
+      samples.pop_front();
+    }
+  };
+  trim(lidar_, lidar_samples_);
+  trim(camera_, camera_samples_);
+  while (static_cast<int>(pending_.size()) > options_.history) pending_.pop_front();
+}
+
+std::optional<LidarBoardFeatures> CalibrationSession::nearestLidar(double stamp, double* gap) const {
+  std::optional<LidarBoardFeatures> best;
+  *gap = std::numeric_limits<double>::infinity();
+  for (const auto& l : lidar_)
+    if (std::abs(l.stamp - stamp) < *gap) {
+      *gap = std::abs(l.stamp - stamp);
+      best = l;
+    }
+  return best;
+}
+
+SessionEvent CalibrationSession::skip(const std::string& kind, const std::string& why) {
+  stats_.skipped[kind]++;
+  return {SessionEvent::Kind::kRejected, why, -1};
+}
+
+SessionEvent CalibrationSession::finish() { return decidePending(true); }
+
+// Accepted beats rejected beats waiting: the caller logs the most significant outcome.
+SessionEvent CalibrationSession::decidePending(bool ended) {
+  SessionEvent result{SessionEvent::Kind::kWaiting,
+                      pending_.empty() ? "waiting for an image that sees the board" : "waiting for the still window",
+                      -1};
+  while (!pending_.empty()) {
+    bool decided = false;
+    const SessionEvent e = decide(pending_.front(), ended, &decided);
+    if (!decided) break;
+    pending_.pop_front();
+    if (e.kind == SessionEvent::Kind::kAccepted || result.kind == SessionEvent::Kind::kWaiting ||
+        (e.kind == SessionEvent::Kind::kRejected && result.kind != SessionEvent::Kind::kAccepted))
+      result = e;
+  }
+  return result;
+}
+
+SessionEvent CalibrationSession::decide(const CameraBoardFeatures& camera, bool ended, bool* decided) {
+  *decided = false;
+  double gap = 0.0;
+  const auto lidar = nearestLidar(camera.stamp, &gap);
+  // Until a cloud at or after the image arrives, a closer cloud may still come.
+  if (!ended && lidar_clock_.newest() < camera.stamp)
+    return {SessionEvent::Kind::kWaiting, "waiting for the cloud of the image", -1};
+  const StillnessOptions still = options_.stillness();
+  const std::vector<StillnessStream> streams{{&lidar_samples_, &lidar_clock_, "LiDAR"},
+                                             {&camera_samples_, &camera_clock_, "camera"}};
+  const StillnessJudgement judged = judgeStillness(streams, camera.stamp, still, ended);
+  if (judged.state == StillState::kPending) return {SessionEvent::Kind::kWaiting, "waiting for the still window", -1};
+  *decided = true;
+  ++stats_.candidates;
+  stats_.last_stillness = judged.why;
+  if (!lidar || gap > options_.sync_tolerance_s)
+    return skip("no cloud within the sync tolerance",
+                "no LiDAR cloud within " + fmt(options_.sync_tolerance_s * 1e3, 0) + " ms of the image (closest " +
+                    (lidar ? fmt(gap * 1e3, 0) + " ms" : std::string("none")) + "): check sync_tolerance");
+  if (judged.state == StillState::kMoving || judged.state == StillState::kNoBoard) hold_view_id_ = -1;
+  if (judged.state == StillState::kMoving) return skip("board moving", judged.why);
+  if (judged.state == StillState::kNoBoard) return skip("board lost around the image", judged.why);
+  if (judged.state == StillState::kTooFewFrames) return skip("too few frames to judge stillness", judged.why);
+  if (!auto_capture_) return {SessionEvent::Kind::kWaiting, "auto-capture is off", -1};
+
+  View view;
+  view.lidar = *lidar;
+  view.camera = camera;
+  const SessionEvent gated = gate(view, false);
+  if (gated.kind == SessionEvent::Kind::kRejected) {
+    stats_.skipped[gated.message.substr(0, gated.message.find(" ("))]++;
+    return gated;
+  }
+  // One view per hold: a later frame of the same still pose replaces it when it is better.
+  const BoardSample here = cameraSample(camera, target_);
+  const bool snapshot = judged.state == StillState::kSnapshot;
+  const bool same_hold =
+      !snapshot && hold_view_id_ >= 0 && (here.centre - hold_reference_.centre).norm() <= still.max_translation_m +
+                                             still.noise_factor * std::hypot(here.centre_sigma_m, hold_reference_.centre_sigma_m) &&
+      angleDeg(here.normal, hold_reference_.normal) <= still.max_rotation_deg;
+  if (same_hold) {
+    auto it = std::find_if(views_.begin(), views_.end(), [&](const SessionView& v) { return v.view.id == hold_view_id_; });
+    if (it == views_.end()) return skip("pose already taken", "view of this pose was dropped; move the board to a new pose");
+    auto score = [](const View& v) {
+      int edges = 0;
+      for (int j = 0; j < kNumEdges; ++j) edges += v.lidar.edge_valid[j] + v.camera.edge_valid[j];
+      return std::make_pair(edges, -std::abs(v.lidar.stamp - v.camera.stamp));
+    };
+    if (score(view) > score(it->view)) {
+      view.id = it->view.id;
+      it->view = view;
+      it->why = "auto: " + judged.why + " (a better frame of the same hold)";
+      ++stats_.captured;
+      return {SessionEvent::Kind::kAccepted, "view " + std::to_string(view.id) + " replaced by a better frame of the same hold",
+              view.id};
+    }
+    return skip("pose already taken", "view " + std::to_string(hold_view_id_) + " already holds this pose; move the board");
+  }
+  const SessionEvent added = addView(view, "auto: " + judged.why, true);
+  if (added.kind == SessionEvent::Kind::kAccepted) {
+    hold_view_id_ = added.view_id;
+    hold_reference_ = here;
+  } else {
+    stats_.skipped["too similar to a kept view"]++;
+  }
+  return added;
 }
 
 SessionEvent CalibrationSession::captureNow() {
@@ -70,66 +273,6 @@ SessionEvent CalibrationSession::captureNow() {
   const SessionEvent gated = gate(*last_pair_, true);
   if (gated.kind == SessionEvent::Kind::kRejected) return gated;
   return addView(*last_pair_, "manual capture", false);
-}
-
-SessionEvent CalibrationSession::tryPair(bool forced) {
-  if (lidar_.empty() || camera_.empty()) return {SessionEvent::Kind::kWaiting, "waiting for both sensors", -1};
-  // Newest pair within the tolerance: newest item of one stream vs the closest of the other.
-  const bool lidar_newest = lidar_.back().stamp >= camera_.back().stamp;
-  View pair;
-  double best = std::numeric_limits<double>::max();
-  if (lidar_newest) {
-    pair.lidar = lidar_.back();
-    for (const auto& c : camera_)
-      if (std::abs(c.stamp - pair.lidar.stamp) < best) {
-        best = std::abs(c.stamp - pair.lidar.stamp);
-        pair.camera = c;
-      }
-  } else {
-    pair.camera = camera_.back();
-    for (const auto& l : lidar_)
-      if (std::abs(l.stamp - pair.camera.stamp) < best) {
-        best = std::abs(l.stamp - pair.camera.stamp);
-        pair.lidar = l;
-      }
-  }
-  if (best > options_.sync_tolerance_s)
-    return {SessionEvent::Kind::kWaiting,
-            "no LiDAR/camera pair within " + fmt(options_.sync_tolerance_s * 1e3, 0) + " ms (closest " +
-                fmt(best * 1e3, 0) + " ms)",
-            -1};
-  if (last_pair_ && last_pair_->lidar.stamp == pair.lidar.stamp && last_pair_->camera.stamp == pair.camera.stamp)
-    return {SessionEvent::Kind::kWaiting, "pair already considered", -1};
-
-  // Stillness: the board in both sensors barely moved since the previous pair.
-  bool still_step = false;
-  if (last_pair_ && pair.lidar.found && pair.camera.found && last_pair_->lidar.found && last_pair_->camera.found) {
-    const double cam_move = (cameraBoardCentre(pair.camera, target_) - cameraBoardCentre(last_pair_->camera, target_)).norm();
-    const double cam_turn = angleDeg(pair.camera.plane.normal, last_pair_->camera.plane.normal);
-    const double lidar_turn = angleDeg(pair.lidar.plane.normal, last_pair_->lidar.plane.normal);
-    const double lidar_shift = std::abs(pair.lidar.plane.offset - last_pair_->lidar.plane.offset);
-    still_step = cam_move < options_.still_max_translation_m && cam_turn < options_.still_max_rotation_deg &&
-                 lidar_turn < options_.still_max_rotation_deg && lidar_shift < options_.still_max_translation_m;
-  }
-  if (still_step) {
-    ++still_count_;
-  } else {
-    still_count_ = 1;
-    captured_this_still_ = false;
-  }
-  last_pair_ = pair;
-  if (!auto_capture_ && !forced) return {SessionEvent::Kind::kWaiting, "auto-capture is off", -1};
-  if (still_count_ < options_.still_frames_required)
-    return {SessionEvent::Kind::kWaiting,
-            "board moving or just arrived (" + std::to_string(still_count_) + "/" +
-                std::to_string(options_.still_frames_required) + " still frames)",
-            -1};
-  if (captured_this_still_) return {SessionEvent::Kind::kWaiting, "view already taken; move the board to a new pose", -1};
-  const SessionEvent gated = gate(pair, forced);
-  if (gated.kind == SessionEvent::Kind::kRejected) return gated;
-  const SessionEvent added = addView(pair, "auto: board still for " + std::to_string(still_count_) + " frames", true);
-  if (added.kind == SessionEvent::Kind::kAccepted) captured_this_still_ = true;
-  return added;
 }
 
 SessionEvent CalibrationSession::gate(const View& v, bool /*forced*/) const {
@@ -180,6 +323,7 @@ SessionEvent CalibrationSession::addView(const View& view, const std::string& wh
   sv.view.id = next_id_++;
   sv.why = why;
   views_.push_back(sv);
+  ++stats_.captured;
   return {SessionEvent::Kind::kAccepted, "view " + std::to_string(sv.view.id) + " accepted (" + why + ")", sv.view.id};
 }
 
@@ -201,10 +345,15 @@ void CalibrationSession::reset() {
   views_.clear();
   lidar_.clear();
   camera_.clear();
+  lidar_samples_.clear();
+  camera_samples_.clear();
+  lidar_clock_.clear();
+  camera_clock_.clear();
+  pending_.clear();
   last_pair_.reset();
   estimate_.reset();
-  still_count_ = 0;
-  captured_this_still_ = false;
+  hold_view_id_ = -1;
+  stats_ = CaptureStats{};
   next_id_ = 0;
 }
 

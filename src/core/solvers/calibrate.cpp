@@ -918,7 +918,7 @@ CalibrationSolution calibrate(const std::vector<View>& views, Method method, con
   if (options.compute_covariance) {
     const bool cov_ok = finalCovariance(final_terms, use_scale, plane_model, options, pose, &sol.covariance);
     if (!cov_ok) sol.covariance.setConstant(std::numeric_limits<double>::infinity());
-    sol.stddev = solvers_detail::stddevFromCovariance(sol.covariance);
+    sol.stddev = stddevFromCovariance(sol.covariance);
     sol.observability =
         solvers_detail::analyseObservability(sol.covariance, cov_ok, options.observability_max_stddev, "camera");
     if (!sol.observability.well_conditioned)

@@ -162,15 +162,6 @@ Observability analyseObservability(const Matrix6d& covariance, bool ok, double m
   return out;
 }
 
-PoseStddev stddevFromCovariance(const Matrix6d& covariance) {
-  PoseStddev s;
-  for (int i = 0; i < 3; ++i) {
-    s.rotation_deg(i) = std::sqrt(std::max(covariance(i, i), 0.0)) * kDegPerRad;
-    s.translation_m(i) = std::sqrt(std::max(covariance(i + 3, i + 3), 0.0));
-  }
-  return s;
-}
-
 Expected<Eigen::Matrix3d> alignVectors(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b,
                                        const std::vector<double>& weights) {
   Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
@@ -197,4 +188,14 @@ double normalSpreadDeg(const std::vector<Eigen::Vector3d>& normals, int k) {
 }
 
 }  // namespace solvers_detail
+
+PoseStddev stddevFromCovariance(const Matrix6d& covariance) {
+  PoseStddev s;
+  for (int i = 0; i < 3; ++i) {
+    s.rotation_deg(i) = std::sqrt(std::max(covariance(i, i), 0.0)) * kDegPerRad;
+    s.translation_m(i) = std::sqrt(std::max(covariance(i + 3, i + 3), 0.0));
+  }
+  return s;
+}
+
 }  // namespace board_calib

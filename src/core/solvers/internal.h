@@ -16,8 +16,6 @@ double robustWeight(RobustLoss loss, double scale, double squared_residual);
 Observability analyseObservability(const Matrix6d& covariance, bool ok, double max_weak_stddev,
                                    const std::string& frame_name);
 
-PoseStddev stddevFromCovariance(const Matrix6d& covariance);
-
 /// Kabsch: R minimising sum w |a_i - R b_i|^2. Fails when the pairs do not fix a rotation.
 Expected<Eigen::Matrix3d> alignVectors(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b,
                                        const std::vector<double>& weights);

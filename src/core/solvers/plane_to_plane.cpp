@@ -328,7 +328,7 @@ PairwiseSolution solvePlaneToPlaneAtBoards(const std::vector<PlaneCorrespondence
     const bool cov_ok = outcome.covariance_ok;
     sol.covariance = outcome.covariance;
     if (!cov_ok) sol.covariance.setConstant(std::numeric_limits<double>::infinity());
-    sol.stddev = solvers_detail::stddevFromCovariance(sol.covariance);
+    sol.stddev = stddevFromCovariance(sol.covariance);
     sol.observability = solvers_detail::analyseObservability(sol.covariance, cov_ok, options.observability_max_stddev, "a");
     if (!sol.observability.well_conditioned)
       sol.notes.push_back("weakly observable: " + sol.observability.weakest_description);

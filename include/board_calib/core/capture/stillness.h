@@ -1,0 +1,85 @@
+// Stillness of the board around a moment, judged by every stream and counted on the fastest.
+//
+// A view pairs an image with a cloud taken up to a sync tolerance apart, and a camera may run at
+// 1-2 Hz while the LiDAR runs at 10-20 Hz. Comparing consecutive images then says nothing about
+// the board between them; the LiDAR frames around the image stamp do. So a moment t is judged
+// still when every stream's frames inside [t - window, t + window] see the board and agree with
+// the frame nearest t (centre and normal, tolerances widened by each frame's own noise), and the
+// fastest stream has enough frames there, on both sides of t. When every stream is sparse (one
+// frame per pose, "snapshot" recordings) no stream can show stillness: every moment is a
+// candidate and the consistency checks before solving must catch a moving board.
+#pragma once
+
+#include <Eigen/Core>
+
+#include <deque>
+#include <string>
+#include <vector>
+
+namespace board_calib {
+
+/// One sensor's view of the board at one stamp, in that sensor's frame.
+struct BoardSample {
+  double stamp = 0.0;            ///< s
+  bool found = false;
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();   ///< m
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  ///< unit
+  double centre_sigma_m = 0.0;   ///< 1 sigma of the centre from the detector's own noise
+  double normal_sigma_rad = 0.0; ///< 1 sigma of the normal
+};
+
+struct StillnessOptions {
+  double window_s = 0.25;        ///< s, half-width of the window around a moment that must be still
+  int min_frames = 3;            ///< frames of the fastest stream in the window (>= 1 on each side); 1: no check
+  double max_translation_m = 0.03;  ///< m, board centre motion allowed inside the window (beyond noise)
+  double max_rotation_deg = 1.5;    ///< deg, board normal change allowed inside the window (beyond noise)
+  double noise_factor = 3.0;     ///< tolerances widen by this many 1-sigma of the two frames' combined noise
+  double snapshot_interval_s = 0.5;  ///< s, when every stream's median frame interval exceeds this, each
+                                     ///< frame is its own pose (snapshot recording)
+  std::string validate() const;
+};
+
+/// Stamps of one stream, for its measured frame interval.
+class StreamClock {
+ public:
+  void add(double stamp);
+  /// Median of the recent positive intervals; 0 before two frames.
+  double medianInterval() const;
+  double newest() const { return stamps_.empty() ? -1e300 : stamps_.back(); }
+  bool empty() const { return stamps_.empty(); }
+  void clear() { stamps_.clear(); }
+
+ private:
+  std::deque<double> stamps_;
+};
+
+enum class StillState {
+  kPending,      ///< the fastest stream has not yet passed the end of the window
+  kStill,
+  kMoving,       ///< a frame in the window disagrees with the one nearest the moment
+  kNoBoard,      ///< a frame in the window does not see the board
+  kTooFewFrames, ///< the fastest stream has too few frames in the window to judge
+  kSnapshot,     ///< every stream sparse: a candidate without a stillness check
+};
+const char* stillStateName(StillState state);
+
+struct StillnessJudgement {
+  StillState state = StillState::kPending;
+  std::string why;               ///< in words, with the figures
+  int fastest_stream = -1;
+  int fastest_frames = 0;        ///< frames of the fastest stream inside the window
+};
+
+/// One stream as the judge sees it: its samples (sorted by stamp) and its clock.
+struct StillnessStream {
+  const std::deque<BoardSample>* samples = nullptr;
+  const StreamClock* clock = nullptr;
+  std::string name;              ///< "LiDAR", "camera", a sensor name
+};
+
+/// Judges the moment `stamp`. `ended`: no more frames will come (end of a bag), so a window the
+/// fastest stream has not passed is judged with what is there.
+StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, double stamp,
+                                  const StillnessOptions& options, bool ended);
+
+}  // namespace board_calib

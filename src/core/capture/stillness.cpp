@@ -1,0 +1,157 @@
+#include <board_calib/core/capture/stillness.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+namespace board_calib {
+namespace {
+
+constexpr size_t kClockFrames = 32;  // recent stamps kept for the median interval
+constexpr double kDegPerRadian = 57.29577951308232;
+
+double angleRad(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0));
+}
+
+std::string fixed(double v, int precision) {
+  std::ostringstream s;
+  s.setf(std::ios::fixed);
+  s.precision(precision);
+  s << v;
+  return s.str();
+}
+
+}  // namespace
+
+std::string StillnessOptions::validate() const {
+  if (!(window_s > 0.0) || !std::isfinite(window_s) || window_s > 10.0) return "still window must be in (0, 10] s";
+  if (min_frames < 1 || min_frames > 1000) return "still frames must be in [1, 1000]";
+  if (!(max_translation_m > 0.0) || !std::isfinite(max_translation_m))
+    return "still max translation must be a finite value > 0";
+  if (!(max_rotation_deg > 0.0) || !std::isfinite(max_rotation_deg)) return "still max rotation must be a finite value > 0";
+  if (!(noise_factor >= 0.0) || !std::isfinite(noise_factor)) return "still noise factor must be finite and >= 0";
+  if (!(snapshot_interval_s > 0.0) || !std::isfinite(snapshot_interval_s))
+    return "snapshot interval must be a finite value > 0";
+  return {};
+}
+
+void StreamClock::add(double stamp) {
+  stamps_.push_back(stamp);
+  while (stamps_.size() > kClockFrames) stamps_.pop_front();
+}
+
+double StreamClock::medianInterval() const {
+  std::vector<double> gaps;
+  for (size_t i = 1; i < stamps_.size(); ++i)
+    if (stamps_[i] > stamps_[i - 1]) gaps.push_back(stamps_[i] - stamps_[i - 1]);
+  if (gaps.empty()) return 0.0;
+  std::nth_element(gaps.begin(), gaps.begin() + gaps.size() / 2, gaps.end());
+  return gaps[gaps.size() / 2];
+}
+
+const char* stillStateName(StillState state) {
+  switch (state) {
+    case StillState::kPending: return "pending";
+    case StillState::kStill: return "still";
+    case StillState::kMoving: return "moving";
+    case StillState::kNoBoard: return "no board";
+    case StillState::kTooFewFrames: return "too few frames";
+    case StillState::kSnapshot: return "snapshot";
+  }
+  return "unknown";
+}
+
+StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, double stamp,
+                                  const StillnessOptions& o, bool ended) {
+  StillnessJudgement j;
+  // The fastest stream counts the frames; a stream with one frame so far has no rate yet.
+  double fastest_interval = 0.0;
+  bool all_sparse = true, rates_known = true;
+  for (size_t s = 0; s < streams.size(); ++s) {
+    const double interval = streams[s].clock->medianInterval();
+    if (interval <= 0.0) {
+      all_sparse = false;  // unknown rate: not (yet) evidence of a snapshot recording
+      rates_known = false;
+      continue;
+    }
+    if (interval <= o.snapshot_interval_s) all_sparse = false;
+    if (j.fastest_stream < 0 || interval < fastest_interval) {
+      j.fastest_stream = static_cast<int>(s);
+      fastest_interval = interval;
+    }
+  }
+  if (o.min_frames <= 1) {
+    j.state = StillState::kSnapshot;
+    j.why = "stillness check off (still frames 1): every synchronised pair is a candidate";
+    return j;
+  }
+  if (!rates_known && !ended) return j;  // every stream's rate decides the rule: wait for it
+  if (all_sparse && j.fastest_stream >= 0) {
+    j.state = StillState::kSnapshot;
+    j.why = "snapshot recording (every stream " + fixed(fastest_interval, 2) +
+            " s or more between frames): each synchronised pair is a candidate";
+    return j;
+  }
+  if (j.fastest_stream < 0) {
+    if (!ended) return j;  // no rate known yet: wait for more frames
+    j.state = StillState::kTooFewFrames;
+    j.why = "too few frames to measure any stream's rate";
+    return j;
+  }
+  const double lo = stamp - o.window_s, hi = stamp + o.window_s;
+  const StillnessStream& fast = streams[static_cast<size_t>(j.fastest_stream)];
+  if (!ended && fast.clock->newest() < hi) return j;  // the window is not complete yet
+
+  for (size_t s = 0; s < streams.size(); ++s) {
+    const auto& samples = *streams[s].samples;
+    // Reference: the frame nearest the moment.
+    const BoardSample* ref = nullptr;
+    for (const auto& x : samples)
+      if (x.stamp >= lo && x.stamp <= hi && (!ref || std::abs(x.stamp - stamp) < std::abs(ref->stamp - stamp)))
+        ref = &x;
+    int before = 0, after = 0, count = 0;
+    for (const auto& x : samples) {
+      if (x.stamp < lo || x.stamp > hi) continue;
+      ++count;
+      if (x.stamp < stamp) ++before;
+      if (x.stamp > stamp) ++after;
+      if (!x.found) {
+        j.state = StillState::kNoBoard;
+        j.why = streams[s].name + " lost the board " + fixed(std::abs(x.stamp - stamp), 2) + " s from the image";
+        return j;
+      }
+      const double move = (x.centre - ref->centre).norm();
+      const double move_tol =
+          o.max_translation_m + o.noise_factor * std::hypot(x.centre_sigma_m, ref->centre_sigma_m);
+      const double turn = angleRad(x.normal, ref->normal);
+      const double turn_tol =
+          o.max_rotation_deg / kDegPerRadian + o.noise_factor * std::hypot(x.normal_sigma_rad, ref->normal_sigma_rad);
+      if (move > move_tol || turn > turn_tol) {
+        j.state = StillState::kMoving;
+        j.why = "board moving: " + streams[s].name + " saw it move " + fixed(move * 100, 1) + " cm, turn " +
+                fixed(turn * kDegPerRadian, 1) + " deg within " + fixed(o.window_s, 2) + " s of the image (allowed " +
+                fixed(move_tol * 100, 1) + " cm, " + fixed(turn_tol * kDegPerRadian, 1) + " deg)";
+        return j;
+      }
+    }
+    if (static_cast<int>(s) == j.fastest_stream) {
+      j.fastest_frames = count;
+      // Frames on both sides: the board was still across the moment, not only up to it.
+      if (count < o.min_frames || before == 0 || after == 0) {
+        j.state = StillState::kTooFewFrames;
+        j.why = streams[s].name + " (the fastest stream, " + fixed(fastest_interval * 1e3, 0) + " ms between frames) has " +
+                std::to_string(count) + " frame(s) within " + fixed(o.window_s, 2) + " s of the image (" +
+                std::to_string(before) + " before, " + std::to_string(after) + " after; need " +
+                std::to_string(o.min_frames) + " spanning it)";
+        return j;
+      }
+    }
+  }
+  j.state = StillState::kStill;
+  j.why = "board still for +-" + fixed(o.window_s, 2) + " s (" + std::to_string(j.fastest_frames) + " " +
+          streams[static_cast<size_t>(j.fastest_stream)].name + " frames)";
+  return j;
+}
+
+}  // namespace board_calib

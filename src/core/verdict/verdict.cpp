@@ -1,0 +1,375 @@
+#include <board_calib/core/transform.h>
+#include <board_calib/core/verdict/verdict.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+namespace board_calib {
+namespace {
+
+constexpr double kSqrtHalf = 0.7071067811865476;
+
+std::string fixed(double v, int p) {
+  std::ostringstream s;
+  s.setf(std::ios::fixed);
+  s.precision(p);
+  s << v;
+  return s.str();
+}
+
+double medianOf(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+// Camera plane error at a point of the board: the PnP's offset error grows as D^2 / size, its
+// tilt error as D / size over the board's extent.
+double cameraPlaneSigma(const CameraBoardFeatures& c, const Target& target, double min_pixel_sigma_px) {
+  const double fx = c.K(0, 0) > 0 ? c.K(0, 0) : 1.0;
+  const double pixel_rad = std::max(c.reprojection_rms_px, min_pixel_sigma_px) / fx;
+  const double range = (c.camera_T_board * target.center()).norm();
+  const double half = 0.5 * std::max(1e-3, std::min(target.width, target.height));
+  return pixel_rad * range * std::sqrt((range / half) * (range / half) + kSqrtHalf);
+}
+
+// Left-perturbation pose difference (rotation vector in the camera frame, translation).
+Vector6d poseDelta(const Eigen::Isometry3d& a, const Eigen::Isometry3d& reference) {
+  Vector6d d;
+  const Eigen::AngleAxisd aa(a.linear() * reference.linear().transpose());
+  d.head<3>() = aa.angle() * aa.axis();
+  d.tail<3>() = a.translation() - reference.translation();
+  return d;
+}
+
+double boardSizePx(const View& v, const Target& target) {
+  const double range = (v.camera.camera_T_board * target.center()).norm();
+  return range > 0 ? v.camera.K(0, 0) * std::sqrt(target.width * target.height) / range : 0.0;
+}
+
+}  // namespace
+
+const char* verdictName(Verdict verdict) {
+  switch (verdict) {
+    case Verdict::kGood: return "good";
+    case Verdict::kDoubtful: return "doubtful";
+    case Verdict::kFailed: return "failed";
+  }
+  return "unknown";
+}
+
+std::string VerdictOptions::validate() const {
+  if (min_views < 1 || min_views_to_cross_validate < min_views) return "view counts must be >= 1 and ordered";
+  if (max_leave_one_out_views < 2) return "max_leave_one_out_views must be >= 2";
+  const double all[] = {doubtful_residual_ratio, failed_residual_ratio, failed_edge_fraction, doubtful_heldout_ratio,
+                        outlier_factor, outlier_min_excess_px, doubtful_inconsistent_fraction,
+                        failed_inconsistent_fraction, doubtful_stddev_translation_m, doubtful_stddev_rotation_deg,
+                        failed_stddev_translation_m, failed_stddev_rotation_deg, method_disagreement_sigmas,
+                        min_pixel_sigma_px};
+  for (double v : all)
+    if (!std::isfinite(v) || !(v > 0)) return "verdict thresholds must be finite and > 0";
+  return {};
+}
+
+double planeResidualRatio(const std::vector<View>& views, const Target& target, const Eigen::Isometry3d& T,
+                          double plane_scale, const VerdictOptions& o, std::vector<double>* per_view) {
+  double sum = 0;
+  int count = 0;
+  if (per_view) per_view->assign(views.size(), 0.0);
+  for (size_t i = 0; i < views.size(); ++i) {
+    const View& v = views[i];
+    if (!v.lidar.found || !v.camera.found || v.lidar.board_points.empty()) continue;
+    double r2 = 0;
+    for (const auto& p : v.lidar.board_points) {
+      const double r = v.camera.plane.normal.dot(T * p) - plane_scale * v.camera.plane.offset;
+      r2 += r * r;
+    }
+    r2 /= static_cast<double>(v.lidar.board_points.size());
+    const double sc = cameraPlaneSigma(v.camera, target, o.min_pixel_sigma_px);
+    const double expected2 = v.lidar.plane_rms_m * v.lidar.plane_rms_m + sc * sc;
+    const double ratio2 = r2 / std::max(expected2, 1e-12);
+    if (per_view) (*per_view)[i] = std::sqrt(ratio2);
+    sum += ratio2;
+    ++count;
+  }
+  return count ? std::sqrt(sum / count) : 0.0;
+}
+
+VerdictReport judgeSolution(const CalibrationSolution& sol, const std::vector<View>& views, const Target& target,
+                            const ConsistencyReport& consistency,
+                            const std::function<CalibrationSolution(const std::vector<View>&)>& solve,
+                            const VerdictOptions& o) {
+  VerdictReport r;
+  std::vector<std::string> failed, doubtful;
+  auto name = [&](int id) {
+    if (std::find(r.views_to_check.begin(), r.views_to_check.end(), id) == r.views_to_check.end())
+      r.views_to_check.push_back(id);
+  };
+  if (auto why = o.validate(); !why.empty()) failed.push_back("invalid verdict options: " + why);
+  if (!sol.success) failed.push_back(sol.reason.empty() ? "the solve failed" : sol.reason);
+
+  // Consistency before solving.
+  int usable = 0, inconsistent = 0;
+  for (const auto& v : consistency.views) {
+    usable += v.usable;
+    if (v.usable && !v.consistent) {
+      ++inconsistent;
+      name(v.view_id);
+      r.details.push_back("view " + std::to_string(v.view_id) + " left out: " + v.reason);
+    }
+  }
+  if (!consistency.ok) failed.push_back(consistency.reason);
+  const double bad_fraction = usable ? static_cast<double>(inconsistent) / usable : 0.0;
+  if (bad_fraction >= o.failed_inconsistent_fraction)
+    failed.push_back(std::to_string(inconsistent) + " of " + std::to_string(usable) +
+                     " views disagree with the others: no single calibration explains them");
+  else if (bad_fraction > o.doubtful_inconsistent_fraction)
+    doubtful.push_back(std::to_string(inconsistent) + " of " + std::to_string(usable) + " views were left out as inconsistent");
+  else if (inconsistent > 0)
+    r.details.push_back(std::to_string(inconsistent) + " inconsistent view(s) left out before solving");
+  if (!consistency.checkable && consistency.ok)
+    doubtful.push_back("only 3 usable views: nothing to check them against");
+
+  const int n = static_cast<int>(views.size());
+  if (n < o.min_views) failed.push_back(std::to_string(n) + " view(s): at least " + std::to_string(o.min_views) + " needed");
+
+  Matrix6d model_cov = sol.covariance;
+  if (sol.success) {
+    // Residuals against the noise model.
+    std::vector<double> per_view;
+    r.plane_residual_ratio = planeResidualRatio(views, target, sol.camera_T_lidar, sol.plane_scale, o, &per_view);
+    const std::string ratio_text = "the LiDAR board points lie " + fixed(r.plane_residual_ratio, 1) +
+                                   "x as far from the camera's board planes as the sensors' noise explains (plane RMS " +
+                                   fixed(sol.plane_rms_mm, 1) + " mm)";
+    if (r.plane_residual_ratio > o.failed_residual_ratio) failed.push_back(ratio_text);
+    else if (r.plane_residual_ratio > o.doubtful_residual_ratio) doubtful.push_back(ratio_text);
+    std::vector<double> sizes;
+    for (const auto& v : views) sizes.push_back(boardSizePx(v, target));
+    if (!sizes.empty()) r.board_size_px = medianOf(sizes);
+    if (sol.mlre_px && r.board_size_px && *sol.mlre_px > o.failed_edge_fraction * *r.board_size_px)
+      failed.push_back("LiDAR edges land " + fixed(*sol.mlre_px, 1) + " px from the image edges on average, on a board about " +
+                       fixed(*r.board_size_px, 0) + " px across");
+    // Outlier views and edges (MATLAB-style error bars would show them).
+    std::vector<double> view_mlre, edge_mlre;
+    for (const auto& vr : sol.views) {
+      if (vr.mlre_px) view_mlre.push_back(*vr.mlre_px);
+      for (const auto& e : vr.edges)
+        if (e.mlre_px) edge_mlre.push_back(*e.mlre_px);
+    }
+    const double med_edge = medianOf(edge_mlre);
+    for (const auto& vr : sol.views)
+      for (int j = 0; j < kNumEdges; ++j) {
+        const auto& e = vr.edges[static_cast<size_t>(j)];
+        if (e.mlre_px && *e.mlre_px > std::max(o.outlier_factor * med_edge, med_edge + o.outlier_min_excess_px)) {
+          name(vr.view_id);
+          doubtful.push_back("view " + std::to_string(vr.view_id) + " edge " + edgeName(j) + ": " + fixed(*e.mlre_px, 1) +
+                             " px against a median edge error of " + fixed(med_edge, 1) + " px (a hand, a wrong line?)");
+        }
+      }
+    if (!sol.observability.well_conditioned && sol.observability.max_eigenvalue > 0)
+      doubtful.push_back("weakly observable: " + sol.observability.weakest_description);
+
+    // Cross-validation: each view (or fold) left out, solved on the rest, and predicted.
+    CrossValidation& cv = r.cross_validation;
+    cv.view_heldout_mlre_px.assign(views.size(), std::nullopt);
+    cv.view_heldout_plane_ratio.assign(views.size(), 0.0);
+    if (n < o.min_views_to_cross_validate) {
+      cv.why_not = std::to_string(n) + " views: too few to leave any out";
+      doubtful.push_back("too few views (" + std::to_string(n) + ") to cross-validate: collect at least " +
+                         std::to_string(o.min_views_to_cross_validate));
+    } else if (solve) {
+      const int folds = std::min(n, o.max_leave_one_out_views);
+      std::vector<Vector6d> deltas;
+      double heldout_mlre_sum = 0, heldout_ratio2_sum = 0;
+      int heldout_mlre_n = 0, heldout_ratio_n = 0;
+      for (int k = 0; k < folds; ++k) {
+        std::vector<View> train, test;
+        std::vector<size_t> test_index;
+        for (int i = 0; i < n; ++i) {
+          if (i % folds == k) {
+            test.push_back(views[static_cast<size_t>(i)]);
+            test_index.push_back(static_cast<size_t>(i));
+          } else {
+            train.push_back(views[static_cast<size_t>(i)]);
+          }
+        }
+        const CalibrationSolution fold = solve(train);
+        ++cv.solves;
+        if (!fold.success) {
+          ++cv.failed_solves;
+          continue;
+        }
+        deltas.push_back(poseDelta(fold.camera_T_lidar, sol.camera_T_lidar));
+        cv.max_rotation_dev_deg = std::max(cv.max_rotation_dev_deg, rotationErrorDeg(fold.camera_T_lidar, sol.camera_T_lidar));
+        cv.max_translation_dev_m = std::max(cv.max_translation_dev_m, translationErrorM(fold.camera_T_lidar, sol.camera_T_lidar));
+        std::vector<double> ratios;
+        planeResidualRatio(test, target, fold.camera_T_lidar, fold.plane_scale, o, &ratios);
+        for (size_t t = 0; t < test.size(); ++t) {
+          cv.view_heldout_plane_ratio[test_index[t]] = ratios[t];
+          heldout_ratio2_sum += ratios[t] * ratios[t];
+          ++heldout_ratio_n;
+          if (auto m = viewLineReprojectionErrorPx(test[t], fold.camera_T_lidar)) {
+            cv.view_heldout_mlre_px[test_index[t]] = m;
+            heldout_mlre_sum += *m;
+            ++heldout_mlre_n;
+          }
+        }
+      }
+      cv.ran = cv.solves > 0;
+      if (heldout_mlre_n) cv.heldout_mlre_px = heldout_mlre_sum / heldout_mlre_n;
+      if (heldout_ratio_n) cv.heldout_plane_ratio = std::sqrt(heldout_ratio2_sum / heldout_ratio_n);
+      if (cv.failed_solves * 2 > cv.solves)
+        failed.push_back(std::to_string(cv.failed_solves) + " of " + std::to_string(cv.solves) +
+                         " solves with a view left out failed: the result hangs on single views");
+      else if (cv.failed_solves > 0)
+        doubtful.push_back(std::to_string(cv.failed_solves) + " of " + std::to_string(cv.solves) +
+                           " solves with a view left out failed");
+      if (deltas.size() >= 2) {
+        Vector6d mean = Vector6d::Zero();
+        for (const auto& d : deltas) mean += d;
+        mean /= static_cast<double>(deltas.size());
+        Matrix6d c = Matrix6d::Zero();
+        for (const auto& d : deltas) c += (d - mean) * (d - mean).transpose();
+        const double m = static_cast<double>(deltas.size());
+        cv.covariance = c * (m - 1.0) / m;  // grouped jackknife
+      }
+      // Prediction against fit: a model that only fits its own views does not generalise.
+      if (cv.heldout_mlre_px && sol.mlre_px && *sol.mlre_px > 0 &&
+          *cv.heldout_mlre_px > o.doubtful_heldout_ratio * std::max(*sol.mlre_px, 1.0))
+        doubtful.push_back("left-out views' edges are predicted " + fixed(*cv.heldout_mlre_px, 1) + " px off against " +
+                           fixed(*sol.mlre_px, 1) + " px fitted");
+      if (cv.heldout_plane_ratio > o.doubtful_heldout_ratio * std::max(r.plane_residual_ratio, 1.0))
+        doubtful.push_back("left-out views' planes are predicted " + fixed(cv.heldout_plane_ratio, 1) +
+                           "x the noise against " + fixed(r.plane_residual_ratio, 1) + "x fitted");
+      // Name the views whose prediction is far off the others'.
+      std::vector<double> pred;
+      for (const auto& m : cv.view_heldout_mlre_px)
+        if (m) pred.push_back(*m);
+      const double med_pred = medianOf(pred);
+      for (size_t i = 0; i < views.size(); ++i) {
+        const auto& m = cv.view_heldout_mlre_px[i];
+        if (m && *m > std::max(o.outlier_factor * med_pred, med_pred + o.outlier_min_excess_px)) {
+          name(views[i].id);
+          doubtful.push_back("view " + std::to_string(views[i].id) + " is predicted " + fixed(*m, 1) +
+                             " px off by the others (median " + fixed(med_pred, 1) + " px)");
+        }
+      }
+    }
+
+    // Reported uncertainty: never below the cross-validation's spread, nor below the model's
+    // scaled by how much the residuals exceed the noise model.
+    double inflation2 = std::max(1.0, r.plane_residual_ratio * r.plane_residual_ratio);
+    if (!model_cov.allFinite()) model_cov = cv.covariance;
+    for (int i = 0; i < 6; ++i)
+      if (model_cov(i, i) > 0 && cv.covariance(i, i) > 0)
+        inflation2 = std::max(inflation2, cv.covariance(i, i) / model_cov(i, i));
+    r.covariance = model_cov * inflation2;
+    if (!r.covariance.allFinite() || r.covariance.diagonal().maxCoeff() <= 0) r.covariance = cv.covariance;
+    r.stddev_inflation = std::sqrt(inflation2);
+    r.stddev = stddevFromCovariance(r.covariance);
+    const double st = r.stddev.translation_m.maxCoeff(), sr = r.stddev.rotation_deg.maxCoeff();
+    const std::string sigma_text = "1 sigma " + fixed(st * 1e3, 1) + " mm / " + fixed(sr, 3) + " deg";
+    if (!std::isfinite(st) || !std::isfinite(sr) || st > o.failed_stddev_translation_m || sr > o.failed_stddev_rotation_deg)
+      failed.push_back(sigma_text + ": the views do not determine the calibration");
+    else if (st > o.doubtful_stddev_translation_m || sr > o.doubtful_stddev_rotation_deg)
+      doubtful.push_back(sigma_text + ": loosely determined; add views with other tilts and distances");
+    if (r.stddev_inflation > 1.5)
+      r.details.push_back("1 sigma scaled by " + fixed(r.stddev_inflation, 1) +
+                          " (residuals beyond the noise model, or the spread of the cross-validation)");
+  }
+
+  if (!failed.empty()) {
+    r.verdict = Verdict::kFailed;
+    r.reason = failed.front();
+  } else if (!doubtful.empty()) {
+    r.verdict = Verdict::kDoubtful;
+    r.reason = doubtful.front();
+  } else {
+    r.verdict = Verdict::kGood;
+    std::ostringstream why;
+    why << "residuals as the noise predicts (" << fixed(r.plane_residual_ratio, 1) << "x)";
+    if (r.cross_validation.ran) why << ", left-out views predicted (" << r.cross_validation.solves << " solves)";
+    r.reason = why.str();
+  }
+  std::vector<std::string> all = failed;
+  all.insert(all.end(), doubtful.begin(), doubtful.end());
+  all.insert(all.end(), r.details.begin(), r.details.end());
+  r.details = all;
+  return r;
+}
+
+void judgeMethodAgreement(const std::vector<CalibrationSolution>& solutions, std::vector<VerdictReport>* verdicts,
+                          const VerdictOptions& o) {
+  for (size_t a = 0; a < solutions.size(); ++a) {
+    auto& va = (*verdicts)[a];
+    if (va.verdict == Verdict::kFailed) continue;
+    for (size_t b = 0; b < solutions.size(); ++b) {
+      const auto& vb = (*verdicts)[b];
+      if (a == b || vb.verdict == Verdict::kFailed) continue;
+      const Vector6d d = poseDelta(solutions[b].camera_T_lidar, solutions[a].camera_T_lidar);
+      const Matrix6d c = va.covariance + vb.covariance;
+      double worst = 0;
+      for (int i = 0; i < 6; ++i)
+        if (c(i, i) > 0) worst = std::max(worst, std::abs(d(i)) / std::sqrt(c(i, i)));
+      if (worst > o.method_disagreement_sigmas) {
+        const std::string text = std::string(methodName(solutions[b].method)) + " differs by " +
+                                 fixed(rotationErrorDeg(solutions[a].camera_T_lidar, solutions[b].camera_T_lidar), 2) + " deg / " +
+                                 fixed(translationErrorM(solutions[a].camera_T_lidar, solutions[b].camera_T_lidar) * 1e3, 0) +
+                                 " mm (" + fixed(worst, 1) + " sigma)";
+        va.details.push_back(text);
+        if (va.verdict == Verdict::kGood) {
+          va.verdict = Verdict::kDoubtful;
+          va.reason = text;
+        }
+      }
+    }
+  }
+}
+
+int chooseMethod(const std::vector<CalibrationSolution>& solutions, const std::vector<VerdictReport>& verdicts,
+                 std::string* why) {
+  bool all_edges = true;
+  for (size_t i = 0; i < solutions.size(); ++i)
+    if (verdicts[i].verdict != Verdict::kFailed && !verdicts[i].cross_validation.heldout_mlre_px) all_edges = false;
+  auto score = [&](size_t i) {
+    const auto& cv = verdicts[i].cross_validation;
+    if (all_edges && cv.heldout_mlre_px) return *cv.heldout_mlre_px;
+    if (cv.ran) return cv.heldout_plane_ratio;
+    return solutions[i].mlre_px && all_edges ? *solutions[i].mlre_px : verdicts[i].plane_residual_ratio;
+  };
+  int best = -1;
+  for (size_t i = 0; i < solutions.size(); ++i) {
+    if (verdicts[i].verdict == Verdict::kFailed) continue;
+    if (best < 0) {
+      best = static_cast<int>(i);
+      continue;
+    }
+    const auto& vb = verdicts[static_cast<size_t>(best)];
+    const bool better_verdict = verdicts[i].verdict == Verdict::kGood && vb.verdict != Verdict::kGood;
+    const bool same_verdict = verdicts[i].verdict == vb.verdict;
+    if (better_verdict || (same_verdict && score(i) < score(static_cast<size_t>(best)))) best = static_cast<int>(i);
+  }
+  if (why) {
+    std::ostringstream s;
+    if (best < 0) {
+      s << "every method failed";
+    } else if (solutions.size() == 1) {
+      s << methodName(solutions[0].method) << ": the method asked for";
+    } else {
+      s << methodName(solutions[static_cast<size_t>(best)].method) << ": "
+        << (all_edges ? "lowest held-out edge error (MLRE of left-out views)" : "lowest held-out plane residual")
+        << " among the methods not failed, good before doubtful (";
+      for (size_t i = 0; i < solutions.size(); ++i) {
+        if (i) s << ", ";
+        s << methodName(solutions[i].method) << " " << verdictName(verdicts[i].verdict);
+        if (verdicts[i].verdict != Verdict::kFailed) s << " " << fixed(score(i), 2) << (all_edges ? " px" : "x");
+      }
+      s << ")";
+    }
+    *why = s.str();
+  }
+  return best;
+}
+
+}  // namespace board_calib

@@ -1,0 +1,58 @@
+#include "support/sim_session.h"
+
+#include <chrono>
+#include <map>
+#include <set>
+
+namespace board_calib {
+namespace test_support {
+
+Expected<SimulatedSession> runSimulatedSession(const sim::Scenario& scenario, const PipelineOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  auto timeline = sim::makeTimeline(scenario);
+  if (!timeline) return Expected<SimulatedSession>::failure(timeline.error());
+  auto generator = sim::FrameGenerator::create(scenario);
+  if (!generator) return Expected<SimulatedSession>::failure(generator.error());
+  auto pipeline = CalibrationPipeline::create(scenario.scene.target, options);
+  if (!pipeline) return Expected<SimulatedSession>::failure(pipeline.error());
+
+  // stamp -> (still, pose) per sensor kind: the truth about every frame a view may use.
+  std::map<double, std::pair<bool, int>> camera_truth, lidar_truth;
+  const auto& camera = scenario.cameras.front();
+  for (size_t i = 0; i < timeline->frames.size(); ++i) {
+    const sim::Frame& f = timeline->frames[i];
+    if (f.sensor != 0) continue;
+    if (f.is_camera) {
+      camera_truth[f.stamp] = {f.still, f.pose};
+      pipeline->addImage(generator->image(f, i), camera.intrinsics, camera.frame_id, f.stamp);
+    } else {
+      lidar_truth[f.stamp] = {f.still, f.pose};
+      LidarCloud cloud = generator->cloud(f, i);
+      cloud.stamp = f.stamp;
+      cloud.frame_id = scenario.lidars.front().frame_id;
+      pipeline->addCloud(cloud);
+    }
+  }
+  pipeline->finish();
+
+  SimulatedSession out;
+  out.holds = static_cast<int>(timeline->world_T_board_poses.size());
+  std::set<int> captured;
+  for (const auto& sv : pipeline->session().views()) {
+    out.views.push_back(sv.view);
+    const auto c = camera_truth.find(sv.view.camera.stamp);
+    const auto l = lidar_truth.find(sv.view.lidar.stamp);
+    const bool still = c != camera_truth.end() && l != lidar_truth.end() && c->second.first && l->second.first &&
+                       c->second.second == l->second.second && c->second.second >= 0;
+    if (still) captured.insert(c->second.second);
+    else ++out.moving_captured;
+  }
+  out.holds_captured = static_cast<int>(captured.size());
+  out.capture_summary = pipeline->session().captureStats().summary();
+  out.truth = sim::groundTruth(scenario);
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+
+}  // namespace test_support
+}  // namespace board_calib

@@ -1,0 +1,29 @@
+// Test support: a simulated recording run through the offline pipeline frame by frame, with
+// the capture scored against the simulator's ground truth (which frames were still, which
+// pose each belongs to).
+#pragma once
+
+#include <board_calib/core/pipeline.h>
+#include <board_calib/core/sim/scenario.h>
+
+#include <string>
+#include <vector>
+
+namespace board_calib {
+namespace test_support {
+
+struct SimulatedSession {
+  int holds = 0;             ///< held poses in the recording
+  int holds_captured = 0;    ///< holds that gave a view whose image and cloud are still frames of that hold
+  int moving_captured = 0;   ///< views with a frame taken while the board moved (or from another hold)
+  std::vector<View> views;
+  std::string capture_summary;
+  ResultFile truth;
+  double seconds = 0.0;      ///< simulation and pipeline, wall
+};
+
+/// Simulates `scenario` (first camera, first LiDAR) and feeds every frame in stamp order.
+Expected<SimulatedSession> runSimulatedSession(const sim::Scenario& scenario, const PipelineOptions& options);
+
+}  // namespace test_support
+}  // namespace board_calib
