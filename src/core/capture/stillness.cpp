@@ -41,13 +41,15 @@ void StreamClock::add(double stamp) {
   while (stamps_.size() > kClockFrames) stamps_.pop_front();
 }
 
-double StreamClock::medianInterval() const {
+double StreamClock::typicalInterval() const {
   std::vector<double> gaps;
   for (size_t i = 1; i < stamps_.size(); ++i)
     if (stamps_[i] > stamps_[i - 1]) gaps.push_back(stamps_[i] - stamps_[i - 1]);
   if (gaps.empty()) return 0.0;
-  std::nth_element(gaps.begin(), gaps.begin() + gaps.size() / 2, gaps.end());
-  return gaps[gaps.size() / 2];
+  // The lower quartile: a thinned or paused stream still shows its frame rate in its bursts.
+  const size_t k = gaps.size() / 4;
+  std::nth_element(gaps.begin(), gaps.begin() + k, gaps.end());
+  return gaps[k];
 }
 
 const char* stillStateName(StillState state) {
@@ -69,7 +71,7 @@ StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, d
   double fastest_interval = 0.0;
   bool all_sparse = true, rates_known = true;
   for (size_t s = 0; s < streams.size(); ++s) {
-    const double interval = streams[s].clock->medianInterval();
+    const double interval = streams[s].clock->typicalInterval();
     if (interval <= 0.0) {
       all_sparse = false;  // unknown rate: not (yet) evidence of a snapshot recording
       rates_known = false;

@@ -34,7 +34,7 @@ struct StillnessOptions {
   double max_translation_m = 0.03;  ///< m, board centre motion allowed inside the window (beyond noise)
   double max_rotation_deg = 1.5;    ///< deg, board normal change allowed inside the window (beyond noise)
   double noise_factor = 3.0;     ///< tolerances widen by this many 1-sigma of the two frames' combined noise
-  double snapshot_interval_s = 0.5;  ///< s, when every stream's median frame interval exceeds this, each
+  double snapshot_interval_s = 0.5;  ///< s, when every stream's typical frame interval exceeds this, each
                                      ///< frame is its own pose (snapshot recording)
   std::string validate() const;
 };
@@ -43,8 +43,9 @@ struct StillnessOptions {
 class StreamClock {
  public:
   void add(double stamp);
-  /// Median of the recent positive intervals; 0 before two frames.
-  double medianInterval() const;
+  /// Lower quartile of the recent positive intervals (the frame period, even when the stream
+  /// pauses between bursts); 0 before two frames.
+  double typicalInterval() const;
   double newest() const { return stamps_.empty() ? -1e300 : stamps_.back(); }
   bool empty() const { return stamps_.empty(); }
   void clear() { stamps_.clear(); }
