@@ -313,11 +313,6 @@ int main(int argc, char** argv) {
   }
 
   const std::string child = args.child_frame.empty() ? camera_frame : args.child_frame;
-  if (!args.output.empty()) {
-    const Status st = writeResultFile(args.output, result);
-    if (!st) fail(st.reason);
-    std::cout << "result written to " << args.output << "\n";
-  }
 
   if (!args.truth.empty()) {
     auto truth = loadResultFile(args.truth);

@@ -79,6 +79,8 @@ CalibrationSession::CalibrationSession(const Target& target, const SessionOption
 
 namespace {
 
+constexpr double kPruneMarginS = 1.0;  // s, kept beyond what the still window and sync tolerance reach
+
 // Stillness cues with their own noise: a LiDAR board's centroid and plane fit.
 BoardSample lidarSample(const LidarBoardFeatures& f) {
   BoardSample s;
@@ -151,11 +153,15 @@ void CalibrationSession::updateLastPair() {
 
 void CalibrationSession::prune() {
   // Keep what the still window and the sync tolerance can still reach, plus a margin.
-  const double horizon = 2.0 * options_.still_window_s + 2.0 * options_.sync_tolerance_s + 2.0;
+  // Images still waiting for their judgement keep what lies around them (snapshot recordings
+  // learn their rates only from later frames).
+  const double reach = options_.still_window_s + options_.sync_tolerance_s + kPruneMarginS;
   const double newest = std::max(lidar_clock_.newest(), camera_clock_.newest());
+  double cutoff = newest - 2.0 * reach;
+  if (!pending_.empty()) cutoff = std::min(cutoff, pending_.front().stamp - reach);
   auto trim = [&](auto& items, auto& samples) {
     while (!items.empty() &&
-           (static_cast<int>(items.size()) > options_.history || items.front().stamp < newest - horizon)) {
+           (static_cast<int>(items.size()) > options_.history || items.front().stamp < cutoff)) {
       items.pop_front();
       samples.pop_front();
     }

@@ -97,7 +97,7 @@ std::string ConsistencyOptions::validate() const {
 std::vector<int> ConsistencyReport::inconsistentIds() const {
   std::vector<int> ids;
   for (const auto& v : views)
-    if (!v.consistent) ids.push_back(v.view_id);
+    if (v.usable && !v.consistent && ok) ids.push_back(v.view_id);
   return ids;
 }
 

@@ -62,7 +62,7 @@ const char* verdictName(Verdict verdict) {
 std::string VerdictOptions::validate() const {
   if (min_views < 1 || min_views_to_cross_validate < min_views) return "view counts must be >= 1 and ordered";
   if (max_leave_one_out_views < 2) return "max_leave_one_out_views must be >= 2";
-  const double all[] = {doubtful_residual_ratio, failed_residual_ratio, failed_edge_fraction, doubtful_heldout_ratio,
+  const double all[] = {max_outlier_edge_fraction, doubtful_residual_ratio, failed_residual_ratio, failed_edge_fraction, doubtful_heldout_ratio,
                         outlier_factor, outlier_min_excess_px, doubtful_inconsistent_fraction,
                         failed_inconsistent_fraction, doubtful_stddev_translation_m, doubtful_stddev_rotation_deg,
                         failed_stddev_translation_m, failed_stddev_rotation_deg, method_disagreement_sigmas,
@@ -113,7 +113,7 @@ VerdictReport judgeSolution(const CalibrationSolution& sol, const std::vector<Vi
   int usable = 0, inconsistent = 0;
   for (const auto& v : consistency.views) {
     usable += v.usable;
-    if (v.usable && !v.consistent) {
+    if (consistency.ok && v.usable && !v.consistent) {
       ++inconsistent;
       name(v.view_id);
       r.details.push_back("view " + std::to_string(v.view_id) + " left out: " + v.reason);
@@ -158,15 +158,21 @@ VerdictReport judgeSolution(const CalibrationSolution& sol, const std::vector<Vi
         if (e.mlre_px) edge_mlre.push_back(*e.mlre_px);
     }
     const double med_edge = medianOf(edge_mlre);
+    std::vector<std::string> outlier_edges;
     for (const auto& vr : sol.views)
       for (int j = 0; j < kNumEdges; ++j) {
         const auto& e = vr.edges[static_cast<size_t>(j)];
         if (e.mlre_px && *e.mlre_px > std::max(o.outlier_factor * med_edge, med_edge + o.outlier_min_excess_px)) {
           name(vr.view_id);
-          doubtful.push_back("view " + std::to_string(vr.view_id) + " edge " + edgeName(j) + ": " + fixed(*e.mlre_px, 1) +
-                             " px against a median edge error of " + fixed(med_edge, 1) + " px (a hand, a wrong line?)");
+          outlier_edges.push_back("view " + std::to_string(vr.view_id) + " edge " + edgeName(j) + ": " +
+                                  fixed(*e.mlre_px, 1) + " px against a median edge error of " + fixed(med_edge, 1) +
+                                  " px (a hand, a wrong line?)");
         }
       }
+    // A stray edge or two is what the robust loss is for: named, not doubted. Many are not.
+    const bool many = static_cast<double>(outlier_edges.size()) >
+                      std::max(1.0, o.max_outlier_edge_fraction * static_cast<double>(edge_mlre.size()));
+    for (const auto& text : outlier_edges) (many ? doubtful : r.details).push_back(text);
     if (!sol.observability.well_conditioned && sol.observability.max_eigenvalue > 0)
       doubtful.push_back("weakly observable: " + sol.observability.weakest_description);
 
@@ -290,6 +296,7 @@ VerdictReport judgeSolution(const CalibrationSolution& sol, const std::vector<Vi
     std::ostringstream why;
     why << "residuals as the noise predicts (" << fixed(r.plane_residual_ratio, 1) << "x)";
     if (r.cross_validation.ran) why << ", left-out views predicted (" << r.cross_validation.solves << " solves)";
+    if (!r.views_to_check.empty()) why << "; " << r.views_to_check.size() << " view(s) named in the details";
     r.reason = why.str();
   }
   std::vector<std::string> all = failed;

@@ -55,7 +55,7 @@ struct ConsistencyReport {
   double offset_tolerance_m = 0.0;    ///< at the median distance
   int consistent_views = 0;
   std::vector<ViewConsistency> views;  ///< in input order
-  std::vector<int> inconsistentIds() const;
+  std::vector<int> inconsistentIds() const;  ///< usable views the consensus left out
 };
 
 ConsistencyReport checkViewConsistency(const std::vector<View>& views, const Target& target,

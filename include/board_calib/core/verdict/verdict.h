@@ -37,6 +37,7 @@ struct VerdictOptions {
   double doubtful_heldout_ratio = 2.0;      ///< held-out error / in-sample error
   double outlier_factor = 5.0;              ///< a view's or edge's error this many times the median ...
   double outlier_min_excess_px = 5.0;       ///< ... and this far above it is named
+  double max_outlier_edge_fraction = 0.1;   ///< more named edges than this fraction (and more than 1): doubtful
   double doubtful_inconsistent_fraction = 0.2;  ///< views dropped by the consistency check
   double failed_inconsistent_fraction = 0.4;  ///< at this or more: the consensus is barely a majority
   double doubtful_stddev_translation_m = 0.02;  ///< 1 sigma (inflated) beyond this: doubtful
