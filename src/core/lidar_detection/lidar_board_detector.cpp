@@ -410,6 +410,13 @@ Candidate scoreRegion(const Region& r, int region_id, const VoxelGrid& g, const 
   return c;
 }
 
+// Fewest returns of a sparse candidate: a few on each of the lines it needs.
+constexpr int kSparsePointsPerLine = 4;
+constexpr double kSparseMinWidthRatio = 0.8;  // of the widest chord a board's middle line must show
+int sparseMinPoints(const LidarBoardDetectorOptions& o) {
+  return std::min(o.min_board_points, kSparsePointsPerLine * o.min_scan_lines);
+}
+
 // A candidate from scan-line segments. Its sampling sets the tolerances: the board's true
 // outline lies up to one line spacing (range x elevation step) beyond the outermost lines and
 // up to one column step (plus the beam's bloom) beyond each line's extremes. It must fit inside
@@ -466,9 +473,12 @@ Candidate scoreSparse(const Region& r, int region_id, const std::vector<ValidPoi
                                 info.rectangle_m.x(), info.rectangle_m.y(), column_m, line_m);
     return c;
   }
-  const double need = o.min_size_ratio * std::min(target.width, target.height);
-  const double up = hi.y() - lo.y() + 2.0 * line_m, across = hi.x() - lo.x() + 2.0 * (column_m + bloom_m);
-  if (up < need || across < need) {
+  // Vertically the outline may lie a line spacing beyond the outermost lines. Across, the
+  // line nearest the board's middle (within half a spacing of it) spans nearly the smaller side
+  // whatever the roll: a body or a post under the board is narrower.
+  const double small_side = std::min(target.width, target.height);
+  const double up = hi.y() - lo.y() + 2.0 * line_m, across = hi.x() - lo.x() + 2.0 * column_m;
+  if (up < o.min_size_ratio * small_side || across < kSparseMinWidthRatio * std::max(0.0, small_side - 0.5 * line_m)) {
     info.rejected_because = fmt("too small: %.2f m high, %.2f m wide with the sampling gaps (%.2f m between lines)",
                                 hi.y() - lo.y(), hi.x() - lo.x(), line_m);
     return c;
@@ -1083,7 +1093,8 @@ LidarBoardDetection detectImpl(const LidarCloud& cloud, const Target& target, co
       r.column_step_rad = sr.column_step_rad;
       r.line_step_rad = sr.line_step_rad;
       for (int i : sr.points) r.stats.add(pts[static_cast<size_t>(i)].p);
-      if (r.stats.n < options.min_board_points) continue;
+      // Far away a board has few returns: a few per line on each of its lines is enough.
+      if (r.stats.n < sparseMinPoints(options)) continue;
       r.points = sr.points;
       Candidate c = scoreSparse(r, static_cast<int>(regions.size()), pts, target, options);
       bool known = false;
@@ -1161,6 +1172,7 @@ LidarBoardDetection detectImpl(const LidarCloud& cloud, const Target& target, co
   // Points of the winning region and of its neighbouring voxels (edge voxels mix the board
   // with what lies behind it, so they rarely join the region).
   const Region& region = regions[best.region];
+  const int min_points = region.sparse ? sparseMinPoints(options) : options.min_board_points;
   std::vector<int> region_points, gathered;
   std::unordered_set<int> gathered_voxels;
   for (int vi : region.voxels) {
@@ -1183,10 +1195,10 @@ LidarBoardDetection detectImpl(const LidarCloud& cloud, const Target& target, co
   }
   std::mt19937 rng(options.random_seed);
   const RefinedPlane refined = refinePlane(region_points, gathered, pts, options, rng);
-  if (static_cast<int>(refined.inliers.size()) < options.min_board_points)
+  if (static_cast<int>(refined.inliers.size()) < min_points)
     return failure(std::move(det), LidarDetectionCode::kTooFewPoints,
                    "board candidate has only " + std::to_string(refined.inliers.size()) +
-                       " points on its plane (need " + std::to_string(options.min_board_points) + ")");
+                       " points on its plane (need " + std::to_string(min_points) + ")");
   f.found = true;
   det.code = LidarDetectionCode::kFound;
   const LidarBoardDetection before_edges = det;
@@ -1213,7 +1225,7 @@ LidarBoardDetection detectImpl(const LidarCloud& cloud, const Target& target, co
   PlaneStats core_stats;  // well inside: no rim mixed returns, nothing touching from outside
   for (int i : refined.inliers)
     if (outside(pts[i].p) < -kRimExclusionM) core_stats.add(pts[i].p);
-  if (core_stats.n < options.min_board_points) return det;
+  if (core_stats.n < min_points) return det;
   const PlaneFit fit = lidar_detail::fitPlane(core_stats);
   Plane plane{fit.normal(), fit.offset()};
   if (plane.offset < 0) plane = Plane{-plane.normal, -plane.offset};
@@ -1226,7 +1238,7 @@ LidarBoardDetection detectImpl(const LidarCloud& cloud, const Target& target, co
     board.push_back(i);
     sum_sq += r * r;
   }
-  if (static_cast<int>(board.size()) < options.min_board_points) return det;
+  if (static_cast<int>(board.size()) < min_points) return det;
   LidarBoardDetection second = before_edges;
   second.features.plane = plane;
   second.features.plane_rms_m = std::sqrt(sum_sq / board.size());

@@ -19,6 +19,7 @@ constexpr double kLinkMarginSteps = 2.0;      // azimuth overlap margin between 
 constexpr double kAngleStepCoarse = kPi / 180.0;  // rectangle fit: 1 deg, then refined
 constexpr double kAngleStepFine = kPi / 1800.0;
 constexpr int kAssignRounds = 4;
+constexpr double kMinInPlaneFraction = 0.7;   // of a segment's points within the band of a region's plane
 
 double median(std::vector<double> v) {
   if (v.empty()) return 0.0;
@@ -133,13 +134,12 @@ std::vector<SegmentRegion> segmentRegions(const std::vector<Eigen::Vector3d>& po
       };
       const bool front = farther(begin, static_cast<long>(begin) - 1) && farther(end - 1, static_cast<long>(end));
       if (n >= 2 && front) {
-        const Eigen::Vector3d& a = points[static_cast<size_t>(pts[begin].second)];
-        const Eigen::Vector3d& b = points[static_cast<size_t>(pts[end - 1].second)];
-        if ((b - a).norm() <= o.max_length_m) {
-          PlaneStats s;
-          for (size_t q = begin; q < end; ++q) s.add(points[static_cast<size_t>(pts[q].second)]);
-          const PlaneFit f = fitPlane(s);  // a straight run: both small eigenvalues small
-          if (std::sqrt(f.eigenvalues[1]) <= o.max_rms_m) {
+        // Width across the view: the chord would miss a whole ring on the ground (it closes on
+        // itself) and a path length sums the range noise.
+        const double az_span = pts[end - 1].first - pts[begin].first;
+        const double chord = 2.0 * std::min(range[begin], range[end - 1]) * std::sin(0.5 * std::min(az_span, kPi));
+        if (az_span < kPi && chord <= o.max_length_m) {
+          {
             Segment seg;
             seg.line = l;
             seg.az_lo = pts[begin].first;
@@ -173,12 +173,27 @@ std::vector<SegmentRegion> segmentRegions(const std::vector<Eigen::Vector3d>& po
       for (int i : segments[static_cast<size_t>(k)].points) s.add(points[static_cast<size_t>(i)]);
     return s;
   };
+  // A segment lies on a plane when most of its points do: its ends may be mixed returns that
+  // blend the board with what is behind it. Only the points within the band join a region.
+  auto inPlane = [&](int i, const PlaneFit& f) {
+    return std::abs(f.normal().dot(points[static_cast<size_t>(i)]) - f.offset()) <= o.plane_band_m;
+  };
   auto fitsPlane = [&](const Segment& seg, const PlaneFit& f) {
-    const Eigen::Vector3d n = f.normal();
-    const double d = f.offset();
-    for (int i : seg.points)
-      if (std::abs(n.dot(points[static_cast<size_t>(i)]) - d) > o.plane_band_m) return false;
-    return true;
+    int in = 0;
+    for (int i : seg.points) in += inPlane(i, f);
+    return in >= 2 && in >= kMinInPlaneFraction * static_cast<double>(seg.points.size());
+  };
+  auto trimmedFit = [&](const std::vector<int>& segs) {
+    PlaneFit f = fitPlane(statsOf(segs));
+    for (int round = 0; round < 2; ++round) {
+      PlaneStats s;
+      for (int k : segs)
+        for (int i : segments[static_cast<size_t>(k)].points)
+          if (inPlane(i, f)) s.add(points[static_cast<size_t>(i)]);
+      if (s.n < 3) break;
+      f = fitPlane(s);
+    }
+    return f;
   };
   std::vector<int> order(segments.size());
   std::iota(order.begin(), order.end(), 0);
@@ -195,7 +210,7 @@ std::vector<SegmentRegion> segmentRegions(const std::vector<Eigen::Vector3d>& po
       for (int b : up[static_cast<size_t>(s)]) {
         if (segments[static_cast<size_t>(b)].region >= 0) continue;
         const std::vector<int> triple = {a, s, b};
-        const PlaneFit f = fitPlane(statsOf(triple));
+        const PlaneFit f = trimmedFit(triple);
         const double rms = std::sqrt(f.eigenvalues[0]);
         if (rms < best_rms && rms <= o.max_rms_m &&
             std::all_of(triple.begin(), triple.end(), [&](int k) { return fitsPlane(segments[static_cast<size_t>(k)], f); })) {
@@ -208,8 +223,16 @@ std::vector<SegmentRegion> segmentRegions(const std::vector<Eigen::Vector3d>& po
     const int id = static_cast<int>(out.size());
     std::vector<int> members = seed;
     for (int k : seed) segments[static_cast<size_t>(k)].region = id;
-    PlaneStats stats = statsOf(seed);
-    PlaneFit plane = fitPlane(stats);
+    PlaneFit plane = trimmedFit(seed);
+    PlaneStats stats;
+    std::vector<int> region_points;
+    for (int k : seed)
+      for (int i : segments[static_cast<size_t>(k)].points)
+        if (inPlane(i, plane)) {
+          stats.add(points[static_cast<size_t>(i)]);
+          region_points.push_back(i);
+        }
+    plane = fitPlane(stats);
     for (size_t head = 0; head < members.size(); ++head) {
       const int cur = members[head];
       for (const auto* links : {&down[static_cast<size_t>(cur)], &up[static_cast<size_t>(cur)]})
@@ -218,7 +241,11 @@ std::vector<SegmentRegion> segmentRegions(const std::vector<Eigen::Vector3d>& po
           if (seg.region >= 0 || !fitsPlane(seg, plane)) continue;
           seg.region = id;
           members.push_back(nb);
-          for (int i : seg.points) stats.add(points[static_cast<size_t>(i)]);
+          for (int i : seg.points)
+            if (inPlane(i, plane)) {
+              stats.add(points[static_cast<size_t>(i)]);
+              region_points.push_back(i);
+            }
           plane = fitPlane(stats);
         }
     }
@@ -226,9 +253,9 @@ std::vector<SegmentRegion> segmentRegions(const std::vector<Eigen::Vector3d>& po
     SegmentRegion r;
     std::vector<int> region_lines;
     std::vector<double> steps;
+    r.points = std::move(region_points);
     for (int k : members) {
       const Segment& seg = segments[static_cast<size_t>(k)];
-      r.points.insert(r.points.end(), seg.points.begin(), seg.points.end());
       region_lines.push_back(seg.line);
       steps.push_back(seg.step);
     }
