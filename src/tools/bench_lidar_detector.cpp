@@ -1,8 +1,8 @@
 // Benchmark of the LiDAR board detector on real recordings: median / p90 time per cloud,
 // single-threaded, plus detection counts. Usage:
-//   bench_lidar_detector [--data DIR] [--repeat N]
+//   bench_lidar_detector [--data DIR] [--repeat N] [--no-sparse]
 // DIR defaults to ../shared/data, relative to the working directory (run it from the package
-// root); it holds basler_os1_plain/ and left_vlp32_checker/.
+// root); it holds basler_os1_plain/, left_vlp32_checker/ and rs16_plain/.
 #include <board_calib/bag_reader.h>
 #include <board_calib/core/lidar_board_detector.h>
 
@@ -22,7 +22,7 @@ struct Dataset {
   std::string folder, topic;
 };
 
-int run(const std::string& data, const Dataset& ds, int repeat) {
+int run(const std::string& data, const Dataset& ds, int repeat, const LidarBoardDetectorOptions& options) {
   const std::string dir = data + "/" + ds.folder;
   auto target = loadTarget(dir + "/target.yaml");
   if (!target) {
@@ -59,7 +59,7 @@ int run(const std::string& data, const Dataset& ds, int repeat) {
         timespec c0, c1;
         const auto t0 = std::chrono::steady_clock::now();
         clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c0);
-        const LidarBoardDetection det = detectLidarBoard(c, *target);
+        const LidarBoardDetection det = detectLidarBoard(c, *target, options);
         clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c1);
         const auto t1 = std::chrono::steady_clock::now();
         ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
@@ -86,19 +86,23 @@ int run(const std::string& data, const Dataset& ds, int repeat) {
 int main(int argc, char** argv) {
   std::string data = "../shared/data";  // from the package root
   int repeat = 5;
+  LidarBoardDetectorOptions options;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--data" && i + 1 < argc) {
       data = argv[++i];
+    } else if (a == "--no-sparse") {
+      options.sparse_candidates = false;  // the voxel candidates only (before far-board support)
     } else if (a == "--repeat" && i + 1 < argc) {
       repeat = std::max(1, std::atoi(argv[++i]));
     } else {
-      std::fprintf(stderr, "usage: bench_lidar_detector [--data DIR] [--repeat N]\n");
+      std::fprintf(stderr, "usage: bench_lidar_detector [--data DIR] [--repeat N] [--no-sparse]\n");
       return a == "--help" || a == "-h" ? 0 : 2;
     }
   }
   int rc = 0;
-  rc |= run(data, {"basler_os1_plain", "/os1/points"}, repeat);
-  rc |= run(data, {"left_vlp32_checker", "/lidar/points"}, repeat);
+  rc |= run(data, {"basler_os1_plain", "/os1/points"}, repeat, options);
+  rc |= run(data, {"left_vlp32_checker", "/lidar/points"}, repeat, options);
+  rc |= run(data, {"rs16_plain", "/rslidar/points"}, repeat, options);
   return rc;
 }

@@ -412,6 +412,7 @@ Candidate scoreRegion(const Region& r, int region_id, const VoxelGrid& g, const 
 
 // Fewest returns of a sparse candidate: a few on each of the lines it needs.
 constexpr int kSparsePointsPerLine = 4;
+constexpr double kSparseLineGapVoxels = 0.5;  // segments where lines are farther apart than this many voxels
 constexpr double kSparseMinWidthRatio = 0.8;  // of the widest chord a board's middle line must show
 int sparseMinPoints(const LidarBoardDetectorOptions& o) {
   return std::min(o.min_board_points, kSparsePointsPerLine * o.min_scan_lines);
@@ -447,6 +448,13 @@ Candidate scoreSparse(const Region& r, int region_id, const std::vector<ValidPoi
     info.rejected_because = fmt("not flat (RMS %.3f m)", info.rms_m);
     return c;
   }
+  // Cheap first: the covariance's extent (a uniform segment of length a has variance a^2/12).
+  const double extent = std::sqrt(kUniformSideFromVariance * fit.eigenvalues[2]);
+  if (extent > kPrefilterExtentFactor * (1.0 + o.sparse_size_slack) * std::max(target.width, target.height)) {
+    info.rectangle_m = {extent, std::sqrt(kUniformSideFromVariance * fit.eigenvalues[1])};
+    info.rejected_because = fmt("far too large (about %.2f m across)", extent);
+    return c;
+  }
   const double range = fit.centroid.norm();
   const double column_m = range * r.column_step_rad;
   const double line_m = range * r.line_step_rad;
@@ -462,25 +470,27 @@ Candidate scoreSparse(const Region& r, int region_id, const std::vector<ValidPoi
     lo = lo.cwiseMin(projected.back());
     hi = hi.cwiseMax(projected.back());
   }
-  const Points2 hull = lidar_detail::convexHull(projected);
-  info.fill_ratio = lidar_detail::polygonArea(hull) / (target.width * target.height);
-  info.rectangle_m = lidar_detail::minAreaRectangle(hull);
-  const double slack = 1.0 + o.sparse_size_slack;
-  const auto inside = lidar_detail::fitRectangle(projected, {}, {}, slack * target.width, slack * target.height, tolerance);
-  if (!inside.ok) {
-    info.rejected_because = fmt("too large: %.2f x %.2f m does not fit in the board (sampling %.2f m across, %.2f m "
-                                "between lines)",
-                                info.rectangle_m.x(), info.rectangle_m.y(), column_m, line_m);
-    return c;
-  }
   // Vertically the outline may lie a line spacing beyond the outermost lines. Across, the
   // line nearest the board's middle (within half a spacing of it) spans nearly the smaller side
   // whatever the roll: a body or a post under the board is narrower.
   const double small_side = std::min(target.width, target.height);
   const double up = hi.y() - lo.y() + 2.0 * line_m, across = hi.x() - lo.x() + 2.0 * column_m;
   if (up < o.min_size_ratio * small_side || across < kSparseMinWidthRatio * std::max(0.0, small_side - 0.5 * line_m)) {
+    info.rectangle_m = hi - lo;
     info.rejected_because = fmt("too small: %.2f m high, %.2f m wide with the sampling gaps (%.2f m between lines)",
                                 hi.y() - lo.y(), hi.x() - lo.x(), line_m);
+    return c;
+  }
+  const Points2 hull = lidar_detail::convexHull(projected);
+  info.fill_ratio = lidar_detail::polygonArea(hull) / (target.width * target.height);
+  info.rectangle_m = lidar_detail::minAreaRectangle(hull);
+  const double slack = 1.0 + o.sparse_size_slack;
+  // Only the hull decides whether the points fit inside.
+  const auto inside = lidar_detail::fitRectangle(hull, {}, {}, slack * target.width, slack * target.height, tolerance);
+  if (!inside.ok) {
+    info.rejected_because = fmt("too large: %.2f x %.2f m does not fit in the board (sampling %.2f m across, %.2f m "
+                                "between lines)",
+                                info.rectangle_m.x(), info.rectangle_m.y(), column_m, line_m);
     return c;
   }
   info.score = info.num_points * std::exp(-kShapeErrorScale * kRmsWeight * info.rms_m / o.max_candidate_rms_m);
@@ -955,7 +965,9 @@ bool extractEdgesByRectangle(const LidarCloud& cloud, const std::vector<ValidPoi
   // Extremes scatter within a column step of the outline; the range noise moves them in-plane
   // only on tilted boards, the beam's bloom adds to the outside.
   const double tolerance = std::max(o.edge_inlier_threshold_m, column_m + 2.0 * bloom + 3.0 * o.range_noise_m);
-  const auto fit = lidar_detail::fitRectangle(board2, extremes, insets, target.width, target.height, tolerance);
+  // Only the hull matters for "every board point inside".
+  const auto fit = lidar_detail::fitRectangle(lidar_detail::convexHull(board2), extremes, insets, target.width,
+                                              target.height, tolerance);
   if (!fit.ok || fit.rms_m > tolerance || fit.worst_outside_m > tolerance) return false;
   // Sides: outward normals of the four sides; UL is the one nearest to up-left (135 deg), then
   // clockwise UR, LR, LL.
@@ -1078,8 +1090,32 @@ LidarBoardDetection detectImpl(const LidarCloud& cloud, const Target& target, co
       xyz[i] = pts[i].p;
     }
     std::string source;
-    const std::vector<int> line =
+    const std::vector<int> all_lines =
         lidar_detail::scanLinesOf(cloud, cloud_index, xyz, options.elevation_gap_deg * kRadPerDeg, &source);
+    // Points the voxels already explain (floor, walls: larger than the board; boards they
+    // accepted) need no second look: the segments run on the rest, which keeps this cheap.
+    std::vector<uint8_t> explained(regions.size(), 0);
+    const double big_side = std::max(target.width, target.height);
+    for (const auto& c : candidates)
+      explained[static_cast<size_t>(c.region)] = c.info.score >= 0 || c.info.rectangle_m.x() > options.max_size_ratio * big_side;
+    std::vector<uint8_t> skip(pts.size(), 0);
+    for (const auto& v : grid.voxels)
+      if (v.region >= 0 && explained[static_cast<size_t>(v.region)])
+        for (int j = 0; j < v.count; ++j) skip[static_cast<size_t>(grid.sorted_points[v.first + j])] = 1;
+    // Only where the lines are too far apart for the voxels (fewer than two lines in a voxel's
+    // height can seed no plane) do the segments add anything.
+    const std::vector<double> gap = lidar_detail::lineGaps(xyz, all_lines);
+    std::vector<int> subset;  // indices into pts, in cloud order (lines come in firing order)
+    subset.reserve(pts.size());
+    for (size_t i = 0; i < pts.size(); ++i)
+      if (!skip[i] && xyz[i].norm() * gap[static_cast<size_t>(all_lines[i])] > kSparseLineGapVoxels * options.voxel_size_m)
+        subset.push_back(static_cast<int>(i));
+    xyz.resize(subset.size());
+    std::vector<int> line(subset.size());
+    for (size_t k = 0; k < subset.size(); ++k) {
+      xyz[k] = pts[static_cast<size_t>(subset[k])].p;
+      line[k] = all_lines[static_cast<size_t>(subset[k])];
+    }
     lidar_detail::SegmentOptions so;
     so.max_length_m = (1.0 + options.sparse_size_slack) * std::hypot(target.width, target.height) + options.voxel_size_m;
     so.max_rms_m = options.max_candidate_rms_m;
@@ -1087,6 +1123,7 @@ LidarBoardDetection detectImpl(const LidarCloud& cloud, const Target& target, co
     so.range_noise_m = options.range_noise_m;
     so.min_lines = options.min_scan_lines;
     for (auto& sr : lidar_detail::segmentRegions(xyz, line, so)) {
+      for (int& i : sr.points) i = subset[static_cast<size_t>(i)];
       Region r;
       r.sparse = true;
       r.lines = sr.lines;

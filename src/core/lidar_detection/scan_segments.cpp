@@ -19,7 +19,8 @@ constexpr double kLinkMarginSteps = 2.0;      // azimuth overlap margin between 
 constexpr double kAngleStepCoarse = kPi / 180.0;  // rectangle fit: 1 deg, then refined
 constexpr double kAngleStepFine = kPi / 1800.0;
 constexpr int kAssignRounds = 4;
-constexpr double kMinInPlaneFraction = 0.7;   // of a segment's points within the band of a region's plane
+constexpr double kMinInPlaneFraction = 0.7;
+constexpr double kUntrimmedRmsFactor = 4.0;   // seed triples: untrimmed RMS bound before the trimmed fit   // of a segment's points within the band of a region's plane
 
 double median(std::vector<double> v) {
   if (v.empty()) return 0.0;
@@ -33,22 +34,64 @@ struct Segment {
   double az_lo = 0, az_hi = 0;  // rad
   double step = 0;              // median azimuth step, rad
   int region = -1;
+  PlaneStats stats;
 };
 
 // Renumber line ids bottom-up by their mean elevation (rings and rows come in either order).
 void rankByElevation(const std::vector<Eigen::Vector3d>& points, std::vector<int>* line) {
-  std::map<int, std::pair<double, int>> sums;
-  for (size_t i = 0; i < points.size(); ++i) {
-    auto& s = sums[(*line)[i]];
-    s.first += std::atan2(points[i].z(), std::hypot(points[i].x(), points[i].y()));
+  if (line->empty()) return;
+  const int lo = *std::min_element(line->begin(), line->end()), hi = *std::max_element(line->begin(), line->end());
+  std::vector<std::pair<double, int>> sums(static_cast<size_t>(hi - lo + 1), {0.0, 0});
+  // One point per line in every few gives its elevation well enough (beams are fixed).
+  constexpr size_t kStride = 7;
+  for (size_t i = 0; i < points.size(); i += kStride) {
+    auto& s = sums[static_cast<size_t>((*line)[i] - lo)];
+    s.first += points[i].z() / std::max(1e-9, std::hypot(points[i].x(), points[i].y()));
     ++s.second;
   }
+  for (size_t i = 0; i < points.size(); ++i) {  // lines the stride missed
+    auto& s = sums[static_cast<size_t>((*line)[i] - lo)];
+    if (s.second == 0) {
+      s.first = points[i].z() / std::max(1e-9, std::hypot(points[i].x(), points[i].y()));
+      s.second = 1;
+    }
+  }
   std::vector<std::pair<double, int>> order;
-  for (const auto& kv : sums) order.emplace_back(kv.second.first / kv.second.second, kv.first);
+  for (size_t k = 0; k < sums.size(); ++k)
+    if (sums[k].second > 0) order.emplace_back(sums[k].first / sums[k].second, static_cast<int>(k));
   std::sort(order.begin(), order.end());
-  std::map<int, int> rank;
-  for (size_t k = 0; k < order.size(); ++k) rank[order[k].second] = static_cast<int>(k);
-  for (auto& l : *line) l = rank[l];
+  std::vector<int> rank(sums.size(), 0);
+  for (size_t k = 0; k < order.size(); ++k) rank[static_cast<size_t>(order[k].second)] = static_cast<int>(k);
+  for (auto& l : *line) l = rank[static_cast<size_t>(l - lo)];
+}
+
+// Ascending azimuth. Drivers emit each line in firing order (azimuth monotonic, one wrap at
+// +-pi), so a rotation (and a reversal for clockwise spin) usually replaces the sort.
+void sortByAzimuth(std::vector<std::pair<double, int>>* pts) {
+  auto& v = *pts;
+  const size_t n = v.size();
+  if (n < 2) return;
+  size_t up = 0, down = 0, wrap_up = n, wrap_down = n;
+  for (size_t k = 1; k < n; ++k) {
+    if (v[k].first > v[k - 1].first) {
+      ++up;
+      wrap_up = k;
+    } else if (v[k].first < v[k - 1].first) {
+      ++down;
+      wrap_down = k;
+    }
+  }
+  if (down <= 1) {  // ascending with at most one wrap
+    if (down == 1 && v.front().first >= v.back().first) std::rotate(v.begin(), v.begin() + static_cast<long>(wrap_down), v.end());
+    if (down == 0 || v.front().first >= v.back().first || std::is_sorted(v.begin(), v.end())) {
+      if (std::is_sorted(v.begin(), v.end())) return;
+    }
+  } else if (up <= 1) {  // descending with at most one wrap
+    if (up == 1 && v.front().first <= v.back().first) std::rotate(v.begin(), v.begin() + static_cast<long>(wrap_up), v.end());
+    std::reverse(v.begin(), v.end());
+    if (std::is_sorted(v.begin(), v.end())) return;
+  }
+  std::sort(v.begin(), v.end());
 }
 
 }  // namespace
@@ -88,6 +131,29 @@ std::vector<int> scanLinesOf(const LidarCloud& cloud, const std::vector<int>& cl
   return line;
 }
 
+std::vector<double> lineGaps(const std::vector<Eigen::Vector3d>& points, const std::vector<int>& line) {
+  if (points.empty()) return {};
+  const int lines = *std::max_element(line.begin(), line.end()) + 1;
+  std::vector<double> sum(static_cast<size_t>(lines), 0.0), gap(static_cast<size_t>(lines), kPi);
+  std::vector<int> n(static_cast<size_t>(lines), 0);
+  constexpr size_t kStride = 7;  // beams have fixed elevations: a sample suffices
+  for (size_t i = 0; i < points.size(); i += (n[static_cast<size_t>(line[i])] < 3 ? 1 : kStride)) {
+    sum[static_cast<size_t>(line[i])] += std::atan2(points[i].z(), std::hypot(points[i].x(), points[i].y()));
+    ++n[static_cast<size_t>(line[i])];
+  }
+  int prev = -1;
+  for (int l = 0; l < lines; ++l) {
+    if (!n[static_cast<size_t>(l)]) continue;
+    if (prev >= 0) {
+      const double g = sum[static_cast<size_t>(l)] / n[static_cast<size_t>(l)] - sum[static_cast<size_t>(prev)] / n[static_cast<size_t>(prev)];
+      gap[static_cast<size_t>(l)] = std::min(gap[static_cast<size_t>(l)], g);
+      gap[static_cast<size_t>(prev)] = std::min(gap[static_cast<size_t>(prev)], g);
+    }
+    prev = l;
+  }
+  return gap;
+}
+
 std::vector<SegmentRegion> segmentRegions(const std::vector<Eigen::Vector3d>& points, const std::vector<int>& line,
                                           const SegmentOptions& o) {
   std::vector<SegmentRegion> out;
@@ -103,7 +169,7 @@ std::vector<SegmentRegion> segmentRegions(const std::vector<Eigen::Vector3d>& po
   for (int l = 0; l < lines; ++l) {
     auto& pts = by_line[static_cast<size_t>(l)];
     if (pts.size() < 2) continue;
-    std::sort(pts.begin(), pts.end());
+    sortByAzimuth(&pts);
     const auto& p0 = points[static_cast<size_t>(pts[pts.size() / 2].second)];
     line_elevation[static_cast<size_t>(l)] = std::atan2(p0.z(), std::hypot(p0.x(), p0.y()));
     std::vector<double> steps;
@@ -145,7 +211,10 @@ std::vector<SegmentRegion> segmentRegions(const std::vector<Eigen::Vector3d>& po
             seg.az_lo = pts[begin].first;
             seg.az_hi = pts[end - 1].first;
             seg.step = step;
-            for (size_t q = begin; q < end; ++q) seg.points.push_back(pts[q].second);
+            for (size_t q = begin; q < end; ++q) {
+              seg.points.push_back(pts[q].second);
+              seg.stats.add(points[static_cast<size_t>(pts[q].second)]);
+            }
             segments_of_line[static_cast<size_t>(l)].push_back(static_cast<int>(segments.size()));
             segments.push_back(std::move(seg));
           }
@@ -169,8 +238,7 @@ std::vector<SegmentRegion> segmentRegions(const std::vector<Eigen::Vector3d>& po
   }
   auto statsOf = [&](const std::vector<int>& segs) {
     PlaneStats s;
-    for (int k : segs)
-      for (int i : segments[static_cast<size_t>(k)].points) s.add(points[static_cast<size_t>(i)]);
+    for (int k : segs) s.add(segments[static_cast<size_t>(k)].stats);
     return s;
   };
   // A segment lies on a plane when most of its points do: its ends may be mixed returns that
@@ -210,6 +278,12 @@ std::vector<SegmentRegion> segmentRegions(const std::vector<Eigen::Vector3d>& po
       for (int b : up[static_cast<size_t>(s)]) {
         if (segments[static_cast<size_t>(b)].region >= 0) continue;
         const std::vector<int> triple = {a, s, b};
+        // Cheap test first: the untrimmed fit from the segments' sums. A few mixed returns at
+        // the runs' ends raise its RMS, not by a factor kUntrimmedRmsFactor.
+        PlaneStats all = segments[static_cast<size_t>(a)].stats;
+        all.add(segments[static_cast<size_t>(s)].stats);
+        all.add(segments[static_cast<size_t>(b)].stats);
+        if (std::sqrt(fitPlane(all).eigenvalues[0]) > kUntrimmedRmsFactor * o.max_rms_m) continue;
         const PlaneFit f = trimmedFit(triple);
         const double rms = std::sqrt(f.eigenvalues[0]);
         if (rms < best_rms && rms <= o.max_rms_m &&

@@ -21,6 +21,9 @@ std::vector<int> scanLinesOf(const LidarCloud& cloud, const std::vector<int>& cl
                              const std::vector<Eigen::Vector3d>& points, double elevation_gap_rad,
                              std::string* source);
 
+/// Elevation gap (rad) from each line (numbered bottom-up) to its nearer neighbour line.
+std::vector<double> lineGaps(const std::vector<Eigen::Vector3d>& points, const std::vector<int>& line);
+
 struct SegmentOptions {
   double max_length_m = 2.0;        ///< longest segment chord that can lie on the board, m
   double max_rms_m = 0.03;          ///< straightness of a segment and flatness of a region, m
