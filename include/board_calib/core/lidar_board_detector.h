@@ -179,6 +179,8 @@ class LidarBoardTracker {
   int numPlaces() const { return static_cast<int>(places_.size()); }
   int numStaticPlaces() const;
   const LidarBoardDetectorOptions& detectorOptions() const { return detector_; }
+  /// New detector options (e.g. reconfigured); the memory is kept.
+  void setDetectorOptions(const LidarBoardDetectorOptions& options) { detector_ = options; }
 
  private:
   struct Place {
