@@ -3,5 +3,6 @@
 board_calib_core_module(lidar_detection
   src/core/lidar_detection/lidar_board_detector.cpp
   src/core/lidar_detection/background_model.cpp
-  src/core/lidar_detection/geometry_2d.cpp)
+  src/core/lidar_detection/geometry_2d.cpp
+  src/core/lidar_detection/scan_segments.cpp)
 target_link_libraries(bc_lidar_detection PUBLIC bc_geometry)

@@ -144,6 +144,9 @@ class CloudBoardDetectorNodelet : public nodelet::Nodelet {
     }
     target_ = *target;
     pnh.param("background_frames", background_frames_, 5);
+    // Memory of the session: board-like planes that stay put are background (issue 14).
+    pnh.param("session_memory", session_memory_, false);
+    tracker_ = std::make_unique<LidarBoardTracker>(target_);
     if (background_frames_ < 1) background_frames_ = 1;
 
     {
@@ -258,7 +261,12 @@ class CloudBoardDetectorNodelet : public nodelet::Nodelet {
       const BackgroundModel* background = use_background_ && !background_.empty() && capturing_left_ == 0
                                               ? &background_
                                               : nullptr;
-      det = detectLidarBoard(*cloud, target_, options, background);
+      if (session_memory_) {
+        tracker_->setDetectorOptions(options);
+        det = tracker_->detect(*cloud, background);
+      } else {
+        det = detectLidarBoard(*cloud, target_, options, background);
+      }
     }
     if (det.code == LidarDetectionCode::kEmptyCloud || det.code == LidarDetectionCode::kNoValidPoints ||
         det.code == LidarDetectionCode::kInvalidOptions) {
@@ -342,6 +350,8 @@ class CloudBoardDetectorNodelet : public nodelet::Nodelet {
   LidarBoardDetectorOptions options_;
   bool use_background_ = true;
   BackgroundModel background_;
+  bool session_memory_ = false;
+  std::unique_ptr<LidarBoardTracker> tracker_;  // one detector state per LiDAR (this nodelet's cloud)
   int background_frames_ = 5;
   int capturing_left_ = 0;
   std::mutex mutex_;               // options, background model, capture state

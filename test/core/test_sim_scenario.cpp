@@ -7,6 +7,8 @@
 #include <dirent.h>
 
 #include <cmath>
+#include <cstdlib>
+#include <fstream>
 #include <map>
 
 namespace board_calib {
@@ -182,6 +184,91 @@ TEST(SimScenario, FramesReuseStillRenderAndDifferOnlyByNoise) {
   EXPECT_EQ(cv::norm(again, still_pose0[1].second, cv::NORM_INF), 0.0);
 }
 
+// Seeded clutter and marks: the count asked for, the same layout for the same seed, another
+// for another clutter_seed, marks inside the board, no panel hiding any board pose from any
+// sensor (the pose sampler checks the lines of sight) and far poses (5-14 m) outdoors.
+// SIM_SCENARIO_DUMP=DIR writes a few still images of both scenes as PPM to look at.
+TEST(SimScenario, SeededClutterAndOutdoorFarPoses) {
+  auto clutter = loadScenario(kScenarioDir + "/plain_vlp32c_clutter.yaml");
+  ASSERT_TRUE(clutter.ok()) << clutter.error();
+  EXPECT_EQ(clutter->scene.panels.size(), 12u);
+  auto again = loadScenario(kScenarioDir + "/plain_vlp32c_clutter.yaml");
+  ASSERT_TRUE(again.ok());
+  for (size_t k = 0; k < clutter->scene.panels.size(); ++k)
+    EXPECT_TRUE(clutter->scene.panels[k].world_T_panel.isApprox(again->scene.panels[k].world_T_panel));
+  const std::string yaml = "target: ../targets/plain_1016.yaml\n"
+                           "cameras: [{name: c, width: 640, height: 480, fx: 500, fy: 500, cx: 320, cy: 240}]\n"
+                           "scene: {posters: 5, board_marks: 4, clutter_seed: ";
+  auto a = parseScenario(yaml + "1}\n", kScenarioDir);
+  auto b = parseScenario(yaml + "2}\n", kScenarioDir);
+  ASSERT_TRUE(a.ok()) << a.error();
+  ASSERT_TRUE(b.ok()) << b.error();
+  ASSERT_EQ(a->scene.panels.size(), 5u);
+  ASSERT_EQ(a->scene.board_marks.size(), 4u);
+  EXPECT_FALSE(a->scene.panels[0].world_T_panel.isApprox(b->scene.panels[0].world_T_panel));
+  for (const auto& m : a->scene.board_marks) {
+    EXPECT_GT(m.min.minCoeff(), 0.0);
+    EXPECT_LT(m.max.x(), a->scene.target.width);
+    EXPECT_LT(m.max.y(), a->scene.target.height);
+  }
+  // Board-sized: every non-door panel within 0.8..1.3 of the board's sides.
+  for (const auto& p : clutter->scene.panels) {
+    const double lo = std::min(p.width_m, p.height_m), hi = std::max(p.width_m, p.height_m);
+    if (hi == 2.0) continue;  // a door
+    EXPECT_GE(lo, 0.8 * 1.016 - 1e-9);
+    EXPECT_LE(hi, 1.3 * 1.016 + 1e-9);
+  }
+
+  auto far = loadScenario(kScenarioDir + "/plain_vlp16_outdoor_far.yaml");
+  ASSERT_TRUE(far.ok()) << far.error();
+  EXPECT_TRUE(far->scene.outdoor);
+  auto timeline = makeTimeline(*far);
+  ASSERT_TRUE(timeline.ok()) << timeline.error();
+  double nearest = 1e9, farthest = 0;
+  for (const auto& pose : timeline->world_T_board_poses) {
+    const double d = (far->world_T_rig.inverse() * pose * far->scene.target.center()).norm();
+    nearest = std::min(nearest, d);
+    farthest = std::max(farthest, d);
+  }
+  EXPECT_GE(nearest, 5.0);
+  EXPECT_LE(farthest, 14.0);
+  EXPECT_GT(farthest - nearest, 4.0) << "poses spread over the distance range";
+
+  // Lines of sight: ray-cast each sensor to the board's centre, no panel in between.
+  for (const auto* s : {&*clutter, &*far}) {
+    auto t = makeTimeline(*s);
+    ASSERT_TRUE(t.ok()) << t.error();
+    for (const auto& pose : t->world_T_board_poses) {
+      const Eigen::Vector3d centre = pose * s->scene.target.center();
+      for (const auto& panel : s->scene.panels) {
+        const Eigen::Isometry3d inv = panel.world_T_panel.inverse();
+        const Eigen::Vector3d a0 = inv * worldTLidar(*s, 0).translation(), b0 = inv * centre;
+        if ((a0.z() > 0) == (b0.z() > 0)) continue;
+        const Eigen::Vector3d q = a0 + (b0 - a0) * (a0.z() / (a0.z() - b0.z()));
+        EXPECT_FALSE(std::abs(q.x()) <= 0.5 * panel.width_m && std::abs(q.y()) <= 0.5 * panel.height_m);
+      }
+    }
+  }
+  if (const char* dump = std::getenv("SIM_SCENARIO_DUMP")) {  // eyeball the scenes: writes PNGs there
+    for (const auto* s : {&*clutter, &*far}) {
+      auto t = makeTimeline(*s);
+      auto gen = FrameGenerator::create(*s);
+      ASSERT_TRUE(gen.ok());
+      for (size_t i = 0; i < t->frames.size(); ++i)
+        if (t->frames[i].is_camera && t->frames[i].still && t->frames[i].pose % 5 == 0) {
+          const cv::Mat image = gen->image(t->frames[i], i);  // bgr8 -> binary PPM (rgb)
+          std::ofstream out(std::string(dump) + "/" + s->name + "_" + std::to_string(t->frames[i].pose) + ".ppm");
+          out << "P6\n" << image.cols << " " << image.rows << "\n255\n";
+          for (int v = 0; v < image.rows; ++v)
+            for (int u = 0; u < image.cols; ++u) {
+              const cv::Vec3b c = image.at<cv::Vec3b>(v, u);
+              out.put(static_cast<char>(c[2])).put(static_cast<char>(c[1])).put(static_cast<char>(c[0]));
+            }
+        }
+    }
+  }
+}
+
 TEST(SimScenario, BadFilesGiveReasonsNamingTheKey) {
   const std::string base = kScenarioDir;
   const std::string good_camera =
@@ -202,6 +289,12 @@ TEST(SimScenario, BadFilesGiveReasonsNamingTheKey) {
       {"target: ../targets/plain_1016.yaml\n" + good_camera + "motion: {hold_s: fast}\n", "motion.hold_s"},
       {"target: ../targets/plain_1016.yaml\n", "no sensors"},
       {"target: [\n", "YAML"},
+      {"target: ../targets/plain_1016.yaml\n" + good_camera + "scene: {posters: -1}\n", "scene.posters"},
+      {"target: ../targets/plain_1016.yaml\n" + good_camera + "scene: {board_grey: 2}\n", "board_grey"},
+      {"target: ../targets/plain_1016.yaml\n" + good_camera + "scene: {panels: [{center: [1, 2], width: 1, height: 1}]}\n",
+       "scene.panels[0].center"},
+      {"target: ../targets/plain_1016.yaml\n" + good_camera + "scene: {board_marks: [{min: [0, 0]}]}\n",
+       "scene.board_marks[0].max"},
   };
   for (const auto& c : cases) {
     auto s = parseScenario(c.yaml, base);

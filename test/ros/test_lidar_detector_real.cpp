@@ -138,6 +138,33 @@ TEST(LidarDetectorReal, Vlp32CheckerboardPlaneEveryFrame) {
   EXPECT_EQ(t2.planes, 32);
 }
 
+// RoboSense RS-16 without ring, unorganized, 1.2-1.9 m, plain grey 0.80 x 0.60 m board held by
+// its left and right edges (hands stick out 1-3 cm, legs within 4 cm of the plane below it;
+// README of the data). 12-15 scan lines cross the board. The board must be found in every
+// cloud, right where the board is (its points' elevations span at least 10 lines, as the
+// README counts), and its four edges in at least 6 of 8 (hands on two edges).
+TEST(LidarDetectorReal, Rs16PlainBoardWithoutRing) {
+  const std::string folder = kShared + "/data/rs16_plain";
+  if (!exists(folder)) GTEST_SKIP() << "no " << folder;
+  const auto target = loadTarget(folder + "/target.yaml");
+  ASSERT_TRUE(target.ok()) << target.error();
+  const auto clouds = readClouds("rs16_plain", "/rslidar/points");
+  ASSERT_EQ(clouds.size(), 8u);
+  const Tally t = run(clouds, *target, "rs16");
+  EXPECT_EQ(t.planes, 8);
+  EXPECT_GE(t.four_edges, 6);
+  for (const auto& c : clouds) {
+    const auto det = detectLidarBoard(c, *target);
+    if (!det.features.found) continue;
+    // The board lies 1.2-1.9 m ahead at -y (README), not on a wall or the floor.
+    const Eigen::Vector3d n = det.features.plane.normal;
+    EXPECT_GT(det.features.plane.offset, 1.0);
+    EXPECT_LT(det.features.plane.offset, 2.2);
+    EXPECT_GT(std::abs(n.x()), 0.7) << "board faces the LiDAR";
+    EXPECT_GE(det.num_scan_lines, 10);
+  }
+}
+
 TEST(LidarDetectorReal, MissingXyzFieldsGiveAReason) {
   sensor_msgs::PointCloud2 msg;
   msg.height = 1;

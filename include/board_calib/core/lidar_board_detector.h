@@ -53,6 +53,13 @@ struct LidarBoardDetectorOptions {
   double ambiguity_ratio = 0.7;    ///< a second candidate with at least this fraction of the best's support: ambiguous
   bool reject_ambiguous = true;    ///< report two board-like planes as "ambiguous" instead of picking one
 
+  // Far, sparse boards: candidates from scan-line segments (runs of returns in front of their
+  // surroundings, linked across adjacent lines), judged with tolerances from the sampling.
+  bool sparse_candidates = true;   ///< also grow candidates from scan-line segments
+  int min_scan_lines = 3;          ///< scan lines a sparse candidate needs
+  double range_noise_m = 0.02;     ///< 1 sigma range noise of the LiDAR: segment splitting and size tolerances, m
+  double sparse_size_slack = 0.1;  ///< sparse candidates fit in the declared board enlarged by this fraction plus the sampling
+
   // Plane refinement.
   double plane_distance_threshold_m = 0.05;  ///< RANSAC inlier distance, m (3 RMS of a noisy OS1-64 board)
   int ransac_iterations = 100;               ///< RANSAC hypotheses for the plane and each edge line
@@ -96,6 +103,7 @@ struct LidarBoardCandidate {
   double fill_ratio = 0.0;   ///< convex hull area / declared board area
   double rms_m = 0.0;        ///< RMS distance to the plane, m
   double score = 0.0;        ///< support: points * exp(-4 * shape error), higher is better; < 0 when rejected
+  int scan_lines = 0;        ///< sparse candidates: scan lines on it (0: a voxel region)
   std::string rejected_because;  ///< empty when it passed every check
 };
 
@@ -146,5 +154,50 @@ class BackgroundModel {
 LidarBoardDetection detectLidarBoard(const LidarCloud& cloud, const Target& target,
                                      const LidarBoardDetectorOptions& options = {},
                                      const BackgroundModel* background = nullptr);
+
+/// Memory of board-like planes over a session: the board is what moves; a planar candidate
+/// that stays put (door, poster, screen, cabinet) is background.
+struct StaticMemoryOptions {
+  double place_radius_m = 0.3;        ///< candidates whose centroids are this close (and normals agree) are one place, m
+  double max_normal_angle_deg = 10.0; ///< deg
+  double static_after_s = 6.0;        ///< seen at one place over this long: background (a held pose lasts a few s), s
+  double min_seen_fraction = 0.5;     ///< ... and in at least this fraction of the clouds since (not a board revisiting)
+  double forget_after_s = 30.0;       ///< a place unseen this long is forgotten, s
+  bool strict_ambiguity = true;       ///< two board-like places not known as static: ambiguous whatever their support
+  std::string validate() const;
+};
+
+/// Stateful detector: one per LiDAR (not thread-safe). Each cloud goes through
+/// detectLidarBoard's stages; board-like candidates at static places are dropped as
+/// background, and frames the single-frame rules would call ambiguous are decided by that
+/// history. Clouds must come in time order; a stamp going back resets the memory.
+class LidarBoardTracker {
+ public:
+  explicit LidarBoardTracker(Target target, LidarBoardDetectorOptions detector = {}, StaticMemoryOptions memory = {});
+  LidarBoardDetection detect(const LidarCloud& cloud, const BackgroundModel* background = nullptr);
+  void reset();
+  int numPlaces() const { return static_cast<int>(places_.size()); }
+  int numStaticPlaces() const;
+  const LidarBoardDetectorOptions& detectorOptions() const { return detector_; }
+  /// New detector options (e.g. reconfigured); the memory is kept.
+  void setDetectorOptions(const LidarBoardDetectorOptions& options) { detector_ = options; }
+
+ private:
+  struct Place {
+    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitX();
+    double first_s = 0.0, last_s = 0.0;
+    long first_frame = 0, last_frame = 0;
+    int seen = 0;
+  };
+  bool isStatic(const Place& p) const;
+  int match(const LidarBoardCandidate& c) const;
+  Target target_;
+  LidarBoardDetectorOptions detector_;
+  StaticMemoryOptions memory_;
+  std::vector<Place> places_;
+  long frames_ = 0;
+  double last_stamp_ = -1e300;
+};
 
 }  // namespace board_calib

@@ -1,11 +1,14 @@
 #include <board_calib/core/lidar_board_detector.h>
 
 #include "geometry_2d.h"
+#include "scan_segments.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
+#include <map>
 #include <numeric>
 #include <unordered_map>
 #include <unordered_set>
@@ -79,6 +82,11 @@ struct ValidPoint {
 struct Region {
   std::vector<int> voxels;
   PlaneStats stats;
+  // Sparse candidates (scan-line segments): their points and sampling.
+  bool sparse = false;
+  std::vector<int> points;
+  int lines = 0;
+  double column_step_rad = 0.0, line_step_rad = 0.0;
 };
 
 struct Candidate {
@@ -130,6 +138,18 @@ std::string LidarBoardDetectorOptions::validate() const {
     return "max_corner_angle_error_deg must be in (0, 90)";
   if (!(size_doubt_ratio >= 0.0)) return "size_doubt_ratio must be >= 0";
   if (!(beam_divergence_deg >= 0.0 && beam_divergence_deg < 5.0)) return "beam_divergence_deg must be in [0, 5)";
+  if (min_scan_lines < 3) return "min_scan_lines must be >= 3 (two lines give no edges)";
+  if (!(range_noise_m >= 0.0 && range_noise_m < 1.0)) return "range_noise_m must be in [0, 1) m";
+  if (!(sparse_size_slack >= 0.0 && sparse_size_slack <= 0.5)) return "sparse_size_slack must be in [0, 0.5]";
+  return {};
+}
+
+std::string StaticMemoryOptions::validate() const {
+  if (!(place_radius_m > 0.0)) return "place_radius_m must be > 0";
+  if (!(max_normal_angle_deg > 0.0 && max_normal_angle_deg <= 90.0)) return "max_normal_angle_deg must be in (0, 90]";
+  if (!(static_after_s > 0.0)) return "static_after_s must be > 0";
+  if (!(min_seen_fraction >= 0.0 && min_seen_fraction <= 1.0)) return "min_seen_fraction must be in [0, 1]";
+  if (!(forget_after_s > 0.0)) return "forget_after_s must be > 0";
   return {};
 }
 
@@ -390,6 +410,93 @@ Candidate scoreRegion(const Region& r, int region_id, const VoxelGrid& g, const 
   return c;
 }
 
+// Fewest returns of a sparse candidate: a few on each of the lines it needs.
+constexpr int kSparsePointsPerLine = 4;
+constexpr double kSparseLineGapVoxels = 0.5;  // segments where lines are farther apart than this many voxels
+constexpr double kSparseMinWidthRatio = 0.8;  // of the widest chord a board's middle line must show
+int sparseMinPoints(const LidarBoardDetectorOptions& o) {
+  return std::min(o.min_board_points, kSparsePointsPerLine * o.min_scan_lines);
+}
+
+// A candidate from scan-line segments. Its sampling sets the tolerances: the board's true
+// outline lies up to one line spacing (range x elevation step) beyond the outermost lines and
+// up to one column step (plus the beam's bloom) beyond each line's extremes. It must fit inside
+// the declared board (plus those tolerances and the range noise) and, with them, be able to
+// reach the board's smaller side in both directions.
+Candidate scoreSparse(const Region& r, int region_id, const std::vector<ValidPoint>& pts, const Target& target,
+                      const LidarBoardDetectorOptions& o) {
+  Candidate c;
+  c.region = region_id;
+  auto& info = c.info;
+  const PlaneFit fit = lidar_detail::fitPlane(r.stats);
+  info.centroid = fit.centroid;
+  info.num_points = r.stats.n;
+  info.scan_lines = r.lines;
+  info.plane.normal = fit.normal();
+  info.plane.offset = fit.offset();
+  if (info.plane.offset < 0) {
+    info.plane.normal = -info.plane.normal;
+    info.plane.offset = -info.plane.offset;
+  }
+  info.rms_m = std::sqrt(fit.eigenvalues[0]);
+  info.score = -1.0;
+  if (r.lines < o.min_scan_lines) {
+    info.rejected_because = "seen by " + std::to_string(r.lines) + " scan lines (need " + std::to_string(o.min_scan_lines) + ")";
+    return c;
+  }
+  if (info.rms_m > o.max_candidate_rms_m) {
+    info.rejected_because = fmt("not flat (RMS %.3f m)", info.rms_m);
+    return c;
+  }
+  // Cheap first: the covariance's extent (a uniform segment of length a has variance a^2/12).
+  const double extent = std::sqrt(kUniformSideFromVariance * fit.eigenvalues[2]);
+  if (extent > kPrefilterExtentFactor * (1.0 + o.sparse_size_slack) * std::max(target.width, target.height)) {
+    info.rectangle_m = {extent, std::sqrt(kUniformSideFromVariance * fit.eigenvalues[1])};
+    info.rejected_because = fmt("far too large (about %.2f m across)", extent);
+    return c;
+  }
+  const double range = fit.centroid.norm();
+  const double column_m = range * r.column_step_rad;
+  const double line_m = range * r.line_step_rad;
+  const double bloom_m = range * o.beam_divergence_deg * kRadPerDeg;
+  const double tolerance = column_m + bloom_m + 3.0 * o.range_noise_m;
+  PlaneFrame frame;
+  makePlaneFrame(info.plane.normal, fit.centroid, &frame);
+  Points2 projected;
+  projected.reserve(r.points.size());
+  Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e9), hi = -lo;
+  for (int i : r.points) {
+    projected.push_back(frame.project(pts[static_cast<size_t>(i)].p));
+    lo = lo.cwiseMin(projected.back());
+    hi = hi.cwiseMax(projected.back());
+  }
+  // Vertically the outline may lie a line spacing beyond the outermost lines. Across, the
+  // line nearest the board's middle (within half a spacing of it) spans nearly the smaller side
+  // whatever the roll: a body or a post under the board is narrower.
+  const double small_side = std::min(target.width, target.height);
+  const double up = hi.y() - lo.y() + 2.0 * line_m, across = hi.x() - lo.x() + 2.0 * column_m;
+  if (up < o.min_size_ratio * small_side || across < kSparseMinWidthRatio * std::max(0.0, small_side - 0.5 * line_m)) {
+    info.rectangle_m = hi - lo;
+    info.rejected_because = fmt("too small: %.2f m high, %.2f m wide with the sampling gaps (%.2f m between lines)",
+                                hi.y() - lo.y(), hi.x() - lo.x(), line_m);
+    return c;
+  }
+  const Points2 hull = lidar_detail::convexHull(projected);
+  info.fill_ratio = lidar_detail::polygonArea(hull) / (target.width * target.height);
+  info.rectangle_m = lidar_detail::minAreaRectangle(hull);
+  const double slack = 1.0 + o.sparse_size_slack;
+  // Only the hull decides whether the points fit inside.
+  const auto inside = lidar_detail::fitRectangle(hull, {}, {}, slack * target.width, slack * target.height, tolerance);
+  if (!inside.ok) {
+    info.rejected_because = fmt("too large: %.2f x %.2f m does not fit in the board (sampling %.2f m across, %.2f m "
+                                "between lines)",
+                                info.rectangle_m.x(), info.rectangle_m.y(), column_m, line_m);
+    return c;
+  }
+  info.score = info.num_points * std::exp(-kShapeErrorScale * kRmsWeight * info.rms_m / o.max_candidate_rms_m);
+  return c;
+}
+
 // ------------------------------------------------------------------------------------------
 // Stage 3: plane refinement (RANSAC seeded from the region, least squares on the inliers).
 // ------------------------------------------------------------------------------------------
@@ -606,9 +713,9 @@ SideFit fitSide(const Points2& side, double outward, const LidarBoardDetectorOpt
   return s;
 }
 
-void extractEdges(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const std::vector<int>& board,
-                  const Target& target, const LidarBoardDetectorOptions& o, std::mt19937& rng,
-                  LidarBoardDetection* det) {
+void extractEdgesByLines(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const std::vector<int>& board,
+                         const Target& target, const LidarBoardDetectorOptions& o, std::mt19937& rng,
+                         LidarBoardDetection* det) {
   auto& f = det->features;
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   for (int i : board) centroid += pts[i].p;
@@ -796,10 +903,148 @@ void extractEdges(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, c
                    h);
 }
 
+// Sparse boards (a few scan lines): too few extremes per edge for four line fits, but the
+// declared rectangle has only 3 degrees of freedom in the plane. Fit it to all extremes, each
+// moved out by its expected inset (half a column step minus the beam's bloom, along the scan
+// line), with every board point inside; its sides are the edges, the extremes each side owns
+// its edge points.
+bool extractEdgesByRectangle(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const std::vector<int>& board,
+                             const Target& target, const LidarBoardDetectorOptions& o, LidarBoardDetection* det) {
+  auto& f = det->features;
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (int i : board) centroid += pts[i].p;
+  centroid /= static_cast<double>(board.size());
+  centroid -= f.plane.normal * f.plane.signedDistance(centroid);
+  PlaneFrame frame;
+  if (!makePlaneFrame(f.plane.normal, centroid, &frame)) return false;
+  std::string source;
+  const std::vector<int> line = scanLines(cloud, board, pts, o, &source);
+  const double center_azimuth = std::atan2(centroid.y(), centroid.x());
+  struct Extremes {
+    int count = 0, left = -1, right = -1;
+    double left_az = -std::numeric_limits<double>::infinity(), right_az = std::numeric_limits<double>::infinity();
+  };
+  std::map<int, Extremes> per_line;
+  for (size_t k = 0; k < board.size(); ++k) {
+    const double az = wrapAngle(std::atan2(pts[board[k]].p.y(), pts[board[k]].p.x()) - center_azimuth);
+    Extremes& e = per_line[line[k]];
+    ++e.count;
+    if (az > e.left_az) {
+      e.left_az = az;
+      e.left = board[k];
+    }
+    if (az < e.right_az) {
+      e.right_az = az;
+      e.right = board[k];
+    }
+  }
+  const double range = centroid.norm();
+  const double bloom = 0.5 * o.beam_divergence_deg * kRadPerDeg * range;
+  Points2 board2, extremes;
+  std::vector<double> insets;
+  std::vector<int> extreme_index;
+  double gap_sum = 0.0;
+  int lines = 0;
+  for (int i : board) board2.push_back(frame.project(pts[i].p));
+  for (const auto& kv : per_line) {
+    const Extremes& e = kv.second;
+    if (e.count < o.min_points_per_scan_line || e.left == e.right) continue;
+    ++lines;
+    const Eigen::Vector2d a = frame.project(pts[e.left].p), b = frame.project(pts[e.right].p);
+    const double gap = (b - a).norm() / (e.count - 1);
+    gap_sum += gap;
+    const double inset = o.correct_edge_sampling_bias ? std::max(0.0, 0.5 * gap - bloom) : 0.0;
+    for (int idx : {e.left, e.right}) {
+      extremes.push_back(frame.project(pts[idx].p));
+      insets.push_back(inset);
+      extreme_index.push_back(idx);
+    }
+  }
+  if (lines < o.min_scan_lines) return false;
+  const double column_m = gap_sum / lines;
+  // Extremes scatter within a column step of the outline; the range noise moves them in-plane
+  // only on tilted boards, the beam's bloom adds to the outside.
+  const double tolerance = std::max(o.edge_inlier_threshold_m, column_m + 2.0 * bloom + 3.0 * o.range_noise_m);
+  // Only the hull matters for "every board point inside".
+  const auto fit = lidar_detail::fitRectangle(lidar_detail::convexHull(board2), extremes, insets, target.width,
+                                              target.height, tolerance);
+  if (!fit.ok || fit.rms_m > tolerance || fit.worst_outside_m > tolerance) return false;
+  // Sides: outward normals of the four sides; UL is the one nearest to up-left (135 deg), then
+  // clockwise UR, LR, LL.
+  std::array<Eigen::Vector2d, kNumEdges> a, b;  // side endpoints, counter-clockwise corners
+  std::array<double, kNumEdges> normal_angle;
+  for (int k = 0; k < kNumEdges; ++k) {
+    a[k] = fit.corners[k];
+    b[k] = fit.corners[(k + 1) % kNumEdges];
+    const Eigen::Vector2d d = b[k] - a[k];
+    normal_angle[k] = std::atan2(-d.x(), d.y());  // ccw polygon: outward normal = (d.y, -d.x)
+  }
+  int ul = 0;
+  auto angleTo = [](double x, double ref) { return std::abs(wrapAngle(x - ref)); };
+  for (int k = 1; k < kNumEdges; ++k)
+    if (angleTo(normal_angle[k], 0.75 * kPi) < angleTo(normal_angle[ul], 0.75 * kPi)) ul = k;
+  // Clockwise from UL = backwards through the counter-clockwise sides.
+  std::array<int, kNumEdges> side_of_edge;
+  for (int j = 0; j < kNumEdges; ++j) side_of_edge[j] = (ul - j + kNumEdges) % kNumEdges;
+  std::array<lidar_detail::LineFit2D, kNumEdges> lines2;
+  for (int j = 0; j < kNumEdges; ++j) {
+    const int k = side_of_edge[j];
+    lines2[j].ok = true;
+    lines2[j].point = 0.5 * (a[k] + b[k]);
+    lines2[j].direction = (b[k] - a[k]).normalized();
+    f.edge_points[j].clear();
+  }
+  for (size_t e = 0; e < extremes.size(); ++e) {
+    int owner = 0;
+    for (int j = 1; j < kNumEdges; ++j)
+      if (lines2[j].distance(extremes[e]) < lines2[owner].distance(extremes[e])) owner = j;
+    f.edge_points[owner].push_back(pts[extreme_index[e]].p);
+  }
+  std::string missing;
+  for (int j = 0; j < kNumEdges; ++j)
+    if (f.edge_points[j].empty()) missing += std::string(missing.empty() ? "" : ", ") + edgeName(j);
+  if (!missing.empty()) return false;
+  for (int j = 0; j < kNumEdges; ++j) {
+    f.edge_valid[j] = true;
+    f.edge_line_point[j] = frame.lift(lines2[j].point);
+    f.edge_line_direction[j] = (frame.lift(lines2[j].point + lines2[j].direction) - frame.lift(lines2[j].point)).normalized();
+    // Corner j = edge j x edge j+1: the end of side j shared with side j+1 (clockwise).
+    const int k = side_of_edge[j];
+    f.corners[j] = frame.lift(a[k]);
+  }
+  det->num_scan_lines = lines;
+  det->scan_line_source = source;
+  f.measured_size_m = Eigen::Vector2d(target.width, target.height);
+  f.reason = fmt("edges from the declared %.3f x %.3f m rectangle fitted to %.0f scan lines (RMS %.3f m)", target.width,
+                 target.height, lines, fit.rms_m);
+  return true;
+}
+
+void extractEdges(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const std::vector<int>& board,
+                  const Target& target, const LidarBoardDetectorOptions& o, std::mt19937& rng,
+                  LidarBoardDetection* det) {
+  const LidarBoardDetection before = *det;
+  extractEdgesByLines(cloud, pts, board, target, o, rng, det);
+  if (det->features.allEdgesValid() || !o.sparse_candidates) return;
+  LidarBoardDetection sparse = before;
+  if (extractEdgesByRectangle(cloud, pts, board, target, o, &sparse)) {
+    *det = std::move(sparse);
+  }
+}
+
 }  // namespace
 
-LidarBoardDetection detectLidarBoard(const LidarCloud& cloud, const Target& target,
-                                     const LidarBoardDetectorOptions& options, const BackgroundModel* background) {
+namespace {
+
+// History of a stateful detector: whether a board-like candidate sits at a static place, and
+// whether two unknown places are ambiguous whatever their support.
+struct History {
+  std::function<bool(const LidarBoardCandidate&)> is_static;
+  bool strict_ambiguity = false;
+};
+
+LidarBoardDetection detectImpl(const LidarCloud& cloud, const Target& target, const LidarBoardDetectorOptions& options,
+                               const BackgroundModel* background, const History* history) {
   LidarBoardDetection det;
   auto& f = det.features;
   f.frame_id = cloud.frame_id;
@@ -828,12 +1073,82 @@ LidarBoardDetection detectLidarBoard(const LidarCloud& cloud, const Target& targ
   }
 
   VoxelGrid grid = buildVoxels(pts, options.voxel_size_m);
-  const std::vector<Region> regions = growPlanarRegions(grid, options);
+  std::vector<Region> regions = growPlanarRegions(grid, options);
 
   std::vector<Candidate> candidates;
   for (size_t r = 0; r < regions.size(); ++r) {
     if (regions[r].stats.n < options.min_board_points) continue;  // not worth reporting
     candidates.push_back(scoreRegion(regions[r], static_cast<int>(r), grid, pts, target, options));
+  }
+  if (options.sparse_candidates) {
+    // Far boards: scan lines spaced wider than a voxel leave no planar voxel; grow planes from
+    // scan-line segments instead. A board the voxels already found is not added twice.
+    std::vector<int> cloud_index(pts.size());
+    std::vector<Eigen::Vector3d> xyz(pts.size());
+    for (size_t i = 0; i < pts.size(); ++i) {
+      cloud_index[i] = pts[i].cloud_index;
+      xyz[i] = pts[i].p;
+    }
+    std::string source;
+    const std::vector<int> all_lines =
+        lidar_detail::scanLinesOf(cloud, cloud_index, xyz, options.elevation_gap_deg * kRadPerDeg, &source);
+    // Points the voxels already explain (floor, walls: larger than the board; boards they
+    // accepted) need no second look: the segments run on the rest, which keeps this cheap.
+    std::vector<uint8_t> explained(regions.size(), 0);
+    const double big_side = std::max(target.width, target.height);
+    for (const auto& c : candidates)
+      explained[static_cast<size_t>(c.region)] = c.info.score >= 0 || c.info.rectangle_m.x() > options.max_size_ratio * big_side;
+    std::vector<uint8_t> skip(pts.size(), 0);
+    for (const auto& v : grid.voxels)
+      if (v.region >= 0 && explained[static_cast<size_t>(v.region)])
+        for (int j = 0; j < v.count; ++j) skip[static_cast<size_t>(grid.sorted_points[v.first + j])] = 1;
+    // Only where the lines are too far apart for the voxels (fewer than two lines in a voxel's
+    // height can seed no plane) do the segments add anything.
+    const std::vector<double> gap = lidar_detail::lineGaps(xyz, all_lines);
+    std::vector<int> subset;  // indices into pts, in cloud order (lines come in firing order)
+    subset.reserve(pts.size());
+    for (size_t i = 0; i < pts.size(); ++i)
+      if (!skip[i] && xyz[i].norm() * gap[static_cast<size_t>(all_lines[i])] > kSparseLineGapVoxels * options.voxel_size_m)
+        subset.push_back(static_cast<int>(i));
+    xyz.resize(subset.size());
+    std::vector<int> line(subset.size());
+    for (size_t k = 0; k < subset.size(); ++k) {
+      xyz[k] = pts[static_cast<size_t>(subset[k])].p;
+      line[k] = all_lines[static_cast<size_t>(subset[k])];
+    }
+    lidar_detail::SegmentOptions so;
+    so.max_length_m = (1.0 + options.sparse_size_slack) * std::hypot(target.width, target.height) + options.voxel_size_m;
+    so.max_rms_m = options.max_candidate_rms_m;
+    so.plane_band_m = options.max_voxel_offset_m;
+    so.range_noise_m = options.range_noise_m;
+    so.min_lines = options.min_scan_lines;
+    for (auto& sr : lidar_detail::segmentRegions(xyz, line, so)) {
+      for (int& i : sr.points) i = subset[static_cast<size_t>(i)];
+      Region r;
+      r.sparse = true;
+      r.lines = sr.lines;
+      r.column_step_rad = sr.column_step_rad;
+      r.line_step_rad = sr.line_step_rad;
+      for (int i : sr.points) r.stats.add(pts[static_cast<size_t>(i)].p);
+      // Far away a board has few returns: a few per line on each of its lines is enough.
+      if (r.stats.n < sparseMinPoints(options)) continue;
+      r.points = sr.points;
+      Candidate c = scoreSparse(r, static_cast<int>(regions.size()), pts, target, options);
+      bool known = false;
+      for (const auto& other : candidates)
+        known = known || (other.info.score >= 0 && (other.info.centroid - c.info.centroid).norm() < kSameBoardDistanceM);
+      if (known) continue;
+      std::unordered_set<int> voxels;
+      for (int i : sr.points) {
+        const auto& p = pts[static_cast<size_t>(i)].p;
+        voxels.insert(grid.find(static_cast<int>(std::floor(p.x() / options.voxel_size_m)),
+                                static_cast<int>(std::floor(p.y() / options.voxel_size_m)),
+                                static_cast<int>(std::floor(p.z() / options.voxel_size_m))));
+      }
+      r.voxels.assign(voxels.begin(), voxels.end());
+      regions.push_back(std::move(r));
+      candidates.push_back(std::move(c));
+    }
   }
   if (candidates.empty())
     return failure(std::move(det), LidarDetectionCode::kNoPlane,
@@ -845,6 +1160,32 @@ LidarBoardDetection detectLidarBoard(const LidarCloud& cloud, const Target& targ
     if (pa) return a.info.score > b.info.score;
     return a.info.num_points > b.info.num_points;
   });
+  // History: board-like candidates at static places are background. When no moving one is
+  // left, say so (the board is what moves).
+  if (history && history->is_static) {
+    int accepted = 0, dropped = 0;
+    for (auto& c : candidates) {
+      if (c.info.score < 0) continue;
+      ++accepted;
+      if (!history->is_static(c.info)) continue;
+      c.info.score = -1.0;
+      c.info.rejected_because = "static background (stayed put over the session)";
+      ++dropped;
+    }
+    if (dropped > 0) {
+      std::stable_sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
+        return (a.info.score >= 0) > (b.info.score >= 0);
+      });
+      if (dropped == accepted) {
+        for (const auto& c : candidates) det.candidates.push_back(c.info);
+        const auto& a = candidates.front().info.centroid;
+        return failure(std::move(det), LidarDetectionCode::kAmbiguous,
+                       "only static board-like planes (" + std::to_string(dropped) + ", nearest at " +
+                           fmt("(%.2f, %.2f, %.2f) m): they stayed put over the session, the board is what moves", a.x(),
+                               a.y(), a.z()));
+      }
+    }
+  }
   for (const auto& c : candidates) det.candidates.push_back(c.info);
   const Candidate& best = candidates.front();
   if (best.info.score < 0) {
@@ -854,8 +1195,9 @@ LidarBoardDetection detectLidarBoard(const LidarCloud& cloud, const Target& targ
                        fmt("%.1f m) is ", c.centroid.norm()) + c.rejected_because +
                        fmt("; declared %.3f x %.3f m", target.width, target.height));
   }
+  const double ratio = history && history->strict_ambiguity ? 0.0 : options.ambiguity_ratio;
   if (options.reject_ambiguous && candidates.size() > 1 && candidates[1].info.score >= 0 &&
-      candidates[1].info.score >= options.ambiguity_ratio * best.info.score &&
+      candidates[1].info.score >= ratio * best.info.score &&
       (candidates[1].info.centroid - best.info.centroid).norm() > kSameBoardDistanceM) {
     const auto& a = best.info.centroid;
     const auto& b = candidates[1].info.centroid;
@@ -867,6 +1209,7 @@ LidarBoardDetection detectLidarBoard(const LidarCloud& cloud, const Target& targ
   // Points of the winning region and of its neighbouring voxels (edge voxels mix the board
   // with what lies behind it, so they rarely join the region).
   const Region& region = regions[best.region];
+  const int min_points = region.sparse ? sparseMinPoints(options) : options.min_board_points;
   std::vector<int> region_points, gathered;
   std::unordered_set<int> gathered_voxels;
   for (int vi : region.voxels) {
@@ -877,8 +1220,10 @@ LidarBoardDetection detectLidarBoard(const LidarCloud& cloud, const Target& targ
           const int q = grid.find(v.ix + dx, v.iy + dy, v.iz + dz);
           if (q >= 0) gathered_voxels.insert(q);
         }
-    for (int j = 0; j < v.count; ++j) region_points.push_back(grid.sorted_points[v.first + j]);
+    if (!region.sparse)
+      for (int j = 0; j < v.count; ++j) region_points.push_back(grid.sorted_points[v.first + j]);
   }
+  if (region.sparse) region_points = region.points;
   for (int vi : gathered_voxels) {
     const Voxel& v = grid.voxels[vi];
     // Only voxels that belong to no other large plane (walls behind the board stay out).
@@ -887,10 +1232,10 @@ LidarBoardDetection detectLidarBoard(const LidarCloud& cloud, const Target& targ
   }
   std::mt19937 rng(options.random_seed);
   const RefinedPlane refined = refinePlane(region_points, gathered, pts, options, rng);
-  if (static_cast<int>(refined.inliers.size()) < options.min_board_points)
+  if (static_cast<int>(refined.inliers.size()) < min_points)
     return failure(std::move(det), LidarDetectionCode::kTooFewPoints,
                    "board candidate has only " + std::to_string(refined.inliers.size()) +
-                       " points on its plane (need " + std::to_string(options.min_board_points) + ")");
+                       " points on its plane (need " + std::to_string(min_points) + ")");
   f.found = true;
   det.code = LidarDetectionCode::kFound;
   const LidarBoardDetection before_edges = det;
@@ -917,7 +1262,7 @@ LidarBoardDetection detectLidarBoard(const LidarCloud& cloud, const Target& targ
   PlaneStats core_stats;  // well inside: no rim mixed returns, nothing touching from outside
   for (int i : refined.inliers)
     if (outside(pts[i].p) < -kRimExclusionM) core_stats.add(pts[i].p);
-  if (core_stats.n < options.min_board_points) return det;
+  if (core_stats.n < min_points) return det;
   const PlaneFit fit = lidar_detail::fitPlane(core_stats);
   Plane plane{fit.normal(), fit.offset()};
   if (plane.offset < 0) plane = Plane{-plane.normal, -plane.offset};
@@ -930,13 +1275,100 @@ LidarBoardDetection detectLidarBoard(const LidarCloud& cloud, const Target& targ
     board.push_back(i);
     sum_sq += r * r;
   }
-  if (static_cast<int>(board.size()) < options.min_board_points) return det;
+  if (static_cast<int>(board.size()) < min_points) return det;
   LidarBoardDetection second = before_edges;
   second.features.plane = plane;
   second.features.plane_rms_m = std::sqrt(sum_sq / board.size());
   for (int i : board) second.features.board_points.push_back(pts[i].p);
   extractEdges(cloud, pts, board, target, options, rng, &second);
   return second.features.allEdgesValid() ? second : det;
+}
+
+}  // namespace
+
+LidarBoardDetection detectLidarBoard(const LidarCloud& cloud, const Target& target,
+                                     const LidarBoardDetectorOptions& options, const BackgroundModel* background) {
+  return detectImpl(cloud, target, options, background, nullptr);
+}
+
+// ------------------------------------------------------------------------------------------
+// Stateful detector: static places are background.
+// ------------------------------------------------------------------------------------------
+LidarBoardTracker::LidarBoardTracker(Target target, LidarBoardDetectorOptions detector, StaticMemoryOptions memory)
+    : target_(std::move(target)), detector_(std::move(detector)), memory_(memory) {}
+
+void LidarBoardTracker::reset() {
+  places_.clear();
+  frames_ = 0;
+  last_stamp_ = -1e300;
+}
+
+bool LidarBoardTracker::isStatic(const Place& p) const {
+  const long frames_since = frames_ - p.first_frame + 1;
+  return p.last_s - p.first_s >= memory_.static_after_s &&
+         p.seen >= memory_.min_seen_fraction * static_cast<double>(frames_since);
+}
+
+int LidarBoardTracker::numStaticPlaces() const {
+  int n = 0;
+  for (const auto& p : places_) n += isStatic(p);
+  return n;
+}
+
+int LidarBoardTracker::match(const LidarBoardCandidate& c) const {
+  const double min_cos = std::cos(memory_.max_normal_angle_deg * kRadPerDeg);
+  int best = -1;
+  double best_d = memory_.place_radius_m;
+  for (size_t k = 0; k < places_.size(); ++k) {
+    const double d = (places_[k].centroid - c.centroid).norm();
+    if (d <= best_d && std::abs(places_[k].normal.dot(c.plane.normal)) >= min_cos) {
+      best_d = d;
+      best = static_cast<int>(k);
+    }
+  }
+  return best;
+}
+
+LidarBoardDetection LidarBoardTracker::detect(const LidarCloud& cloud, const BackgroundModel* background) {
+  if (!memory_.validate().empty()) {
+    LidarBoardDetection det = detectLidarBoard(cloud, target_, detector_, background);
+    if (det.features.found) return det;
+    return failure(std::move(det), LidarDetectionCode::kInvalidOptions, "invalid static memory options: " + memory_.validate());
+  }
+  if (cloud.stamp < last_stamp_) reset();  // a replay started over
+  last_stamp_ = cloud.stamp;
+  ++frames_;
+  History history;
+  history.strict_ambiguity = memory_.strict_ambiguity;
+  history.is_static = [this](const LidarBoardCandidate& c) {
+    const int k = match(c);
+    return k >= 0 && isStatic(places_[static_cast<size_t>(k)]);
+  };
+  LidarBoardDetection det = detectImpl(cloud, target_, detector_, background, &history);
+  // Remember every board-like candidate of this cloud (accepted, or dropped as static).
+  for (const auto& c : det.candidates) {
+    if (c.score < 0 && c.rejected_because.rfind("static", 0) != 0) continue;
+    const int k = match(c);
+    if (k < 0) {
+      Place p;
+      p.centroid = c.centroid;
+      p.normal = c.plane.normal;
+      p.first_s = p.last_s = cloud.stamp;
+      p.first_frame = p.last_frame = frames_;
+      p.seen = 1;
+      places_.push_back(p);
+    } else {
+      Place& p = places_[static_cast<size_t>(k)];
+      if (p.last_frame == frames_) continue;  // two candidates of this cloud at one place
+      p.last_s = cloud.stamp;
+      p.last_frame = frames_;
+      ++p.seen;
+    }
+  }
+  places_.erase(std::remove_if(places_.begin(), places_.end(),
+                               [&](const Place& p) { return cloud.stamp - p.last_s > memory_.forget_after_s; }),
+                places_.end());
+  return det;
 }
 
 }  // namespace board_calib

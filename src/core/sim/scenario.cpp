@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <random>
 #include <set>
 #include <sstream>
 
@@ -14,10 +15,25 @@ namespace board_calib {
 namespace sim {
 namespace {
 
+constexpr double kPi = 3.14159265358979323846;
 constexpr int kMaxPoseAttempts = 20000;   // rejection sampling per pose
 constexpr int kMinLidarRingsOnBoard = 3;  // fewer rings cannot give a plane with edges
 constexpr double kCeilingClearance = 0.1; // m
 constexpr double kWallClearance = 0.5;    // m, board centre from the walls
+
+// Seeded clutter (scene.posters) and printed marks (scene.board_marks).
+constexpr double kPosterSizeMin = 0.8, kPosterSizeMax = 1.3;  // of the board's sides: board-sized
+constexpr double kPosterStandoffMin = 0.02, kPosterStandoffMax = 0.3;  // m off the wall (poster .. screen, cabinet)
+constexpr double kDoorWidth = 0.9, kDoorHeight = 2.0;  // m
+constexpr double kDoorFraction = 0.2;        // of the wall panels
+constexpr double kFreeStandingFraction = 0.4;
+constexpr double kDiamondFraction = 0.3;     // of the free-standing panels: rolled like a held board
+constexpr double kClutterClearance = 1.5;    // m beyond the farthest board pose / off the motion's cone (plus 15 deg)
+constexpr double kClutterConeMarginDeg = 15.0;
+constexpr double kFacadeClutterReach = 30.0; // m along a facade from the rig (the LiDAR's useful range)
+constexpr int kClutterAttempts = 200;
+constexpr double kMarkInset = 0.06;          // m, marks stay this far inside the board's edges
+constexpr double kMarkMinW = 0.02, kMarkMaxW = 0.12, kMarkMinH = 0.01, kMarkMaxH = 0.05;  // m
 
 // ---------------------------------------------------------------------------------------------
 // YAML helpers: strict keys, errors that name the key.
@@ -224,12 +240,95 @@ MotionSpec readMotion(const YAML::Node& node) {
   return m;
 }
 
-void readScene(const YAML::Node& node, SceneSpec* scene) {
+// Board-like clutter and printed marks drawn from the scenario seed (or scene.clutter_seed).
+struct SceneRandom {
+  int posters = 0;
+  int board_marks = 0;
+  bool have_seed = false;
+  unsigned int seed = 0;
+};
+
+Eigen::Vector3d readColour(const YAML::Node& node, const std::string& key, const std::string& where) {
+  const auto v = readNumbers(node, key, where);
+  if (v.size() != 3) throw ScenarioError{"key '" + where + "." + key + "' must be [r, g, b] factors"};
+  return {v[2], v[1], v[0]};  // stored b, g, r as the renderer's colours
+}
+
+// Panel orientation: with rpy 0 it stands upright facing the rig (normal along world +x, x to
+// world -y, y down), like the board; roll turns it in its plane.
+Eigen::Matrix3d facingRig() {
+  Eigen::Matrix3d R;
+  R.col(0) = -Eigen::Vector3d::UnitY();
+  R.col(1) = -Eigen::Vector3d::UnitZ();
+  R.col(2) = Eigen::Vector3d::UnitX();
+  return R;
+}
+
+Panel readPanel(const YAML::Node& node, const std::string& where) {
+  rejectUnknownKeys(node, {"center", "rpy_deg", "width", "height", "grey", "tint", "intensity"}, where);
+  Panel panel;
+  const auto c = readNumbers(node, "center", where);
+  if (c.size() != 3) throw ScenarioError{"key '" + where + ".center' must be [x, y, z] in metres"};
+  Eigen::Vector3d rpy = Eigen::Vector3d::Zero();
+  if (node["rpy_deg"]) {
+    const auto v = readNumbers(node, "rpy_deg", where);
+    if (v.size() != 3) throw ScenarioError{"key '" + where + ".rpy_deg' must be [roll, pitch, yaw] in degrees"};
+    rpy = Eigen::Vector3d(v[0], v[1], v[2]);
+  }
+  panel.world_T_panel = makeTransform(fromRollPitchYaw(rpy * kRadPerDeg) * facingRig(), Eigen::Vector3d(c[0], c[1], c[2]));
+  panel.width_m = readValue<double>(node, "width", where, "number");
+  panel.height_m = readValue<double>(node, "height", where, "number");
+  readOptional(node, "grey", where, "number", &panel.grey);
+  if (node["tint"]) panel.tint = readColour(node, "tint", where);
+  readOptional(node, "intensity", where, "number", &panel.intensity);
+  const std::string why = panel.validate();
+  if (!why.empty()) throw ScenarioError{"'" + where + "': " + why};
+  return panel;
+}
+
+void readScene(const YAML::Node& node, SceneSpec* scene, SceneRandom* random) {
   if (!node) return;
   const std::string at = "scene";
   rejectUnknownKeys(node, {"room", "room_half_size_m", "floor_z_m", "ceiling_z_m", "occluder", "board_intensity",
-                           "background_intensity"},
+                           "background_intensity", "outdoor", "street_half_width_m", "facade_distance_m",
+                           "ground_grey", "board_grey", "board_tint", "board_texture", "board_marks", "posters",
+                           "panels", "clutter_seed"},
                     at);
+  readOptional(node, "outdoor", at, "bool", &scene->outdoor);
+  readOptional(node, "street_half_width_m", at, "number", &scene->street_half_width_m);
+  readOptional(node, "facade_distance_m", at, "number", &scene->facade_distance_m);
+  readOptional(node, "ground_grey", at, "number", &scene->ground_grey);
+  readOptional(node, "board_grey", at, "number", &scene->board_grey);
+  if (node["board_tint"]) scene->board_tint = readColour(node, "board_tint", at);
+  readOptional(node, "board_texture", at, "number", &scene->board_texture);
+  if (node["board_marks"]) {
+    const YAML::Node marks = node["board_marks"];
+    if (marks.IsScalar()) {
+      random->board_marks = readValue<int>(node, "board_marks", at, "integer or a list of {min, max}");
+      if (random->board_marks < 0) throw ScenarioError{"key 'scene.board_marks' must be >= 0"};
+    } else if (marks.IsSequence()) {
+      for (size_t i = 0; i < marks.size(); ++i) {
+        const std::string where = at + ".board_marks[" + std::to_string(i) + "]";
+        rejectUnknownKeys(marks[i], {"min", "max"}, where);
+        const auto lo = readNumbers(marks[i], "min", where), hi = readNumbers(marks[i], "max", where);
+        if (lo.size() != 2 || hi.size() != 2) throw ScenarioError{"'" + where + "': min and max must be [x, y] in metres"};
+        scene->board_marks.push_back({Eigen::Vector2d(lo[0], lo[1]), Eigen::Vector2d(hi[0], hi[1])});
+      }
+    } else {
+      throw ScenarioError{"key 'scene.board_marks' must be an integer or a list of {min, max}"};
+    }
+  }
+  readOptional(node, "posters", at, "integer", &random->posters);
+  if (random->posters < 0) throw ScenarioError{"key 'scene.posters' must be >= 0"};
+  if (node["panels"]) {
+    if (!node["panels"].IsSequence()) throw ScenarioError{"key 'scene.panels' must be a list"};
+    for (size_t i = 0; i < node["panels"].size(); ++i)
+      scene->panels.push_back(readPanel(node["panels"][i], at + ".panels[" + std::to_string(i) + "]"));
+  }
+  if (node["clutter_seed"]) {
+    random->seed = readValue<unsigned int>(node, "clutter_seed", at, "non-negative integer");
+    random->have_seed = true;
+  }
   readOptional(node, "room", at, "bool", &scene->room);
   readOptional(node, "room_half_size_m", at, "number", &scene->room_half_size_m);
   readOptional(node, "floor_z_m", at, "number", &scene->floor_z_m);
@@ -256,6 +355,101 @@ Eigen::Isometry3d interpolate(const Eigen::Isometry3d& a, const Eigen::Isometry3
   out.linear() = qa.slerp(s, qb).toRotationMatrix();
   out.translation() = (1 - s) * a.translation() + s * b.translation();
   return out;
+}
+
+double uniformIn(std::mt19937& rng, double lo, double hi) {
+  return lo + (hi - lo) * std::uniform_real_distribution<double>(0.0, 1.0)(rng);
+}
+
+void addRandomMarks(int n, std::mt19937& rng, SceneSpec* scene) {
+  const Target& t = scene->target;
+  for (int i = 0; i < n; ++i) {
+    const double w = std::min(uniformIn(rng, kMarkMinW, kMarkMaxW), t.width - 2 * kMarkInset);
+    const double h = std::min(uniformIn(rng, kMarkMinH, kMarkMaxH), t.height - 2 * kMarkInset);
+    if (w <= 0 || h <= 0) return;  // board too small for marks
+    const double x = uniformIn(rng, kMarkInset, t.width - kMarkInset - w);
+    const double y = uniformIn(rng, kMarkInset, t.height - kMarkInset - h);
+    scene->board_marks.push_back({Eigen::Vector2d(x, y), Eigen::Vector2d(x + w, y + h)});
+  }
+}
+
+// Contrast with the surroundings (walls 0.4..0.75): dark or bright, a few tinted; LiDAR
+// intensity anywhere from dull to as bright as the board.
+void randomLook(std::mt19937& rng, const SceneSpec& scene, Panel* panel) {
+  const bool dark = uniformIn(rng, 0, 1) < 0.5;
+  panel->grey = dark ? uniformIn(rng, 0.05, 0.25) : uniformIn(rng, 0.8, 0.95);
+  if (uniformIn(rng, 0, 1) < 0.3)
+    panel->tint = Eigen::Vector3d(uniformIn(rng, 0.6, 1.2), uniformIn(rng, 0.6, 1.2), uniformIn(rng, 0.6, 1.2));
+  panel->intensity = static_cast<float>(uniformIn(rng, 0.1, 1.0) * std::max(1.0f, scene.board_intensity));
+}
+
+// Posters, screens, cabinets and doors on the walls (facades outdoors) and free-standing panels
+// away from where the board is held (beyond the farthest pose or outside the motion's cone), so
+// they never hide it; the pose sampler checks the lines of sight anyway.
+void addRandomPanels(const Scenario& s, int n, std::mt19937& rng, SceneSpec* scene) {
+  if (n <= 0 || !(scene->room || scene->outdoor)) return;
+  const Target& t = scene->target;
+  const double big = std::max(t.width, t.height), small = std::min(t.width, t.height);
+  const double half_x = scene->outdoor ? std::min(scene->facade_distance_m, kFacadeClutterReach) : scene->room_half_size_m;
+  const double half_y = scene->outdoor ? scene->street_half_width_m : scene->room_half_size_m;
+  const double top = scene->outdoor ? scene->floor_z_m + 6.0 : scene->ceiling_z_m;
+  const Eigen::Vector3d rig = s.world_T_rig.translation();
+  const Eigen::Vector3d rig_x = s.world_T_rig.linear().col(0);
+  for (int i = 0; i < n; ++i) {
+    Panel panel;
+    randomLook(rng, *scene, &panel);
+    const bool free_standing = uniformIn(rng, 0, 1) < kFreeStandingFraction;
+    const bool door = !free_standing && uniformIn(rng, 0, 1) < kDoorFraction;
+    panel.width_m = door ? kDoorWidth : big * uniformIn(rng, kPosterSizeMin, kPosterSizeMax);
+    panel.height_m = door ? kDoorHeight : small * uniformIn(rng, kPosterSizeMin, kPosterSizeMax);
+    if (!door && uniformIn(rng, 0, 1) < 0.5) std::swap(panel.width_m, panel.height_m);
+    if (!free_standing) {
+      // Walls: 0 x-, 1 x+, 2 y-, 3 y+ (outdoors only the side facades along the street).
+      // Half of them on the wall the rig faces, so the cameras see clutter around the board too.
+      int ahead = std::abs(rig_x.x()) >= std::abs(rig_x.y()) ? (rig_x.x() > 0 ? 1 : 0) : (rig_x.y() > 0 ? 3 : 2);
+      if (scene->outdoor && ahead < 2) ahead = 2 + static_cast<int>(uniformIn(rng, 0, 2) >= 1);
+      const int any = scene->outdoor ? 2 + static_cast<int>(uniformIn(rng, 0, 2) >= 1) : std::min(3, static_cast<int>(uniformIn(rng, 0, 4)));
+      const int wall = uniformIn(rng, 0, 1) < 0.5 ? ahead : any;
+      const double standoff = door ? -0.05 : uniformIn(rng, kPosterStandoffMin, kPosterStandoffMax);  // doors recessed
+      const double along_half = (wall < 2 ? half_y : half_x) - 0.5 * panel.width_m - 0.2;
+      if (along_half <= 0) continue;
+      const double along = uniformIn(rng, -along_half, along_half);
+      const double z_lo = scene->floor_z_m + 0.5 * panel.height_m + (door ? 0.0 : 0.5);
+      const double z_hi = std::max(z_lo, top - 0.5 * panel.height_m - 0.1);
+      const double z = door ? scene->floor_z_m + 0.5 * panel.height_m + 0.005 : uniformIn(rng, z_lo, z_hi);
+      Eigen::Vector3d inward = Eigen::Vector3d::Zero();
+      inward[wall / 2] = (wall % 2) ? -1.0 : 1.0;
+      Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+      centre[wall / 2] = -inward[wall / 2] * (wall < 2 ? half_x : half_y) + inward[wall / 2] * standoff;
+      centre[1 - wall / 2] = along;
+      centre.z() = z;
+      Eigen::Matrix3d R;
+      R.col(2) = -inward;  // normal away from the room's inside, like the board's away from the rig
+      R.col(1) = -Eigen::Vector3d::UnitZ();
+      R.col(0) = R.col(1).cross(R.col(2));
+      panel.world_T_panel = makeTransform(R, centre);
+    } else {
+      bool placed = false;
+      for (int attempt = 0; attempt < kClutterAttempts && !placed; ++attempt) {
+        const Eigen::Vector3d c(uniformIn(rng, -half_x + 1.0, half_x - 1.0), uniformIn(rng, -half_y + 1.0, half_y - 1.0), 0.0);
+        Eigen::Vector3d d = c - rig;
+        d.z() = 0;
+        const double r = d.norm();
+        const double az = std::acos(std::clamp(d.normalized().dot(rig_x), -1.0, 1.0)) / kRadPerDeg;
+        const bool in_cone = az < s.motion.max_azimuth_deg + kClutterConeMarginDeg && r < s.motion.max_distance_m + kClutterClearance;
+        if (r < kClutterClearance || in_cone) continue;
+        const double lift = uniformIn(rng, 0.0, 0.8);
+        const double yaw = uniformIn(rng, -kPi, kPi);
+        const double roll = uniformIn(rng, 0, 1) < kDiamondFraction ? uniformIn(rng, 30, 60) * kRadPerDeg : 0.0;
+        const Eigen::Matrix3d R = fromRollPitchYaw(Eigen::Vector3d(roll, 0.0, yaw)) * facingRig();
+        const double half_height = 0.5 * (std::abs(std::cos(roll)) * panel.height_m + std::abs(std::sin(roll)) * panel.width_m);
+        panel.world_T_panel = makeTransform(R, Eigen::Vector3d(c.x(), c.y(), scene->floor_z_m + lift + half_height));
+        placed = true;
+      }
+      if (!placed) continue;
+    }
+    scene->panels.push_back(panel);
+  }
 }
 
 }  // namespace
@@ -312,7 +506,8 @@ Expected<Scenario> parseScenario(const std::string& yaml_text, const std::string
     const auto target = loadTarget(joinPath(base_dir, s.target_path));
     if (!target) return Expected<Scenario>::failure("scenario.target: " + target.error());
     s.scene.target = *target;
-    readScene(root["scene"], &s.scene);
+    SceneRandom random;
+    readScene(root["scene"], &s.scene, &random);
     if (root["rig_pose"]) {
       YAML::Node wrapper;
       wrapper["pose"] = root["rig_pose"];
@@ -329,6 +524,12 @@ Expected<Scenario> parseScenario(const std::string& yaml_text, const std::string
         s.lidars.push_back(readLidar(root["lidars"][i], "lidars[" + std::to_string(i) + "]"));
     }
     s.motion = readMotion(root["motion"]);
+    if (random.posters > 0 || random.board_marks > 0) {
+      std::seed_seq seq{random.have_seed ? random.seed : s.seed, 0xC1u};
+      std::mt19937 rng(seq);
+      addRandomMarks(random.board_marks, rng, &s.scene);
+      addRandomPanels(s, random.posters, rng, &s.scene);
+    }
     const std::string why = s.validate();
     if (!why.empty()) return Expected<Scenario>::failure(why);
     return s;
@@ -373,13 +574,41 @@ std::string poseProblem(const Scenario& s, const std::vector<CameraModel>& model
     lowest = std::min(lowest, p.z());
     highest = std::max(highest, p.z());
   }
-  if (s.scene.room) {
+  if (s.scene.outdoor) {
+    if (lowest < s.scene.floor_z_m + s.motion.min_board_height_m) return "board too low";
+    const Eigen::Vector3d c = world_T_board * target.center();
+    if (std::abs(c.x()) > s.scene.facade_distance_m - kWallClearance ||
+        std::abs(c.y()) > s.scene.street_half_width_m - kWallClearance)
+      return "board in a facade";
+  } else if (s.scene.room) {
     if (lowest < s.scene.floor_z_m + s.motion.min_board_height_m) return "board too low";
     if (highest > s.scene.ceiling_z_m - kCeilingClearance) return "board above the ceiling";
     const Eigen::Vector3d c = world_T_board * target.center();
     if (std::abs(c.x()) > s.scene.room_half_size_m - kWallClearance ||
         std::abs(c.y()) > s.scene.room_half_size_m - kWallClearance)
       return "board in a wall";
+  }
+  if (!s.scene.panels.empty()) {
+    // Clutter must neither cut the board nor hide a corner or the centre from any sensor.
+    std::vector<Eigen::Vector3d> eyes;
+    for (size_t k = 0; k < s.cameras.size(); ++k) eyes.push_back(worldTCamera(s, static_cast<int>(k)).translation());
+    for (size_t k = 0; k < s.lidars.size(); ++k) eyes.push_back(worldTLidar(s, static_cast<int>(k)).translation());
+    std::vector<Eigen::Vector3d> marks(world.begin(), world.end());
+    marks.push_back(world_T_board * target.center());
+    for (const Panel& panel : s.scene.panels) {
+      const Eigen::Isometry3d panel_T_world = panel.world_T_panel.inverse();
+      auto crosses = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {  // segment a-b through the panel
+        const Eigen::Vector3d pa = panel_T_world * a, pb = panel_T_world * b;
+        if ((pa.z() > 0) == (pb.z() > 0)) return false;
+        const Eigen::Vector3d q = pa + (pb - pa) * (pa.z() / (pa.z() - pb.z()));
+        return std::abs(q.x()) <= 0.5 * panel.width_m && std::abs(q.y()) <= 0.5 * panel.height_m;
+      };
+      for (int e = 0; e < 4; ++e)
+        if (crosses(world[e], world[(e + 1) % 4]) || crosses(world[e], world[(e + 2) % 4])) return "board cuts a panel";
+      for (const auto& eye : eyes)
+        for (const auto& m : marks)
+          if (crosses(eye, m)) return "panel hides the board";
+    }
   }
   for (size_t k = 0; k < s.cameras.size(); ++k) {
     const Eigen::Isometry3d board_T_camera = world_T_board.inverse() * worldTCamera(s, static_cast<int>(k));

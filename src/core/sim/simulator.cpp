@@ -43,6 +43,17 @@ constexpr double kWallPanelWidth = 1.2;     // m
 constexpr double kWallPanelHeight = 0.8;    // m
 constexpr double kSeamFraction = 0.02;      // of a panel, dark seams between panels
 constexpr double kPosterThreshold = 0.85;   // panels above this hash are coloured posters
+// Outdoor texture: paving slabs, facades with storeys of windows, sky.
+constexpr double kPavingSlab = 0.5;         // m
+constexpr double kPavingGroutGrey = 0.7;    // grout albedo relative to the pavement's
+constexpr double kPavingVariation = 0.2;    // relative albedo spread between slabs
+constexpr double kFacadeHeight = 15.0;      // m above the ground; above it the sky
+constexpr double kFacadeBay = 3.0;          // m, window pitch along a facade and between storeys
+constexpr double kWindowLo = 0.6, kWindowHi = 2.4;  // m, window extent inside a bay (both axes)
+constexpr double kWindowGrey = 0.12;
+// Board face grain (cardboard, wood): streaks along board x.
+constexpr double kGrainAlong = 0.04;        // m
+constexpr double kGrainAcross = 0.004;      // m
 
 // Surface appearance (linear grey levels 0..1).
 constexpr double kBoardWhite = 0.86;
@@ -64,6 +75,7 @@ enum Label : int {
   kLabelBoardWhite = 9,
   kLabelBoardBlack = 10,
   kLabelBoardBack = 11,
+  kLabelPanel = 32,  // + panel index
 };
 
 struct Hit {
@@ -72,7 +84,7 @@ struct Hit {
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();  // world, unit
   Eigen::Vector3d point = Eigen::Vector3d::Zero();   // world
   bool valid() const { return label != kLabelNone; }
-  bool board() const { return label >= kLabelBoardWhite; }
+  bool board() const { return label >= kLabelBoardWhite && label <= kLabelBoardBack; }
 };
 
 // tag36h11 bitmaps (black/white cells incl. the white border ring), created once.
@@ -161,6 +173,7 @@ class Scene {
  public:
   Scene(const SceneSpec& spec, const Eigen::Isometry3d& world_T_board)
       : spec_(spec), world_T_board_(world_T_board), board_T_world_(world_T_board.inverse()) {
+    for (const auto& panel : spec.panels) panels_.push_back(panel.world_T_panel.inverse());
     board_normal_ = world_T_board.linear().col(2);
     board_origin_ = world_T_board.translation();
     if (spec.occluder) {
@@ -202,7 +215,8 @@ class Scene {
     Hit best;
     castBoard(origin, dir, &best);
     if (spec_.occluder && person_half_height_ > 0) castPerson(origin, dir, &best);
-    if (spec_.room) castRoom(origin, dir, &best);
+    for (size_t k = 0; k < panels_.size(); ++k) castPanel(k, origin, dir, &best);
+    if (spec_.outdoor || spec_.room) castRoom(origin, dir, &best);
     if (best.valid()) best.point = origin + best.t * dir;
     return best;
   }
@@ -224,7 +238,16 @@ class Scene {
       case kLabelBoardBlack: {
         // Slightly darker at grazing views (matte print): a smooth gradient over the board.
         const double facing = std::abs(hit.normal.dot(dir));
-        grey = (hit.label == kLabelBoardWhite ? kBoardWhite : kBoardBlack) * (kBoardFacingMin + (1 - kBoardFacingMin) * facing);
+        grey = (hit.label == kLabelBoardWhite ? spec_.board_grey : kBoardBlack) * (kBoardFacingMin + (1 - kBoardFacingMin) * facing);
+        if (hit.label == kLabelBoardWhite) {
+          tint = spec_.board_tint;
+          if (spec_.board_texture > 0) {
+            const Eigen::Vector3d q = board_T_world_ * p;
+            const double h = hash01(static_cast<int64_t>(std::floor(q.x() / kGrainAlong)),
+                                    static_cast<int64_t>(std::floor(q.y() / kGrainAcross)), 5);
+            grey *= 1.0 + spec_.board_texture * (2 * h - 1);
+          }
+        }
         break;
       }
       case kLabelBoardBack: grey = kBoardBack; break;
@@ -234,6 +257,14 @@ class Scene {
         break;
       }
       case kLabelFloor: {
+        if (spec_.outdoor) {  // paving slabs around the configured pavement brightness
+          const double gx = p.x() / kPavingSlab, gy = p.y() / kPavingSlab;
+          const double fx = gx - std::floor(gx), fy = gy - std::floor(gy);
+          const double grout = kGroutWidth / kPavingSlab;
+          const double h = hash01(static_cast<int64_t>(std::floor(gx)), static_cast<int64_t>(std::floor(gy)), 2);
+          grey = spec_.ground_grey * ((fx < grout || fy < grout) ? kPavingGroutGrey : 1.0 + kPavingVariation * (h - 0.5));
+          break;
+        }
         const double gx = p.x() / kFloorTile, gy = p.y() / kFloorTile;
         const double fx = gx - std::floor(gx), fy = gy - std::floor(gy);
         const double grout = kGroutWidth / kFloorTile;
@@ -246,7 +277,23 @@ class Scene {
         break;
       }
       case kLabelCeiling: grey = 0.8; break;
-      default: {  // walls: panels of random brightness with dark seams, some posters
+      default: {
+        if (hit.label >= kLabelPanel) {
+          const Panel& panel = spec_.panels[static_cast<size_t>(hit.label - kLabelPanel)];
+          grey = panel.grey;
+          tint = panel.tint;
+          break;
+        }
+        if (spec_.outdoor) {  // facades: storeys of dark windows, per-building wall brightness
+          const double s = std::abs(hit.normal.x()) > 0.5 ? p.y() : p.x();
+          const double gu = s / kFacadeBay, gv = (p.z() - spec_.floor_z_m) / kFacadeBay;
+          const double fu = (gu - std::floor(gu)) * kFacadeBay, fv = (gv - std::floor(gv)) * kFacadeBay;
+          const bool window = fu > kWindowLo && fu < kWindowHi && fv > kWindowLo && fv < kWindowHi && gv >= 1;
+          grey = window ? kWindowGrey : 0.45 + 0.3 * hash01(static_cast<int64_t>(std::floor(gu / 4)), 0, 7 + hit.label);
+          if (window) tint = {1.2, 1.0, 0.9};
+          break;
+        }
+        // walls: panels of random brightness with dark seams, some posters
         const double s = std::abs(hit.normal.x()) > 0.5 ? p.y() : p.x();
         const double gu = s / kWallPanelWidth, gv = (p.z() - spec_.floor_z_m) / kWallPanelHeight;
         const double fu = gu - std::floor(gu), fv = gv - std::floor(gv);
@@ -264,13 +311,18 @@ class Scene {
     return grey * shading * tint;
   }
 
+  // Colour where a camera ray hits nothing: the sky outdoors, black otherwise.
+  Eigen::Vector3d sky() const { return spec_.outdoor ? Eigen::Vector3d(0.95, 0.85, 0.75) : Eigen::Vector3d::Zero(); }
+
   // LiDAR reflectivity in intensity units.
   double reflectivity(const Hit& hit) const {
     switch (hit.label) {
       case kLabelBoardWhite: return spec_.board_intensity;
       case kLabelBoardBlack: return spec_.board_intensity * kBlackReflectivity;
       case kLabelBoardBack: return spec_.board_intensity * 0.5;
-      default: return spec_.background_intensity;
+      default:
+        if (hit.label >= kLabelPanel) return spec_.panels[static_cast<size_t>(hit.label - kLabelPanel)].intensity;
+        return spec_.background_intensity;
     }
   }
 
@@ -286,7 +338,11 @@ class Scene {
     best->t = t;
     best->normal = board_normal_;
     if (denom > 0) {  // ray travels along +z: seen from -z, the printed face
-      best->label = boardBlackAt(target, p_board.x(), p_board.y()) ? kLabelBoardBlack : kLabelBoardWhite;
+      bool black = boardBlackAt(target, p_board.x(), p_board.y());
+      for (const auto& mark : spec_.board_marks)
+        black = black || (p_board.x() >= mark.min.x() && p_board.x() < mark.max.x() && p_board.y() >= mark.min.y() &&
+                          p_board.y() < mark.max.y());
+      best->label = black ? kLabelBoardBlack : kLabelBoardWhite;
     } else {
       best->label = kLabelBoardBack;
     }
@@ -319,11 +375,27 @@ class Scene {
     best->normal = person_rotation_ * n_local;
   }
 
+  void castPanel(size_t k, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, Hit* best) const {
+    const Panel& panel = spec_.panels[k];
+    const Eigen::Vector3d o = panels_[k] * origin;
+    const Eigen::Vector3d d = panels_[k].linear() * dir;
+    if (std::abs(d.z()) < 1e-12) return;
+    const double t = -o.z() / d.z();
+    if (t <= kRayEpsilon || t >= best->t) return;
+    const Eigen::Vector3d q = o + t * d;
+    if (std::abs(q.x()) > 0.5 * panel.width_m || std::abs(q.y()) > 0.5 * panel.height_m) return;
+    best->t = t;
+    best->label = kLabelPanel + static_cast<int>(k);
+    best->normal = panel.world_T_panel.linear().col(2);
+  }
+
   void castRoom(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, Hit* best) const {
-    const double half = spec_.room_half_size_m;
-    // Inside an axis-aligned box: the exit distance along each axis.
-    const double bounds_lo[3] = {-half, -half, spec_.floor_z_m};
-    const double bounds_hi[3] = {half, half, spec_.ceiling_z_m};
+    const double inf = std::numeric_limits<double>::infinity();
+    const double half_x = spec_.outdoor ? spec_.facade_distance_m : spec_.room_half_size_m;
+    const double half_y = spec_.outdoor ? spec_.street_half_width_m : spec_.room_half_size_m;
+    // Inside an axis-aligned box: the exit distance along each axis (outdoors no ceiling).
+    const double bounds_lo[3] = {-half_x, -half_y, spec_.floor_z_m};
+    const double bounds_hi[3] = {half_x, half_y, spec_.outdoor ? inf : spec_.ceiling_z_m};
     double t_exit = std::numeric_limits<double>::infinity();
     int face = -1;
     for (int a = 0; a < 3; ++a) {
@@ -336,6 +408,7 @@ class Scene {
       }
     }
     if (face < 0 || t_exit >= best->t) return;
+    if (spec_.outdoor && face < 4 && origin.z() + t_exit * dir.z() > spec_.floor_z_m + kFacadeHeight) return;  // sky
     best->t = t_exit;
     const int axis = face / 2;
     best->normal = Eigen::Vector3d::Zero();
@@ -352,6 +425,7 @@ class Scene {
   Eigen::Isometry3d board_T_world_;
   Eigen::Vector3d board_normal_;
   Eigen::Vector3d board_origin_;
+  std::vector<Eigen::Isometry3d> panels_;  // panel_T_world per panel
   Eigen::Isometry3d person_T_world_ = Eigen::Isometry3d::Identity();
   Eigen::Matrix3d person_rotation_ = Eigen::Matrix3d::Identity();
   double person_half_height_ = 0.0;
@@ -488,9 +562,34 @@ std::string SceneSpec::validate() const {
     if (!(room_half_size_m > 0)) return "room_half_size_m must be > 0";
     if (!(ceiling_z_m > floor_z_m)) return "ceiling_z_m must be above floor_z_m";
   }
+  if (outdoor) {
+    if (!(street_half_width_m > 0)) return "street_half_width_m must be > 0";
+    if (!(facade_distance_m > 0)) return "facade_distance_m must be > 0";
+    if (!(ground_grey >= 0 && ground_grey <= 1)) return "ground_grey must be in [0, 1]";
+  }
   if (!std::isfinite(board_intensity) || !std::isfinite(background_intensity) || board_intensity < 0 ||
       background_intensity < 0)
     return "intensities must be finite and >= 0";
+  if (!(board_grey >= 0 && board_grey <= 1)) return "board_grey must be in [0, 1]";
+  if (!board_tint.allFinite() || (board_tint.array() < 0).any()) return "board_tint must be finite and >= 0";
+  if (!(board_texture >= 0 && board_texture <= 0.5)) return "board_texture must be in [0, 0.5]";
+  for (const auto& mark : board_marks)
+    if (!mark.min.allFinite() || !mark.max.allFinite() || !(mark.min.array() < mark.max.array()).all())
+      return "board mark: min must be < max";
+  if (panels.size() > 1000) return "at most 1000 panels";
+  for (size_t k = 0; k < panels.size(); ++k) {
+    const std::string why = panels[k].validate();
+    if (!why.empty()) return "panel " + std::to_string(k) + ": " + why;
+  }
+  return {};
+}
+
+std::string Panel::validate() const {
+  if (!(width_m > 0) || !(height_m > 0)) return "width_m and height_m must be > 0";
+  if (!(grey >= 0 && grey <= 1)) return "grey must be in [0, 1]";
+  if (!tint.allFinite() || (tint.array() < 0).any()) return "tint must be finite and >= 0";
+  if (!std::isfinite(intensity) || intensity < 0) return "intensity must be finite and >= 0";
+  if (!world_T_panel.matrix().allFinite()) return "pose must be finite";
   return {};
 }
 
@@ -700,7 +799,7 @@ cv::Mat renderCameraRadiance(const CameraModel& camera, const Eigen::Isometry3d&
     const Eigen::Vector3d dir = (R * Eigen::Vector3d(xy.x(), xy.y(), 1.0)).normalized();
     const Hit hit = world.cast(origin, dir);
     *label = hit.label;
-    if (!hit.valid()) return Eigen::Vector3d(0, 0, 0);
+    if (!hit.valid()) return world.sky();
     return world.shade(hit, dir);
   };
 

@@ -11,6 +11,8 @@
 
 #include <cstdint>
 #include <random>
+#include <string>
+#include <vector>
 
 namespace board_calib {
 namespace sim {
@@ -44,16 +46,44 @@ struct LidarSpec {
 /// Presets: "VLP-16", "VLP-32C", "OS1-64".
 Expected<LidarSpec> lidarPreset(const std::string& name);
 
-/// The world: a board, a room around the rig and a person holding the board.
+/// A flat rectangle in the scene: a poster, door, screen or free-standing panel, i.e.
+/// board-like clutter for both detectors. Two-sided; seen by cameras and LiDARs.
+struct Panel {
+  Eigen::Isometry3d world_T_panel = Eigen::Isometry3d::Identity();  ///< origin at the centre, x along the width, y along the height, z the normal
+  double width_m = 1.0;    ///< m, along panel x
+  double height_m = 1.0;   ///< m, along panel y
+  double grey = 0.2;       ///< camera albedo, 0..1
+  Eigen::Vector3d tint = Eigen::Vector3d::Ones();  ///< per-channel albedo factor (b, g, r)
+  float intensity = 40;    ///< LiDAR intensity
+  std::string validate() const;
+};
+
+/// A mark printed on the board face (text, logo, sticker): an axis-aligned rectangle in board
+/// coordinates, drawn dark (camera) and with the black print's LiDAR reflectivity.
+struct BoardMark {
+  Eigen::Vector2d min = Eigen::Vector2d::Zero();  ///< m, board frame (x right, y down)
+  Eigen::Vector2d max = Eigen::Vector2d::Zero();  ///< m
+};
+
+/// The world: a board, a room (or a street) around the rig, clutter and a person holding the board.
 struct SceneSpec {
   Target target;
-  bool room = true;             ///< floor, walls and ceiling (textured for cameras)
+  bool room = true;             ///< floor, walls and ceiling (textured for cameras); ignored when outdoor
   double room_half_size_m = 10; ///< walls at +-this distance from the world origin, m
-  double floor_z_m = -1.2;      ///< floor height in the world frame (world z up), m
+  double floor_z_m = -1.2;      ///< floor (or ground) height in the world frame (world z up), m
   double ceiling_z_m = 2.8;     ///< ceiling height in the world frame, m
+  bool outdoor = false;         ///< a street: ground plane, facades far away on all sides, sky, no ceiling
+  double street_half_width_m = 12.0;  ///< outdoor: facades at world y = +-this, m
+  double facade_distance_m = 40.0;    ///< outdoor: facades at world x = +-this (street ends), m
+  double ground_grey = 0.55;    ///< outdoor: pavement albedo, 0..1 (the board's is board_grey)
   bool occluder = true;         ///< person-like box below and behind the board
   float board_intensity = 200;  ///< LiDAR intensity of the board (its white parts)
   float background_intensity = 40;
+  double board_grey = 0.86;     ///< camera albedo of the board face (white print), 0..1
+  Eigen::Vector3d board_tint = Eigen::Vector3d::Ones();  ///< per-channel factor of the board albedo (b, g, r)
+  double board_texture = 0.0;   ///< relative albedo variation of a fine grain on the face (cardboard, wood), 0..0.5
+  std::vector<BoardMark> board_marks;  ///< printed marks on the face
+  std::vector<Panel> panels;    ///< board-like clutter
   std::string validate() const;
 };
 

@@ -1,0 +1,440 @@
+#include "scan_segments.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <numeric>
+
+namespace board_calib {
+namespace lidar_detail {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kElevationBinsPerGap = 3.0;  // histogram bins per elevation gap
+constexpr double kMaxGapSteps = 4.0;          // missing returns (dropouts) a run bridges, in column steps
+constexpr double kMaxRangeSlope = 3.0;        // range change per arc length within a run (surfaces to ~70 deg grazing)
+constexpr double kJumpSigmas = 4.0;           // range noise never splits a run
+constexpr double kLinkMarginSteps = 2.0;      // azimuth overlap margin between segments of adjacent lines
+constexpr double kAngleStepCoarse = kPi / 180.0;  // rectangle fit: 1 deg, then refined
+constexpr double kAngleStepFine = kPi / 1800.0;
+constexpr int kAssignRounds = 4;
+constexpr double kMinInPlaneFraction = 0.7;
+constexpr double kUntrimmedRmsFactor = 4.0;   // seed triples: untrimmed RMS bound before the trimmed fit   // of a segment's points within the band of a region's plane
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+struct Segment {
+  int line = 0;
+  std::vector<int> points;
+  double az_lo = 0, az_hi = 0;  // rad
+  double step = 0;              // median azimuth step, rad
+  int region = -1;
+  PlaneStats stats;
+};
+
+// Renumber line ids bottom-up by their mean elevation (rings and rows come in either order).
+void rankByElevation(const std::vector<Eigen::Vector3d>& points, std::vector<int>* line) {
+  if (line->empty()) return;
+  const int lo = *std::min_element(line->begin(), line->end()), hi = *std::max_element(line->begin(), line->end());
+  std::vector<std::pair<double, int>> sums(static_cast<size_t>(hi - lo + 1), {0.0, 0});
+  // One point per line in every few gives its elevation well enough (beams are fixed).
+  constexpr size_t kStride = 7;
+  for (size_t i = 0; i < points.size(); i += kStride) {
+    auto& s = sums[static_cast<size_t>((*line)[i] - lo)];
+    s.first += points[i].z() / std::max(1e-9, std::hypot(points[i].x(), points[i].y()));
+    ++s.second;
+  }
+  for (size_t i = 0; i < points.size(); ++i) {  // lines the stride missed
+    auto& s = sums[static_cast<size_t>((*line)[i] - lo)];
+    if (s.second == 0) {
+      s.first = points[i].z() / std::max(1e-9, std::hypot(points[i].x(), points[i].y()));
+      s.second = 1;
+    }
+  }
+  std::vector<std::pair<double, int>> order;
+  for (size_t k = 0; k < sums.size(); ++k)
+    if (sums[k].second > 0) order.emplace_back(sums[k].first / sums[k].second, static_cast<int>(k));
+  std::sort(order.begin(), order.end());
+  std::vector<int> rank(sums.size(), 0);
+  for (size_t k = 0; k < order.size(); ++k) rank[static_cast<size_t>(order[k].second)] = static_cast<int>(k);
+  for (auto& l : *line) l = rank[static_cast<size_t>(l - lo)];
+}
+
+// Ascending azimuth. Drivers emit each line in firing order (azimuth monotonic, one wrap at
+// +-pi), so a rotation (and a reversal for clockwise spin) usually replaces the sort.
+void sortByAzimuth(std::vector<std::pair<double, int>>* pts) {
+  auto& v = *pts;
+  const size_t n = v.size();
+  if (n < 2) return;
+  size_t up = 0, down = 0, wrap_up = n, wrap_down = n;
+  for (size_t k = 1; k < n; ++k) {
+    if (v[k].first > v[k - 1].first) {
+      ++up;
+      wrap_up = k;
+    } else if (v[k].first < v[k - 1].first) {
+      ++down;
+      wrap_down = k;
+    }
+  }
+  if (down <= 1) {  // ascending with at most one wrap
+    if (down == 1 && v.front().first >= v.back().first) std::rotate(v.begin(), v.begin() + static_cast<long>(wrap_down), v.end());
+    if (down == 0 || v.front().first >= v.back().first || std::is_sorted(v.begin(), v.end())) {
+      if (std::is_sorted(v.begin(), v.end())) return;
+    }
+  } else if (up <= 1) {  // descending with at most one wrap
+    if (up == 1 && v.front().first <= v.back().first) std::rotate(v.begin(), v.begin() + static_cast<long>(wrap_up), v.end());
+    std::reverse(v.begin(), v.end());
+    if (std::is_sorted(v.begin(), v.end())) return;
+  }
+  std::sort(v.begin(), v.end());
+}
+
+}  // namespace
+
+std::vector<int> scanLinesOf(const LidarCloud& cloud, const std::vector<int>& cloud_index,
+                             const std::vector<Eigen::Vector3d>& points, double elevation_gap_rad,
+                             std::string* source) {
+  std::vector<int> line(points.size(), 0);
+  bool rings = cloud.has_ring;
+  for (size_t i = 0; i < points.size() && rings; ++i) rings = cloud.points[cloud_index[i]].ring >= 0;
+  if (rings || (cloud.organized() && cloud.width > 0)) {
+    *source = rings ? "ring" : "row";
+    for (size_t i = 0; i < points.size(); ++i)
+      line[i] = rings ? cloud.points[cloud_index[i]].ring : cloud_index[i] / cloud.width;
+    rankByElevation(points, &line);
+    return line;
+  }
+  // Elevation histogram: occupied bins separated by more than the gap start a new beam.
+  *source = "elevation";
+  const double bin = elevation_gap_rad / kElevationBinsPerGap;
+  const int bins = static_cast<int>(std::ceil(kPi / bin)) + 1;
+  std::vector<int> count(static_cast<size_t>(bins), 0), bin_of(points.size());
+  for (size_t i = 0; i < points.size(); ++i) {
+    const double el = std::atan2(points[i].z(), std::hypot(points[i].x(), points[i].y()));
+    bin_of[i] = std::clamp(static_cast<int>((el + kPi / 2) / bin), 0, bins - 1);
+    ++count[static_cast<size_t>(bin_of[i])];
+  }
+  std::vector<int> id(static_cast<size_t>(bins), -1);
+  int current = -1, last = -1000000;
+  for (int b = 0; b < bins; ++b) {
+    if (!count[static_cast<size_t>(b)]) continue;
+    if ((b - last) * bin > elevation_gap_rad) ++current;
+    id[static_cast<size_t>(b)] = current;
+    last = b;
+  }
+  for (size_t i = 0; i < points.size(); ++i) line[i] = id[static_cast<size_t>(bin_of[i])];
+  return line;
+}
+
+std::vector<double> lineGaps(const std::vector<Eigen::Vector3d>& points, const std::vector<int>& line) {
+  if (points.empty()) return {};
+  const int lines = *std::max_element(line.begin(), line.end()) + 1;
+  std::vector<double> sum(static_cast<size_t>(lines), 0.0), gap(static_cast<size_t>(lines), kPi);
+  std::vector<int> n(static_cast<size_t>(lines), 0);
+  constexpr size_t kStride = 7;  // beams have fixed elevations: a sample suffices
+  for (size_t i = 0; i < points.size(); i += (n[static_cast<size_t>(line[i])] < 3 ? 1 : kStride)) {
+    sum[static_cast<size_t>(line[i])] += std::atan2(points[i].z(), std::hypot(points[i].x(), points[i].y()));
+    ++n[static_cast<size_t>(line[i])];
+  }
+  int prev = -1;
+  for (int l = 0; l < lines; ++l) {
+    if (!n[static_cast<size_t>(l)]) continue;
+    if (prev >= 0) {
+      const double g = sum[static_cast<size_t>(l)] / n[static_cast<size_t>(l)] - sum[static_cast<size_t>(prev)] / n[static_cast<size_t>(prev)];
+      gap[static_cast<size_t>(l)] = std::min(gap[static_cast<size_t>(l)], g);
+      gap[static_cast<size_t>(prev)] = std::min(gap[static_cast<size_t>(prev)], g);
+    }
+    prev = l;
+  }
+  return gap;
+}
+
+std::vector<SegmentRegion> segmentRegions(const std::vector<Eigen::Vector3d>& points, const std::vector<int>& line,
+                                          const SegmentOptions& o) {
+  std::vector<SegmentRegion> out;
+  if (points.empty()) return out;
+  const int lines = *std::max_element(line.begin(), line.end()) + 1;
+  // Points of each line in azimuth order.
+  std::vector<std::vector<std::pair<double, int>>> by_line(static_cast<size_t>(lines));
+  for (size_t i = 0; i < points.size(); ++i)
+    by_line[static_cast<size_t>(line[i])].emplace_back(std::atan2(points[i].y(), points[i].x()), static_cast<int>(i));
+  std::vector<Segment> segments;
+  std::vector<std::vector<int>> segments_of_line(static_cast<size_t>(lines));
+  std::vector<double> line_elevation(static_cast<size_t>(lines), 0.0);
+  for (int l = 0; l < lines; ++l) {
+    auto& pts = by_line[static_cast<size_t>(l)];
+    if (pts.size() < 2) continue;
+    sortByAzimuth(&pts);
+    const auto& p0 = points[static_cast<size_t>(pts[pts.size() / 2].second)];
+    line_elevation[static_cast<size_t>(l)] = std::atan2(p0.z(), std::hypot(p0.x(), p0.y()));
+    std::vector<double> steps;
+    steps.reserve(pts.size());
+    for (size_t k = 1; k < pts.size(); ++k)
+      if (pts[k].first > pts[k - 1].first) steps.push_back(pts[k].first - pts[k - 1].first);
+    const double step = std::max(median(steps), 1e-5);
+    std::vector<double> range(pts.size());
+    for (size_t k = 0; k < pts.size(); ++k) range[k] = points[static_cast<size_t>(pts[k].second)].norm();
+    size_t begin = 0;
+    for (size_t k = 1; k <= pts.size(); ++k) {
+      bool split = k == pts.size();
+      if (!split) {
+        const double daz = pts[k].first - pts[k - 1].first;
+        const double jump = std::abs(range[k] - range[k - 1]);
+        split = daz > kMaxGapSteps * step ||
+                jump > std::max(kJumpSigmas * o.range_noise_m, kMaxRangeSlope * range[k] * daz);
+      }
+      if (!split) continue;
+      const size_t end = k;  // run [begin, end)
+      const size_t n = end - begin;
+      // In front of its surroundings: the neighbours beyond a range jump are farther (a gap in
+      // azimuth means no return there, which counts as far).
+      auto farther = [&](size_t inside, long outside) {
+        if (outside < 0 || outside >= static_cast<long>(pts.size())) return true;
+        const double daz = std::abs(pts[static_cast<size_t>(outside)].first - pts[inside].first);
+        return daz > kMaxGapSteps * step || range[static_cast<size_t>(outside)] > range[inside];
+      };
+      const bool front = farther(begin, static_cast<long>(begin) - 1) && farther(end - 1, static_cast<long>(end));
+      if (n >= 2 && front) {
+        // Width across the view: the chord would miss a whole ring on the ground (it closes on
+        // itself) and a path length sums the range noise.
+        const double az_span = pts[end - 1].first - pts[begin].first;
+        const double chord = 2.0 * std::min(range[begin], range[end - 1]) * std::sin(0.5 * std::min(az_span, kPi));
+        if (az_span < kPi && chord <= o.max_length_m) {
+          {
+            Segment seg;
+            seg.line = l;
+            seg.az_lo = pts[begin].first;
+            seg.az_hi = pts[end - 1].first;
+            seg.step = step;
+            for (size_t q = begin; q < end; ++q) {
+              seg.points.push_back(pts[q].second);
+              seg.stats.add(points[static_cast<size_t>(pts[q].second)]);
+            }
+            segments_of_line[static_cast<size_t>(l)].push_back(static_cast<int>(segments.size()));
+            segments.push_back(std::move(seg));
+          }
+        }
+      }
+      begin = k;
+    }
+  }
+  // Links between segments of adjacent lines that overlap in azimuth.
+  std::vector<std::vector<int>> down(segments.size()), up(segments.size());
+  for (int l = 0; l + 1 < lines; ++l) {
+    for (int a : segments_of_line[static_cast<size_t>(l)])
+      for (int b : segments_of_line[static_cast<size_t>(l + 1)]) {
+        const Segment& sa = segments[static_cast<size_t>(a)];
+        const Segment& sb = segments[static_cast<size_t>(b)];
+        const double margin = kLinkMarginSteps * std::max(sa.step, sb.step);
+        if (sa.az_hi + margin < sb.az_lo || sb.az_hi + margin < sa.az_lo) continue;
+        up[static_cast<size_t>(a)].push_back(b);
+        down[static_cast<size_t>(b)].push_back(a);
+      }
+  }
+  auto statsOf = [&](const std::vector<int>& segs) {
+    PlaneStats s;
+    for (int k : segs) s.add(segments[static_cast<size_t>(k)].stats);
+    return s;
+  };
+  // A segment lies on a plane when most of its points do: its ends may be mixed returns that
+  // blend the board with what is behind it. Only the points within the band join a region.
+  auto inPlane = [&](int i, const PlaneFit& f) {
+    return std::abs(f.normal().dot(points[static_cast<size_t>(i)]) - f.offset()) <= o.plane_band_m;
+  };
+  auto fitsPlane = [&](const Segment& seg, const PlaneFit& f) {
+    int in = 0;
+    for (int i : seg.points) in += inPlane(i, f);
+    return in >= 2 && in >= kMinInPlaneFraction * static_cast<double>(seg.points.size());
+  };
+  auto trimmedFit = [&](const std::vector<int>& segs) {
+    PlaneFit f = fitPlane(statsOf(segs));
+    for (int round = 0; round < 2; ++round) {
+      PlaneStats s;
+      for (int k : segs)
+        for (int i : segments[static_cast<size_t>(k)].points)
+          if (inPlane(i, f)) s.add(points[static_cast<size_t>(i)]);
+      if (s.n < 3) break;
+      f = fitPlane(s);
+    }
+    return f;
+  };
+  std::vector<int> order(segments.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int a, int b) {
+    return segments[static_cast<size_t>(a)].points.size() > segments[static_cast<size_t>(b)].points.size();
+  });
+  for (int s : order) {
+    if (segments[static_cast<size_t>(s)].region >= 0) continue;
+    // Seed: this segment with one unassigned neighbour below and one above, the flattest triple.
+    double best_rms = std::numeric_limits<double>::infinity();
+    std::vector<int> seed;
+    for (int a : down[static_cast<size_t>(s)]) {
+      if (segments[static_cast<size_t>(a)].region >= 0) continue;
+      for (int b : up[static_cast<size_t>(s)]) {
+        if (segments[static_cast<size_t>(b)].region >= 0) continue;
+        const std::vector<int> triple = {a, s, b};
+        // Cheap test first: the untrimmed fit from the segments' sums. A few mixed returns at
+        // the runs' ends raise its RMS, not by a factor kUntrimmedRmsFactor.
+        PlaneStats all = segments[static_cast<size_t>(a)].stats;
+        all.add(segments[static_cast<size_t>(s)].stats);
+        all.add(segments[static_cast<size_t>(b)].stats);
+        if (std::sqrt(fitPlane(all).eigenvalues[0]) > kUntrimmedRmsFactor * o.max_rms_m) continue;
+        const PlaneFit f = trimmedFit(triple);
+        const double rms = std::sqrt(f.eigenvalues[0]);
+        if (rms < best_rms && rms <= o.max_rms_m &&
+            std::all_of(triple.begin(), triple.end(), [&](int k) { return fitsPlane(segments[static_cast<size_t>(k)], f); })) {
+          best_rms = rms;
+          seed = triple;
+        }
+      }
+    }
+    if (seed.empty()) continue;
+    const int id = static_cast<int>(out.size());
+    std::vector<int> members = seed;
+    for (int k : seed) segments[static_cast<size_t>(k)].region = id;
+    PlaneFit plane = trimmedFit(seed);
+    PlaneStats stats;
+    std::vector<int> region_points;
+    for (int k : seed)
+      for (int i : segments[static_cast<size_t>(k)].points)
+        if (inPlane(i, plane)) {
+          stats.add(points[static_cast<size_t>(i)]);
+          region_points.push_back(i);
+        }
+    plane = fitPlane(stats);
+    for (size_t head = 0; head < members.size(); ++head) {
+      const int cur = members[head];
+      for (const auto* links : {&down[static_cast<size_t>(cur)], &up[static_cast<size_t>(cur)]})
+        for (int nb : *links) {
+          Segment& seg = segments[static_cast<size_t>(nb)];
+          if (seg.region >= 0 || !fitsPlane(seg, plane)) continue;
+          seg.region = id;
+          members.push_back(nb);
+          for (int i : seg.points)
+            if (inPlane(i, plane)) {
+              stats.add(points[static_cast<size_t>(i)]);
+              region_points.push_back(i);
+            }
+          plane = fitPlane(stats);
+        }
+    }
+    if (std::sqrt(plane.eigenvalues[0]) > o.max_rms_m) continue;
+    SegmentRegion r;
+    std::vector<int> region_lines;
+    std::vector<double> steps;
+    r.points = std::move(region_points);
+    for (int k : members) {
+      const Segment& seg = segments[static_cast<size_t>(k)];
+      region_lines.push_back(seg.line);
+      steps.push_back(seg.step);
+    }
+    std::sort(region_lines.begin(), region_lines.end());
+    region_lines.erase(std::unique(region_lines.begin(), region_lines.end()), region_lines.end());
+    r.lines = static_cast<int>(region_lines.size());
+    if (r.lines < o.min_lines) continue;
+    std::vector<double> gaps;
+    for (size_t k = 1; k < region_lines.size(); ++k)
+      gaps.push_back(line_elevation[static_cast<size_t>(region_lines[k])] -
+                     line_elevation[static_cast<size_t>(region_lines[k - 1])]);
+    r.column_step_rad = median(steps);
+    r.line_step_rad = median(gaps);
+    out.push_back(std::move(r));
+  }
+  return out;
+}
+
+RectangleFit fitRectangle(const Points2& board, const Points2& extremes, const std::vector<double>& insets,
+                          double width, double height, double inside_tol_m) {
+  RectangleFit best;
+  double best_cost = std::numeric_limits<double>::infinity();
+  if (board.empty()) return best;
+  auto evaluate = [&](double angle, RectangleFit* fit) {
+    const double c = std::cos(angle), s = std::sin(angle);
+    auto rot = [&](const Eigen::Vector2d& p) { return Eigen::Vector2d(c * p.x() + s * p.y(), -s * p.x() + c * p.y()); };
+    Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+    for (const auto& p : board) {
+      const Eigen::Vector2d q = rot(p);
+      lo = lo.cwiseMin(q);
+      hi = hi.cwiseMax(q);
+    }
+    const Eigen::Vector2d half(width / 2, height / 2);
+    // Centres that keep every board point inside (within the tolerance).
+    const Eigen::Vector2d c_lo = hi - half - Eigen::Vector2d::Constant(inside_tol_m);
+    const Eigen::Vector2d c_hi = lo + half + Eigen::Vector2d::Constant(inside_tol_m);
+    if ((c_lo.array() > c_hi.array()).any()) return std::numeric_limits<double>::infinity();
+    Eigen::Vector2d centre = 0.5 * (c_lo + c_hi);
+    // Inset of an extreme perpendicular to a side: its inset along u times |u . side normal|.
+    const double inset_x = std::abs(c), inset_y = std::abs(s);
+    double cost = 0.0;
+    for (int round = 0; round < kAssignRounds; ++round) {
+      Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+      Eigen::Vector2i n = Eigen::Vector2i::Zero();
+      cost = 0.0;
+      for (size_t k = 0; k < extremes.size(); ++k) {
+        const Eigen::Vector2d q = rot(extremes[k]);
+        const double b = k < insets.size() ? insets[k] : 0.0;
+        // Distances to the four sides (positive inside); the nearest side owns the extreme.
+        const double d[4] = {centre.x() + half.x() - q.x(), q.x() - (centre.x() - half.x()),
+                             centre.y() + half.y() - q.y(), q.y() - (centre.y() - half.y())};
+        int side = 0;
+        for (int j = 1; j < 4; ++j)
+          if (std::abs(d[j]) < std::abs(d[side])) side = j;
+        const int axis = side / 2;
+        const double inset = b * (axis == 0 ? inset_x : inset_y);
+        const double residual = d[side] - inset;
+        cost += residual * residual;
+        // The centre coordinate that puts this extreme exactly at its inset.
+        const double want = side == 0 ? q.x() + inset - half.x()
+                            : side == 1 ? q.x() - inset + half.x()
+                            : side == 2 ? q.y() + inset - half.y()
+                                        : q.y() - inset + half.y();
+        sum[axis] += want;
+        ++n[axis];
+      }
+      for (int a = 0; a < 2; ++a)
+        if (n[a] > 0) centre[a] = std::clamp(sum[a] / n[a], c_lo[a], c_hi[a]);
+    }
+    if (fit) {
+      fit->ok = true;
+      fit->angle = angle;
+      const Eigen::Matrix2d back = (Eigen::Matrix2d() << c, -s, s, c).finished();  // rotated -> uv
+      fit->centre = back * centre;
+      fit->rms_m = extremes.empty() ? 0.0 : std::sqrt(cost / extremes.size());
+      double worst = 0.0;
+      for (const auto& p : board) {
+        const Eigen::Vector2d q = rot(p) - centre;
+        worst = std::max({worst, std::abs(q.x()) - half.x(), std::abs(q.y()) - half.y()});
+      }
+      fit->worst_outside_m = worst;
+      const double sx[4] = {1, -1, -1, 1}, sy[4] = {1, 1, -1, -1};
+      for (int j = 0; j < 4; ++j) fit->corners[j] = back * (centre + Eigen::Vector2d(sx[j] * half.x(), sy[j] * half.y()));
+    }
+    return cost;
+  };
+  double best_angle = 0.0;
+  for (double a = 0.0; a < kPi; a += kAngleStepCoarse) {
+    const double cost = evaluate(a, nullptr);
+    if (cost < best_cost) {
+      best_cost = cost;
+      best_angle = a;
+    }
+  }
+  if (!std::isfinite(best_cost)) return best;
+  for (double a = best_angle - kAngleStepCoarse; a <= best_angle + kAngleStepCoarse; a += kAngleStepFine) {
+    const double cost = evaluate(a, nullptr);
+    if (cost < best_cost) {
+      best_cost = cost;
+      best_angle = a;
+    }
+  }
+  evaluate(best_angle, &best);
+  return best;
+}
+
+}  // namespace lidar_detail
+}  // namespace board_calib
