@@ -15,8 +15,9 @@ BOARD_CALIB_PACKAGES=(
   libeigen3-dev libapriltag-dev libyaml-cpp-dev python3-rostest python3-sensor-msgs libgtest-dev
   python3-tf2-msgs python3-yaml python3-numpy cmake g++ make rviz xvfb ccache
   # To watch a session: rostopic echo /diagnostics, tf_echo / view_frames, a tf2 listener in
-  # Python, image_view for the overlay (Debian 12 ships no rqt).
-  python3-diagnostic-msgs tf-tools python3-tf2-ros ros-image-view
+  # Python, image_view for the overlay (Debian 12 ships no rqt; image_view's package.xml and
+  # nodelet plugin description are in libimage-view-dev, without them it cannot load its nodelet).
+  python3-diagnostic-msgs tf-tools python3-tf2-ros ros-image-view libimage-view-dev
 )
 
 # Installs whatever is missing (an installed machine skips apt entirely).
