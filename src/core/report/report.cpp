@@ -46,7 +46,7 @@ std::vector<std::string> consistencyNotes(const std::vector<View>& views, const 
     if (std::abs(rh) > kSizeNoteThreshold) off.push_back("height " + pct(rh));
     if (!off.empty()) {
       const bool larger = (std::abs(rw) > kSizeNoteThreshold ? rw : rh) > 0;
-      notes.push_back("board size: the LiDAR measures " + fixed(w, 3) + " x " + fixed(h, 3) + " m (median of " +
+      notes.push_back("board size inconsistency: the LiDAR measures " + fixed(w, 3) + " x " + fixed(h, 3) + " m (median of " +
                       std::to_string(widths.size()) + " views), the target declares " + fixed(target.width, 3) +
                       " x " + fixed(target.height, 3) + " m (" + off.front() + (off.size() > 1 ? ", " + off.back() : "") +
                       "): " +
