@@ -2,8 +2,11 @@
 # ROS Python tools need Debian's python3 (the first python3 on PATH may lack ROS modules).
 export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
 
-BOARD_CALIB_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-BOARD_CALIB_BUILD="${BOARD_CALIB_BUILD:-${BOARD_CALIB_ROOT}/build/ci}"
+BOARD_CALIB_ROOT="$(cd -P "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+# Not under build/: rosrun skips every executable below <package>/build/ (and the package is the
+# repository root). Personal builds under build/<you> stay invisible to rosrun, so it never sees
+# two copies of a tool.
+BOARD_CALIB_BUILD="${BOARD_CALIB_BUILD:-${BOARD_CALIB_ROOT}/ws/ci}"
 
 BOARD_CALIB_PACKAGES=(
   catkin ros-base-dev rosbash python3-dynamic-reconfigure libtf2-ros-dev libtf2-eigen-dev
@@ -11,6 +14,10 @@ BOARD_CALIB_PACKAGES=(
   libnodelet-topic-tools-dev libdiagnostic-updater-dev libopencv-dev libpcl-dev libceres-dev
   libeigen3-dev libapriltag-dev libyaml-cpp-dev python3-rostest python3-sensor-msgs libgtest-dev
   python3-tf2-msgs python3-yaml python3-numpy cmake g++ make rviz xvfb ccache
+  # To watch a session: rostopic echo /diagnostics, tf_echo / view_frames, a tf2 listener in
+  # Python, image_view for the overlay (Debian 12 ships no rqt; image_view's package.xml and
+  # nodelet plugin description are in libimage-view-dev, without them it cannot load its nodelet).
+  python3-diagnostic-msgs tf-tools python3-tf2-ros ros-image-view libimage-view-dev
 )
 
 # Installs whatever is missing (an installed machine skips apt entirely).
@@ -25,13 +32,21 @@ board_calib_install_deps() {
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y --no-install-recommends "${BOARD_CALIB_PACKAGES[@]}"
 }
 
-# ROS environment kept inside the build folder: no litter in the home directory.
+# ROS environment of the scripts' own runs (build, tests, demo): logs, caches and results stay
+# inside the build folder, no litter in the home directory.
 board_calib_ros_env() {
   export ROS_HOME="${BOARD_CALIB_BUILD}/ros_home"
   export ROS_LOG_DIR="${ROS_HOME}/log"
   export ROS_HOSTNAME=localhost
   export ROSCONSOLE_STDOUT_LINE_BUFFERED=1
   mkdir -p "${ROS_LOG_DIR}"
+}
+
+# The user's environment (scripts/env.sh): their own ROS_HOME (default ~/.ros), so results land
+# in ~/.ros/board_calib as README says; localhost unless they chose a host or IP.
+board_calib_user_ros_env() {
+  if [ -z "${ROS_HOSTNAME}" ] && [ -z "${ROS_IP}" ]; then export ROS_HOSTNAME=localhost; fi
+  export ROSCONSOLE_STDOUT_LINE_BUFFERED=1
 }
 
 board_calib_build() {
@@ -52,8 +67,10 @@ board_calib_build() {
 }
 
 # Sources the built workspace (not under set -u: ROS profile scripts read unset variables).
+#   board_calib_source        the scripts' own runs (ROS_HOME inside the build folder)
+#   board_calib_source user   a user's commands (scripts/env.sh: their ROS_HOME)
 board_calib_source() {
-  board_calib_ros_env
+  if [ "$1" = user ]; then board_calib_user_ros_env; else board_calib_ros_env; fi
   set +u
   # shellcheck disable=SC1091
   source "${BOARD_CALIB_BUILD}/devel/setup.bash"

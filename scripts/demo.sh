@@ -13,7 +13,7 @@ board_calib_build all
 board_calib_source
 
 out="${BOARD_CALIB_BUILD}/demo"
-bin="${BOARD_CALIB_BUILD}/devel/lib/board_calib"  # (rosrun would also see other build folders inside the repo)
+bin="${BOARD_CALIB_BUILD}/devel/lib/board_calib"
 mkdir -p "${out}"
 echo
 echo "== 1. simulating a calibration session: ${scenario}"

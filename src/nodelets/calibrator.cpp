@@ -25,6 +25,7 @@
 #include <tf2_ros/static_transform_broadcaster.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -384,8 +385,20 @@ bool CalibratorNodelet::dropView(DropView::Request& req, DropView::Response& res
 void CalibratorNodelet::publishMarkers(const std::vector<View>& views,
                                        const std::optional<CalibrationSolution>& solution) {
   // One marker per kept view: its LiDAR board points, coloured by the view's plane residual
-  // under the last solution (green good, red 5 cm or worse), white before any solve.
-  constexpr double kResidualRedM = 0.05;
+  // under the last solution relative to the median view's (green at or below the median, red
+  // at kRedAtMedianFactor x the median or worse), white before any solve. Relative, because
+  // the absolute plane RMS follows the LiDAR's range noise and a declared-size bias: an
+  // absolute scale painted every view of a noisy real LiDAR red.
+  constexpr double kRedAtMedianFactor = 3.0;  // the report's outlier factor for edges
+  std::vector<double> rms;
+  if (solution)
+    for (const auto& vr : solution->views)
+      if (vr.used) rms.push_back(vr.plane.rms_m);
+  double median_rms = 0.0;
+  if (!rms.empty()) {
+    std::nth_element(rms.begin(), rms.begin() + rms.size() / 2, rms.end());
+    median_rms = rms[rms.size() / 2];
+  }
   visualization_msgs::MarkerArray array;
   visualization_msgs::Marker clear;
   clear.action = visualization_msgs::Marker::DELETEALL;
@@ -404,7 +417,9 @@ void CalibratorNodelet::publishMarkers(const std::vector<View>& views,
     if (solution) {
       for (const auto& vr : solution->views)
         if (vr.view_id == v.id && vr.used) {
-          const double x = std::min(1.0, vr.plane.rms_m / kResidualRedM);
+          const double x =
+              median_rms > 0 ? std::clamp((vr.plane.rms_m / median_rms - 1.0) / (kRedAtMedianFactor - 1.0), 0.0, 1.0)
+                             : 0.0;
           m.color.r = static_cast<float>(x);
           m.color.g = static_cast<float>(1.0 - x);
           m.color.b = 0.0f;

@@ -10,6 +10,7 @@
 #include <board_calib/core/pipeline/pair_calibration.h>
 #include <board_calib/core/projection.h>
 #include <board_calib/core/report.h>
+#include <board_calib/core/report_plots.h>
 #include <board_calib/core/transform.h>
 
 #include <opencv2/imgcodecs.hpp>
@@ -391,6 +392,9 @@ int main(int argc, char** argv) {
                     {cv::IMWRITE_JPEG_QUALITY, 85});
       }
     }
+    // Figures (per-edge errors, pose coverage, methods) and links to every overlay.
+    if (auto figures = appendReportFigures(args.report, views, solutions, best); !figures)
+      std::cerr << "calibrate_bag: report figures: " << figures.error() << "\n";
     std::cout << "report written to " << args.report << "/report.md\n";
   }
   if (run.failed()) fail("calibration failed: " + run.reason);

@@ -11,6 +11,7 @@
 #include <ros/ros.h>
 #include <tf2_ros/static_transform_broadcaster.h>
 
+#include <cstdlib>
 #include <vector>
 
 namespace {
@@ -35,6 +36,9 @@ int main(int argc, char** argv) {
     ROS_FATAL("publish_calibration: private parameter ~result_file (a board_calib result YAML) is required");
     return 2;
   }
+  // The shell does not expand `~` after `result_file:=` (README's form), so expand it here.
+  if (result_file.rfind("~/", 0) == 0)
+    if (const char* home = std::getenv("HOME")) result_file = std::string(home) + result_file.substr(1);
   pnh.param("child_frame", child_frame, std::string());
   pnh.param("child_frame_suffix", child_frame_suffix, std::string());
   const auto result = board_calib::loadResultFile(result_file);

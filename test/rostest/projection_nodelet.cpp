@@ -145,7 +145,7 @@ TEST(ProjectionNodelet, LazyOverlayAndColoredCloud) {
 }
 
 // Edge-check mode: the detected image line is drawn (bent by no distortion here: straight),
-// the LiDAR edge points land on it (residual 0 -> green) and the MLRE text is written.
+// the LiDAR edge points land on it (residual 0 -> white) and the MLRE text is written.
 TEST(ProjectionNodelet, EdgeCheckOverlay) {
   ros::NodeHandle nh;
   ros::Publisher image_pub = nh.advertise<sensor_msgs::Image>("image", 2);
@@ -232,14 +232,14 @@ TEST(ProjectionNodelet, EdgeCheckOverlay) {
   for (int v = 0; v < kHeight; v += 10)
     if (drawn.at<cv::Vec3b>(v, static_cast<int>(kLineU)) != kBackground) ++line_rows;
   EXPECT_GE(line_rows, kHeight / 10 - 2);
-  // Edge points: residual 0 px -> pure green discs centred on the line.
-  const cv::Vec3b green(0, 255, 0);
-  int green_points = 0;
+  // Edge points: residual 0 px -> white discs (black rim) centred on the line.
+  const cv::Vec3b zero_residual(255, 255, 255);
+  int zero_residual_points = 0;
   for (int k = 0; k < 8; ++k) {
     const int v = static_cast<int>(60.0 + 45.0 * k + 0.5);
-    if (drawn.at<cv::Vec3b>(v, static_cast<int>(kLineU) + 3) == green) ++green_points;
+    if (drawn.at<cv::Vec3b>(v, static_cast<int>(kLineU) + 3) == zero_residual) ++zero_residual_points;
   }
-  EXPECT_GE(green_points, 7);
+  EXPECT_GE(zero_residual_points, 7);
   // The MLRE annotation: white text in the top-left corner.
   int white = 0;
   for (int v = 10; v < 50; ++v)

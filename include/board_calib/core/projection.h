@@ -98,7 +98,7 @@ struct EdgeCheckOptions {
   /// Assign each LiDAR edge to the image line nearest to its projected points instead of by
   /// index (the two detectors may name the edges differently for boards held near upright).
   bool reassociate = true;
-  double residual_scale_px = 5.0;  ///< px, residual drawn fully red (0 px is green)
+  double residual_scale_px = 5.0;  ///< px, residual drawn fully magenta (0 px is white)
   int point_radius_px = 4;         ///< px
   LineStyle line_style;
   bool annotate = true;            ///< write the MLRE in the image's top-left corner

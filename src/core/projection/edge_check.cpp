@@ -134,11 +134,14 @@ Status drawEdgeCheck(const CameraBoardFeatures& image, const EdgeCheck& check, c
 
   for (int j = 0; j < kNumEdges; ++j) {
     for (const EdgePointCheck& p : check.points[j]) {
-      // Green at 0 px to red at residual_scale_px and beyond.
+      // White at 0 px to magenta at residual_scale_px and beyond, ringed in black: neither hue
+      // is in the depth/intensity colour map (jet) of the cloud drawn underneath.
       const double s = std::clamp(p.residual_px / options.residual_scale_px, 0.0, 1.0);
-      const cv::Scalar color(0, 255.0 * (1.0 - s), 255.0 * s);
-      cv::circle(*bgr_image, cv::Point2d(p.pixel.x(), p.pixel.y()), std::max(options.point_radius_px, 1), color,
-                 cv::FILLED, cv::LINE_AA);
+      const cv::Scalar color(255, 255.0 * (1.0 - s), 255);
+      const int radius = std::max(options.point_radius_px, 1);
+      const cv::Point2d centre(p.pixel.x(), p.pixel.y());
+      cv::circle(*bgr_image, centre, radius + 1, cv::Scalar(0, 0, 0), cv::FILLED, cv::LINE_AA);
+      cv::circle(*bgr_image, centre, radius, color, cv::FILLED, cv::LINE_AA);
     }
   }
 

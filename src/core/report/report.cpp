@@ -28,47 +28,69 @@ double median(std::vector<double> v) {
 std::vector<std::string> consistencyNotes(const std::vector<View>& views, const Target& target,
                                           const CalibrationSolution& solution) {
   std::vector<std::string> notes;
-  // LiDAR-measured board size (median over views with a full outline).
-  std::vector<double> sides;
+  // LiDAR-measured board size per side (median over views with a full outline). The detector
+  // pairs its two measured sides with the declared width and height (measured_size_m.x() is
+  // the side matched to the width), so a rectangular board is compared side by side.
+  std::vector<double> widths, heights;
   for (const auto& v : views)
     if (v.lidar.allEdgesValid() && v.lidar.measured_size_m.minCoeff() > 0) {
-      sides.push_back(v.lidar.measured_size_m.x());
-      sides.push_back(v.lidar.measured_size_m.y());
+      widths.push_back(v.lidar.measured_size_m.x());
+      heights.push_back(v.lidar.measured_size_m.y());
     }
-  const double declared = 0.5 * (target.width + target.height);
-  if (!sides.empty()) {
-    const double measured = median(sides);
-    const double ratio = measured / declared;
-    if (std::abs(ratio - 1.0) > kSizeNoteThreshold) {
-      notes.push_back("board size inconsistency: the LiDAR measures the board at " + fixed(measured, 3) +
-                      " m per side (median of " + std::to_string(sides.size()) + " edges), the target declares " +
-                      fixed(declared, 3) + " m (" + (ratio > 1 ? "+" : "") + fixed((ratio - 1) * 100, 1) +
-                      " %): either the board is larger than declared or the LiDAR's edge returns bloom; "
-                      "camera planes from the declared size are then biased in depth");
+  if (!widths.empty() && target.width > 0 && target.height > 0) {
+    const double w = median(widths), h = median(heights);
+    const double rw = w / target.width - 1.0, rh = h / target.height - 1.0;
+    const auto pct = [](double r) { return std::string(r > 0 ? "+" : "") + fixed(r * 100, 1) + " %"; };
+    std::vector<std::string> off;
+    if (std::abs(rw) > kSizeNoteThreshold) off.push_back("width " + pct(rw));
+    if (std::abs(rh) > kSizeNoteThreshold) off.push_back("height " + pct(rh));
+    if (!off.empty()) {
+      const bool larger = (std::abs(rw) > kSizeNoteThreshold ? rw : rh) > 0;
+      notes.push_back("board size inconsistency: the LiDAR measures " + fixed(w, 3) + " x " + fixed(h, 3) + " m (median of " +
+                      std::to_string(widths.size()) + " views), the target declares " + fixed(target.width, 3) +
+                      " x " + fixed(target.height, 3) + " m (" + off.front() + (off.size() > 1 ? ", " + off.back() : "") +
+                      "): " +
+                      (larger ? "either the board is larger than declared or the LiDAR's edge returns bloom"
+                              : "either the board is smaller than declared or the LiDAR's edge returns are eroded") +
+                      "; camera planes from the declared size are then biased in depth");
     }
   }
-  if (solution.success && std::abs(solution.plane_scale - 1.0) > kSizeNoteThreshold) {
-    notes.push_back("camera board planes fit the LiDAR best scaled by " + fixed(solution.plane_scale, 3) +
-                    ": the declared board size is likely off by " + fixed((solution.plane_scale - 1) * 100, 1) +
-                    " % (estimated and compensated; check target.yaml)");
-  }
-  // Mean signed offset of the LiDAR board points from the camera plane under the estimate.
-  if (solution.success) {
-    double sum = 0;
-    size_t n = 0;
-    for (const auto& v : views) {
-      if (!v.lidar.found || !v.camera.found) continue;
-      for (const auto& p : v.lidar.board_points) {
-        sum += v.camera.plane.signedDistance(solution.camera_T_lidar * p);
-        ++n;
-      }
+  if (!solution.success) return notes;
+  // Mean signed offset and RMS of the LiDAR board points from the camera planes, against the
+  // declared-size planes and, when the solve estimated a plane scale, against the scaled planes
+  // it actually used (so a note never calls a bias compensated and then quotes it raw).
+  const double scale = solution.plane_scale;
+  double sum_raw = 0, sum_scaled = 0, sq_scaled = 0;
+  size_t n = 0;
+  for (const auto& v : views) {
+    if (!v.lidar.found || !v.camera.found) continue;
+    for (const auto& p : v.lidar.board_points) {
+      const Eigen::Vector3d q = solution.camera_T_lidar * p;
+      const double raw = v.camera.plane.signedDistance(q);
+      const double scaled = v.camera.plane.normal.dot(q) - scale * v.camera.plane.offset;
+      sum_raw += raw;
+      sum_scaled += scaled;
+      sq_scaled += scaled * scaled;
+      ++n;
     }
-    constexpr double kOffsetNote = 0.02;  // m
-    if (n > 0 && std::abs(sum / n) > kOffsetNote)
-      notes.push_back("LiDAR board points lie on average " + fixed(std::abs(sum / n) * 100, 1) + " cm " +
-                      (sum > 0 ? "behind" : "in front of") +
-                      " the camera's board plane: the camera plane depth (from the declared board size) and the "
-                      "LiDAR disagree");
+  }
+  constexpr double kOffsetNote = 0.02;  // m
+  const bool scaled = std::abs(scale - 1.0) > kSizeNoteThreshold;
+  if (scaled) {
+    std::string note = "camera board planes fit the LiDAR best with their distances scaled by " + fixed(scale, 3) +
+                       ": the declared board size is likely off by " + fixed((scale - 1) * 100, 1) +
+                       " % (check target.yaml). The solve estimated this scale and used it";
+    if (n > 0)
+      note += ": against the scaled planes the LiDAR board points lie " + fixed(std::abs(sum_scaled / n) * 100, 1) +
+              " cm " + (sum_scaled > 0 ? "behind" : "in front of") + " them on average (RMS " +
+              fixed(std::sqrt(sq_scaled / n) * 1e3, 1) + " mm); the plane RMS of the summary is against the " +
+              "declared-size planes (" + fixed(std::abs(sum_raw / n) * 100, 1) + " cm mean offset)";
+    notes.push_back(note);
+  } else if (n > 0 && std::abs(sum_raw / n) > kOffsetNote) {
+    notes.push_back("LiDAR board points lie on average " + fixed(std::abs(sum_raw / n) * 100, 1) + " cm " +
+                    (sum_raw > 0 ? "behind" : "in front of") +
+                    " the camera's board plane: the camera plane depth (from the declared board size) and the "
+                    "LiDAR disagree");
   }
   return notes;
 }
@@ -120,7 +142,9 @@ std::string solutionSummary(const CalibrationSolution& s) {
     o << "  MLRE                             " << fixed(*s.mlre_px, 2)
       << " px  (mean distance of LiDAR edge points to the image edge lines)\n";
   o << "  plane RMS                        " << fixed(s.plane_rms_mm, 1)
-    << " mm  (LiDAR board points to the camera's board plane)\n";
+    << " mm  (LiDAR board points to the camera's board plane"
+    << (std::abs(s.plane_scale - 1.0) > kSizeNoteThreshold ? " from the declared size, before the plane scale)\n"
+                                                           : ")\n");
   o << "  1 sigma translation [mm]         " << fixed(s.stddev.translation_m.x() * 1e3, 2) << " "
     << fixed(s.stddev.translation_m.y() * 1e3, 2) << " " << fixed(s.stddev.translation_m.z() * 1e3, 2) << "\n";
   o << "  1 sigma rotation [deg]           " << fixed(s.stddev.rotation_deg.x(), 3) << " "

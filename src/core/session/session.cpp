@@ -292,11 +292,14 @@ SessionEvent CalibrationSession::gate(const View& v, bool /*forced*/) const {
       !std::isfinite(v.camera.plane.offset))
     return reject("non-finite board plane");
   // Both sensors must agree this is the board: the LiDAR's measured size against the target.
+  // Side by side: the detector pairs measured_size_m.x() with the width, .y() with the height.
   if (v.lidar.measured_size_m.minCoeff() > 0) {
-    const double declared = std::max(target_.width, target_.height);
-    const double measured = v.lidar.measured_size_m.maxCoeff();
-    if (std::abs(measured / declared - 1.0) > options_.max_size_mismatch)
-      return reject("LiDAR board measures " + fmt(measured) + " m, the target is " + fmt(declared) + " m");
+    const Eigen::Vector2d declared(target_.width, target_.height);
+    const Eigen::Vector2d mismatch = (v.lidar.measured_size_m.cwiseQuotient(declared).array() - 1.0).abs();
+    if (mismatch.maxCoeff() > options_.max_size_mismatch)
+      return reject("LiDAR board measures " + fmt(v.lidar.measured_size_m.x()) + " x " +
+                    fmt(v.lidar.measured_size_m.y()) + " m, the target is " + fmt(target_.width) + " x " +
+                    fmt(target_.height) + " m");
   }
   if (estimate_) {
     const Plane lidar_in_camera = v.lidar.plane.transformed(*estimate_);
