@@ -11,6 +11,7 @@ BOARD_CALIB_PACKAGES=(
   libnodelet-topic-tools-dev libdiagnostic-updater-dev libopencv-dev libpcl-dev libceres-dev
   libeigen3-dev libapriltag-dev libyaml-cpp-dev python3-rostest python3-sensor-msgs libgtest-dev
   python3-tf2-msgs python3-yaml python3-numpy cmake g++ make rviz xvfb ccache
+  librviz-dev xdotool python3-diagnostic-msgs python3-std-srvs
 )
 
 # Installs whatever is missing (an installed machine skips apt entirely).

@@ -69,6 +69,9 @@ class CalibrationSession {
   SessionEvent captureNow();
   void setAutoCapture(bool enabled) { auto_capture_ = enabled; }
   bool autoCapture() const { return auto_capture_; }
+  /// Consecutive synchronised pairs the board has stayed still for (compare with
+  /// options().still_frames_required).
+  int stillFrames() const { return still_count_; }
 
   /// The current extrinsic estimate enables the plane-agreement gate.
   void setEstimate(const Eigen::Isometry3d& camera_T_lidar) { estimate_ = camera_T_lidar; }
