@@ -24,6 +24,8 @@ from std_srvs.srv import Trigger, TriggerResponse
 HARDWARE_ID = "board_calib calibrator"
 STATUS_NAME = "calibration session"
 STATUS_PERIOD_S = 0.5
+# calibrate answers this late, like a real solve, so the test sees the GUI stay responsive.
+SOLVE_TIME_S = 3.0
 
 
 def view_mlre_px(view_id):
@@ -82,6 +84,7 @@ class FakeCalibrator:
         self.record("calibrate", {"method": req.method, "use_initial_guess": req.use_initial_guess})
         with self.lock:
             views = list(self.views)
+        rospy.sleep(SOLVE_TIME_S)
         r = CalibrationResult()
         r.header.stamp = rospy.Time.now()
         r.header.frame_id = "os1_lidar"

@@ -231,6 +231,11 @@ def run_fake_phase(ses):
     ses.wait("method all chosen", lambda s: s["method"] == "all")
     ses.click("calibrate")
     expected.append({"service": "calibrate", "request": {"method": "all", "use_initial_guess": False}})
+    # The fake solves for 3 s: meanwhile the button says so and the GUI thread keeps running
+    # (the panel rewrites its state from a GUI timer every 0.5 s).
+    busy = ses.wait("calibrate in progress", lambda s: s["calibrate_button"] == "Calibrating...")
+    ses.wait("the GUI runs during the solve",
+             lambda s: s["calibrate_button"] == "Calibrating..." and s["tick"] >= busy["tick"] + 3)
     s = ses.wait("verdict and per-view residuals shown",
                  lambda s: s["verdict"].startswith("DOUBTFUL") and [r[1] for r in s["views_table"]] ==
                  ["1.00", "1.20", "9.00", "1.50"])
@@ -241,6 +246,7 @@ def run_fake_phase(ses):
     expect(s["reply"] == "calibrate all: pbpc with 4 views", "calibrate reply (first line)", s)
     expect(s["calibrate_button"] == "Calibrate", "calibrate button enabled again", s)
     ses.resize_window(*SCREEN)
+    ses.xdotool("mousemove", SCREEN[0] // 2, SCREEN[1] // 2)  # keep the pointer off the panel
     time.sleep(1.0)  # let rviz repaint before the screenshot
     panel_png = ses.screenshot("panel", crop_to_panel=True)
     ses.screenshot("rviz_panel_screen", crop_to_panel=False)

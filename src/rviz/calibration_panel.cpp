@@ -498,6 +498,7 @@ void CalibrationPanel::showResult() {
 
 void CalibrationPanel::writeStateFile() const {
   QJsonObject state;
+  state["tick"] = static_cast<qint64>(++state_writes_);  // advances only while the GUI thread runs
   state["namespace"] = QString::fromStdString(ns_);
   const auto text = [](const QLabel* label) {
     QTextDocument doc;  // labels hold rich text; the test reads what the user reads

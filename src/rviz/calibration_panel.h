@@ -111,6 +111,7 @@ class CalibrationPanel : public rviz::Panel {
   std::optional<CalibrationResult> result_;
   bool calibrating_ = false;
   std::string state_file_;
+  mutable long state_writes_ = 0;
 
   std::unique_ptr<JobQueue> jobs_;  // last: joined first on destruction
 };
