@@ -11,7 +11,8 @@ constexpr const char* kViews = "views";                ///< number of kept views
 constexpr const char* kViewIds = "view ids";           ///< kept view ids, space separated
 constexpr const char* kLidarBoard = "lidar board";     ///< "found" or "not found: <reason>"
 constexpr const char* kCameraBoard = "camera board";   ///< "found" or "not found: <reason>"
-constexpr const char* kBoardMotion = "board motion";   ///< "still (n/N frames)", "moving (n/N frames)" or "no synchronised pair yet"
+/// "still (n/N frames)", "moving (n/N frames)" or "no synchronised pair yet"
+constexpr const char* kBoardMotion = "board motion";
 constexpr const char* kLastEvent = "last event";
 constexpr const char* kAdvicePrefix = "advice ";       ///< "advice 1", "advice 2", ...
 

@@ -178,7 +178,7 @@ CalibrationPanel::CalibrationPanel(QWidget* parent) : rviz::Panel(parent) {
   content_layout->addWidget(status_box);
   content_layout->addWidget(actions_box);
   content_layout->addWidget(result_box, 1);
-  for (QLayout* l : {static_cast<QLayout*>(status_grid), static_cast<QLayout*>(actions), static_cast<QLayout*>(result_layout)}) {
+  for (QLayout* l : std::initializer_list<QLayout*>{status_grid, actions, result_layout}) {
     l->setContentsMargins(6, 4, 6, 4);
     l->setSpacing(3);
   }
@@ -267,8 +267,9 @@ void CalibrationPanel::onDiagnostics(const diagnostic_msgs::DiagnosticArrayConst
   const std::string suffix = std::string(": ") + keys::kStatusName;
   for (const auto& s : msg->status) {
     if (s.hardware_id != keys::kHardwareId) continue;
-    const bool named = s.name == keys::kStatusName ||
-                       (s.name.size() >= suffix.size() && s.name.compare(s.name.size() - suffix.size(), suffix.size(), suffix) == 0);
+    const bool named = s.name == keys::kStatusName || (s.name.size() >= suffix.size() &&
+                                                       s.name.compare(s.name.size() - suffix.size(), suffix.size(),
+                                                                      suffix) == 0);
     if (!named) continue;
     // Several calibrators may run: take the one whose services live in our namespace.
     const auto services = std::find_if(s.values.begin(), s.values.end(),
@@ -310,11 +311,16 @@ void CalibrationPanel::onTick() {
 template <class Srv>
 void CalibrationPanel::callService(const char* service, Srv srv, std::function<void(bool, const Srv&)> on_reply) {
   const std::string name = ros::names::append(ns_, service);
-  reply_label_->setText(colouredText(QString("%1: calling %2 ...").arg(service, QString::fromStdString(name)), "#666666"));
+  reply_label_->setText(
+      colouredText(QString("%1: calling %2 ...").arg(service, QString::fromStdString(name)), "#666666"));
   jobs_->post([this, name, srv, on_reply]() mutable {
     const bool reached = ros::service::call(name, srv);
     QMetaObject::invokeMethod(this, [on_reply, reached, srv]() { on_reply(reached, srv); }, Qt::QueuedConnection);
   });
+}
+
+QString CalibrationPanel::noService(const char* service) const {
+  return QString::fromStdString("cannot call " + ros::names::append(ns_, service) + " (calibrator not running?)");
 }
 
 void CalibrationPanel::showReply(const QString& action, bool ok, const QString& message) {
@@ -325,7 +331,7 @@ void CalibrationPanel::showReply(const QString& action, bool ok, const QString& 
 
 void CalibrationPanel::onCapture() {
   callService<std_srvs::Trigger>("capture", {}, [this](bool reached, const std_srvs::Trigger& srv) {
-    if (!reached) return showReply("capture", false, QString::fromStdString("no service " + ns_ + "/capture"));
+    if (!reached) return showReply("capture", false, noService("capture"));
     showReply("capture", srv.response.success, QString::fromStdString(srv.response.message));
   });
 }
@@ -334,7 +340,7 @@ void CalibrationPanel::dropView(int view_id) {
   DropView srv;
   srv.request.view_id = static_cast<uint32_t>(view_id);
   callService<DropView>("drop_view", srv, [this](bool reached, const DropView& done) {
-    if (!reached) return showReply("drop view", false, QString::fromStdString("no service " + ns_ + "/drop_view"));
+    if (!reached) return showReply("drop view", false, noService("drop_view"));
     showReply("drop view", done.response.success, QString::fromStdString(done.response.message));
   });
 }
@@ -358,7 +364,7 @@ void CalibrationPanel::onCalibrate() {
     calibrating_ = false;
     calibrate_button_->setEnabled(true);
     calibrate_button_->setText("Calibrate");
-    if (!reached) return showReply("calibrate", false, QString::fromStdString("no service " + ns_ + "/calibrate"));
+    if (!reached) return showReply("calibrate", false, noService("calibrate"));
     // The reply carries the result even when the solve failed (then nothing is published).
     if (!done.response.result.method.empty()) {
       result_ = done.response.result;
@@ -371,7 +377,7 @@ void CalibrationPanel::onCalibrate() {
 
 void CalibrationPanel::onReset() {
   callService<std_srvs::Trigger>("reset", {}, [this](bool reached, const std_srvs::Trigger& srv) {
-    if (!reached) return showReply("reset", false, QString::fromStdString("no service " + ns_ + "/reset"));
+    if (!reached) return showReply("reset", false, noService("reset"));
     if (srv.response.success) {
       result_.reset();  // the calibrator forgot its estimate; its latched result is stale
       showResult();
@@ -385,7 +391,7 @@ void CalibrationPanel::onSaveSession() {
   srv.request.path = session_path_edit_->text().trimmed().toStdString();
   if (srv.request.path.empty()) return showReply("save session", false, "enter a session file path first");
   callService<SessionFile>("save_session", srv, [this](bool reached, const SessionFile& done) {
-    if (!reached) return showReply("save session", false, QString::fromStdString("no service " + ns_ + "/save_session"));
+    if (!reached) return showReply("save session", false, noService("save_session"));
     showReply("save session", done.response.success, QString::fromStdString(done.response.message));
   });
 }
@@ -395,7 +401,7 @@ void CalibrationPanel::onLoadSession() {
   srv.request.path = session_path_edit_->text().trimmed().toStdString();
   if (srv.request.path.empty()) return showReply("load session", false, "enter a session file path first");
   callService<SessionFile>("load_session", srv, [this](bool reached, const SessionFile& done) {
-    if (!reached) return showReply("load session", false, QString::fromStdString("no service " + ns_ + "/load_session"));
+    if (!reached) return showReply("load session", false, noService("load_session"));
     if (done.response.success) {
       result_.reset();  // residuals of the previous views no longer apply
       showResult();
@@ -471,11 +477,13 @@ void CalibrationPanel::showResult() {
   }
   const auto& r = *result_;
   if (r.verdict.empty()) {
-    verdict_label_->setText(colouredText(r.success ? "solved (no verdict in this result)" : "failed", verdictColour(r.success ? "" : "failed")));
+    const char* verdict = r.success ? "" : "failed";
+    verdict_label_->setText(
+        colouredText(r.success ? "solved (no verdict in this result)" : "failed", verdictColour(verdict)));
   } else {
-    verdict_label_->setText(QString("<b>%1</b>: %2")
-                                .arg(colouredText(QString::fromStdString(r.verdict).toUpper(), verdictColour(r.verdict)),
-                                     QString::fromStdString(r.verdict_reason).toHtmlEscaped()));
+    const QString verdict = colouredText(QString::fromStdString(r.verdict).toUpper(), verdictColour(r.verdict));
+    verdict_label_->setText(
+        QString("<b>%1</b>: %2").arg(verdict, QString::fromStdString(r.verdict_reason).toHtmlEscaped()));
   }
   if (!r.success) {
     result_label_->setText(QString::fromStdString(r.method + ": " + r.reason).toHtmlEscaped());

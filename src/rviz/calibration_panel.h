@@ -62,6 +62,7 @@ class CalibrationPanel : public rviz::Panel {
   template <class Srv>
   void callService(const char* service, Srv srv, std::function<void(bool, const Srv&)> on_reply);
   void showReply(const QString& action, bool ok, const QString& message);
+  QString noService(const char* service) const;
   void dropView(int view_id);
 
   void showStatus();
