@@ -134,7 +134,13 @@ class Session:
 
     def click(self, widget):
         for _ in range(SCROLL_STEPS):
-            x, y, visible = self.read_state()["widgets"][widget]
+            # Where the widget is, confirmed by a later state write (a label that just changed
+            # may re-flow the layout before the next write).
+            first = self.read_state()
+            s = self.wait("a newer panel state", lambda s: s["tick"] > first["tick"])
+            x, y, visible = s["widgets"][widget]
+            if first["widgets"].get(widget) != s["widgets"][widget]:
+                continue
             if visible:
                 self.xdotool("mousemove", x, y, "click", 1)
                 time.sleep(0.3)

@@ -174,9 +174,10 @@ CalibrationPanel::CalibrationPanel(QWidget* parent) : rviz::Panel(parent) {
   auto* content = new QWidget;
   auto* content_layout = new QVBoxLayout(content);
   content_layout->setContentsMargins(4, 4, 4, 4);
+  // Buttons above the live status: status text that re-wraps never moves them under the mouse.
   content_layout->addLayout(ns_row);
-  content_layout->addWidget(status_box);
   content_layout->addWidget(actions_box);
+  content_layout->addWidget(status_box);
   content_layout->addWidget(result_box, 1);
   for (QLayout* l : std::initializer_list<QLayout*>{status_grid, actions, result_layout}) {
     l->setContentsMargins(6, 4, 6, 4);
