@@ -236,11 +236,17 @@ def run_fake_phase(ses):
     ses.wait("method all chosen", lambda s: s["method"] == "all")
     ses.click("calibrate")
     expected.append({"service": "calibrate", "request": {"method": "all", "use_initial_guess": False}})
-    # The fake solves for 3 s: meanwhile the button says so and the GUI thread keeps running
+    # The fake solves for 5 s: meanwhile the button says so and the GUI thread keeps running
     # (the panel rewrites its state from a GUI timer every 0.5 s).
     busy = ses.wait("calibrate in progress", lambda s: s["calibrate_button"] == "Calibrating...")
     ses.wait("the GUI runs during the solve",
              lambda s: s["calibrate_button"] == "Calibrating..." and s["tick"] >= busy["tick"] + 3)
+    # Another service still answers during the solve (an unknown view: nothing changes).
+    ses.type_into("drop_view_id", "99")
+    ses.click("drop_view")
+    expected.append({"service": "drop_view", "request": {"view_id": 99}})  # after calibrate's start
+    ses.wait("drop view answered during the solve",
+             lambda s: s["reply"] == "drop view: no view 99" and s["calibrate_button"] == "Calibrating...")
     s = ses.wait("verdict and per-view residuals shown",
                  lambda s: s["verdict"].startswith("DOUBTFUL") and [r[1] for r in s["views_table"]] ==
                  ["1.00", "1.20", "9.00", "1.50"])

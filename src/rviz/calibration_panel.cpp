@@ -207,6 +207,7 @@ CalibrationPanel::CalibrationPanel(QWidget* parent) : rviz::Panel(parent) {
   tick_timer_ = new QTimer(this);
   connect(tick_timer_, &QTimer::timeout, this, &CalibrationPanel::onTick);
   jobs_ = std::make_unique<JobQueue>();
+  solve_jobs_ = std::make_unique<JobQueue>();
   showStatus();
   showResult();
 }
@@ -314,7 +315,9 @@ void CalibrationPanel::callService(const char* service, Srv srv, std::function<v
   const std::string name = ros::names::append(ns_, service);
   reply_label_->setText(
       colouredText(QString("%1: calling %2 ...").arg(service, QString::fromStdString(name)), "#666666"));
-  jobs_->post([this, name, srv, on_reply]() mutable {
+  // A solve may take a while: it gets its own worker so Capture or Save still answer meanwhile.
+  JobQueue& queue = std::string(service) == "calibrate" ? *solve_jobs_ : *jobs_;
+  queue.post([this, name, srv, on_reply]() mutable {
     const bool reached = ros::service::call(name, srv);
     QMetaObject::invokeMethod(this, [on_reply, reached, srv]() { on_reply(reached, srv); }, Qt::QueuedConnection);
   });

@@ -114,7 +114,9 @@ class CalibrationPanel : public rviz::Panel {
   std::string state_file_;
   mutable long state_writes_ = 0;
 
-  std::unique_ptr<JobQueue> jobs_;  // last: joined first on destruction
+  // Last: joined first on destruction, before the widgets their replies update.
+  std::unique_ptr<JobQueue> solve_jobs_;  // ~calibrate
+  std::unique_ptr<JobQueue> jobs_;        // every other service
 };
 
 }  // namespace board_calib
