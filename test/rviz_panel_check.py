@@ -103,7 +103,7 @@ class Session:
             pass
         return self.state
 
-    def wait(self, what, predicate, timeout=STEP_TIMEOUT_S):
+    def wait(self, what, predicate, timeout=STEP_TIMEOUT_S, quiet=False):
         end = time.time() + timeout
         while time.time() < end:
             if "rviz" in self.procs and self.procs["rviz"].poll() is not None:
@@ -112,7 +112,8 @@ class Session:
             if s is not None:
                 try:
                     if predicate(s):
-                        print("%6.1f s  %s" % (time.time() - T0, what), flush=True)
+                        if not quiet:
+                            print("%6.1f s  %s" % (time.time() - T0, what), flush=True)
                         return s
                 except (KeyError, IndexError, TypeError):
                     pass
@@ -141,7 +142,7 @@ class Session:
             # Where the widget is, confirmed by a later state write (a label that just changed
             # may re-flow the layout before the next write).
             first = self.read_state()
-            s = self.wait("a newer panel state", lambda s: s["tick"] > first["tick"])
+            s = self.wait("a newer panel state", lambda s: s["tick"] > first["tick"], quiet=True)
             x, y, visible = s["widgets"][widget]
             if first["widgets"].get(widget) != s["widgets"][widget]:
                 continue
