@@ -18,6 +18,8 @@ BOARD_CALIB_PACKAGES=(
   # Python, image_view for the overlay (Debian 12 ships no rqt; image_view's package.xml and
   # nodelet plugin description are in libimage-view-dev, without them it cannot load its nodelet).
   python3-diagnostic-msgs tf-tools python3-tf2-ros ros-image-view libimage-view-dev
+  # The rviz panel (librviz-dev) and its headless test (xdotool clicks, std_srvs from Python).
+  librviz-dev xdotool python3-std-srvs
 )
 
 # Installs whatever is missing (an installed machine skips apt entirely).

@@ -63,6 +63,12 @@ mkdir -p "$out"
 out=$(readlink -f "$out")
 rm -f "$out"/rviz.log "$out"/inner_status.txt "$out"/calibration_rviz.* "$out"/rviz_node_info.txt
 fbdir=$(mktemp -d)
+# rviz loads the package's own panel plugin (rviz_plugins.xml): it needs the built environment.
+if [ -n "$devel_setup" ] && [ -f "$devel_setup" ]; then
+  # shellcheck disable=SC1090
+  source "$devel_setup"
+  rospack find board_calib > /dev/null 2>&1 || export ROS_PACKAGE_PATH="$here/..:$ROS_PACKAGE_PATH"
+fi
 
 export ROS_HOME="$out/ros_home" ROS_HOSTNAME=localhost LIBGL_ALWAYS_SOFTWARE=1
 port=$(/usr/bin/python3 -c 'import socket; s = socket.socket(); s.bind(("localhost", 0)); print(s.getsockname()[1])')

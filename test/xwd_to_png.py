@@ -11,7 +11,8 @@ XWD_HEADER_FIELDS = 25  # CARD32 fields of XWDFileHeader, big-endian
 XWD_COLOR_SIZE = 12     # bytes per colormap entry
 
 
-def read_xwd(path):
+def read_xwd(path, box=None):
+    """Returns width, height, RGB rows; box = (x, y, w, h) decodes only that region."""
     data = open(path, "rb").read()
     h = struct.unpack(">%dI" % XWD_HEADER_FIELDS, data[:4 * XWD_HEADER_FIELDS])
     header_size, width, height = h[0], h[4], h[5]
@@ -27,17 +28,22 @@ def read_xwd(path):
         return (mask & -mask).bit_length() - 1
 
     rs, gs, bs = shift(red_mask), shift(green_mask), shift(blue_mask)
+    x0, y0, x1, y1 = 0, 0, width, height
+    if box is not None:
+        x0, y0 = max(0, box[0]), max(0, box[1])
+        x1, y1 = min(width, box[0] + box[2]), min(height, box[1] + box[3])
     rows = []
-    for y in range(height):
-        line = data[offset + y * bytes_per_line: offset + y * bytes_per_line + width * step]
-        row = bytearray(width * 3)
-        for x in range(width):
+    for y in range(y0, y1):
+        start = offset + y * bytes_per_line + x0 * step
+        line = data[start: start + (x1 - x0) * step]
+        row = bytearray((x1 - x0) * 3)
+        for x in range(x1 - x0):
             p = int.from_bytes(line[x * step:(x + 1) * step], endian)
             row[3 * x] = (p & red_mask) >> rs
             row[3 * x + 1] = (p & green_mask) >> gs
             row[3 * x + 2] = (p & blue_mask) >> bs
         rows.append(bytes(row))
-    return width, height, rows
+    return x1 - x0, y1 - y0, rows
 
 
 def write_png(path, width, height, rows):

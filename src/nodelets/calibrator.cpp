@@ -10,6 +10,7 @@
 #include <board_calib/CalibratorConfig.h>
 #include <board_calib/DropView.h>
 #include <board_calib/SessionFile.h>
+#include <board_calib/calibrator_status.h>
 #include <board_calib/conversions.h>
 #include <board_calib/core/pipeline/pair_calibration.h>
 #include <board_calib/core/report.h>
@@ -63,6 +64,7 @@ class CalibratorNodelet : public nodelet::Nodelet {
   std::optional<CalibrationSolution> last_solution_;
   std::string camera_frame_, lidar_frame_;
   int lidar_msgs_ = 0, camera_msgs_ = 0;
+  std::string lidar_board_state_ = "no message", camera_board_state_ = "no message";  // for /diagnostics
   std::mutex solve_mutex_;  // one solve at a time
 
   ros::Subscriber lidar_sub_, camera_sub_;
@@ -125,8 +127,8 @@ void CalibratorNodelet::onInit() {
   services_.push_back(pnh.advertiseService("drop_view", &CalibratorNodelet::dropView, this));
 
   diagnostics_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
-  diagnostics_->setHardwareID("board_calib calibrator");
-  diagnostics_->add("calibration session", this, &CalibratorNodelet::diagnose);
+  diagnostics_->setHardwareID(calibrator_status::kHardwareId);
+  diagnostics_->add(calibrator_status::kStatusName, this, &CalibratorNodelet::diagnose);
   diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) {
     diagnostics_->update();
     // Streams quiet: the images still waiting for frames after them (the last pose of a
@@ -176,6 +178,7 @@ void CalibratorNodelet::onLidar(const LidarBoardConstPtr& msg) {
   last_feature_wall_ = ros::WallTime::now();
   lidar_frame_ = msg->header.frame_id;
   if (!msg->found) NODELET_DEBUG_STREAM_THROTTLE(5.0, "calibrator: LiDAR sees no board: " << msg->reason);
+  lidar_board_state_ = msg->found ? "found" : "not found: " + msg->reason;
   report(session_->addLidar(fromMsg(*msg)), "lidar");
 }
 
@@ -185,6 +188,7 @@ void CalibratorNodelet::onCamera(const CameraBoardConstPtr& msg) {
   last_feature_wall_ = ros::WallTime::now();
   camera_frame_ = msg->header.frame_id;
   if (!msg->found) NODELET_DEBUG_STREAM_THROTTLE(5.0, "calibrator: camera sees no board: " << msg->reason);
+  camera_board_state_ = msg->found ? "found" : "not found: " + msg->reason;
   report(session_->addCamera(fromMsg(*msg)), "camera");
 }
 
@@ -218,6 +222,13 @@ CalibrationResult CalibratorNodelet::toResultMsg(const CalibrationSolution& s, c
   if (!m.success && m.reason.empty()) m.reason = verdict.reason;
   m.final_cost = s.final_cost;
   m.notes = file.notes;
+  // Per-view residuals, parallel arrays (NaN where a view was skipped or has no edges).
+  const double nan = std::nan("");
+  for (const auto& v : s.views) {
+    m.view_ids.push_back(v.view_id);
+    m.view_mlre_px.push_back(v.used && v.mlre_px ? *v.mlre_px : nan);
+    m.view_plane_rms_mm.push_back(v.used && v.plane.count > 0 ? v.plane.rms_m * 1000.0 : nan);
+  }
   return m;
 }
 
@@ -448,16 +459,25 @@ void CalibratorNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& st
     stat.summary(DiagnosticStatus::WARN, "collecting views (" + std::to_string(cov.views) + ")");
   else
     stat.summary(DiagnosticStatus::OK, std::to_string(cov.views) + " views collected");
-  stat.add("views", cov.views);
+  stat.add(calibrator_status::kServices, getPrivateNodeHandle().getNamespace());
+  stat.add(calibrator_status::kViews, cov.views);
+  std::string ids;
+  for (const auto& v : session_->views()) ids += (ids.empty() ? "" : " ") + std::to_string(v.view.id);
+  stat.add(calibrator_status::kViewIds, ids);
+  stat.add(calibrator_status::kLidarBoard, lidar_board_state_);
+  stat.add(calibrator_status::kCameraBoard, camera_board_state_);
+  // The last image's stillness judgement, in words ("board still for ...", "board moving: ...").
+  const std::string& stillness = session_->captureStats().last_stillness;
+  stat.add(calibrator_status::kBoardMotion, stillness.empty() ? std::string("no image judged yet") : stillness);
   stat.add("lidar feature messages", lidar_msgs_);
   stat.add("camera feature messages", camera_msgs_);
-  stat.add("last event", last_event_);
+  stat.add(calibrator_status::kLastEvent, last_event_);
   stat.add("capture", session_->captureStats().summary());
-  stat.add("stillness", session_->captureStats().last_stillness);
   stat.add("tilt span (deg)", cov.tilt_span_deg);
   stat.add("range (m)", std::to_string(cov.range_min_m) + " - " + std::to_string(cov.range_max_m));
   stat.add("image coverage", cov.image_coverage);
-  for (size_t i = 0; i < cov.advice.size(); ++i) stat.add("advice " + std::to_string(i + 1), cov.advice[i]);
+  for (size_t i = 0; i < cov.advice.size(); ++i)
+    stat.add(calibrator_status::kAdvicePrefix + std::to_string(i + 1), cov.advice[i]);
   if (last_solution_) {
     stat.add("last solve", std::string(methodName(last_solution_->method)) + " with " +
                                std::to_string(last_solution_->views_used) + " views");

@@ -9,6 +9,9 @@
 #include "wait_for_bag_end.h"
 
 #include <gtest/gtest.h>
+#include <algorithm>
+#include <cmath>
+#include <set>
 #include <ros/ros.h>
 #include <tf2_eigen/tf2_eigen.h>
 #include <tf2_ros/transform_listener.h>
@@ -74,6 +77,28 @@ TEST(PipelineEndToEnd, CalibratedTfMatchesGroundTruth) {
   // Tolerances from the issue: the simulated noise (2 cm range, 0.2 px) supports 0.2 deg / 1 cm.
   EXPECT_LT(rot, rotation_tol_deg);
   EXPECT_LT(trans, translation_tol_m);
+
+  // Per-view residuals (what the rviz panel lists): one entry per view, finite exactly for the
+  // used views, and in the units of the totals: the overall plane RMS pools every used point and
+  // the overall MLRE every used edge point, so each lies between its per-view extremes (a unit
+  // or indexing slip breaks that).
+  ASSERT_EQ(r.view_ids.size(), r.view_mlre_px.size());
+  ASSERT_EQ(r.view_ids.size(), r.view_plane_rms_mm.size());
+  EXPECT_GE(r.view_ids.size(), r.views_used);
+  EXPECT_EQ(std::set<int>(r.view_ids.begin(), r.view_ids.end()).size(), r.view_ids.size()) << "duplicate view ids";
+  std::vector<double> plane, mlre;
+  for (size_t i = 0; i < r.view_ids.size(); ++i) {
+    if (std::isfinite(r.view_plane_rms_mm[i])) plane.push_back(r.view_plane_rms_mm[i]);
+    if (std::isfinite(r.view_mlre_px[i])) mlre.push_back(r.view_mlre_px[i]);
+  }
+  ASSERT_EQ(plane.size(), r.views_used);
+  EXPECT_LE(*std::min_element(plane.begin(), plane.end()), r.plane_rms_mm);
+  EXPECT_GE(*std::max_element(plane.begin(), plane.end()), r.plane_rms_mm);
+  if (std::isfinite(r.mlre_px)) {
+    ASSERT_FALSE(mlre.empty());
+    EXPECT_LE(*std::min_element(mlre.begin(), mlre.end()), r.mlre_px);
+    EXPECT_GE(*std::max_element(mlre.begin(), mlre.end()), r.mlre_px);
+  }
 }
 
 int main(int argc, char** argv) {
