@@ -393,7 +393,7 @@ int main(int argc, char** argv) {
       }
     }
     // Figures (per-edge errors, pose coverage, methods) and links to every overlay.
-    if (auto figures = appendReportFigures(args.report, views, solutions, best); !figures)
+    if (auto figures = appendReportFigures(args.report, run.used_views, solutions, run.chosen); !figures)
       std::cerr << "calibrate_bag: report figures: " << figures.error() << "\n";
     std::cout << "report written to " << args.report << "/report.md\n";
   }
