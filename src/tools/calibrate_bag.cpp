@@ -6,6 +6,7 @@
 #include "calibrate_rig.h"
 
 #include <board_calib/bag_reader.h>
+#include <board_calib/core/file_io.h>
 #include <board_calib/core/pipeline.h>
 #include <board_calib/core/projection.h>
 #include <board_calib/core/report.h>
@@ -205,9 +206,8 @@ void progress(bool quiet, size_t done, size_t total, size_t views) {
 }
 
 void writeText(const std::string& path, const std::string& text) {
-  std::ofstream f(path);
-  if (!f) fail("cannot write '" + path + "'");
-  f << text;
+  const Status written = writeFileAtomic(path, text);
+  if (!written) fail(written.reason);
 }
 
 }  // namespace
