@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <std_srvs/Trigger.h>
+#include <ros/network.h>
 #include <xmlrpcpp/XmlRpc.h>
 
 #include <signal.h>
