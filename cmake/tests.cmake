@@ -95,3 +95,6 @@ add_dependencies(tests test_autosave_resume)
 add_rostest(test/rostest/autosave_resume.test DEPENDENCIES test_autosave_resume)
 set_tests_properties(_ctest_board_calib_rostest_test_rostest_autosave_resume.test PROPERTIES
   FIXTURES_REQUIRED autosave_dir ENVIRONMENT "BOARD_CALIB_AUTOSAVE_DIR=${BOARD_CALIB_AUTOSAVE_DIR}")
+
+# The issue-15 crashing messages into the running detectors and projection: the manager survives.
+add_rostest(test/rostest/hostile_messages.test DEPENDENCIES ${BOARD_CALIB_NODELET_LIBS})
