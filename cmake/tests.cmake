@@ -43,13 +43,24 @@ if(TARGET test_conversions)
   target_link_libraries(test_conversions board_calib_ros board_calib_core ${catkin_LIBRARIES} GTest::gtest_main)
 endif()
 
-# Deterministic fuzzer over the conversions and the YAML readers (label fuzz; issue 15).
-catkin_add_gtest(test_fuzz_inputs test/fuzz/fuzz_inputs.cpp)
+# Deterministic fuzzers (label fuzz; issue 15). test_fuzz_inputs: the conversions unit (compiled
+# in, so the sanitizer build needs only bc_geometry/bc_session), target/session/result YAML and
+# non-files; test_fuzz_rig: the rig YAML reader.
+catkin_add_gtest(test_fuzz_inputs test/fuzz/fuzz_inputs.cpp src/ros/conversions.cpp)
 if(TARGET test_fuzz_inputs)
   target_compile_options(test_fuzz_inputs PRIVATE ${BOARD_CALIB_WARNINGS})
   target_compile_definitions(test_fuzz_inputs PRIVATE BOARD_CALIB_SOURCE_DIR="${CMAKE_CURRENT_SOURCE_DIR}")
-  target_link_libraries(test_fuzz_inputs board_calib_ros board_calib_core ${catkin_LIBRARIES} GTest::gtest_main)
+  target_link_libraries(test_fuzz_inputs bc_session bc_geometry ${catkin_LIBRARIES} ${OpenCV_LIBRARIES} yaml-cpp
+    GTest::gtest_main)
+  add_dependencies(test_fuzz_inputs ${PROJECT_NAME}_generate_messages_cpp)
   set_tests_properties(_ctest_board_calib_gtest_test_fuzz_inputs PROPERTIES LABELS "fuzz;unit")
+endif()
+board_calib_core_gtest(test_fuzz_rig
+  SOURCES test/fuzz/fuzz_rig.cpp
+  MODULES bc_rig bc_msg_graph bc_session bc_solvers bc_geometry
+  LIBS Ceres::ceres yaml-cpp)
+if(TARGET test_fuzz_rig)
+  set_tests_properties(_ctest_board_calib_gtest_test_fuzz_rig PROPERTIES LABELS "fuzz;unit")
 endif()
 
 # The detector nodelets' dynamic_reconfigure defaults equal the core defaults.
