@@ -231,6 +231,10 @@ sensor_msgs::PointCloud2 toPointCloud2(const LidarCloud& cloud) {
     mod.setPointCloud2Fields(5, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32,
                              "z", 1, sensor_msgs::PointField::FLOAT32, "intensity", 1,
                              sensor_msgs::PointField::FLOAT32, "ring", 1, sensor_msgs::PointField::UINT16);
+    // Pad 18 to 20 bytes: every float of every point stays 4-byte aligned (the iterators bind
+    // float references; an 18-byte step misaligns them, undefined behaviour found by UBSan).
+    constexpr uint32_t kAlignedRingPointStep = 20;
+    msg.point_step = kAlignedRingPointStep;
   } else {
     mod.setPointCloud2Fields(4, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32,
                              "z", 1, sensor_msgs::PointField::FLOAT32, "intensity", 1,

@@ -278,7 +278,9 @@ TEST_F(FuzzInputs, CameraInfoAndTransform) {
     t.translation.x = pickDouble(rng, 1.0);
     t.rotation.x = pickDouble(rng, 0.5);
     t.rotation.w = pickDouble(rng, 0.5);
-    if (validateTransform(t).empty()) ASSERT_TRUE(fromTransformMsg(t).matrix().allFinite());
+    if (validateTransform(t).empty()) {
+      ASSERT_TRUE(fromTransformMsg(t).matrix().allFinite());
+    }
   }
   EXPECT_GT(accepted, kMessageIterations / 20);
 }
@@ -338,7 +340,9 @@ TEST_F(FuzzInputs, ResultYaml) {
   for (const auto& r : results) ASSERT_TRUE(parseResult(r).ok());
   for (int i = 0; i < kYamlIterations; ++i) {
     const auto result = parseResult(mutateText(rng, results[rng() % results.size()]));
-    if (result) ASSERT_TRUE(result->camera_T_lidar.matrix().allFinite());
+    if (result) {
+      ASSERT_TRUE(result->camera_T_lidar.matrix().allFinite());
+    }
   }
 }
 
