@@ -75,24 +75,25 @@ Status writeFileAtomic(const std::string& path, const std::string& text) {
   return Status::success();
 }
 
-Expected<std::string> readTextFile(const std::string& path, size_t max_bytes) {
+Expected<std::string> readTextFile(const std::string& path, const std::string& what, size_t max_bytes) {
   using Result = Expected<std::string>;
+  const std::string prefix = "cannot read " + what + " '" + path + "': ";
   struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) return Result::failure("cannot read '" + path + "': " + errnoText(errno));
-  if (S_ISDIR(st.st_mode)) return Result::failure("cannot read '" + path + "': it is a directory");
-  if (!S_ISREG(st.st_mode)) return Result::failure("cannot read '" + path + "': not a regular file");
+  if (::stat(path.c_str(), &st) != 0) return Result::failure(prefix + errnoText(errno));
+  if (S_ISDIR(st.st_mode)) return Result::failure(prefix + "it is a directory");
+  if (!S_ISREG(st.st_mode)) return Result::failure(prefix + "not a regular file");
   if (static_cast<uint64_t>(st.st_size) > max_bytes)
-    return Result::failure("cannot read '" + path + "': " + std::to_string(st.st_size) + " bytes, more than the " +
+    return Result::failure(prefix + std::to_string(st.st_size) + " bytes, more than the " +
                            std::to_string(max_bytes) + " accepted");
   try {
     std::ifstream in(path, std::ios::binary);
-    if (!in) return Result::failure("cannot read '" + path + "': " + errnoText(errno));
+    if (!in) return Result::failure(prefix + errnoText(errno));
     std::ostringstream buffer;
     buffer << in.rdbuf();
-    if (in.bad()) return Result::failure("cannot read '" + path + "': read error");
+    if (in.bad()) return Result::failure(prefix + "read error");
     return buffer.str();
   } catch (const std::exception& e) {
-    return Result::failure("cannot read '" + path + "': " + e.what());
+    return Result::failure(prefix + e.what());
   }
 }
 

@@ -194,8 +194,8 @@ Expected<ResultFile> parseResult(const std::string& text) {
 }
 
 Expected<ResultFile> loadResultFile(const std::string& path) {
-  const auto text = readTextFile(path);
-  if (!text) return Expected<ResultFile>::failure("result file: " + text.error());
+  const auto text = readTextFile(path, "result file");
+  if (!text) return Expected<ResultFile>::failure(text.error());
   auto r = parseResult(*text);
   if (!r) return Expected<ResultFile>::failure("result file '" + path + "': " + r.error());
   return r;

@@ -239,8 +239,8 @@ Expected<Target> parseTarget(const std::string& yaml_text) {
 }
 
 Expected<Target> loadTarget(const std::string& path) {
-  const auto text = readTextFile(path);
-  if (!text) return Expected<Target>::failure("target file: " + text.error());
+  const auto text = readTextFile(path, "target file");
+  if (!text) return Expected<Target>::failure(text.error());
   auto parsed = parseTarget(*text);
   if (!parsed) return Expected<Target>::failure("target file '" + path + "': " + parsed.error());
   return parsed;

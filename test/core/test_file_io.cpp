@@ -104,7 +104,7 @@ TEST_F(FileIo, ReadRefusesNonFiles) {
   EXPECT_NE(device.error().find("not a regular file"), std::string::npos);
   EXPECT_FALSE(readTextFile((dir_ / "missing").string()).ok());
   std::ofstream(dir_ / "big") << std::string(1000, 'x');
-  const auto big = readTextFile((dir_ / "big").string(), 100);
+  const auto big = readTextFile((dir_ / "big").string(), "file", 100);
   ASSERT_FALSE(big.ok());
   EXPECT_NE(big.error().find("1000 bytes"), std::string::npos);
 }

@@ -18,7 +18,8 @@ constexpr size_t kMaxTextFileBytes = size_t(1) << 28;
 Status writeFileAtomic(const std::string& path, const std::string& text);
 
 /// Reads a whole regular file. Refuses directories, devices and files larger than
-/// `max_bytes`, with a reason naming the path.
-Expected<std::string> readTextFile(const std::string& path, size_t max_bytes = kMaxTextFileBytes);
+/// `max_bytes`, with a reason naming the path: "cannot read <what> '<path>': <why>".
+Expected<std::string> readTextFile(const std::string& path, const std::string& what = "file",
+                                   size_t max_bytes = kMaxTextFileBytes);
 
 }  // namespace board_calib

@@ -228,8 +228,8 @@ Expected<RigConfig> parseRigConfig(const std::string& yaml_text, const std::stri
 }
 
 Expected<RigConfig> loadRigConfig(const std::string& path) {
-  const auto text = readTextFile(path);
-  if (!text) return Expected<RigConfig>::failure("rig file: " + text.error());
+  const auto text = readTextFile(path, "rig file");
+  if (!text) return Expected<RigConfig>::failure(text.error());
   const size_t slash = path.find_last_of('/');
   const std::string base = slash == std::string::npos ? "." : path.substr(0, slash == 0 ? 1 : slash);
   auto rig = parseRigConfig(*text, base);

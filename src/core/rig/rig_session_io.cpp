@@ -60,8 +60,8 @@ Status RigSession::save(const std::string& path) const {
 
 Status RigSession::load(const std::string& path) {
   try {
-    const auto text = readTextFile(path);
-    if (!text) return Status::failure("rig session file: " + text.error());
+    const auto text = readTextFile(path, "rig session file");
+    if (!text) return Status::failure(text.error());
     const YAML::Node root = YAML::Load(*text);
     if (!root.IsMap() || !root["board_calib_rig_session"])
       return Status::failure("'" + path + "' is not a board_calib rig session file");

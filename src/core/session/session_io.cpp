@@ -48,8 +48,8 @@ Status CalibrationSession::save(const std::string& path) const {
 
 Status CalibrationSession::load(const std::string& path) {
   try {
-    const auto text = readTextFile(path);
-    if (!text) return Status::failure("session file: " + text.error());
+    const auto text = readTextFile(path, "session file");
+    if (!text) return Status::failure(text.error());
     const YAML::Node root = YAML::Load(*text);
     if (!root.IsMap() || !root["board_calib_session"])
       return Status::failure("'" + path + "' is not a board_calib session file");
