@@ -11,6 +11,7 @@
 #include <board_calib/DropView.h>
 #include <board_calib/SessionFile.h>
 #include <board_calib/conversions.h>
+#include <board_calib/core/file_io.h>
 #include <board_calib/core/report.h>
 #include <board_calib/core/session.h>
 #include <board_calib/core/transform.h>
@@ -112,9 +113,9 @@ void CalibratorNodelet::onInit() {
     else NODELET_ERROR_STREAM("calibrator: " << st.reason);
   }
   // Autosave: every captured or dropped view is saved, so a crashed manager loses nothing.
-  bool autosave_enabled = true, resume = true;
+  bool autosave_enabled = true, resume = false;
   pnh.param("autosave", autosave_enabled, true);
-  pnh.param("resume", resume, true);
+  pnh.param("resume", resume, false);
   if (autosave_enabled && !output_dir_.empty()) {
     std::error_code error;
     std::filesystem::create_directories(output_dir_, error);
@@ -179,23 +180,35 @@ void CalibratorNodelet::report(const SessionEvent& e, const char* source) {
   }
 }
 
-// A restarted calibrator finds the previous run's autosave. It resumes it (when ~resume and
-// the board matches) or moves it aside under a dated name: it is never overwritten unseen.
+// A starting calibrator finds an autosave. A respawn within the same roslaunch run (same
+// /run_id: the manager crashed) always resumes it; one of an earlier run only with ~resume
+// (yesterday's views may come from another mounting). Otherwise, or for another board, the file
+// is moved aside under a dated name: it is never overwritten unseen.
 void CalibratorNodelet::resumeAutosave(bool resume) {
+  std::string run_id;
+  ros::param::get("/run_id", run_id);
+  const std::string run_id_path = autosave_path_ + ".run_id";
   std::error_code error;
-  if (!std::filesystem::exists(autosave_path_, error)) return;
+  if (!std::filesystem::exists(autosave_path_, error)) {
+    (void)writeFileAtomic(run_id_path, run_id);
+    return;
+  }
+  const auto previous_run = readTextFile(run_id_path, "autosave run id");
+  const bool respawned = previous_run && !run_id.empty() && *previous_run == run_id;
   CalibrationSession found(session_->target(), session_->options());
   const Status st = found.load(autosave_path_);
   std::string not_resumed;
   if (!st) not_resumed = st.reason;
   else if (targetToYaml(found.target()) != targetToYaml(session_->target()))
     not_resumed = std::string("it was recorded with another board (") + targetTypeName(found.target().type) + ")";
-  else if (!resume) not_resumed = "~resume is false";
+  else if (!resume && !respawned) not_resumed = "it is from an earlier run (set ~resume true to resume it)";
+  (void)writeFileAtomic(run_id_path, run_id);
   if (not_resumed.empty() && session_->load(autosave_path_)) {
     NODELET_INFO_STREAM("calibrator: found an autosaved session in " << autosave_path_ << ": resumed "
                                                                       << session_->views().size()
-                                                                      << " views (~reset drops them; set ~resume "
-                                                                         "false to start empty)");
+                                                                      << " views"
+                                                                      << (respawned ? " after a restart" : "")
+                                                                      << " (~reset drops them)");
     return;
   }
   const std::string aside = autosave_path_ + "." + std::to_string(static_cast<long long>(ros::WallTime::now().sec));

@@ -81,12 +81,20 @@ struct RigCalibratorMode::Impl {
     if (!st) ROS_WARN_STREAM_THROTTLE_NAMED(10.0, kLog, "calibrator: autosave failed: " << st.reason);
   }
 
-  // Resumes the previous run's autosave when ~resume (the rig's sensors must match), else moves
-  // it aside under a dated name.
+  // Resumes an autosave after a respawn in the same roslaunch run (same /run_id) or, with
+  // ~resume, of an earlier run (the rig's sensors must match); else moves it aside.
   void resumeAutosave(bool resume) {
+    std::string run_id;
+    ros::param::get("/run_id", run_id);
+    const std::string run_id_path = autosave_path + ".run_id";
     std::error_code error;
-    if (!std::filesystem::exists(autosave_path, error)) return;
-    Status st = resume ? session->load(autosave_path) : Status::failure("~resume is false");
+    const bool exists = std::filesystem::exists(autosave_path, error);
+    const auto previous_run = readTextFile(run_id_path, "autosave run id");
+    const bool respawned = previous_run && !run_id.empty() && *previous_run == run_id;
+    (void)writeFileAtomic(run_id_path, run_id);
+    if (!exists) return;
+    Status st = resume || respawned ? session->load(autosave_path)
+                                    : Status::failure("it is from an earlier run (set ~resume true to resume it)");
     if (st) {
       ROS_INFO_STREAM_NAMED(kLog, "calibrator: found an autosaved rig session in "
                                       << autosave_path << ": resumed " << session->poses().size()
@@ -380,9 +388,9 @@ std::unique_ptr<RigCalibratorMode> RigCalibratorMode::create(ros::NodeHandle nh,
     if (st) ROS_INFO_STREAM_NAMED(kLog, "calibrator: loaded " << m.session->poses().size() << " board poses from " << session_file);
     else ROS_ERROR_STREAM_NAMED(kLog, "calibrator: " << st.reason);
   }
-  bool autosave_enabled = true, resume = true;
+  bool autosave_enabled = true, resume = false;
   pnh.param("autosave", autosave_enabled, true);
-  pnh.param("resume", resume, true);
+  pnh.param("resume", resume, false);
   if (autosave_enabled && !m.output_dir.empty()) {
     std::error_code dir_error;
     std::filesystem::create_directories(m.output_dir, dir_error);
