@@ -19,6 +19,7 @@ endfunction()
 
 board_calib_core_gtest(test_core_geometry
   SOURCES test/core/test_target.cpp test/core/test_camera_model.cpp test/core/test_transform_result.cpp
+    test/core/test_file_io.cpp
   MODULES bc_geometry
   LIBS ${OpenCV_LIBRARIES})
 target_include_directories(test_core_geometry SYSTEM PRIVATE ${OpenCV_INCLUDE_DIRS})
@@ -40,6 +41,26 @@ catkin_add_gtest(test_conversions test/ros/test_conversions.cpp)
 if(TARGET test_conversions)
   target_compile_options(test_conversions PRIVATE ${BOARD_CALIB_WARNINGS})
   target_link_libraries(test_conversions board_calib_ros board_calib_core ${catkin_LIBRARIES} GTest::gtest_main)
+endif()
+
+# Deterministic fuzzers (label fuzz; issue 15). test_fuzz_inputs: the conversions unit (compiled
+# in, so the sanitizer build needs only bc_geometry/bc_session), target/session/result YAML and
+# non-files; test_fuzz_rig: the rig YAML reader.
+catkin_add_gtest(test_fuzz_inputs test/fuzz/fuzz_inputs.cpp src/ros/conversions.cpp)
+if(TARGET test_fuzz_inputs)
+  target_compile_options(test_fuzz_inputs PRIVATE ${BOARD_CALIB_WARNINGS})
+  target_compile_definitions(test_fuzz_inputs PRIVATE BOARD_CALIB_SOURCE_DIR="${CMAKE_CURRENT_SOURCE_DIR}")
+  target_link_libraries(test_fuzz_inputs bc_session bc_geometry ${catkin_LIBRARIES} ${OpenCV_LIBRARIES} yaml-cpp
+    GTest::gtest_main)
+  add_dependencies(test_fuzz_inputs ${PROJECT_NAME}_generate_messages_cpp)
+  set_tests_properties(_ctest_board_calib_gtest_test_fuzz_inputs PROPERTIES LABELS "fuzz;unit")
+endif()
+board_calib_core_gtest(test_fuzz_rig
+  SOURCES test/fuzz/fuzz_rig.cpp
+  MODULES bc_rig bc_msg_graph bc_session bc_solvers bc_geometry
+  LIBS Ceres::ceres yaml-cpp)
+if(TARGET test_fuzz_rig)
+  set_tests_properties(_ctest_board_calib_gtest_test_fuzz_rig PROPERTIES LABELS "fuzz;unit")
 endif()
 
 # The detector nodelets' dynamic_reconfigure defaults equal the core defaults.
@@ -79,3 +100,20 @@ add_test(NAME readme_commands
   COMMAND /usr/bin/python3 ${CMAKE_CURRENT_SOURCE_DIR}/test/check_readme_commands.py
           ${CMAKE_CURRENT_SOURCE_DIR} ${CMAKE_BINARY_DIR})
 set_tests_properties(readme_commands PROPERTIES SKIP_RETURN_CODE 77 TIMEOUT 900)
+
+# Autosave + resume: the calibrator's manager is killed after 10 views and respawned; no view
+# may be lost (issue 15). The folder is emptied first so a failed earlier run cannot leak in.
+set(BOARD_CALIB_AUTOSAVE_DIR ${CMAKE_CURRENT_BINARY_DIR}/test_data/autosave)
+add_test(NAME autosave_resume_clean COMMAND ${CMAKE_COMMAND} -E remove_directory ${BOARD_CALIB_AUTOSAVE_DIR})
+set_tests_properties(autosave_resume_clean PROPERTIES FIXTURES_SETUP autosave_dir)
+add_executable(test_autosave_resume EXCLUDE_FROM_ALL test/rostest/autosave_resume.cpp)
+target_compile_options(test_autosave_resume PRIVATE ${BOARD_CALIB_WARNINGS})
+target_link_libraries(test_autosave_resume board_calib_ros board_calib_core ${catkin_LIBRARIES} GTest::gtest)
+add_dependencies(test_autosave_resume ${PROJECT_NAME}_generate_messages_cpp board_calib_calibrator)
+add_dependencies(tests test_autosave_resume)
+add_rostest(test/rostest/autosave_resume.test DEPENDENCIES test_autosave_resume)
+set_tests_properties(_ctest_board_calib_rostest_test_rostest_autosave_resume.test PROPERTIES
+  FIXTURES_REQUIRED autosave_dir ENVIRONMENT "BOARD_CALIB_AUTOSAVE_DIR=${BOARD_CALIB_AUTOSAVE_DIR}")
+
+# The issue-15 crashing messages into the running detectors and projection: the manager survives.
+add_rostest(test/rostest/hostile_messages.test DEPENDENCIES ${BOARD_CALIB_NODELET_LIBS})

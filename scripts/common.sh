@@ -61,8 +61,10 @@ board_calib_build() {
     # ccache: rebuilds of unchanged translation units (other clones, worktrees) come from the cache.
     local launcher=()
     if command -v ccache >/dev/null 2>&1; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache); fi
+    # BOARD_CALIB_CMAKE_ARGS (an array) adds or overrides settings, e.g. the sanitizer build.
     cmake -S "${BOARD_CALIB_ROOT}" -B "${BOARD_CALIB_BUILD}" -DCMAKE_BUILD_TYPE=Release "${launcher[@]}" \
-      -DPYTHON_EXECUTABLE=/usr/bin/python3 -DCATKIN_ENABLE_TESTING=ON >"${BOARD_CALIB_BUILD}/configure.log" 2>&1 \
+      -DPYTHON_EXECUTABLE=/usr/bin/python3 -DCATKIN_ENABLE_TESTING=ON "${BOARD_CALIB_CMAKE_ARGS[@]}" \
+      >"${BOARD_CALIB_BUILD}/configure.log" 2>&1 \
       || { cat "${BOARD_CALIB_BUILD}/configure.log"; return 1; }
   fi
   make -C "${BOARD_CALIB_BUILD}" -j"$(nproc)" "${targets[@]:-all}"

@@ -1,8 +1,13 @@
 #!/usr/bin/env bash
 # Installs what is missing, builds, runs every test (gtest + rostest + checks) and prints the
 # summary. Exits non-zero if anything failed or no test ran. ctest's summary is the last line.
+#   scripts/test.sh --sanitize   ASan + UBSan build in build/asan; runs every gtest (unit tests
+#                                and the fuzzers) and fails on any sanitizer report.
 set -eo pipefail
 source "$(dirname "$0")/common.sh"
+if [ "${1:-}" = "--sanitize" ]; then
+  exec bash "$(dirname "$0")/test_sanitize.sh"
+fi
 board_calib_install_deps
 board_calib_build all tests
 board_calib_source

@@ -20,12 +20,29 @@
 
 namespace board_calib {
 
-/// CameraInfo -> intrinsics (no validation here; CameraModel::create validates).
+// Validation of incoming messages, before any pointer arithmetic: each returns an empty string
+// for a usable message, else a specific reason naming the field and value. The from*()
+// conversions below run it first, so a caller only logs the reason and goes on.
+
+/// Sizes 1..65536 px, K and D finite, fx, fy > 0, at most 14 coefficients.
+std::string validateCameraInfo(const sensor_msgs::CameraInfo& info);
+/// x/y/z float32/float64; every read field's offset+count*size inside point_step (known
+/// datatypes); row_step >= width*point_step; data >= height*row_step (64-bit arithmetic);
+/// at most 2^24 points. Either endianness (converted).
+std::string validatePointCloud2(const sensor_msgs::PointCloud2& msg);
+/// Sides 1..65536 px; supported encoding; step >= width*bytes per pixel; height*step < 2 GiB
+/// and <= data size (64-bit arithmetic); foreign byte order only for mono16/16UC1 (converted).
+std::string validateImage(const sensor_msgs::Image& msg);
+/// Finite translation and rotation, quaternion with |q|^2 within 0.01 of 1 (tf2's tolerance).
+std::string validateTransform(const geometry_msgs::Transform& msg);
+
+/// CameraInfo -> intrinsics (validateCameraInfo first; CameraModel::create checks the rest).
 Expected<CameraIntrinsics> fromCameraInfo(const sensor_msgs::CameraInfo& info);
 sensor_msgs::CameraInfo toCameraInfo(const CameraIntrinsics& intrinsics);
 
 /// PointCloud2 -> core cloud. Needs float32 x/y/z; takes intensity (any numeric type) and ring
-/// (uint8/uint16/int/float) when present. Fails with a reason naming the missing field.
+/// (uint8/uint16/int/float; out of 0..65535 -> -1) when present. Fails with
+/// validatePointCloud2's reason.
 Expected<LidarCloud> fromPointCloud2(const sensor_msgs::PointCloud2& msg);
 /// Core cloud -> PointCloud2 with x y z intensity (float32) and ring (uint16, when present).
 sensor_msgs::PointCloud2 toPointCloud2(const LidarCloud& cloud);
@@ -35,7 +52,7 @@ sensor_msgs::PointCloud2 toPointCloud2(const LidarCloud& cloud);
 sensor_msgs::PointCloud2 toPointCloud2(const ColoredCloud& cloud);
 
 /// Image -> cv::Mat: bgr8 for colour and Bayer input, mono8 for mono8/mono16 (16-bit scaled
-/// to 8 bits by its maximum). Fails with a reason naming an unsupported encoding.
+/// to 8 bits by its maximum, either byte order). Fails with validateImage's reason.
 Expected<cv::Mat> imageFromMsg(const sensor_msgs::Image& msg);
 /// cv::Mat (CV_8UC3 as bgr8, CV_8UC1 as mono8) -> Image with the given header.
 Expected<sensor_msgs::Image> imageToMsg(const cv::Mat& image, const std_msgs::Header& header);

@@ -1,9 +1,10 @@
 #include <board_calib/core/result_io.h>
+#include <board_calib/core/file_io.h>
 #include <board_calib/core/transform.h>
 
 #include <yaml-cpp/yaml.h>
 
-#include <fstream>
+#include <cmath>
 #include <sstream>
 
 namespace board_calib {
@@ -46,6 +47,8 @@ Eigen::Isometry3d readTransform(const YAML::Node& node, const std::string& key) 
   if (node["translation"] && node["rotation_xyzw"]) {
     const auto t = readNumbers(node["translation"], key + ".translation", 3);
     const auto q = readNumbers(node["rotation_xyzw"], key + ".rotation_xyzw", 4);
+    for (double v : t) if (!std::isfinite(v)) throw ParseError{"'" + key + ".translation' is not finite"};
+    for (double v : q) if (!std::isfinite(v)) throw ParseError{"'" + key + ".rotation_xyzw' is not finite"};
     const Eigen::Vector4d qv(q[0], q[1], q[2], q[3]);
     if (!(qv.norm() > 1e-9)) throw ParseError{"'" + key + ".rotation_xyzw' is not a rotation"};
     return makeTransform(Eigen::Vector3d(t[0], t[1], t[2]), qv);
@@ -143,11 +146,9 @@ std::string resultToYaml(const ResultFile& r) {
 }
 
 Status writeResultFile(const std::string& path, const ResultFile& r) {
-  std::ofstream f(path);
-  if (!f) return Status::failure("cannot write result file '" + path + "'");
-  f << resultToYaml(r);
-  if (!f) return Status::failure("error while writing result file '" + path + "'");
-  return Status::success();
+  const Status written = writeFileAtomic(path, resultToYaml(r));
+  if (!written) return Status::failure("result file: " + written.reason);
+  return written;
 }
 
 std::string failedResultPath(const std::string& path) {
@@ -203,15 +204,15 @@ Expected<ResultFile> parseResult(const std::string& text) {
     return Expected<ResultFile>::failure(e.message);
   } catch (const YAML::Exception& e) {
     return Expected<ResultFile>::failure(std::string("invalid result YAML: ") + e.what());
+  } catch (const std::exception& e) {
+    return Expected<ResultFile>::failure(std::string("cannot parse the result: ") + e.what());
   }
 }
 
 Expected<ResultFile> loadResultFile(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return Expected<ResultFile>::failure("cannot read result file '" + path + "'");
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  auto r = parseResult(buffer.str());
+  const auto text = readTextFile(path, "result file");
+  if (!text) return Expected<ResultFile>::failure(text.error());
+  auto r = parseResult(*text);
   if (!r) return Expected<ResultFile>::failure("result file '" + path + "': " + r.error());
   return r;
 }

@@ -1,8 +1,10 @@
 #include <board_calib/core/target.h>
+#include <board_calib/core/file_io.h>
 
 #include <yaml-cpp/yaml.h>
 
-#include <fstream>
+#include <cmath>
+#include <cstdint>
 #include <set>
 #include <sstream>
 
@@ -14,10 +16,18 @@ struct TargetError {
   std::string message;
 };
 
+// Limits far beyond any real board; they keep sizes finite and counts inside int.
+constexpr double kMaxBoardSideM = 10.0;
+constexpr int64_t kMaxPatternCorners = 10000;  ///< rows * cols of a checkerboard
+
 void rejectUnknownKeys(const YAML::Node& node, const std::set<std::string>& allowed,
                        const std::string& where) {
+  std::set<std::string> seen;
   for (const auto& kv : node) {
+    if (!kv.first.IsScalar()) throw TargetError{"a key under '" + where + "' is not a plain name"};
     const std::string key = kv.first.as<std::string>();
+    // yaml-cpp keeps the first of two equal keys silently; the user meant one of them.
+    if (!seen.insert(key).second) throw TargetError{"duplicate key '" + where + key + "'"};
     if (!allowed.count(key)) {
       std::string list;
       for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
@@ -40,9 +50,18 @@ T readScalar(const YAML::Node& node, const std::string& key, const std::string& 
   }
 }
 
-double readPositive(const YAML::Node& node, const std::string& key, const std::string& where) {
+double readFinite(const YAML::Node& node, const std::string& key, const std::string& where) {
   const double v = readScalar<double>(node, key, where, "number");
+  if (!std::isfinite(v)) throw TargetError{"key '" + where + key + "' must be finite, got " + node[key].Scalar()};
+  return v;
+}
+
+double readPositive(const YAML::Node& node, const std::string& key, const std::string& where) {
+  const double v = readFinite(node, key, where);
   if (!(v > 0.0)) throw TargetError{"key '" + where + key + "' must be > 0, got " + std::to_string(v)};
+  if (v > kMaxBoardSideM)
+    throw TargetError{"key '" + where + key + "' = " + std::to_string(v) + " m is larger than any board (" +
+                      std::to_string(kMaxBoardSideM) + " m)"};
   return v;
 }
 
@@ -58,7 +77,9 @@ Eigen::Vector2d readVec2(const YAML::Node& node, const std::string& key, const s
   if (!value.IsSequence() || value.size() != 2)
     throw TargetError{"key '" + where + key + "' must be a list of two numbers [x, y] in metres"};
   try {
-    return {value[0].as<double>(), value[1].as<double>()};
+    const Eigen::Vector2d v(value[0].as<double>(), value[1].as<double>());
+    if (!v.allFinite()) throw TargetError{"key '" + where + key + "' must hold finite numbers"};
+    return v;
   } catch (const YAML::Exception&) {
     throw TargetError{"key '" + where + key + "' must be a list of two numbers [x, y] in metres"};
   }
@@ -98,7 +119,7 @@ Target parseNode(const YAML::Node& root) {
     t.apriltag_grid.cols = readPositiveInt(ag, "cols", w);
     t.apriltag_grid.rows = readPositiveInt(ag, "rows", w);
     t.apriltag_grid.tag_size = readPositive(ag, "tag_size", w);
-    t.apriltag_grid.spacing = readScalar<double>(ag, "spacing", w, "number");
+    t.apriltag_grid.spacing = readFinite(ag, "spacing", w);
     if (t.apriltag_grid.spacing < 0) throw TargetError{"key 'apriltag_grid.spacing' must be >= 0"};
     t.apriltag_grid.first_id = readScalar<int>(ag, "first_id", w, "integer");
     if (t.apriltag_grid.first_id < 0) throw TargetError{"key 'apriltag_grid.first_id' must be >= 0"};
@@ -166,6 +187,9 @@ std::string Target::validate() const {
   if (type == TargetType::kCheckerboard) {
     const auto& cb = checkerboard;
     if (cb.cols < 2 || cb.rows < 2) return "checkerboard.cols and checkerboard.rows must be >= 2 (inner corners)";
+    if (int64_t(cb.cols) * cb.rows > kMaxPatternCorners)
+      return "checkerboard has " + std::to_string(int64_t(cb.cols) * cb.rows) + " inner corners (at most " +
+             std::to_string(kMaxPatternCorners) + ")";
     if (cb.cols == cb.rows)
       return "checkerboard.cols equals checkerboard.rows: a square pattern is ambiguous under 90° rotation";
     // The printed squares extend one square beyond the outermost inner corners.
@@ -194,8 +218,10 @@ std::string Target::validate() const {
       return s.str();
     }
     constexpr int kTag36h11Count = 587;
-    if (g.first_id + g.rows * g.cols > kTag36h11Count)
-      return "apriltag_grid ids exceed the tag36h11 family (587 tags)";
+    // 64-bit: rows * cols of a hostile file overflows int (65536 x 65536 used to end in bad_alloc).
+    if (g.rows <= 0 || g.cols <= 0 || g.first_id < 0 || int64_t(g.first_id) + int64_t(g.rows) * g.cols > kTag36h11Count)
+      return "apriltag_grid ids " + std::to_string(g.first_id) + " + " + std::to_string(g.rows) + " x " +
+             std::to_string(g.cols) + " exceed the tag36h11 family (587 tags)";
   }
   return {};
 }
@@ -207,15 +233,15 @@ Expected<Target> parseTarget(const std::string& yaml_text) {
     return Expected<Target>::failure(e.message);
   } catch (const YAML::Exception& e) {
     return Expected<Target>::failure(std::string("invalid YAML: ") + e.what());
+  } catch (const std::exception& e) {  // e.g. bad_alloc from a hostile document
+    return Expected<Target>::failure(std::string("cannot parse the target: ") + e.what());
   }
 }
 
 Expected<Target> loadTarget(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return Expected<Target>::failure("cannot read target file '" + path + "'");
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  auto parsed = parseTarget(buffer.str());
+  const auto text = readTextFile(path, "target file");
+  if (!text) return Expected<Target>::failure(text.error());
+  auto parsed = parseTarget(*text);
   if (!parsed) return Expected<Target>::failure("target file '" + path + "': " + parsed.error());
   return parsed;
 }

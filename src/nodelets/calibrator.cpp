@@ -12,6 +12,7 @@
 #include <board_calib/SessionFile.h>
 #include <board_calib/calibrator_status.h>
 #include <board_calib/conversions.h>
+#include <board_calib/core/file_io.h>
 #include <board_calib/core/pipeline/pair_calibration.h>
 #include <board_calib/core/report.h>
 #include <board_calib/core/session.h>
@@ -35,6 +36,9 @@
 
 namespace board_calib {
 
+constexpr const char* kAutosaveFileName = "autosave_session.yaml";
+constexpr double kAutosaveWarnPeriodS = 10.0;
+
 class CalibratorNodelet : public nodelet::Nodelet {
  private:
   void onInit() override;
@@ -43,6 +47,9 @@ class CalibratorNodelet : public nodelet::Nodelet {
   void report(const SessionEvent& event, const char* source);
   void reconfigure(CalibratorConfig& config, uint32_t level);
   bool calibrate(Calibrate::Request& req, Calibrate::Response& res);
+  bool calibrateChecked(Calibrate::Request& req, Calibrate::Response& res);
+  void resumeAutosave(bool resume);
+  void autosave();
   bool capture(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool reset(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool saveSession(SessionFile::Request& req, SessionFile::Response& res);
@@ -66,6 +73,7 @@ class CalibratorNodelet : public nodelet::Nodelet {
   int lidar_msgs_ = 0, camera_msgs_ = 0;
   std::string lidar_board_state_ = "no message", camera_board_state_ = "no message";  // for /diagnostics
   std::mutex solve_mutex_;  // one solve at a time
+  std::string autosave_path_;  // empty: autosave off
 
   ros::Subscriber lidar_sub_, camera_sub_;
   ros::Publisher result_pub_, markers_pub_;
@@ -111,6 +119,21 @@ void CalibratorNodelet::onInit() {
     if (st) NODELET_INFO_STREAM("calibrator: loaded " << session_->views().size() << " views from " << session_file);
     else NODELET_ERROR_STREAM("calibrator: " << st.reason);
   }
+  // Autosave: every captured or dropped view is saved, so a crashed manager loses nothing.
+  bool autosave_enabled = true, resume = false;
+  pnh.param("autosave", autosave_enabled, true);
+  pnh.param("resume", resume, false);
+  if (autosave_enabled && !output_dir_.empty()) {
+    std::error_code error;
+    std::filesystem::create_directories(output_dir_, error);
+    if (error) {
+      NODELET_ERROR_STREAM("calibrator: cannot create " << output_dir_ << " (" << error.message()
+                                                        << "): views are not autosaved");
+    } else {
+      autosave_path_ = output_dir_ + "/" + kAutosaveFileName;
+      resumeAutosave(resume);
+    }
+  }
 
   result_pub_ = nh.advertise<CalibrationResult>("calibration_result", 1, true);
   markers_pub_ = nh.advertise<visualization_msgs::MarkerArray>("calibration_markers", 1, true);
@@ -119,7 +142,7 @@ void CalibratorNodelet::onInit() {
   reconfigure_server_->setCallback(
       [this](CalibratorConfig& config, uint32_t level) { reconfigure(config, level); });
 
-  services_.push_back(pnh.advertiseService("calibrate", &CalibratorNodelet::calibrate, this));
+  services_.push_back(pnh.advertiseService("calibrate", &CalibratorNodelet::calibrateChecked, this));
   services_.push_back(pnh.advertiseService("capture", &CalibratorNodelet::capture, this));
   services_.push_back(pnh.advertiseService("reset", &CalibratorNodelet::reset, this));
   services_.push_back(pnh.advertiseService("save_session", &CalibratorNodelet::saveSession, this));
@@ -167,9 +190,71 @@ void CalibratorNodelet::report(const SessionEvent& e, const char* source) {
     NODELET_INFO_STREAM("calibrator: " << e.message << "; " << cov.views << " views"
                                        << (cov.advice.empty() ? "" : "; next: " + cov.advice.front()));
     publishMarkers(session_->plainViews(), last_solution_);
+    autosave();
   } else if (e.kind == SessionEvent::Kind::kRejected) {
     NODELET_INFO_STREAM_THROTTLE(2.0, "calibrator: view rejected: " << e.message);
   }
+}
+
+// A starting calibrator finds an autosave. A respawn within the same roslaunch run (same
+// /run_id: the manager crashed) always resumes it; one of an earlier run only with ~resume
+// (yesterday's views may come from another mounting). Otherwise, or for another board, the file
+// is moved aside under a dated name: it is never overwritten unseen.
+void CalibratorNodelet::resumeAutosave(bool resume) {
+  std::string run_id;
+  ros::param::get("/run_id", run_id);
+  const std::string run_id_path = autosave_path_ + ".run_id";
+  std::error_code error;
+  if (!std::filesystem::exists(autosave_path_, error)) {
+    (void)writeFileAtomic(run_id_path, run_id);
+    return;
+  }
+  const auto previous_run = readTextFile(run_id_path, "autosave run id");
+  const bool respawned = previous_run && !run_id.empty() && *previous_run == run_id;
+  CalibrationSession found(session_->target(), session_->options());
+  const Status st = found.load(autosave_path_);
+  std::string not_resumed;
+  if (!st) not_resumed = st.reason;
+  else if (targetToYaml(found.target()) != targetToYaml(session_->target()))
+    not_resumed = std::string("it was recorded with another board (") + targetTypeName(found.target().type) + ")";
+  else if (!resume && !respawned) not_resumed = "it is from an earlier run (set ~resume true to resume it)";
+  (void)writeFileAtomic(run_id_path, run_id);
+  if (not_resumed.empty() && session_->load(autosave_path_)) {
+    NODELET_INFO_STREAM("calibrator: found an autosaved session in " << autosave_path_ << ": resumed "
+                                                                      << session_->views().size()
+                                                                      << " views"
+                                                                      << (respawned ? " after a restart" : "")
+                                                                      << " (~reset drops them)");
+    return;
+  }
+  const std::string aside = autosave_path_ + "." + std::to_string(static_cast<long long>(ros::WallTime::now().sec));
+  std::filesystem::rename(autosave_path_, aside, error);
+  NODELET_WARN_STREAM("calibrator: found an autosaved session in "
+                      << autosave_path_ << " with " << found.views().size() << " views, not resumed: " << not_resumed
+                      << "; " << (error ? "could not move it aside (" + error.message() + "), autosave is off"
+                                        : "kept as " + aside));
+  if (error) autosave_path_.clear();
+}
+
+// Called with mutex_ held, after every change of the kept views.
+void CalibratorNodelet::autosave() {
+  if (autosave_path_.empty()) return;
+  const Status st = session_->save(autosave_path_);
+  if (!st) NODELET_WARN_STREAM_THROTTLE(kAutosaveWarnPeriodS, "calibrator: autosave failed: " << st.reason);
+}
+
+// Service arguments are checked before the solve: a zero or non-unit quaternion was taken as
+// the identity.
+bool CalibratorNodelet::calibrateChecked(Calibrate::Request& req, Calibrate::Response& res) {
+  if (req.use_initial_guess) {
+    if (const std::string why = validateTransform(req.initial_guess); !why.empty()) {
+      res.success = false;
+      res.message = "initial_guess refused: " + why;
+      NODELET_WARN_STREAM("calibrator: ~calibrate: " << res.message);
+      return true;
+    }
+  }
+  return calibrate(req, res);
 }
 
 void CalibratorNodelet::onLidar(const LidarBoardConstPtr& msg) {
@@ -260,8 +345,9 @@ std::string CalibratorNodelet::writeOutputs(const ResultFile& file) {
     NODELET_ERROR_STREAM("calibrator: " << st.reason);
     return "";
   }
-  std::ofstream(base + "_static_transform.launch") << staticTransformLaunchSnippet(file, child);
-  std::ofstream(base + "_urdf_joint.xml") << urdfJointSnippet(file, child);
+  for (const auto& [path, text] : {std::make_pair(base + "_static_transform.launch", staticTransformLaunchSnippet(file, child)),
+                                   std::make_pair(base + "_urdf_joint.xml", urdfJointSnippet(file, child))})
+    if (const Status written = writeFileAtomic(path, text); !written) NODELET_ERROR_STREAM("calibrator: " << written.reason);
   return base + "_result.yaml";
 }
 
@@ -359,6 +445,7 @@ bool CalibratorNodelet::reset(std_srvs::Trigger::Request&, std_srvs::Trigger::Re
   session_->reset();
   last_solution_.reset();
   publishMarkers({}, std::nullopt);
+  autosave();
   res.success = true;
   res.message = "session reset (" + std::to_string(dropped) + " views dropped)";
   NODELET_INFO_STREAM("calibrator: " << res.message);
@@ -376,11 +463,20 @@ bool CalibratorNodelet::saveSession(SessionFile::Request& req, SessionFile::Resp
 
 bool CalibratorNodelet::loadSession(SessionFile::Request& req, SessionFile::Response& res) {
   std::lock_guard<std::mutex> lock(mutex_);
-  const Status st = session_->load(req.path);
+  // A session of another board would switch the board type and drop the current views.
+  CalibrationSession candidate(session_->target(), session_->options());
+  Status st = candidate.load(req.path);
+  if (st && targetToYaml(candidate.target()) != targetToYaml(session_->target()))
+    st = Status::failure("'" + req.path + "' was recorded with a " + targetTypeName(candidate.target().type) +
+                         " board that differs from this calibrator's target; current views kept");
+  if (st) st = session_->load(req.path);
   res.success = st.ok;
   res.views = static_cast<uint32_t>(session_->views().size());
   res.message = st.ok ? "loaded " + std::to_string(res.views) + " views from " + req.path : st.reason;
-  if (st.ok) publishMarkers(session_->plainViews(), std::nullopt);
+  if (st.ok) {
+    publishMarkers(session_->plainViews(), std::nullopt);
+    autosave();
+  }
   return true;
 }
 
@@ -389,7 +485,10 @@ bool CalibratorNodelet::dropView(DropView::Request& req, DropView::Response& res
   const Status st = session_->dropView(static_cast<int>(req.view_id));
   res.success = st.ok;
   res.message = st.ok ? "view " + std::to_string(req.view_id) + " dropped" : st.reason;
-  if (st.ok) publishMarkers(session_->plainViews(), last_solution_);
+  if (st.ok) {
+    publishMarkers(session_->plainViews(), last_solution_);
+    autosave();
+  }
   return true;
 }
 

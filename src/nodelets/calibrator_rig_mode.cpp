@@ -9,6 +9,7 @@
 #include <board_calib/DropView.h>
 #include <board_calib/SessionFile.h>
 #include <board_calib/conversions.h>
+#include <board_calib/core/file_io.h>
 #include <board_calib/core/msg_graph.h>
 #include <board_calib/core/result_io.h>
 #include <board_calib/core/rig_config.h>
@@ -48,6 +49,7 @@ struct RigCalibratorMode::Impl {
   std::string child_frame_suffix;
   std::string output_dir;
   bool broadcast_tf = true;
+  std::string autosave_path;  // empty: autosave off
 
   std::vector<ros::Subscriber> subscribers;
   ros::Publisher result_pub;
@@ -62,6 +64,7 @@ struct RigCalibratorMode::Impl {
       last_event = source + ": " + e.message;
       ROS_INFO_STREAM_NAMED(kLog, "calibrator: captured " << e.message << "; " << session->poses().size()
                                                           << " board poses");
+      autosave();
     } else if (e.kind == SessionEvent::Kind::kRejected) {
       last_event = source + ": " + e.message;
       ROS_WARN_STREAM_THROTTLE_NAMED(2.0, kLog, "calibrator: " << source << ": " << e.message);
@@ -69,6 +72,42 @@ struct RigCalibratorMode::Impl {
       last_event = source + ": " + e.message;
       ROS_INFO_STREAM_THROTTLE_NAMED(5.0, kLog, "calibrator: " << e.message);
     }
+  }
+
+  // Called with mutex held after every change of the captured poses (see the pair mode).
+  void autosave() {
+    if (autosave_path.empty()) return;
+    const Status st = session->save(autosave_path);
+    if (!st) ROS_WARN_STREAM_THROTTLE_NAMED(10.0, kLog, "calibrator: autosave failed: " << st.reason);
+  }
+
+  // Resumes an autosave after a respawn in the same roslaunch run (same /run_id) or, with
+  // ~resume, of an earlier run (the rig's sensors must match); else moves it aside.
+  void resumeAutosave(bool resume) {
+    std::string run_id;
+    ros::param::get("/run_id", run_id);
+    const std::string run_id_path = autosave_path + ".run_id";
+    std::error_code error;
+    const bool exists = std::filesystem::exists(autosave_path, error);
+    const auto previous_run = readTextFile(run_id_path, "autosave run id");
+    const bool respawned = previous_run && !run_id.empty() && *previous_run == run_id;
+    (void)writeFileAtomic(run_id_path, run_id);
+    if (!exists) return;
+    Status st = resume || respawned ? session->load(autosave_path)
+                                    : Status::failure("it is from an earlier run (set ~resume true to resume it)");
+    if (st) {
+      ROS_INFO_STREAM_NAMED(kLog, "calibrator: found an autosaved rig session in "
+                                      << autosave_path << ": resumed " << session->poses().size()
+                                      << " board poses (~reset drops them; set ~resume false to start empty)");
+      return;
+    }
+    const std::string aside = autosave_path + "." + std::to_string(static_cast<long long>(ros::WallTime::now().sec));
+    std::filesystem::rename(autosave_path, aside, error);
+    ROS_WARN_STREAM_NAMED(kLog, "calibrator: found an autosaved rig session in "
+                                    << autosave_path << ", not resumed: " << st.reason << "; "
+                                    << (error ? "could not move it aside (" + error.message() + "), autosave is off"
+                                              : "kept as " + aside));
+    if (error) autosave_path.clear();
   }
 
   void onCamera(int k, const CameraBoardConstPtr& m) {
@@ -137,7 +176,7 @@ struct RigCalibratorMode::Impl {
       return "";
     }
     // One static_transform_publisher per sensor, ready to paste into a bring-up launch file.
-    std::ofstream launch(base + "_static_transforms.launch");
+    std::ostringstream launch;
     launch << std::setprecision(9) << "<launch>\n"
            << "  <!-- Needs tf2_ros's static_transform_publisher (ROS Noetic; Debian's ROS packages lack it: there run\n"
            << "       roslaunch board_calib publish_calibration.launch result_file:=msg_rig_result.yaml) -->\n";
@@ -152,6 +191,8 @@ struct RigCalibratorMode::Impl {
              << " " << q.w() << " " << parent << " " << e.frame + child_frame_suffix << "\"/>\n";
     }
     launch << "</launch>\n";
+    const Status snippet = writeFileAtomic(base + "_static_transforms.launch", launch.str());
+    if (!snippet) ROS_ERROR_STREAM_NAMED(kLog, "calibrator: " << snippet.reason);
     return base + "_result.yaml";
   }
 
@@ -251,6 +292,7 @@ struct RigCalibratorMode::Impl {
     last_solution.reset();
     res.success = true;
     res.message = "rig session reset (" + std::to_string(dropped) + " board poses dropped)";
+    autosave();
     ROS_INFO_STREAM_NAMED(kLog, "calibrator: " << res.message);
     return true;
   }
@@ -271,6 +313,7 @@ struct RigCalibratorMode::Impl {
     res.success = st.ok;
     res.views = static_cast<uint32_t>(session->poses().size());
     res.message = st.ok ? "loaded " + std::to_string(res.views) + " board poses from " + req.path : st.reason;
+    if (st.ok) autosave();
     return true;
   }
 
@@ -279,6 +322,7 @@ struct RigCalibratorMode::Impl {
     const Status st = session->dropPose(static_cast<int>(req.view_id));
     res.success = st.ok;
     res.message = st.ok ? "board pose " + std::to_string(req.view_id) + " dropped" : st.reason;
+    if (st.ok) autosave();
     return true;
   }
 
@@ -343,6 +387,20 @@ std::unique_ptr<RigCalibratorMode> RigCalibratorMode::create(ros::NodeHandle nh,
     const Status st = m.session->load(session_file);
     if (st) ROS_INFO_STREAM_NAMED(kLog, "calibrator: loaded " << m.session->poses().size() << " board poses from " << session_file);
     else ROS_ERROR_STREAM_NAMED(kLog, "calibrator: " << st.reason);
+  }
+  bool autosave_enabled = true, resume = false;
+  pnh.param("autosave", autosave_enabled, true);
+  pnh.param("resume", resume, false);
+  if (autosave_enabled && !m.output_dir.empty()) {
+    std::error_code dir_error;
+    std::filesystem::create_directories(m.output_dir, dir_error);
+    if (dir_error) {
+      ROS_ERROR_STREAM_NAMED(kLog, "calibrator: cannot create " << m.output_dir << " (" << dir_error.message()
+                                                                << "): board poses are not autosaved");
+    } else {
+      m.autosave_path = m.output_dir + "/autosave_rig_session.yaml";
+      m.resumeAutosave(resume);
+    }
   }
 
   m.result_pub = nh.advertise<CalibrationResult>("calibration_result", 1, true);

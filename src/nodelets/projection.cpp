@@ -161,6 +161,11 @@ class ProjectionNodelet : public nodelet::Nodelet {
                             msg->reason.c_str());
       return;
     }
+    if (const std::string why = validateTransform(msg->camera_T_lidar); !why.empty()) {
+      NODELET_WARN_THROTTLE(kWarnPeriodS, "calibration_result: camera_T_lidar refused (%s); keeping the previous extrinsic",
+                            why.c_str());
+      return;
+    }
     result_ = msg;
   }
 
@@ -181,8 +186,11 @@ class ProjectionNodelet : public nodelet::Nodelet {
       try {
         const auto tf = tf_buffer_->lookupTransform(camera_frame, lidar_frame, ros::Time(0),
                                                     ros::Duration(tf_timeout_s_));
-        *camera_T_lidar = fromTransformMsg(tf.transform);
-        return true;
+        tf_error = validateTransform(tf.transform);
+        if (tf_error.empty()) {
+          *camera_T_lidar = fromTransformMsg(tf.transform);
+          return true;
+        }
       } catch (const tf2::TransformException& e) {
         tf_error = e.what();
       }
@@ -224,15 +232,16 @@ class ProjectionNodelet : public nodelet::Nodelet {
       camera_ = std::make_unique<CameraModel>(*camera);
       last_info_ = *info_msg;
     }
+    // Size check on the header first: the conversion then only sees plausible images.
+    if (image_msg->width != uint32_t(camera_->width()) || image_msg->height != uint32_t(camera_->height())) {
+      NODELET_WARN_THROTTLE(kWarnPeriodS, "image on %s is %ux%u but camera_info says %dx%d (binning/ROI unsupported)",
+                            image_sub_.getTopic().c_str(), image_msg->width, image_msg->height, camera_->width(),
+                            camera_->height());
+      return;
+    }
     auto image = imageFromMsg(*image_msg);
     if (!image) {
       NODELET_WARN_THROTTLE(kWarnPeriodS, "image on %s: %s", image_sub_.getTopic().c_str(), image.error().c_str());
-      return;
-    }
-    if (image->cols != camera_->width() || image->rows != camera_->height()) {
-      NODELET_WARN_THROTTLE(kWarnPeriodS, "image on %s is %dx%d but camera_info says %dx%d (binning/ROI unsupported)",
-                            image_sub_.getTopic().c_str(), image->cols, image->rows, camera_->width(),
-                            camera_->height());
       return;
     }
     const auto cloud = fromPointCloud2(*cloud_msg);

@@ -15,6 +15,17 @@ struct OpenBags {
   std::vector<std::unique_ptr<rosbag::Bag>> bags;
 };
 
+// A bag cut off while recording (no index at the end) is the usual cause of read errors.
+std::string reindexHint(const std::string& path) {
+  return " (a truncated or unindexed bag: run `rosbag reindex " + path + "` and retry with the reindexed file)";
+}
+
+std::string reindexHintAll(const std::vector<std::string>& paths) {
+  std::string files;
+  for (const auto& p : paths) files += (files.empty() ? "" : " ") + p;
+  return reindexHint(files);
+}
+
 Status openAll(const std::vector<std::string>& paths, OpenBags* out) {
   if (paths.empty()) return Status::failure("no bag file given");
   for (const auto& path : paths) {
@@ -22,7 +33,7 @@ Status openAll(const std::vector<std::string>& paths, OpenBags* out) {
     try {
       bag->open(path, rosbag::bagmode::Read);
     } catch (const rosbag::BagException& e) {
-      return Status::failure("cannot open bag '" + path + "': " + e.what());
+      return Status::failure("cannot open bag '" + path + "': " + e.what() + reindexHint(path));
     }
     out->bags.push_back(std::move(bag));
   }
@@ -36,10 +47,15 @@ Expected<std::map<std::string, size_t>> bagTopicCounts(const std::vector<std::st
   const Status s = openAll(paths, &open);
   if (!s) return Expected<std::map<std::string, size_t>>::failure(s.reason);
   std::map<std::string, size_t> counts;
-  for (const auto& bag : open.bags) {
-    rosbag::View view(*bag);
-    for (const auto* c : view.getConnections()) counts[c->topic] += 0;
-    for (const auto& m : view) counts[m.getTopic()]++;
+  try {
+    for (const auto& bag : open.bags) {
+      rosbag::View view(*bag);
+      for (const auto* c : view.getConnections()) counts[c->topic] += 0;
+      for (const auto& m : view) counts[m.getTopic()]++;
+    }
+  } catch (const std::exception& e) {
+    return Expected<std::map<std::string, size_t>>::failure(std::string("error reading bag: ") + e.what() +
+                                                             reindexHintAll(paths));
   }
   return counts;
 }
@@ -49,9 +65,14 @@ Expected<std::vector<double>> topicTimes(const std::vector<std::string>& paths, 
   const Status s = openAll(paths, &open);
   if (!s) return Expected<std::vector<double>>::failure(s.reason);
   std::vector<double> times;
-  for (const auto& bag : open.bags) {
-    rosbag::View view(*bag, rosbag::TopicQuery(topic));
-    for (const auto& m : view) times.push_back(m.getTime().toSec());
+  try {
+    for (const auto& bag : open.bags) {
+      rosbag::View view(*bag, rosbag::TopicQuery(topic));
+      for (const auto& m : view) times.push_back(m.getTime().toSec());
+    }
+  } catch (const std::exception& e) {
+    return Expected<std::vector<double>>::failure(std::string("error reading bag: ") + e.what() +
+                                                  reindexHintAll(paths));
   }
   std::sort(times.begin(), times.end());
   return times;
@@ -124,7 +145,11 @@ Status readBags(const std::vector<std::string>& paths, const BagTopics& topics, 
       }
     }
   } catch (const rosbag::BagException& e) {
-    return Status::failure(std::string("error reading bag: ") + e.what());
+    return Status::failure(std::string("error reading bag: ") + e.what() + reindexHintAll(paths));
+  } catch (const ros::Exception& e) {  // a corrupt message (serialization overrun)
+    return Status::failure(std::string("corrupt message in bag: ") + e.what() + reindexHintAll(paths));
+  } catch (const std::exception& e) {
+    return Status::failure(std::string("error reading bag: ") + e.what() + reindexHintAll(paths));
   }
   return Status::success();
 }

@@ -5,30 +5,24 @@
 #include <sensor_msgs/image_encodings.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 
 namespace board_calib {
 namespace {
 
+// Limits far above any real sensor; they keep every later int index and allocation sane.
+constexpr uint64_t kMaxCloudPoints = uint64_t(1) << 24;  ///< 16.7 M points (a 128-beam LiDAR sends ~0.3 M)
+constexpr double kMaxRingIndex = 65535;                  ///< ring fields are at most uint16 in practice
+constexpr uint64_t kMaxImageSidePx = uint64_t(1) << 16;  ///< px per side; OpenCV and the detectors use int
+constexpr uint64_t kMaxImageBytes = (uint64_t(1) << 31) - 1;  ///< cv_bridge/OpenCV size their buffers with int
+constexpr size_t kMaxDistortionCoeffs = 14;              ///< OpenCV's largest model
+
 const sensor_msgs::PointField* findField(const sensor_msgs::PointCloud2& msg, const std::string& name) {
   for (const auto& f : msg.fields)
     if (f.name == name) return &f;
   return nullptr;
-}
-
-// Reads one numeric field of any PointField datatype as double.
-double readAs(const uint8_t* p, uint8_t datatype) {
-  switch (datatype) {
-    case sensor_msgs::PointField::INT8: { int8_t v; std::memcpy(&v, p, 1); return v; }
-    case sensor_msgs::PointField::UINT8: return *p;
-    case sensor_msgs::PointField::INT16: { int16_t v; std::memcpy(&v, p, 2); return v; }
-    case sensor_msgs::PointField::UINT16: { uint16_t v; std::memcpy(&v, p, 2); return v; }
-    case sensor_msgs::PointField::INT32: { int32_t v; std::memcpy(&v, p, 4); return v; }
-    case sensor_msgs::PointField::UINT32: { uint32_t v; std::memcpy(&v, p, 4); return v; }
-    case sensor_msgs::PointField::FLOAT32: { float v; std::memcpy(&v, p, 4); return v; }
-    case sensor_msgs::PointField::FLOAT64: { double v; std::memcpy(&v, p, 8); return v; }
-  }
-  return 0.0;
 }
 
 size_t fieldSize(uint8_t datatype) {
@@ -40,6 +34,39 @@ size_t fieldSize(uint8_t datatype) {
     case sensor_msgs::PointField::FLOAT64: return 8;
   }
   return 0;
+}
+
+bool hostIsBigEndian() {
+  const uint16_t probe = 1;
+  uint8_t first = 0;
+  std::memcpy(&first, &probe, 1);
+  return first == 0;
+}
+
+// Reads one numeric field of any PointField datatype as double; `swap` reverses the bytes
+// (message endianness differs from the host's).
+double readAs(const uint8_t* p, uint8_t datatype, bool swap) {
+  uint8_t bytes[8];
+  const size_t n = fieldSize(datatype);
+  std::memcpy(bytes, p, n);
+  if (swap) std::reverse(bytes, bytes + n);
+  switch (datatype) {
+    case sensor_msgs::PointField::INT8: { int8_t v; std::memcpy(&v, bytes, 1); return v; }
+    case sensor_msgs::PointField::UINT8: return bytes[0];
+    case sensor_msgs::PointField::INT16: { int16_t v; std::memcpy(&v, bytes, 2); return v; }
+    case sensor_msgs::PointField::UINT16: { uint16_t v; std::memcpy(&v, bytes, 2); return v; }
+    case sensor_msgs::PointField::INT32: { int32_t v; std::memcpy(&v, bytes, 4); return v; }
+    case sensor_msgs::PointField::UINT32: { uint32_t v; std::memcpy(&v, bytes, 4); return v; }
+    case sensor_msgs::PointField::FLOAT32: { float v; std::memcpy(&v, bytes, 4); return v; }
+    case sensor_msgs::PointField::FLOAT64: { double v; std::memcpy(&v, bytes, 8); return v; }
+  }
+  return 0.0;
+}
+
+// A ring index stored as a float or a huge integer must not overflow the int cast (UB).
+int toRing(double value) {
+  if (!std::isfinite(value) || value < 0 || value > kMaxRingIndex) return -1;
+  return static_cast<int>(value);
 }
 
 geometry_msgs::Point32 toPoint32(const Eigen::Vector3d& p) {
@@ -73,7 +100,26 @@ Eigen::Vector3d toEigen(const P& p) {
 
 }  // namespace
 
+std::string validateCameraInfo(const sensor_msgs::CameraInfo& info) {
+  const uint64_t width = info.width, height = info.height;
+  if (width == 0 || height == 0 || width > kMaxImageSidePx || height > kMaxImageSidePx)
+    return "camera_info size " + std::to_string(width) + " x " + std::to_string(height) + " is not in 1.." +
+           std::to_string(kMaxImageSidePx) + " px";
+  for (size_t i = 0; i < info.K.size(); ++i)
+    if (!std::isfinite(info.K[i])) return "camera_info K[" + std::to_string(i) + "] is not finite";
+  if (!(info.K[0] > 0) || !(info.K[4] > 0))
+    return "camera_info focal lengths K[0]=" + std::to_string(info.K[0]) + " K[4]=" + std::to_string(info.K[4]) +
+           " are not positive (uncalibrated camera?)";
+  if (info.D.size() > kMaxDistortionCoeffs)
+    return "camera_info D has " + std::to_string(info.D.size()) + " coefficients (at most " +
+           std::to_string(kMaxDistortionCoeffs) + ")";
+  for (size_t i = 0; i < info.D.size(); ++i)
+    if (!std::isfinite(info.D[i])) return "camera_info D[" + std::to_string(i) + "] is not finite";
+  return {};
+}
+
 Expected<CameraIntrinsics> fromCameraInfo(const sensor_msgs::CameraInfo& info) {
+  if (const std::string why = validateCameraInfo(info); !why.empty()) return Expected<CameraIntrinsics>::failure(why);
   CameraIntrinsics in;
   in.width = static_cast<int>(info.width);
   in.height = static_cast<int>(info.height);
@@ -108,23 +154,50 @@ sensor_msgs::CameraInfo toCameraInfo(const CameraIntrinsics& in) {
   return info;
 }
 
-Expected<LidarCloud> fromPointCloud2(const sensor_msgs::PointCloud2& msg) {
+std::string validatePointCloud2(const sensor_msgs::PointCloud2& msg) {
   const auto* fx = findField(msg, "x");
   const auto* fy = findField(msg, "y");
   const auto* fz = findField(msg, "z");
-  if (!fx || !fy || !fz) return Expected<LidarCloud>::failure("cloud has no x/y/z fields");
+  if (!fx || !fy || !fz) return "cloud has no x/y/z fields";
   for (const auto* f : {fx, fy, fz})
     if (f->datatype != sensor_msgs::PointField::FLOAT32 && f->datatype != sensor_msgs::PointField::FLOAT64)
-      return Expected<LidarCloud>::failure("cloud field '" + f->name + "' is not float32/float64");
+      return "cloud field '" + f->name + "' is not float32/float64 (datatype " + std::to_string(f->datatype) + ")";
+  // 64-bit arithmetic throughout: every product of two uint32 fits.
+  const uint64_t width = msg.width, height = msg.height, point_step = msg.point_step, row_step = msg.row_step;
+  const uint64_t points = width * height;
+  if (points == 0) return {};  // an empty cloud is valid; nothing is read
+  if (point_step == 0) return "cloud point_step is 0";
+  for (const auto* f : {fx, fy, fz, findField(msg, "intensity"), findField(msg, "ring")}) {
+    if (!f) continue;
+    const uint64_t size = fieldSize(f->datatype);
+    if (size == 0)
+      return "cloud field '" + f->name + "' has unknown datatype " + std::to_string(f->datatype);
+    const uint64_t count = std::max<uint64_t>(1, f->count);
+    if (uint64_t(f->offset) + count * size > point_step)
+      return "cloud field '" + f->name + "' (offset " + std::to_string(f->offset) + ", " + std::to_string(count) + "x" +
+             std::to_string(size) + " bytes) lies outside point_step " + std::to_string(point_step);
+  }
+  if (points > kMaxCloudPoints)
+    return "cloud has " + std::to_string(points) + " points (" + std::to_string(width) + "x" + std::to_string(height) +
+           "), more than the " + std::to_string(kMaxCloudPoints) + " accepted";
+  if (row_step < width * point_step)
+    return "cloud row_step " + std::to_string(row_step) + " is smaller than width*point_step = " +
+           std::to_string(width) + "*" + std::to_string(point_step);
+  if (uint64_t(msg.data.size()) < height * row_step)
+    return "cloud data holds " + std::to_string(msg.data.size()) + " bytes, height*row_step needs " +
+           std::to_string(height * row_step);
+  return {};
+}
+
+Expected<LidarCloud> fromPointCloud2(const sensor_msgs::PointCloud2& msg) {
+  if (const std::string why = validatePointCloud2(msg); !why.empty()) return Expected<LidarCloud>::failure(why);
+  const auto* fx = findField(msg, "x");
+  const auto* fy = findField(msg, "y");
+  const auto* fz = findField(msg, "z");
   const auto* fi = findField(msg, "intensity");
   const auto* fr = findField(msg, "ring");
-  const size_t n = static_cast<size_t>(msg.width) * msg.height;
-  if (msg.point_step == 0 || msg.data.size() < n * msg.point_step || msg.row_step < msg.width * msg.point_step)
-    return Expected<LidarCloud>::failure("cloud data size (" + std::to_string(msg.data.size()) +
-                                         " bytes) does not match width*height*point_step");
-  for (const auto* f : {fx, fy, fz, fi, fr})
-    if (f && f->offset + fieldSize(f->datatype) > msg.point_step)
-      return Expected<LidarCloud>::failure("cloud field '" + f->name + "' lies outside point_step");
+  const bool swap = bool(msg.is_bigendian) != hostIsBigEndian();
+  const size_t n = size_t(msg.width) * msg.height;
   LidarCloud cloud;
   cloud.frame_id = msg.header.frame_id;
   cloud.stamp = msg.header.stamp.toSec();
@@ -133,15 +206,15 @@ Expected<LidarCloud> fromPointCloud2(const sensor_msgs::PointCloud2& msg) {
   cloud.has_intensity = fi != nullptr;
   cloud.has_ring = fr != nullptr;
   cloud.points.resize(n);
-  for (uint32_t r = 0; r < msg.height; ++r) {
-    for (uint32_t c = 0; c < msg.width; ++c) {
-      const uint8_t* p = &msg.data[r * msg.row_step + c * msg.point_step];
+  for (size_t r = 0; r < msg.height; ++r) {
+    for (size_t c = 0; c < msg.width; ++c) {
+      const uint8_t* p = msg.data.data() + r * msg.row_step + c * msg.point_step;
       LidarPoint& q = cloud.points[r * msg.width + c];
-      q.x = static_cast<float>(readAs(p + fx->offset, fx->datatype));
-      q.y = static_cast<float>(readAs(p + fy->offset, fy->datatype));
-      q.z = static_cast<float>(readAs(p + fz->offset, fz->datatype));
-      if (fi) q.intensity = static_cast<float>(readAs(p + fi->offset, fi->datatype));
-      if (fr) q.ring = static_cast<int>(readAs(p + fr->offset, fr->datatype));
+      q.x = static_cast<float>(readAs(p + fx->offset, fx->datatype, swap));
+      q.y = static_cast<float>(readAs(p + fy->offset, fy->datatype, swap));
+      q.z = static_cast<float>(readAs(p + fz->offset, fz->datatype, swap));
+      if (fi) q.intensity = static_cast<float>(readAs(p + fi->offset, fi->datatype, swap));
+      if (fr) q.ring = toRing(readAs(p + fr->offset, fr->datatype, swap));
     }
   }
   return cloud;
@@ -158,6 +231,10 @@ sensor_msgs::PointCloud2 toPointCloud2(const LidarCloud& cloud) {
     mod.setPointCloud2Fields(5, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32,
                              "z", 1, sensor_msgs::PointField::FLOAT32, "intensity", 1,
                              sensor_msgs::PointField::FLOAT32, "ring", 1, sensor_msgs::PointField::UINT16);
+    // Pad 18 to 20 bytes: every float of every point stays 4-byte aligned (the iterators bind
+    // float references; an 18-byte step misaligns them, undefined behaviour found by UBSan).
+    constexpr uint32_t kAlignedRingPointStep = 20;
+    msg.point_step = kAlignedRingPointStep;
   } else {
     mod.setPointCloud2Fields(4, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32,
                              "z", 1, sensor_msgs::PointField::FLOAT32, "intensity", 1,
@@ -204,29 +281,82 @@ sensor_msgs::PointCloud2 toPointCloud2(const ColoredCloud& cloud) {
   return msg;
 }
 
+namespace {
+
+bool isMono16(const std::string& encoding) {
+  namespace enc = sensor_msgs::image_encodings;
+  return encoding == enc::MONO16 || encoding == enc::TYPE_16UC1;
+}
+
+bool supportedEncoding(const std::string& encoding) {
+  namespace enc = sensor_msgs::image_encodings;
+  return encoding == enc::MONO8 || isMono16(encoding) || encoding == enc::BGR8 || encoding == enc::RGB8 ||
+         encoding == enc::BGRA8 || encoding == enc::RGBA8 || enc::isBayer(encoding);
+}
+
+// 16-bit mono, either endianness, to a host-order CV_16UC1 (cv_bridge mishandles big-endian).
+cv::Mat decodeMono16(const sensor_msgs::Image& msg) {
+  const bool swap = bool(msg.is_bigendian) != hostIsBigEndian();
+  cv::Mat raw(static_cast<int>(msg.height), static_cast<int>(msg.width), CV_16UC1);
+  for (int r = 0; r < raw.rows; ++r) {
+    const uint8_t* src = msg.data.data() + size_t(r) * msg.step;
+    auto* dst = raw.ptr<uint16_t>(r);
+    for (int c = 0; c < raw.cols; ++c) {
+      uint8_t b[2] = {src[2 * c], src[2 * c + 1]};
+      if (swap) std::swap(b[0], b[1]);
+      std::memcpy(&dst[c], b, 2);
+    }
+  }
+  return raw;
+}
+
+}  // namespace
+
+std::string validateImage(const sensor_msgs::Image& msg) {
+  namespace enc = sensor_msgs::image_encodings;
+  const uint64_t width = msg.width, height = msg.height, step = msg.step;
+  if (width == 0 || height == 0)
+    return "image is empty (" + std::to_string(width) + " x " + std::to_string(height) + ")";
+  if (width > kMaxImageSidePx || height > kMaxImageSidePx)
+    return "image size " + std::to_string(width) + " x " + std::to_string(height) + " exceeds " +
+           std::to_string(kMaxImageSidePx) + " px per side";
+  if (!supportedEncoding(msg.encoding))
+    return "unsupported image encoding '" + msg.encoding +
+           "' (supported: mono8, mono16, 16UC1, bgr8, rgb8, bgra8, rgba8, bayer_*)";
+  const uint64_t elem_bytes = uint64_t(enc::numChannels(msg.encoding)) * uint64_t(enc::bitDepth(msg.encoding)) / 8;
+  if (step < width * elem_bytes)
+    return "image step " + std::to_string(step) + " is smaller than width*" + std::to_string(elem_bytes) + " = " +
+           std::to_string(width * elem_bytes) + " bytes for " + msg.encoding;
+  if (height * step > kMaxImageBytes)
+    return "image height*step = " + std::to_string(height * step) + " bytes exceeds " + std::to_string(kMaxImageBytes);
+  if (uint64_t(msg.data.size()) < height * step)
+    return "image data holds " + std::to_string(msg.data.size()) + " bytes, height*step needs " +
+           std::to_string(height * step);
+  if (enc::bitDepth(msg.encoding) > 8 && !isMono16(msg.encoding) && bool(msg.is_bigendian) != hostIsBigEndian())
+    return "image encoding '" + msg.encoding + "' in foreign byte order is not supported (mono16 is)";
+  return {};
+}
+
 Expected<cv::Mat> imageFromMsg(const sensor_msgs::Image& msg) {
   namespace enc = sensor_msgs::image_encodings;
-  if (msg.width == 0 || msg.height == 0) return Expected<cv::Mat>::failure("image is empty (0 x 0)");
+  if (const std::string why = validateImage(msg); !why.empty()) return Expected<cv::Mat>::failure(why);
   try {
-    if (msg.encoding == enc::MONO8) return cv_bridge::toCvCopy(msg, enc::MONO8)->image;
-    if (msg.encoding == enc::MONO16 || msg.encoding == enc::TYPE_16UC1) {
-      const cv::Mat raw = cv_bridge::toCvCopy(msg)->image;
+    if (isMono16(msg.encoding)) {
+      const cv::Mat raw = decodeMono16(msg);
       double max_value = 0.0;
       cv::minMaxLoc(raw, nullptr, &max_value);
       cv::Mat out;
       raw.convertTo(out, CV_8U, max_value > 0 ? 255.0 / max_value : 1.0);
       return out;
     }
-    if (msg.encoding == enc::BGR8 || msg.encoding == enc::RGB8 || msg.encoding == enc::BGRA8 ||
-        msg.encoding == enc::RGBA8 || enc::isBayer(msg.encoding))
-      return cv_bridge::toCvCopy(msg, enc::BGR8)->image;
+    if (msg.encoding == enc::MONO8) return cv_bridge::toCvCopy(msg, enc::MONO8)->image;
+    return cv_bridge::toCvCopy(msg, enc::BGR8)->image;
   } catch (const cv_bridge::Exception& e) {
     return Expected<cv::Mat>::failure("cannot convert image with encoding '" + msg.encoding + "': " + e.what());
   } catch (const cv::Exception& e) {
-    return Expected<cv::Mat>::failure("cannot convert image with encoding '" + msg.encoding + "': " + e.what());
+    // e.err is the short description; what() carries source paths and line numbers.
+    return Expected<cv::Mat>::failure("cannot convert image with encoding '" + msg.encoding + "': " + e.err);
   }
-  return Expected<cv::Mat>::failure("unsupported image encoding '" + msg.encoding +
-                                    "' (supported: mono8, mono16, bgr8, rgb8, bgra8, rgba8, bayer_*)");
 }
 
 Expected<sensor_msgs::Image> imageToMsg(const cv::Mat& image, const std_msgs::Header& header) {
@@ -343,6 +473,19 @@ CameraBoardFeatures fromMsg(const CameraBoard& m) {
   for (const auto& p : m.pattern) f.pattern.push_back({p.id, toEigen(p.board_point), {p.pixel.u, p.pixel.v}});
   f.reprojection_rms_px = m.reprojection_rms;
   return f;
+}
+
+std::string validateTransform(const geometry_msgs::Transform& m) {
+  constexpr double kQuaternionNormSqTolerance = 0.01;  // tf2 refuses a transform beyond this
+  const double values[7] = {m.translation.x, m.translation.y, m.translation.z, m.rotation.x,
+                            m.rotation.y,    m.rotation.z,    m.rotation.w};
+  for (double v : values)
+    if (!std::isfinite(v)) return "transform holds a non-finite value";
+  const double norm_sq = m.rotation.x * m.rotation.x + m.rotation.y * m.rotation.y + m.rotation.z * m.rotation.z +
+                         m.rotation.w * m.rotation.w;
+  if (std::abs(norm_sq - 1.0) > kQuaternionNormSqTolerance)
+    return "transform quaternion is not unit (|q|^2 = " + std::to_string(norm_sq) + ")";
+  return {};
 }
 
 geometry_msgs::Transform toTransformMsg(const Eigen::Isometry3d& T) {

@@ -6,6 +6,7 @@
 #include "calibrate_rig.h"
 
 #include <board_calib/bag_reader.h>
+#include <board_calib/core/file_io.h>
 #include <board_calib/core/pipeline.h>
 #include <board_calib/core/pipeline/pair_calibration.h>
 #include <board_calib/core/projection.h>
@@ -19,6 +20,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -80,15 +82,42 @@ struct Args {
   std::exit(code);
 }
 
+// Ranges of the numeric options: beyond them a value is a typo, not a setting.
+constexpr double kMaxStillFrames = 1000;      // frames (at 10 Hz, 100 s of holding still)
+constexpr double kMaxSyncToleranceS = 5.0;    // s; sensors are never further apart than this
+constexpr double kMaxLossScaleM = 10.0;       // m, larger than any board
+constexpr double kMaxEdgeShiftSteps = 100.0;  // horizontal LiDAR steps
+constexpr double kQuaternionNormTolerance = 0.01;  // |q| - 1, four typed decimals pass
+
+// A finite number, or a usage error naming the flag and the text.
 double parseNumber(const std::string& flag, const std::string& text) {
+  double v = 0;
   try {
     size_t used = 0;
-    const double v = std::stod(text, &used);
+    v = std::stod(text, &used);
     if (used != text.size()) throw std::invalid_argument(text);
-    return v;
   } catch (const std::exception&) {
     fail(flag + " expects a number, got '" + text + "'", kExitUsage);
   }
+  if (!std::isfinite(v)) fail(flag + " expects a finite number, got '" + text + "'", kExitUsage);
+  return v;
+}
+
+// A finite number in (min, max] (or [min, max] when min_inclusive).
+double parseInRange(const std::string& flag, const std::string& text, double min, double max, bool min_inclusive) {
+  const double v = parseNumber(flag, text);
+  if (v > max || v < min || (!min_inclusive && v == min)) {
+    std::ostringstream s;
+    s << flag << " must be in " << (min_inclusive ? "[" : "(") << min << ", " << max << "], got " << text;
+    fail(s.str(), kExitUsage);
+  }
+  return v;
+}
+
+int parseCount(const std::string& flag, const std::string& text, int min, int max) {
+  const double v = parseInRange(flag, text, min, max, true);
+  if (v != std::floor(v)) fail(flag + " expects a whole number, got " + text, kExitUsage);
+  return static_cast<int>(v);
 }
 
 Args parseArgs(int argc, char** argv) {
@@ -115,26 +144,34 @@ Args parseArgs(int argc, char** argv) {
     else if (f == "--truth") a.truth = need(i, f);
     else if (f == "--child-frame") a.child_frame = need(i, f);
     else if (f == "--loss") a.loss = need(i, f);
-    else if (f == "--loss-scale") a.loss_scale = parseNumber(f, need(i, f));
-    else if (f == "--sync-tolerance") a.sync_tolerance = parseNumber(f, need(i, f));
-    else if (f == "--still-frames") a.still_frames = static_cast<int>(parseNumber(f, need(i, f)));
+    else if (f == "--loss-scale") a.loss_scale = parseInRange(f, need(i, f), 0, kMaxLossScaleM, false);
+    else if (f == "--sync-tolerance") a.sync_tolerance = parseInRange(f, need(i, f), 0, kMaxSyncToleranceS, false);
+    else if (f == "--still-frames") a.still_frames = parseCount(f, need(i, f), 1, static_cast<int>(kMaxStillFrames));
     else if (f == "--quiet") a.quiet = true;
-    else if (f == "--edge-shift") a.edge_shift = parseNumber(f, need(i, f));
+    else if (f == "--edge-shift") a.edge_shift = parseInRange(f, need(i, f), 0, kMaxEdgeShiftSteps, true);
     else if (f == "--config") a.config = need(i, f);
     else if (f == "--capture") a.capture = need(i, f);
     else if (f == "--check-truth") {
-      a.check_rot_deg = parseNumber(f, need(i, f));
-      a.check_trans_m = parseNumber(f, need(i, f));
+      a.check_rot_deg = parseInRange(f + " ROT_DEG", need(i, f), 0, 180, false);
+      a.check_trans_m = parseInRange(f + " TRANS_M", need(i, f), 0, 1000, false);
     }
     else if (f == "--initial-guess") {
       double v[7];
       for (double& x : v) x = parseNumber(f, need(i, f));
-      a.guess = makeTransform(Eigen::Vector3d(v[0], v[1], v[2]), Eigen::Vector4d(v[3], v[4], v[5], v[6]));
+      const Eigen::Vector4d q(v[3], v[4], v[5], v[6]);
+      if (std::abs(q.norm() - 1.0) > kQuaternionNormTolerance) {
+        std::ostringstream s;
+        s << "--initial-guess quaternion (qx qy qz qw) = (" << v[3] << " " << v[4] << " " << v[5] << " " << v[6]
+          << ") has norm " << q.norm() << ", not 1";
+        fail(s.str(), kExitUsage);
+      }
+      a.guess = makeTransform(Eigen::Vector3d(v[0], v[1], v[2]), q);
     } else {
       fail("unknown option '" + f + "' (see --help)", kExitUsage);
     }
   }
   if (a.method.empty()) fail("--method is required (ppc, pbpc, msg or all)", kExitUsage);
+  if (a.capture != "all" && a.capture != "still") fail("--capture must be all or still, got '" + a.capture + "'", kExitUsage);
   if (!a.config.empty()) {
     if (a.method != "msg") fail("--config (a multi-sensor rig) needs --method msg", kExitUsage);
     return a;
@@ -170,9 +207,8 @@ void progress(bool quiet, size_t done, size_t total, size_t views) {
 }
 
 void writeText(const std::string& path, const std::string& text) {
-  std::ofstream f(path);
-  if (!f) fail("cannot write '" + path + "'");
-  f << text;
+  const Status written = writeFileAtomic(path, text);
+  if (!written) fail(written.reason);
 }
 
 }  // namespace
@@ -216,7 +252,15 @@ int main(int argc, char** argv) {
     const Status st = loaded_session.load(args.load_session);
     if (!st) fail(st.reason);
     session = &loaded_session;  // the session carries its own target
+    // A session solved against another board would pair the wrong geometry with the features.
+    if (target && targetToYaml(*target) != targetToYaml(loaded_session.target()))
+      fail("session '" + args.load_session + "' was recorded with a " + targetTypeName(loaded_session.target().type) +
+           " board of " + std::to_string(loaded_session.target().width) + " x " +
+           std::to_string(loaded_session.target().height) + " m, but --target '" + args.target + "' describes a " +
+           targetTypeName(target->type) + " board of " + std::to_string(target->width) + " x " +
+           std::to_string(target->height) + " m (drop --target to use the session's board)");
     target = loaded_session.target();
+    if (loaded_session.views().empty()) fail("session '" + args.load_session + "' holds no views");
   } else {
     // Stillness is judged by the fastest stream around each image; snapshot recordings (every
     // stream sparse) are recognised from the measured rates (core/capture/stillness.h).
@@ -246,10 +290,12 @@ int main(int argc, char** argv) {
       for (const auto& f : waiting_for_info) processImage(f);
       waiting_for_info.clear();
     };
+    size_t dropped_waiting = 0;  // images that found neither a camera_info nor room in the buffer
     cb.on_image = [&](const ImageFrame& f) {
       if (!intrinsics) {
         constexpr size_t kMaxWaiting = 10;
         if (waiting_for_info.size() < kMaxWaiting) waiting_for_info.push_back(f);
+        else ++dropped_waiting;
         return;
       }
       processImage(f);
@@ -267,6 +313,9 @@ int main(int argc, char** argv) {
     if (!read) fail(read.reason);
     pipeline->finish();
     if (!intrinsics) fail("no valid camera_info on '" + args.info_topic + "'");
+    if (dropped_waiting > 0)
+      std::cerr << "calibrate_bag: warning: " << dropped_waiting << " images arrived before the first camera_info on "
+                << args.info_topic << " and were skipped (was camera_info recorded after the images?)\n";
     session = &pipeline->session();
 
     const PipelineStats& st = pipeline->stats();

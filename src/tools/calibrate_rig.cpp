@@ -5,6 +5,7 @@
 #include "calibrate_rig.h"
 
 #include <board_calib/bag_reader.h>
+#include <board_calib/core/file_io.h>
 #include <board_calib/core/camera_model.h>
 #include <board_calib/core/image_board_detector.h>
 #include <board_calib/core/lidar_board_detector.h>
@@ -316,8 +317,8 @@ int runRigCalibration(const RigArgs& args) {
       md << "| " << solution.sensors[l.a].frame << " | " << solution.sensors[l.b].frame << " | " << l.shared_views
          << " | " << l.views_used << " | " << l.graph_rotation_diff_deg << " | " << l.graph_translation_diff_mm
          << " | " << (l.in_spanning_tree ? "yes" : "") << " | " << (l.success ? "" : l.reason) << " |\n";
-    std::ofstream f(args.report + "/report.md");
-    if (!(f << md.str())) return failWith("cannot write '" + args.report + "/report.md'");
+    const Status written = writeFileAtomic(args.report + "/report.md", md.str());
+    if (!written) return failWith(written.reason);
     const Status st = writeResultFile(args.report + "/result.yaml", result);
     if (!st) return failWith(st.reason);
     std::cout << "report written to " << args.report << "/report.md\n";

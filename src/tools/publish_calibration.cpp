@@ -67,6 +67,13 @@ int main(int argc, char** argv) {
     const std::string child = child_frame.empty() ? result->camera_frame + child_frame_suffix : child_frame;
     tfs.push_back(stamped(result->lidar_frame, child, result->camera_T_lidar.inverse()));
   }
+  // The reader refuses non-finite numbers; this is the last line before the robot's TF tree.
+  for (const auto& tf : tfs)
+    if (const std::string why = board_calib::validateTransform(tf.transform); !why.empty()) {
+      ROS_FATAL_STREAM("publish_calibration: " << result_file << ": " << tf.header.frame_id << " -> "
+                                               << tf.child_frame_id << ": " << why << "; nothing broadcast");
+      return 1;
+    }
   tf2_ros::StaticTransformBroadcaster broadcaster;
   broadcaster.sendTransform(tfs);
   for (const auto& tf : tfs)

@@ -3,6 +3,7 @@
 //   rosrun board_calib simulate_bag --scenario FILE.yaml --out X.bag [--seed S]
 //       [--target-out T.yaml] [--truth-out G.yaml] [--start-time SEC] [--quiet]
 #include <board_calib/conversions.h>
+#include <board_calib/core/file_io.h>
 #include <board_calib/core/result_io.h>
 #include <board_calib/core/sim/scenario.h>
 
@@ -98,11 +99,9 @@ int main(int argc, char** argv) {
   if (!generator) return fail(generator.error());
 
   // Write the side files first: a bag without its truth is useless for tests.
-  {
-    std::ofstream target_file(target_out);
-    if (!target_file) return fail("cannot write '" + target_out + "'");
-    target_file << board_calib::targetToYaml(scenario->scene.target);
-  }
+  const board_calib::Status target_status =
+      board_calib::writeFileAtomic(target_out, board_calib::targetToYaml(scenario->scene.target));
+  if (!target_status) return fail(target_status.reason);
   const board_calib::Status truth_status = board_calib::writeResultFile(truth_out, board_calib::sim::groundTruth(*scenario));
   if (!truth_status) return fail(truth_status.reason);
 

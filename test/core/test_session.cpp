@@ -6,6 +6,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <regex>
+#include <sstream>
 #include <functional>
 
 using namespace board_calib;
@@ -234,4 +237,38 @@ TEST(Session, SaveLoadDropAndCoverage) {
   EXPECT_FALSE(loaded.load("/nonexistent/session.yaml").ok);
   EXPECT_FALSE(loaded.load(std::string(BOARD_CALIB_SOURCE_DIR) + "/package.xml").ok);
   EXPECT_EQ(loaded.views().size(), 5u);  // a failed load keeps what was there
+}
+
+// Issue 15: a session file with NaN or absurd values, or duplicate view ids, is refused with a
+// reason naming the key; the session keeps what it had.
+TEST(Session, HostileSessionFilesAreRefused) {
+  const Target target = plainTarget();
+  SessionOptions opt;
+  CalibrationSession s(target, opt);
+  for (int i = 0; i < 2; ++i)
+    s.addView(makeView(makeTransform(Eigen::Vector3d(0.1 * i, 0, 2.5), Eigen::Vector4d(0.2 * i, 0, 0, 1)), i, target),
+              "test", false);
+  const std::string path = ::testing::TempDir() + "/board_calib_hostile_session.yaml";
+  ASSERT_TRUE(s.save(path).ok);
+  std::ifstream in(path);
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  const std::string good = buffer.str();
+
+  const auto expectRefused = [&](const std::regex& what, const std::string& with, const std::string& fragment) {
+    const std::string bad = std::regex_replace(good, what, with, std::regex_constants::format_first_only);
+    ASSERT_NE(bad, good) << "the mutation did not apply";
+    std::ofstream(path) << bad;
+    CalibrationSession loaded(target, opt);
+    const Status st = loaded.load(path);
+    ASSERT_FALSE(st.ok) << "accepted: " << fragment;
+    EXPECT_NE(st.reason.find(fragment), std::string::npos) << st.reason;
+    EXPECT_TRUE(loaded.views().empty());
+  };
+  expectRefused(std::regex("plane: \\[[^,\\]]+"), "plane: [.nan", "lidar.plane");
+  expectRefused(std::regex("image_size: \\[[^\\]]*\\]"), "image_size: [1e20, -5]", "camera.image_size");
+  expectRefused(std::regex("id: 1\\n"), "id: 0\n", "appears twice");
+  expectRefused(std::regex("camera_T_board_xyz_qxyzw: \\[([^,]+, ){3}[^\\]]*\\]"),
+                "camera_T_board_xyz_qxyzw: [0, 0, 2, 0, 0, 0, 0]", "quaternion");
+  std::remove(path.c_str());
 }

@@ -130,3 +130,27 @@ TEST(Target, ShippedAndSharedTargetsLoad) {
     EXPECT_TRUE(t.ok()) << t.error();
   }
 }
+
+// Issue 15: hostile target files end with a reason naming the value, never a crash.
+TEST(Target, HostileValuesAreRefused) {
+  // rows * cols overflowed int and passed the tag-count limit, then allocated until bad_alloc.
+  expectErrorMentions(
+      "type: apriltag_grid\nwidth: 1\nheight: 1\napriltag_grid: {family: tag36h11, cols: 65536, rows: 65536, "
+      "tag_size: 0.00000001, spacing: 0, first_id: 0, origin: [0.1, 0.1]}\n",
+      "65536 x 65536");
+  expectErrorMentions("type: plain\nwidth: 1\nwidth: 2\nheight: 1\n", "duplicate key 'width'");
+  expectErrorMentions("type: plain\nwidth: 1e9\nheight: 1\n", "larger than any board");
+  expectErrorMentions("type: plain\nwidth: .inf\nheight: 1\n", "finite");
+  expectErrorMentions("type: plain\nwidth: .nan\nheight: 1\n", "finite");
+  expectErrorMentions(
+      "type: checkerboard\nwidth: 1\nheight: 1\ncheckerboard: {cols: 7, rows: 5, square: 0.1, origin: [.nan, 0.2]}\n",
+      "checkerboard.origin");
+  expectErrorMentions(
+      "type: checkerboard\nwidth: 1\nheight: 1\ncheckerboard: {cols: 2147483648, rows: 5, square: 0.1, origin: [0.2, "
+      "0.2]}\n",
+      "checkerboard.cols");
+  expectErrorMentions(
+      "type: checkerboard\nwidth: 9\nheight: 9\ncheckerboard: {cols: 200, rows: 201, square: 0.001, origin: [0.2, "
+      "0.2]}\n",
+      "inner corners");
+}

@@ -30,12 +30,12 @@ TEST(Conversions, CameraInfoRoundTrip) {
   const auto rejected = fromCameraInfo(bad);
   ASSERT_FALSE(rejected.ok());
   EXPECT_NE(rejected.error().find("weird"), std::string::npos);
-  // Zero K is accepted here and rejected by CameraModel::create with a reason.
+  // Zero K (an uncalibrated camera) is refused with a reason naming K.
   sensor_msgs::CameraInfo zero = toCameraInfo(in);
   zero.K.fill(0.0);
   const auto zi = fromCameraInfo(zero);
-  ASSERT_TRUE(zi.ok());
-  EXPECT_FALSE(CameraModel::create(*zi).ok());
+  ASSERT_FALSE(zi.ok());
+  EXPECT_NE(zi.error().find("K[0]"), std::string::npos) << zi.error();
 }
 
 TEST(Conversions, OrganizedCloudWithRingRoundTrip) {
@@ -158,4 +158,181 @@ TEST(Conversions, TransformMessages) {
   const Eigen::Isometry3d T = makeTransform(Eigen::Vector3d(1, 2, 3), Eigen::Vector4d(0, 0, 0.7071, 0.7071));
   EXPECT_LT(rotationErrorDeg(fromTransformMsg(toTransformMsg(T)), T), 1e-9);
   EXPECT_LT(translationErrorM(fromPoseMsg(toPoseMsg(T)), T), 1e-12);
+}
+
+namespace {
+
+// 2x2 cloud, x y z intensity float32 (16 bytes a point), x = point index.
+sensor_msgs::PointCloud2 smallCloud() {
+  sensor_msgs::PointCloud2 msg;
+  msg.height = 2;
+  msg.width = 2;
+  sensor_msgs::PointCloud2Modifier mod(msg);
+  mod.setPointCloud2Fields(4, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32, "z",
+                           1, sensor_msgs::PointField::FLOAT32, "intensity", 1, sensor_msgs::PointField::FLOAT32);
+  mod.resize(4);
+  msg.height = 2;
+  msg.width = 2;
+  msg.row_step = msg.width * msg.point_step;
+  sensor_msgs::PointCloud2Iterator<float> x(msg, "x");
+  for (int i = 0; i < 4; ++i, ++x) *x = static_cast<float>(i);
+  return msg;
+}
+
+sensor_msgs::Image monoImage(const std::string& encoding, uint32_t width, uint32_t height, uint32_t step) {
+  sensor_msgs::Image msg;
+  msg.encoding = encoding;
+  msg.width = width;
+  msg.height = height;
+  msg.step = step;
+  msg.data.assign(size_t(height) * step, 0);
+  return msg;
+}
+
+}  // namespace
+
+// Issue 15 crash 1: the size check and the read must use the same row_step.
+TEST(ConversionsValidation, RowStepInconsistentWithWidth) {
+  sensor_msgs::PointCloud2 huge = smallCloud();
+  huge.row_step = 0x7fffffff;  // data still width*height*point_step: used to segfault
+  const auto a = fromPointCloud2(huge);
+  ASSERT_FALSE(a.ok());
+  EXPECT_NE(a.error().find("row_step"), std::string::npos) << a.error();
+  sensor_msgs::PointCloud2 slightly = smallCloud();
+  slightly.row_step += 4;  // used to read 8 bytes past the buffer silently
+  const auto b = fromPointCloud2(slightly);
+  ASSERT_FALSE(b.ok());
+  EXPECT_NE(b.error().find("height*row_step"), std::string::npos) << b.error();
+  sensor_msgs::PointCloud2 small = smallCloud();
+  small.row_step -= 4;
+  EXPECT_FALSE(fromPointCloud2(small).ok());
+  // Padding at the end of each row is legal when the data covers it.
+  sensor_msgs::PointCloud2 padded = smallCloud();
+  padded.row_step += 8;
+  padded.data.resize(size_t(padded.row_step) * padded.height);
+  EXPECT_TRUE(fromPointCloud2(padded).ok());
+}
+
+TEST(ConversionsValidation, FieldsOutsidePointStepAndUnknownTypes) {
+  sensor_msgs::PointCloud2 msg = smallCloud();
+  msg.fields[2].offset = 14;  // z (4 bytes) would end at 18 > point_step 16
+  EXPECT_NE(fromPointCloud2(msg).error().find("'z'"), std::string::npos);
+  msg = smallCloud();
+  msg.fields[3].datatype = 42;
+  EXPECT_NE(fromPointCloud2(msg).error().find("unknown datatype 42"), std::string::npos);
+  msg = smallCloud();
+  msg.fields[3].count = 0x40000000;  // count*size overflows 32 bits
+  EXPECT_NE(fromPointCloud2(msg).error().find("outside point_step"), std::string::npos);
+  msg = smallCloud();
+  msg.point_step = 0;
+  EXPECT_FALSE(fromPointCloud2(msg).ok());
+  msg = smallCloud();
+  msg.width = 0x10000;
+  msg.height = 0x10000;  // width*height overflows 32 bits
+  EXPECT_FALSE(fromPointCloud2(msg).ok());
+}
+
+// Issue 15: is_bigendian used to be ignored; the values must come out equal.
+TEST(ConversionsValidation, BigEndianCloudIsConverted) {
+  const sensor_msgs::PointCloud2 little = smallCloud();
+  sensor_msgs::PointCloud2 big = little;
+  big.is_bigendian = true;
+  for (size_t p = 0; p + 4 <= big.data.size(); p += 4) std::reverse(big.data.begin() + p, big.data.begin() + p + 4);
+  const auto a = fromPointCloud2(little);
+  const auto b = fromPointCloud2(big);
+  ASSERT_TRUE(a.ok() && b.ok());
+  for (size_t i = 0; i < a->points.size(); ++i) EXPECT_EQ(a->points[i].x, b->points[i].x);
+  EXPECT_EQ(b->points[3].x, 3.0f);
+}
+
+TEST(ConversionsValidation, RingOutOfRangeBecomesUnknown) {
+  sensor_msgs::PointCloud2 msg = smallCloud();
+  msg.fields[3].name = "ring";  // float32 ring
+  sensor_msgs::PointCloud2Iterator<float> ring(msg, "ring");
+  *ring = 1e30f;
+  ++ring;
+  *ring = std::nanf("");
+  ++ring;
+  *ring = 5.0f;
+  const auto cloud = fromPointCloud2(msg);
+  ASSERT_TRUE(cloud.ok());
+  EXPECT_EQ(cloud->points[0].ring, -1);
+  EXPECT_EQ(cloud->points[1].ring, -1);
+  EXPECT_EQ(cloud->points[2].ring, 5);
+}
+
+// Issue 15 crash 2: mono8 16x65537 with step 65536 (height*step overflows 32 bits in cv_bridge).
+TEST(ConversionsValidation, ImageStepAndOverflow) {
+  sensor_msgs::Image msg = monoImage("mono8", 16, 4, 16);
+  msg.height = 65537;
+  msg.step = 65536;
+  const auto a = imageFromMsg(msg);
+  ASSERT_FALSE(a.ok());
+  EXPECT_NE(a.error().find("65537"), std::string::npos) << a.error();
+  msg = monoImage("bgr8", 100, 10, 299);  // step < 3*width
+  EXPECT_NE(imageFromMsg(msg).error().find("step 299"), std::string::npos);
+  msg = monoImage("mono8", 100, 10, 100);
+  msg.data.resize(999);
+  EXPECT_NE(imageFromMsg(msg).error().find("999 bytes"), std::string::npos);
+  msg = monoImage("mono8", 4, 4, 4);
+  msg.width = msg.height = msg.step = 60000;  // 3.6 GB claimed, 16 bytes held
+  EXPECT_FALSE(imageFromMsg(msg).ok());
+  msg = monoImage("32FC1", 4, 4, 16);
+  EXPECT_NE(imageFromMsg(msg).error().find("unsupported image encoding '32FC1'"), std::string::npos);
+  msg = monoImage("mono8", 4, 4, 4);
+  EXPECT_TRUE(imageFromMsg(msg).ok());
+}
+
+// Issue 15: big-endian mono16 (documented as supported) used to fail with a raw type message.
+TEST(ConversionsValidation, BigEndianMono16) {
+  sensor_msgs::Image little = monoImage("mono16", 3, 2, 6);
+  sensor_msgs::Image big = little;
+  big.is_bigendian = true;
+  const uint16_t values[6] = {0, 100, 1000, 4000, 20000, 40000};
+  for (int i = 0; i < 6; ++i) {
+    std::memcpy(&little.data[2 * i], &values[i], 2);
+    big.data[2 * i] = static_cast<uint8_t>(values[i] >> 8);
+    big.data[2 * i + 1] = static_cast<uint8_t>(values[i] & 0xff);
+  }
+  const auto a = imageFromMsg(little);
+  const auto b = imageFromMsg(big);
+  ASSERT_TRUE(a.ok()) << a.error();
+  ASSERT_TRUE(b.ok()) << b.error();
+  EXPECT_EQ(cv::norm(*a, *b, cv::NORM_INF), 0.0);
+  EXPECT_EQ(b->at<uint8_t>(1, 2), 255);  // the maximum maps to 255
+  EXPECT_EQ(b->at<uint8_t>(0, 1), 1);    // 100 * 255 / 40000 = 0.64 -> rounds to 1
+}
+
+TEST(ConversionsValidation, CameraInfoSanity) {
+  CameraIntrinsics in;
+  in.width = 640;
+  in.height = 480;
+  in.fx = in.fy = 500;
+  in.cx = 320;
+  in.cy = 240;
+  const sensor_msgs::CameraInfo good = toCameraInfo(in);
+  ASSERT_TRUE(fromCameraInfo(good).ok());
+  sensor_msgs::CameraInfo bad = good;
+  bad.K[2] = std::nan("");
+  EXPECT_NE(fromCameraInfo(bad).error().find("K[2]"), std::string::npos);
+  bad = good;
+  bad.D.assign(100, 0.0);
+  EXPECT_NE(fromCameraInfo(bad).error().find("100 coefficients"), std::string::npos);
+  bad = good;
+  bad.D[1] = INFINITY;
+  EXPECT_NE(fromCameraInfo(bad).error().find("D[1]"), std::string::npos);
+  bad = good;
+  bad.width = 0x80000000u;  // negative as int
+  EXPECT_NE(fromCameraInfo(bad).error().find("size"), std::string::npos);
+}
+
+TEST(ConversionsValidation, TransformSanity) {
+  geometry_msgs::Transform t;
+  t.rotation.w = 1.0;
+  EXPECT_EQ(validateTransform(t), "");
+  t.rotation.w = 0.0;  // zero quaternion
+  EXPECT_NE(validateTransform(t).find("not unit"), std::string::npos);
+  t.rotation.w = 1.0;
+  t.translation.y = std::nan("");
+  EXPECT_NE(validateTransform(t).find("non-finite"), std::string::npos);
 }

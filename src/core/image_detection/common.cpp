@@ -66,7 +66,7 @@ PoseFit fitPose(const Points3& board_points, const Points2& pixels, const Eigen:
       }
     }
   } catch (const cv::Exception& e) {
-    fit.reason = std::string("PnP degenerate: ") + e.what();
+    fit.reason = "PnP degenerate: " + e.err;  // err: the short text, what() adds source paths
     return fit;
   }
   if (!solved || !cv::checkRange(rvec) || !cv::checkRange(tvec)) {

@@ -110,17 +110,27 @@ ImageDetection ImageBoardDetector::detect(const cv::Mat& image, const CameraMode
                " does not match the camera model " + std::to_string(camera.width()) + "x" +
                std::to_string(camera.height());
   } else {
-    const cv::Mat gray = image_detection::toGray(image);
-    switch (impl_->target.type) {
-      case TargetType::kPlain:
-        image_detection::detectPlain(gray, camera, impl_->target, impl_->options, &out);
-        break;
-      case TargetType::kCheckerboard:
-        image_detection::detectCheckerboard(gray, camera, impl_->target, impl_->options, &out);
-        break;
-      case TargetType::kAprilTagGrid:
-        impl_->detectAprilTags(gray, camera, &out);
-        break;
+    // OpenCV asserts on degenerate input (a tiny or uniform image); that is a failed
+    // detection with its short reason, never an exception through a nodelet callback.
+    try {
+      const cv::Mat gray = image_detection::toGray(image);
+      switch (impl_->target.type) {
+        case TargetType::kPlain:
+          image_detection::detectPlain(gray, camera, impl_->target, impl_->options, &out);
+          break;
+        case TargetType::kCheckerboard:
+          image_detection::detectCheckerboard(gray, camera, impl_->target, impl_->options, &out);
+          break;
+        case TargetType::kAprilTagGrid:
+          impl_->detectAprilTags(gray, camera, &out);
+          break;
+      }
+    } catch (const cv::Exception& e) {
+      out = ImageDetection{};
+      f.K = camera.K();
+      f.image_width = image.cols;
+      f.image_height = image.rows;
+      f.reason = "image detection failed: " + e.err;
     }
   }
   if (!f.found && f.reason.empty()) f.reason = "board not found";

@@ -815,6 +815,7 @@ MsgSolution solveMsgGraph(const MsgProblem& problem, const MsgGraphOptions& opti
   // Covariance of every sensor pose (tangent space: left rotation perturbation, translation),
   // jointly: the pairs need the cross-covariance of their two poses.
   if (options.compute_covariance) {
+    solvers_detail::quietCeresLogging();
     ceres::Covariance::Options co;
     co.num_threads = options.num_threads;
     ceres::Covariance covariance(co);

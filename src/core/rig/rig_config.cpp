@@ -1,4 +1,5 @@
 #include <board_calib/core/rig_config.h>
+#include <board_calib/core/file_io.h>
 
 #include <yaml-cpp/yaml.h>
 
@@ -221,17 +222,17 @@ Expected<RigConfig> parseRigConfig(const std::string& yaml_text, const std::stri
     return Expected<RigConfig>::failure(e.why);
   } catch (const YAML::Exception& e) {
     return Expected<RigConfig>::failure(std::string("rig file: invalid YAML: ") + e.what());
+  } catch (const std::exception& e) {
+    return Expected<RigConfig>::failure(std::string("rig file: cannot parse: ") + e.what());
   }
 }
 
 Expected<RigConfig> loadRigConfig(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) return Expected<RigConfig>::failure("cannot read rig file '" + path + "'");
-  std::stringstream ss;
-  ss << f.rdbuf();
+  const auto text = readTextFile(path, "rig file");
+  if (!text) return Expected<RigConfig>::failure(text.error());
   const size_t slash = path.find_last_of('/');
   const std::string base = slash == std::string::npos ? "." : path.substr(0, slash == 0 ? 1 : slash);
-  auto rig = parseRigConfig(ss.str(), base);
+  auto rig = parseRigConfig(*text, base);
   if (!rig) return Expected<RigConfig>::failure(path + ": " + rig.error());
   return rig;
 }

@@ -3,10 +3,13 @@
 
 #include "../session/feature_yaml.h"
 
+#include <board_calib/core/file_io.h>
+
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
-#include <fstream>
+#include <limits>
+#include <set>
 
 namespace board_calib {
 namespace msg {
@@ -50,16 +53,16 @@ Status RigSession::save(const std::string& path) const {
     out << YAML::EndSeq << YAML::EndMap;
   }
   out << YAML::EndSeq << YAML::EndMap;
-  std::ofstream f(path);
-  if (!f) return Status::failure("cannot write rig session file '" + path + "'");
-  f << out.c_str() << "\n";
-  if (!f) return Status::failure("error while writing rig session file '" + path + "'");
-  return Status::success();
+  const Status written = writeFileAtomic(path, std::string(out.c_str()) + "\n");
+  if (!written) return Status::failure("rig session file: " + written.reason);
+  return written;
 }
 
 Status RigSession::load(const std::string& path) {
   try {
-    const YAML::Node root = YAML::LoadFile(path);
+    const auto text = readTextFile(path, "rig session file");
+    if (!text) return Status::failure(text.error());
+    const YAML::Node root = YAML::Load(*text);
     if (!root.IsMap() || !root["board_calib_rig_session"])
       return Status::failure("'" + path + "' is not a board_calib rig session file");
     if (root["board_calib_rig_session"].as<int>() != kRigSessionFormatVersion)
@@ -78,11 +81,16 @@ Status RigSession::load(const std::string& path) {
       frames.push_back(sensors[k]["frame"].as<std::string>(""));
     }
     std::vector<RigSessionPose> poses;
+    std::set<int> ids;
     int next_id = 0;
     const int num_sensors = static_cast<int>(sensors_.size());
     for (const auto& p : root["poses"]) {
       RigSessionPose pose;
       pose.observation.id = p["id"].as<int>();
+      if (pose.observation.id < 0 || pose.observation.id == std::numeric_limits<int>::max() ||
+          !ids.insert(pose.observation.id).second)
+        return Status::failure("rig session '" + path + "': pose id " + std::to_string(pose.observation.id) +
+                               " is negative, out of range or appears twice");
       pose.why = p["why"].as<std::string>("");
       for (const auto& c : p["cameras"]) {
         const int k = c["sensor"].as<int>();
@@ -113,6 +121,8 @@ Status RigSession::load(const std::string& path) {
     return Status::failure("cannot read rig session file '" + path + "'");
   } catch (const YAML::Exception& e) {
     return Status::failure("rig session '" + path + "' is malformed: " + e.what());
+  } catch (const std::exception& e) {
+    return Status::failure("rig session '" + path + "' cannot be read: " + e.what());
   }
 }
 

@@ -3,6 +3,9 @@
 
 #include <board_calib/core/transform.h>
 
+#include <cmath>
+#include <limits>
+
 namespace board_calib {
 namespace feature_yaml {
 namespace {
@@ -20,6 +23,21 @@ void emitPoints(YAML::Emitter& out, const Points3& pts) {
   out << YAML::EndSeq;
 }
 
+// Limits of a plausible feature file (hand-edited or corrupted files fail with the key).
+constexpr double kUnitNormalTolerance = 0.01;  ///< |n| - 1, loose enough for hand-rounded values
+constexpr int kMaxImageSidePx = 1 << 16;
+constexpr double kMinQuaternionNorm = 0.5;     ///< saved quaternions are unit; 0 is no rotation at all
+
+void requireFinite(const Eigen::VectorXd& v, const std::string& key) {
+  if (!v.allFinite()) throw FeatureYamlError{"'" + key + "' holds a non-finite number"};
+}
+
+void requirePlane(const Eigen::VectorXd& plane, const std::string& key) {
+  requireFinite(plane, key);
+  if (std::abs(plane.head<3>().norm() - 1.0) > kUnitNormalTolerance)
+    throw FeatureYamlError{"'" + key + "' normal is not unit (|n| = " + std::to_string(plane.head<3>().norm()) + ")"};
+}
+
 Eigen::VectorXd readVec(const YAML::Node& n, const std::string& key, int size) {
   if (!n || !n.IsSequence() || (size >= 0 && static_cast<int>(n.size()) != size))
     throw FeatureYamlError{"'" + key + "' must be a list of " + std::to_string(size) + " numbers"};
@@ -34,6 +52,8 @@ Points3 readPoints(const YAML::Node& n, const std::string& key) {
   Points3 pts;
   pts.reserve(n.size() / 3);
   for (size_t i = 0; i < n.size(); i += 3) pts.emplace_back(n[i].as<double>(), n[i + 1].as<double>(), n[i + 2].as<double>());
+  for (const auto& p : pts)
+    if (!p.allFinite()) throw FeatureYamlError{"'" + key + "' holds a non-finite point"};
   return pts;
 }
 
@@ -74,10 +94,12 @@ LidarBoardFeatures readLidar(const YAML::Node& n) {
   f.stamp = n["stamp"].as<double>(0.0);
   f.reason = n["reason"].as<std::string>("");
   const Eigen::VectorXd plane = readVec(n["plane"], "lidar.plane", 4);
+  requirePlane(plane, "lidar.plane");
   f.plane.normal = plane.head<3>();
   f.plane.offset = plane[3];
   f.plane_rms_m = n["plane_rms_m"].as<double>(0.0);
   f.measured_size_m = readVec(n["measured_size_m"], "lidar.measured_size_m", 2);
+  requireFinite(f.measured_size_m, "lidar.measured_size_m");
   f.board_points = readPoints(n["board_points"], "lidar.board_points");
   const YAML::Node edges = n["edges"];
   if (!edges || !edges.IsSequence() || edges.size() != kNumEdges) throw FeatureYamlError{"'lidar.edges' must list 4 edges"};
@@ -133,14 +155,24 @@ CameraBoardFeatures readCamera(const YAML::Node& n) {
   f.stamp = n["stamp"].as<double>(0.0);
   f.reason = n["reason"].as<std::string>("");
   const Eigen::VectorXd k = readVec(n["K"], "camera.K", 9);
+  requireFinite(k, "camera.K");
+  if (!(k[0] > 0) || !(k[4] > 0)) throw FeatureYamlError{"'camera.K' focal lengths must be > 0"};
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) f.K(r, c) = k[r * 3 + c];
   const Eigen::VectorXd size = readVec(n["image_size"], "camera.image_size", 2);
+  for (int i = 0; i < 2; ++i)
+    if (!(size[i] >= 1 && size[i] <= kMaxImageSidePx) || size[i] != std::floor(size[i]))
+      throw FeatureYamlError{"'camera.image_size' must be two whole numbers in 1.." + std::to_string(kMaxImageSidePx) +
+                             ", got [" + std::to_string(size[0]) + ", " + std::to_string(size[1]) + "]"};
   f.image_width = static_cast<int>(size[0]);
   f.image_height = static_cast<int>(size[1]);
   const Eigen::VectorXd pose = readVec(n["camera_T_board_xyz_qxyzw"], "camera.camera_T_board_xyz_qxyzw", 7);
+  requireFinite(pose, "camera.camera_T_board_xyz_qxyzw");
+  if (pose.tail<4>().norm() < kMinQuaternionNorm)
+    throw FeatureYamlError{"'camera.camera_T_board_xyz_qxyzw' quaternion is not a rotation"};
   f.camera_T_board = makeTransform(Eigen::Vector3d(pose.head<3>()), Eigen::Vector4d(pose.tail<4>()));
   const Eigen::VectorXd plane = readVec(n["plane"], "camera.plane", 4);
+  requirePlane(plane, "camera.plane");
   f.plane.normal = plane.head<3>();
   f.plane.offset = plane[3];
   f.reprojection_rms_px = n["reprojection_rms_px"].as<double>(0.0);
@@ -154,6 +186,8 @@ CameraBoardFeatures readCamera(const YAML::Node& n) {
   if (const YAML::Node pattern = n["pattern"]) {
     for (const auto& p : pattern) {
       const Eigen::VectorXd v = readVec(p, "camera.pattern[]", 6);
+      requireFinite(v, "camera.pattern[]");
+      if (std::abs(v[0]) > std::numeric_limits<int>::max()) throw FeatureYamlError{"'camera.pattern[]' id out of range"};
       f.pattern.push_back({static_cast<int>(v[0]), v.segment<3>(1), v.segment<2>(4)});
     }
   }

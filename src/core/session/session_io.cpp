@@ -1,13 +1,15 @@
 // Session file: YAML with the target, the gating options and every kept view's features.
 // Features (not images) are stored, so a session is small and a solve is reproducible.
 #include <board_calib/core/session.h>
+#include <board_calib/core/file_io.h>
 #include <board_calib/core/transform.h>
 
 #include "feature_yaml.h"
 
 #include <yaml-cpp/yaml.h>
 
-#include <fstream>
+#include <limits>
+#include <set>
 
 namespace board_calib {
 namespace {
@@ -39,16 +41,16 @@ Status CalibrationSession::save(const std::string& path) const {
     out << YAML::EndMap;
   }
   out << YAML::EndSeq << YAML::EndMap;
-  std::ofstream f(path);
-  if (!f) return Status::failure("cannot write session file '" + path + "'");
-  f << out.c_str() << "\n";
-  if (!f) return Status::failure("error while writing session file '" + path + "'");
-  return Status::success();
+  const Status written = writeFileAtomic(path, std::string(out.c_str()) + "\n");
+  if (!written) return Status::failure("session file: " + written.reason);
+  return written;
 }
 
 Status CalibrationSession::load(const std::string& path) {
   try {
-    const YAML::Node root = YAML::LoadFile(path);
+    const auto text = readTextFile(path, "session file");
+    if (!text) return Status::failure(text.error());
+    const YAML::Node root = YAML::Load(*text);
     if (!root.IsMap() || !root["board_calib_session"])
       return Status::failure("'" + path + "' is not a board_calib session file");
     if (root["board_calib_session"].as<int>() != kSessionFormatVersion)
@@ -56,10 +58,16 @@ Status CalibrationSession::load(const std::string& path) {
     auto target = parseTarget(root["target"].as<std::string>());
     if (!target) return Status::failure("session '" + path + "': target: " + target.error());
     std::vector<SessionView> views;
+    std::set<int> ids;
     int next_id = 0;
-    for (const auto& v : root["views"]) {
+    const YAML::Node view_list = root["views"];
+    if (view_list && !view_list.IsSequence()) return Status::failure("session '" + path + "': 'views' must be a list");
+    for (const auto& v : view_list) {
       SessionView sv;
       sv.view.id = v["id"].as<int>();
+      if (sv.view.id < 0 || sv.view.id == std::numeric_limits<int>::max() || !ids.insert(sv.view.id).second)
+        return Status::failure("session '" + path + "': view id " + std::to_string(sv.view.id) +
+                               " is negative, out of range or appears twice");
       sv.why = v["why"].as<std::string>("");
       sv.view.lidar = readLidar(v["lidar"]);
       sv.view.camera = readCamera(v["camera"]);
@@ -77,6 +85,8 @@ Status CalibrationSession::load(const std::string& path) {
     return Status::failure("cannot read session file '" + path + "'");
   } catch (const YAML::Exception& e) {
     return Status::failure("session '" + path + "' is malformed: " + e.what());
+  } catch (const std::exception& e) {
+    return Status::failure("session '" + path + "' cannot be read: " + e.what());
   }
 }
 

@@ -6,11 +6,20 @@
 
 #include <ceres/ceres.h>
 
+#include <mutex>
 #include <utility>
 #include <vector>
 
 namespace board_calib {
 namespace solvers_detail {
+
+/// Ceres logs through glog to stderr (e.g. "Covariance matrix is near rank deficient" in a
+/// solve that then succeeds). The core never logs: every failure already comes back as a
+/// reason, so Ceres' log lines below FATAL are switched off once for the process.
+inline void quietCeresLogging() {
+  static std::once_flag once;
+  std::call_once(once, [] { FLAGS_minloglevel = google::GLOG_FATAL; });
+}
 
 /// The Ceres loss for a robust-loss kind at `scale`; nullptr (squared loss) for kNone.
 inline ceres::LossFunction* makeLoss(RobustLoss loss, double scale) {
@@ -33,6 +42,7 @@ void applyStopCriteria(const Options& options, ceres::Solver::Options* so) {
   so->parameter_tolerance = options.parameter_tolerance;
   so->num_threads = options.num_threads;
   so->logging_type = ceres::SILENT;
+  quietCeresLogging();
 }
 
 /// Covariance of a solved problem, computed with Ceres and robust to errors shared within a

@@ -26,6 +26,7 @@ bool clusterRobustCovariance(ceres::Problem* problem, const std::vector<double*>
   if (dim < 6) return false;
 
   // Bread: (J^T J)^-1 over all the blocks, from Ceres.
+  quietCeresLogging();
   ceres::Covariance::Options co;
   co.algorithm_type = ceres::DENSE_SVD;
   co.num_threads = 1;
