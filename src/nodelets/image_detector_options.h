@@ -26,6 +26,7 @@
   X(line_detection_width, line_detection_width_px)                    \
   X(max_line_hypotheses, max_line_hypotheses)                         \
   X(max_board_tilt, max_board_tilt_deg)                               \
+  X(max_board_distance, max_board_distance_m)                         \
   X(min_edge_length, min_edge_length_px)                              \
   X(min_edge_points, min_edge_points)                                 \
   X(edge_inlier, edge_inlier_px)                                      \

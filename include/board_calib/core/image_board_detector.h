@@ -47,6 +47,7 @@ struct ImageBoardDetectorOptions {
   int line_detection_width_px = 640;      ///< px, width of the downscaled image the line segment detector (LSD) runs on; 0 = no line hypotheses
   int max_line_hypotheses = 6;            ///< quadrilaterals of long straight edges refined at full resolution, best first
   double max_board_tilt_deg = 70.0;       ///< deg, a plain board turned further from the camera is rejected (no calibration view)
+  double max_board_distance_m = 20.0;     ///< m, a plain board farther away is rejected: a 16-ring LiDAR (2 deg) puts < 2 lines on a 1 m board there
   // --- checkerboard ---
   int fast_check_width_px = 800;          ///< px, images wider than this are searched downscaled first
   int subpix_window_px = 5;               ///< px, half window of cornerSubPix (clamped to the square size)

@@ -48,6 +48,7 @@ std::string ImageBoardDetectorOptions::validate() const {
   if (line_detection_width_px != 0 && line_detection_width_px < 64) return "line_detection_width_px must be 0 (off) or >= 64";
   if (max_line_hypotheses < 0) return "max_line_hypotheses must be >= 0";
   if (!(max_board_tilt_deg > 0 && max_board_tilt_deg < 90)) return "max_board_tilt_deg must be in (0, 90)";
+  if (!(max_board_distance_m > 0)) return "max_board_distance_m must be > 0";
   if (!(pixel_sigma_px > 0)) return "pixel_sigma_px must be > 0";
   return {};
 }

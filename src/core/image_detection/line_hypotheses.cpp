@@ -29,6 +29,7 @@ constexpr double kMinCornerSin = 0.42;          // ~25 deg: adjacent sides meet 
 constexpr double kMaxCornerGapFraction = 0.9;   // gap between a line's support and its corner, of the support extent
 constexpr double kCornerToleranceFraction = 0.03;  // of the side length: support this close to a corner counts
 constexpr double kOvershootWeight = 0.5;        // support continuing past a corner counts against a side
+constexpr double kGapWeight = 1.0;              // a visible stretch of a side without segments counts against it
 constexpr double kMinSideSupportFraction = 0.12;   // of the whole side (corners may lie far outside the image)
 constexpr double kDuplicateCornerFraction = 0.05;  // quads whose corners agree to this fraction of their size are one
 constexpr int kVisibilitySamples = 24;          // samples along a side to measure its visible part
@@ -104,6 +105,48 @@ struct MergedLine {
     return {n.x(), n.y(), -n.dot(point)};
   }
 };
+
+// Bounding box of the image border in undistorted px.
+cv::Rect2d undistortedBounds(const CameraModel& camera) {
+  double box[4] = {1e18, 1e18, -1e18, -1e18};
+  constexpr int kSamples = 32;
+  for (int i = 0; i <= kSamples; ++i) {
+    const double s = static_cast<double>(i) / kSamples;
+    const Eigen::Vector2d border[4] = {{s * (camera.width() - 1), 0.0},
+                                       {s * (camera.width() - 1), camera.height() - 1.0},
+                                       {0.0, s * (camera.height() - 1)},
+                                       {camera.width() - 1.0, s * (camera.height() - 1)}};
+    for (const auto& b : border) {
+      const Eigen::Vector2d u = camera.undistortPixel(b);
+      box[0] = std::min(box[0], u.x());
+      box[1] = std::min(box[1], u.y());
+      box[2] = std::max(box[2], u.x());
+      box[3] = std::max(box[3], u.y());
+    }
+  }
+  return {box[0], box[1], box[2] - box[0], box[3] - box[1]};
+}
+
+// Length of the segment p-q inside a box (Liang-Barsky clipping): a quick upper bound of the
+// visible length of a side.
+double clippedLength(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const cv::Rect2d& box) {
+  const Eigen::Vector2d d = q - p;
+  double t0 = 0, t1 = 1;
+  const double pk[4] = {-d.x(), d.x(), -d.y(), d.y()};
+  const double qk[4] = {p.x() - box.x, box.x + box.width - p.x(), p.y() - box.y, box.y + box.height - p.y()};
+  for (int k = 0; k < 4; ++k) {
+    if (pk[k] == 0) {
+      if (qk[k] < 0) return 0;
+      continue;
+    }
+    const double t = qk[k] / pk[k];
+    if (pk[k] < 0)
+      t0 = std::max(t0, t);
+    else
+      t1 = std::min(t1, t);
+  }
+  return t1 > t0 ? (t1 - t0) * d.norm() : 0.0;
+}
 
 double angleBetweenLines(const Eigen::Vector2d& d1, const Eigen::Vector2d& d2) {
   return std::acos(std::min(1.0, std::abs(d1.dot(d2))));
@@ -228,6 +271,7 @@ std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const Camera
     }
 
   auto parallel = [&](int i, int k) { return angleBetweenLines(lines[i].dir, lines[k].dir) <= kMaxOppositeAngleRad; };
+  const cv::Rect2d ubox = undistortedBounds(camera);
   std::vector<std::vector<int>> neighbours(n);
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j)
@@ -270,7 +314,10 @@ std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const Camera
             const double inside = l.supportWithin(std::min(tp, tr) - tol, std::max(tp, tr) + tol);
             const double overshoot = l.support - inside;
             if (inside < kMinSideSupportFraction * side && inside < o.min_edge_length_px) ok = false;
-            score += inside - kOvershootWeight * overshoot;
+            // A board shows its edge along most of each visible side: unsupported stretches count
+            // against a quadrilateral as much as supported ones count for it.
+            const double gap = std::max(0.0, clippedLength(p, r, ubox) - inside);
+            score += inside - kGapWeight * gap - kOvershootWeight * overshoot;
             size += side;
             q.support[s] = inside;
           }

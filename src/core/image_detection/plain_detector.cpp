@@ -607,6 +607,11 @@ bool fitCandidate(const cv::Mat& gray, const CameraModel& camera, const Target& 
   const Eigen::Vector3d centre = pose.camera_T_board * target.center();
   const double tilt_deg =
       std::acos(std::min(1.0, std::abs(f.plane.normal.dot(centre.normalized())))) * 180.0 / M_PI;
+  if (centre.norm() > o.max_board_distance_m) {
+    f.reason = cv::format("a %.3f x %.3f m board would be %.1f m away (max %.1f m): another rectangle", target.width,
+                          target.height, centre.norm(), o.max_board_distance_m);
+    return false;
+  }
   if (tilt_deg > o.max_board_tilt_deg) {
     f.reason = cv::format("board turned %.0f deg from the line of sight (max %.0f)", tilt_deg, o.max_board_tilt_deg);
     return false;
