@@ -26,6 +26,7 @@ constexpr double kPolygonEpsilon = 0.01;    // outline simplification, fraction 
 constexpr double kWeakPeakFraction = 0.3;   // a gradient peak below this fraction of the median is an outlier
 constexpr double kMadToSigma = 1.4826;
 constexpr int kFinePasses = 2;
+constexpr double kCleanBoardCoverage = 0.9;  // a region board this well evidenced on every side needs no line search
 constexpr double kCornerMatchPx = 1e-6;  // a clipped side end this close to its corner is the corner
 constexpr double kSquareTolerance = 0.01;  // boards whose width and height differ less are square
 constexpr double kMaxCornerExclusionFraction = 0.15;  // of a side, skipped at each end
@@ -501,7 +502,8 @@ Hypothesis fromQuad(const QuadHypothesis& q, const CameraModel& camera, const Im
 // Fits the board edges, corners and pose to one hypothesis; false (reason in f) when it is not a
 // complete board. `score` is the edge support (px of edge samples along the four sides).
 bool fitCandidate(const cv::Mat& gray, const CameraModel& camera, const Target& target, const ImageBoardDetectorOptions& o,
-                  const Hypothesis& h, double min_gradient, ImageDetection* out, double* score) {
+                  const Hypothesis& h, double min_gradient, ImageDetection* out, double* score,
+                  double* min_coverage) {
   CameraBoardFeatures& f = out->features;
   ImageDetectionDetails& d = out->details;
   *score = 0;
@@ -529,6 +531,7 @@ bool fitCandidate(const cv::Mat& gray, const CameraModel& camera, const Target& 
     d.edge_rms_px[j] = fit.rms;
     d.edge_reason[j] = fit.reason;
     if (fit.valid) *score += fit.coverage * sides[k].length;
+    *min_coverage = k == 0 ? fit.coverage : std::min(*min_coverage, fit.coverage);
   }
   int valid = 0;
   for (int j = 0; j < kNumEdges; ++j) valid += f.edge_valid[j];
@@ -651,12 +654,8 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     hypotheses.push_back(fromRegion(seg.candidates[i], sx, small.size(), camera, o));
   const size_t regions = hypotheses.size();
   LineEvidence evidence;
-  const std::vector<QuadHypothesis> quads = lineQuadHypotheses(gray, camera, o, &evidence);
-  for (const auto& q : quads) hypotheses.push_back(fromQuad(q, camera, o));
-  out->details.segments_raw = std::move(evidence.segments_raw);
-  out->details.line_segments = evidence.segments;
-  out->details.straight_lines = evidence.lines;
-  out->details.line_quads = evidence.quads;
+  std::vector<QuadHypothesis> quads;
+  bool lines_tried = false;
 
   // Every hypothesis is tried (a duplicate of an accepted board is skipped); the accepted one with
   // the most edge support wins. When none is a board, report the attempt that got furthest (most
@@ -668,7 +667,18 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
   ImageDetection best_found;
   std::vector<std::array<Eigen::Vector2d, 4>> tried;
   std::vector<std::string> reasons;
-  for (size_t i = 0; i < hypotheses.size(); ++i) {
+  double best_min_coverage = 0;
+  for (size_t i = 0;; ++i) {
+    if (i == regions && !lines_tried) {
+      // Line evidence (the costly part) unless a region already gave a board whose four sides
+      // show their edge along nearly all their visible length.
+      lines_tried = true;
+      if (!(best_score > 0 && best_min_coverage >= kCleanBoardCoverage)) {
+        quads = lineQuadHypotheses(gray, camera, o, &evidence);
+        for (const auto& q : quads) hypotheses.push_back(fromQuad(q, camera, o));
+      }
+    }
+    if (i >= hypotheses.size()) break;
     if (i >= first_regions && i < regions && best_score > 0) continue;  // openings only when no region was the board
     // The edge support of a hypothesis cannot exceed the length of its sides: skip those that
     // cannot beat the board already accepted.
@@ -677,7 +687,9 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     if (bound <= best_score) continue;
     ImageDetection attempt = fresh;
     double score = 0;
-    const bool found = fitCandidate(gray, camera, target, o, hypotheses[i], min_gradient, &attempt, &score);
+    double min_coverage = 0;
+    const bool found =
+        fitCandidate(gray, camera, target, o, hypotheses[i], min_gradient, &attempt, &score, &min_coverage);
     const CameraBoardFeatures& af = attempt.features;
     std::array<Eigen::Vector2d, 4> corners = af.corners_px;
     if (i >= regions) corners = quads[i - regions].corners;
@@ -697,6 +709,7 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     if (found) {
       if (score > best_score) {
         best_score = score;
+        best_min_coverage = min_coverage;
         best_found = std::move(attempt);
       }
       continue;
@@ -720,6 +733,10 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
                                : region_reason + cv::format("; no quadrilateral of straight edges among %d lines",
                                                             evidence.lines);
   }
+  out->details.segments_raw = std::move(evidence.segments_raw);
+  out->details.line_segments = evidence.segments;
+  out->details.straight_lines = evidence.lines;
+  out->details.line_quads = evidence.quads;
   out->details.hypotheses_px = std::move(tried);
   out->details.hypothesis_reasons = std::move(reasons);
   out->details.noise_sigma = noise;
