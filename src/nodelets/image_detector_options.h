@@ -20,6 +20,13 @@
   X(sample_step, sample_step_px)                                      \
   X(corner_exclusion, corner_exclusion_px)                            \
   X(min_edge_contrast, min_edge_contrast)                             \
+  X(edge_snr, edge_snr)                                               \
+  X(min_side_coverage, min_side_coverage)                             \
+  X(max_plain_corner_rms_fraction, max_plain_corner_rms_fraction)     \
+  X(line_detection_width, line_detection_width_px)                    \
+  X(max_line_hypotheses, max_line_hypotheses)                         \
+  X(max_board_tilt, max_board_tilt_deg)                               \
+  X(max_board_distance, max_board_distance_m)                         \
   X(min_edge_length, min_edge_length_px)                              \
   X(min_edge_points, min_edge_points)                                 \
   X(edge_inlier, edge_inlier_px)                                      \

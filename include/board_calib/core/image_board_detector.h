@@ -37,11 +37,17 @@ struct ImageBoardDetectorOptions {
   double fine_search_px = 3.0;            ///< px, half width of the refinement search around the fitted line
   double sample_step_px = 2.0;            ///< px, spacing of edge samples along each edge
   double corner_exclusion_px = 12.0;      ///< px, edge samples this close to a coarse corner are skipped
-  double min_edge_contrast = 4.0;         ///< grey levels per px, weakest accepted edge gradient
-  double min_edge_length_px = 60.0;       ///< px, shortest visible edge accepted as a board edge
-  int min_edge_points = 20;               ///< inlier edge samples needed for a valid edge
+  double min_edge_contrast = 4.0;         ///< grey levels per px, weakest accepted edge gradient (floor of the noise-based threshold)
+  double edge_snr = 3.0;                  ///< an edge gradient peak must exceed this many sigmas of the gradient noise (measured per image)
+  double min_edge_length_px = 24.0;       ///< px, shortest span of edge pixels accepted as a board edge (line direction from >= this)
+  int min_edge_points = 8;                ///< inlier edge samples needed for a valid edge
+  double min_side_coverage = 0.5;         ///< fraction of a side's visible length that must show its edge (the rest may be occluded: hands, legs)
   double edge_inlier_px = 3.0;            ///< px, edge samples farther than this from the line are outliers (a held board bows ~3 px)
   double max_edge_rms_px = 1.5;           ///< px, an edge fit worse than this is marked invalid
+  int line_detection_width_px = 640;      ///< px, width of the downscaled image the line segment detector (LSD) runs on; 0 = no line hypotheses
+  int max_line_hypotheses = 6;            ///< quadrilaterals of long straight edges refined at full resolution, best first
+  double max_board_tilt_deg = 70.0;       ///< deg, a plain board turned further from the camera is rejected (no calibration view)
+  double max_board_distance_m = 20.0;     ///< m, a plain board farther away is rejected: a 16-ring LiDAR (2 deg) puts < 2 lines on a 1 m board there
   // --- checkerboard ---
   int fast_check_width_px = 800;          ///< px, images wider than this are searched downscaled first
   int subpix_window_px = 5;               ///< px, half window of cornerSubPix (clamped to the square size)
@@ -56,6 +62,7 @@ struct ImageBoardDetectorOptions {
   double min_board_size_px = 30.0;        ///< px, smallest board side in the image
   double max_reprojection_rms_px = 3.0;   ///< px, a pattern pose fitting worse than this is rejected
   double max_plain_corner_rms_px = 10.0;  ///< px, plain board: corners are extrapolated (often far outside the image) and the board flexes
+  double max_plain_corner_rms_fraction = 0.03;  ///< plain board: corner PnP RMS above this fraction of the mean side length is rejected (a quadrilateral that is no board of the declared width and height)
   double pixel_sigma_px = 0.2;            ///< px, assumed corner noise floor for the pose covariance
 
   /// Reason the options are inconsistent, empty when valid.
@@ -68,6 +75,11 @@ struct ImageDetectionDetails {
   std::array<double, kNumEdges> edge_rms_px{};     ///< plain: line fit RMS per edge, px
   std::array<std::string, kNumEdges> edge_reason;  ///< why an edge is invalid (empty when valid)
   Points2 outline_raw;                             ///< plain: coarse board outline, raw px
+  std::vector<std::array<Eigen::Vector2d, 4>> hypotheses_px;  ///< plain: quadrilaterals tried (undistorted px corners)
+  std::vector<std::string> hypothesis_reasons;     ///< plain: per hypothesis, "found" or why it is not the board
+  std::vector<std::array<Eigen::Vector2d, 2>> segments_raw;   ///< plain: line segments (LSD), raw px
+  double noise_sigma = 0.0;                        ///< plain: image noise estimate, grey levels
+  int line_segments = 0, straight_lines = 0, line_quads = 0;  ///< plain: LSD segments, merged lines, quadrilaterals
   std::vector<int> tag_ids;                        ///< AprilTag: detected ids on the grid
   std::vector<std::array<Eigen::Vector2d, 4>> tag_corners_raw;  ///< AprilTag: corners, raw px (OpenCV convention)
   int rejected_tags = 0;                           ///< AprilTag: detections whose id is not on the grid

@@ -155,6 +155,19 @@ std::vector<int> nameEdges(const std::vector<double>& angles, const std::vector<
   return names;
 }
 
+int rotatedNamingShift(const std::array<Eigen::Vector3d, kNumEdges>& lines) {
+  // Cost of renaming edge k+shift as k, for shift +1 (3 mod 4) and -1.
+  double cost[2] = {0, 0};
+  for (int s = 0; s < 2; ++s) {
+    const int shift = s == 0 ? 1 : 3;
+    for (int k = 0; k < kNumEdges; ++k) {
+      const Eigen::Vector3d& l = lines[(k + shift) % kNumEdges];
+      cost[s] += std::pow(angleDiff(std::atan2(l.y(), l.x()), kIdealAngle[k]), 2);
+    }
+  }
+  return cost[0] <= cost[1] ? 1 : 3;
+}
+
 bool intersectLines(const Eigen::Vector3d& l1, const Eigen::Vector3d& l2, Eigen::Vector2d* point) {
   const Eigen::Vector3d x = l1.cross(l2);
   // |x.z| = |sin| of the angle between unit-normal lines; below ~0.06 deg the corner is ill-defined.
@@ -191,6 +204,38 @@ void outerEdgesFromPose(const Target& target, CameraBoardFeatures* f) {
     // Edge name j meets name j+1 at the board corner shared by board edges k and k+1.
     f->corners_px[names[k]] = px[(k + 1) % 4];
   }
+}
+
+double estimateNoiseSigma(const cv::Mat& gray) {
+  // The mask [1 -2 1; -2 4 -2; 1 -2 1] cancels planes and straight ramps; on white noise its
+  // response has sigma 6 x sigma. The median of |response| ignores the minority of edge and
+  // texture pixels; |N(0, s)| has median 0.6745 s.
+  constexpr int kRowStep = 3;
+  constexpr int kMaxResponse = 16 * 255;
+  std::vector<int> histogram(kMaxResponse + 1, 0);
+  long count = 0;
+  for (int y = 1; y + 1 < gray.rows; y += kRowStep) {
+    const uchar* a = gray.ptr<uchar>(y - 1);
+    const uchar* b = gray.ptr<uchar>(y);
+    const uchar* c = gray.ptr<uchar>(y + 1);
+    for (int x = 1; x + 1 < gray.cols; ++x) {
+      const int r = a[x - 1] - 2 * a[x] + a[x + 1] - 2 * (b[x - 1] + b[x + 1]) + 4 * b[x] + c[x - 1] - 2 * c[x] + c[x + 1];
+      ++histogram[std::abs(r)];
+      ++count;
+    }
+  }
+  if (count == 0) return 0.0;
+  long seen = 0;
+  for (int v = 0; v <= kMaxResponse; ++v) {
+    if (seen + histogram[v] >= count / 2) {
+      // Interpolate inside the bin (integer responses): a clean image has most responses at 0.
+      const double within = histogram[v] > 0 ? static_cast<double>(count / 2 - seen) / histogram[v] : 0.0;
+      const double lower = v > 0 ? v - 0.5 : 0.0, width = v > 0 ? 1.0 : 0.5;  // bin of |r| = v
+      return (lower + within * width) / (0.6745 * 6.0);
+    }
+    seen += histogram[v];
+  }
+  return 0.0;
 }
 
 cv::Mat toGray(const cv::Mat& image) {
@@ -269,6 +314,22 @@ cv::Mat drawImageDetection(const cv::Mat& image, const CameraModel& camera, cons
     out = image.clone();
   const CameraBoardFeatures& f = det.features;
   const int thick = std::max(1, out.cols / 800);
+  // Plain board: line segments (thin grey) and the quadrilaterals tried (thin blue), under the result.
+  for (const auto& s : det.details.segments_raw)
+    cv::line(out, fixedPoint(s[0]), fixedPoint(s[1]), {160, 160, 160}, 1, cv::LINE_AA, kDrawShift);
+  if (det.details.line_segments > 0)
+    cv::putText(out,
+                cv::format("noise %.1f, %d segments, %d lines, %d quadrilaterals", det.details.noise_sigma,
+                           det.details.line_segments, det.details.straight_lines, det.details.line_quads),
+                cv::Point(10, out.rows - 12 * thick), cv::FONT_HERSHEY_SIMPLEX, 0.5 * thick, {255, 80, 0}, thick);
+  for (size_t h = 0; h < det.details.hypotheses_px.size(); ++h) {
+    const auto& c = det.details.hypotheses_px[h];
+    for (int j = 0; j < kNumEdges; ++j) drawUndistortedSegment(&out, camera, c[j], c[(j + 1) % 4], {255, 80, 0}, 1);
+    if (h < det.details.hypothesis_reasons.size())
+      cv::putText(out, std::to_string(h) + " " + det.details.hypothesis_reasons[h],
+                  cv::Point(10, 30 * thick + static_cast<int>(h + 1) * 18 * thick), cv::FONT_HERSHEY_SIMPLEX,
+                  0.45 * thick, {255, 80, 0}, thick);
+  }
   if (det.details.outline_raw.size() >= 2) {
     std::vector<cv::Point> outline;
     for (const auto& p : det.details.outline_raw) outline.push_back(fixedPoint(p));

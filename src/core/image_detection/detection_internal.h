@@ -30,6 +30,10 @@ Plane planeFromPose(const Eigen::Isometry3d& camera_T_board);
 /// the nearest name and ties keep the edge with the larger weight. Returns the name per input, -1 if dropped.
 std::vector<int> nameEdges(const std::vector<double>& angles, const std::vector<double>& weights, bool cyclic);
 
+/// For named edges (UL, UR, LR, LL), the cyclic shift by one name (1 or 3) that stays closer to a
+/// diamond: renaming edge (k + shift) % 4 as k is the other way a rectangular board may be held.
+int rotatedNamingShift(const std::array<Eigen::Vector3d, kNumEdges>& lines);
+
 /// Outer edges, corners and validity derived from the pose and the target's outer size.
 void outerEdgesFromPose(const Target& target, CameraBoardFeatures* features);
 
@@ -38,6 +42,37 @@ cv::Mat toGray(const cv::Mat& image);
 
 /// Intersection of two lines (homogeneous), false when (nearly) parallel.
 bool intersectLines(const Eigen::Vector3d& l1, const Eigen::Vector3d& l2, Eigen::Vector2d* point);
+
+/// Four lines in cyclic order (undistorted px): corner s ends side s and starts side s+1.
+struct QuadHypothesis {
+  std::array<Eigen::Vector2d, 4> corners;
+  std::array<double, 4> support{};  ///< px of line segments along each side
+  std::array<double, 4> visible{};  ///< px of each side inside the image
+  double score = 0;                 ///< segment support along the sides minus support past the corners
+  double size_px = 0;               ///< mean side length
+};
+
+/// What the line stage saw (counts for reasons, segments for the debug image).
+struct LineEvidence {
+  std::vector<std::array<Eigen::Vector2d, 2>> segments_raw;  ///< LSD segments, raw full-resolution px
+  int segments = 0, lines = 0, quads = 0;
+};
+
+/// Quadrilateral board hypotheses from LSD segments merged into long lines (either polarity),
+/// best first, at most options.max_line_hypotheses, every side partly inside the image.
+std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
+                                               const ImageBoardDetectorOptions& options, LineEvidence* evidence);
+
+/// True if an undistorted pixel lies inside the image (culled by its ray first: no fold-back).
+bool visibleUndistorted(const CameraModel& camera, const Eigen::Vector2d& u, double margin);
+
+/// Part of the undistorted segment p-q inside the image (sampled), false if none.
+bool visibleSideInterval(const CameraModel& camera, const Eigen::Vector2d& p, const Eigen::Vector2d& q, double margin,
+                         Eigen::Vector2d* a, Eigen::Vector2d* b);
+
+/// Standard deviation of the image noise (grey levels), robust to edges and texture: median
+/// absolute response of the Laplacian-difference mask of Immerkaer (1996), on every other row.
+double estimateNoiseSigma(const cv::Mat& gray);
 
 void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                  const ImageBoardDetectorOptions& options, ImageDetection* out);

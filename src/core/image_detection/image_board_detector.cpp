@@ -42,6 +42,13 @@ std::string ImageBoardDetectorOptions::validate() const {
   if (!(min_board_size_px > 0)) return "min_board_size_px must be > 0";
   if (!(max_reprojection_rms_px > 0)) return "max_reprojection_rms_px must be > 0";
   if (!(max_plain_corner_rms_px > 0)) return "max_plain_corner_rms_px must be > 0";
+  if (!(max_plain_corner_rms_fraction > 0)) return "max_plain_corner_rms_fraction must be > 0";
+  if (!(edge_snr >= 0)) return "edge_snr must be >= 0";
+  if (!(min_side_coverage > 0 && min_side_coverage <= 1)) return "min_side_coverage must be in (0, 1]";
+  if (line_detection_width_px != 0 && line_detection_width_px < 64) return "line_detection_width_px must be 0 (off) or >= 64";
+  if (max_line_hypotheses < 0) return "max_line_hypotheses must be >= 0";
+  if (!(max_board_tilt_deg > 0 && max_board_tilt_deg < 90)) return "max_board_tilt_deg must be in (0, 90)";
+  if (!(max_board_distance_m > 0)) return "max_board_distance_m must be > 0";
   if (!(pixel_sigma_px > 0)) return "pixel_sigma_px must be > 0";
   return {};
 }

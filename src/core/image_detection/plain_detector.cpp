@@ -1,6 +1,10 @@
-// Plain board (PBPC-Cal): coarse segmentation on a downscaled image, then each board edge is
-// refined at full resolution by sub-pixel gradient peaks searched along the edge normal, and the
-// line is fitted to those edge pixels after undistortion (a straight edge is only straight there).
+// Plain board (PBPC-Cal): board hypotheses from two sources, brightness/uniformity regions on a
+// downscaled image and quadrilaterals of long straight edges (LSD segments, line_hypotheses.cpp).
+// Each hypothesis's sides are refined at full resolution by sub-pixel gradient peaks searched
+// along the edge normal, the lines fitted to those edge pixels after undistortion (a straight edge
+// is only straight there); a hypothesis is the board when every visible side shows its edge over
+// most of its length, the lines form a convex quadrilateral and the four corners fit a board of
+// the declared width and height. The best-supported such hypothesis wins.
 #include "detection_internal.h"
 
 #include <Eigen/Eigenvalues>
@@ -22,6 +26,16 @@ constexpr double kPolygonEpsilon = 0.01;    // outline simplification, fraction 
 constexpr double kWeakPeakFraction = 0.3;   // a gradient peak below this fraction of the median is an outlier
 constexpr double kMadToSigma = 1.4826;
 constexpr int kFinePasses = 2;
+constexpr double kCleanBoardCoverage = 0.9;  // a region board this well evidenced on every side needs no line search
+constexpr double kCornerMatchPx = 1e-6;  // a clipped side end this close to its corner is the corner
+constexpr double kSquareTolerance = 0.01;  // boards whose width and height differ less are square
+constexpr double kMaxCornerExclusionFraction = 0.15;  // of a side, skipped at each end
+constexpr double kMaxSamplesPerSide = 240;  // more add nothing to a line fit (errors ~1/sqrt(n) are already ~0.02 px)
+constexpr double kPolarityWindowSteps = 8;      // edge polarity is a majority over +-this many samples ...
+constexpr double kPolarityWindowFraction = 0.1;  // ... or this fraction of the side, whichever is longer
+// The edge gradient is a difference of two samples 1 px apart: its noise is sqrt(2) x the pixel noise.
+constexpr double kGradientNoiseGain = 1.41421356;
+constexpr double kDuplicateHypothesisFraction = 0.05;  // of the board size: hypotheses this close are one
 constexpr int kFlatOpeningPx = 11;          // downscaled px, opening of the flat-area proposals
 // Openings of a rejected region, fractions of its inradius (a board touching the ceiling band
 // merges with it; the band is thinner than the board).
@@ -181,6 +195,7 @@ struct CoarseEdge {
   Eigen::Vector2d a = Eigen::Vector2d::Zero(), b = Eigen::Vector2d::Zero();  // raw full-resolution px
   double angle = 0;      // outward normal angle
   double length = 0;
+  bool a_corner = true, b_corner = true;  // an end at a board corner (not where the image cuts the side)
 };
 
 // Splits the hull of the board region into straight sides, dropping those along the image border.
@@ -256,6 +271,8 @@ struct EdgeFit {
   Points2 raw_inliers;
   double rms = 0;
   double span = 0;
+  double coverage = 0;         // inlier samples / sample positions inside the image
+  double median_strength = 0;  // grey levels per px
   std::string reason;
   bool valid = false;
 };
@@ -281,14 +298,24 @@ Eigen::Vector3d fitLine(const Points2& pts, const std::vector<bool>& use, const 
 // Refines one edge: samples along the current (undistorted) line estimate, searches the strongest
 // inside-to-outside gradient along the raw-image normal, fits a line to the undistorted peaks.
 EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse, const Eigen::Vector2d& inside_u,
-                   const ImageBoardDetectorOptions& o) {
+                   const ImageBoardDetectorOptions& o, double min_gradient) {
   EdgeFit fit;
   Eigen::Vector2d a = camera.undistortPixel(coarse.a), b = camera.undistortPixel(coarse.b);
   Eigen::Vector3d line = lineThrough(a, b, inside_u);
-  // Sign of the intensity change walking outward, per edge (the background may be brighter than
-  // the board on one side and darker on another); 0 = unknown: the first pass takes the strongest
-  // change of either sign and the majority sets it.
-  double polarity = 0.0;
+  // Sign of the intensity change walking outward. It may change along one side (the background
+  // is brighter than the board behind one stretch and darker behind another), so it is a local
+  // majority: the first pass takes the strongest change of either sign, then each stretch of the
+  // side keeps the sign most of its samples showed (an opposite edge beside it is clutter).
+  std::vector<double> polarity_t;  // first-pass samples along the side (sorted) ...
+  std::vector<int> polarity_sum;   // ... and the prefix sums of their signs
+  double polarity_window = 0;
+  auto localPolarity = [&](double t) {
+    if (polarity_t.empty()) return 0;
+    const size_t lo = std::lower_bound(polarity_t.begin(), polarity_t.end(), t - polarity_window) - polarity_t.begin();
+    const size_t hi = std::upper_bound(polarity_t.begin(), polarity_t.end(), t + polarity_window) - polarity_t.begin();
+    const int sum = polarity_sum[hi] - polarity_sum[lo];
+    return sum > 0 ? 1 : (sum < 0 ? -1 : 0);
+  };
   for (int pass = 0; pass <= kFinePasses; ++pass) {
     const double half = pass == 0 ? o.coarse_search_px : o.fine_search_px;
     const int steps = static_cast<int>(std::ceil(half / kProfileStepPx)) + 1;
@@ -302,7 +329,16 @@ EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseE
     std::vector<double> strength;
     std::vector<int> signs;
     std::vector<double> profile(2 * steps + 1);
-    for (double t = o.corner_exclusion_px; t <= len - o.corner_exclusion_px; t += o.sample_step_px) {
+    // Corners are rounded by the coarse stage and crowded by the other side: skip their
+    // neighbourhood, at most a fraction of a short (far) side.
+    const double exclusion = std::min(o.corner_exclusion_px, kMaxCornerExclusionFraction * len);
+    // Long sides need no more samples than a line fit can use.
+    const double step = std::max(o.sample_step_px, len / kMaxSamplesPerSide);
+    int positions = 0;
+    std::vector<double> ts;
+    const double t_end = len - (coarse.b_corner ? exclusion : 0.0);
+    for (double t = coarse.a_corner ? exclusion : 0.0; t <= t_end; t += step) {
+      const double polarity = pass == 0 ? 0.0 : localPolarity(t);
       const Eigen::Vector2d xu = a + t * dir;
       const Eigen::Vector2d x = camera.distortPixel(xu);
       Eigen::Vector2d d = camera.distortPixel(xu + n) - x;
@@ -311,6 +347,7 @@ EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseE
           !insideImage(gray, x - (half + kProfileStepPx) * d, 1.0) ||
           !insideImage(gray, x + (half + kProfileStepPx) * d, 1.0))
         continue;
+      ++positions;
       for (int k = -steps; k <= steps; ++k) {
         const Eigen::Vector2d p = x + (k * kProfileStepPx) * d;
         profile[k + steps] = sampleBilinear(gray, p.x(), p.y());
@@ -327,7 +364,7 @@ EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseE
           best_k = k;
         }
       }
-      if (best_k <= 1 || best_k + 2 >= static_cast<int>(profile.size()) || best_g < o.min_edge_contrast) continue;
+      if (best_k <= 1 || best_k + 2 >= static_cast<int>(profile.size()) || best_g < min_gradient) continue;
       const double gm = g[best_k - 1], g0 = g[best_k], gp = g[best_k + 1];
       const double denom = gm - 2 * g0 + gp;
       const double delta = denom < 0 ? std::clamp(0.5 * (gm - gp) / denom, -0.5, 0.5) : 0.0;
@@ -337,13 +374,15 @@ EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseE
       pts_u.push_back(camera.undistortPixel(edge_raw));
       strength.push_back(best_g);
       signs.push_back(profile[best_k + 1] > profile[best_k - 1] ? 1 : -1);
+      ts.push_back(t);
     }
-    if (polarity == 0.0) {
-      int sum = 0;
-      for (int sgn : signs) sum += sgn;
-      polarity = sum >= 0 ? 1.0 : -1.0;
+    if (pass == 0) {
+      polarity_t = ts;
+      polarity_sum.assign(1, 0);
+      for (int sgn : signs) polarity_sum.push_back(polarity_sum.back() + sgn);
+      polarity_window = std::max(kPolarityWindowSteps * step, kPolarityWindowFraction * len);
       for (size_t i = 0; i < signs.size(); ++i)
-        if (signs[i] != polarity) strength[i] = 0;  // the other polarity: clutter, not this edge
+        if (signs[i] * localPolarity(ts[i]) < 0) strength[i] = 0;  // against its stretch: clutter
     }
     if (static_cast<int>(pts_u.size()) < o.min_edge_points) {
       fit.reason = "too few edge pixels (" + std::to_string(pts_u.size()) + ")";
@@ -382,6 +421,8 @@ EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseE
     }
     const int count = static_cast<int>(fit.raw_inliers.size());
     fit.rms = count > 0 ? std::sqrt(sum_sq / count) : 0.0;
+    fit.coverage = positions > 0 ? static_cast<double>(count) / positions : 0.0;
+    fit.median_strength = median_strength;
     fit.span = count > 0 ? tmax - tmin : 0.0;
     fit.line = line;
     if (count < o.min_edge_points) {
@@ -391,6 +432,9 @@ EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseE
   }
   if (fit.span < o.min_edge_length_px) {
     fit.reason = cv::format("visible edge too short (%.0f px)", fit.span);
+  } else if (fit.coverage < o.min_side_coverage) {
+    fit.reason = cv::format("edge seen along %.0f %% of its visible length (need %.0f %%)", 100 * fit.coverage,
+                            100 * o.min_side_coverage);
   } else if (fit.rms > o.max_edge_rms_px) {
     fit.reason = cv::format("edge not straight (rms %.2f px)", fit.rms);
   } else {
@@ -399,15 +443,72 @@ EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseE
   return fit;
 }
 
-// Fits the board edges, corners and pose to one proposed region; false (reason in f) when it is
-// not a complete board.
+// One board hypothesis: its straight sides (raw px; in cyclic order when there are four) and a
+// point inside it (undistorted px).
+struct Hypothesis {
+  std::vector<CoarseEdge> sides;
+  Eigen::Vector2d inside_u = Eigen::Vector2d::Zero();
+  Points2 outline_raw;
+  const char* source = "";
+};
+
+Hypothesis fromRegion(const Candidate& board, double sx, cv::Size small_size, const CameraModel& camera,
+                      const ImageBoardDetectorOptions& o) {
+  Hypothesis h;
+  h.source = "region";
+  for (const auto& p : board.contour) h.outline_raw.emplace_back((p.x + 0.5) * sx - 0.5, (p.y + 0.5) * sx - 0.5);
+  Eigen::Vector2d centroid;
+  h.sides = coarseEdges(board.contour, sx, small_size, o, &centroid);
+  h.inside_u = camera.undistortPixel(centroid);
+  return h;
+}
+
+// Sides of a line quadrilateral, each cut to its part inside the image.
+Hypothesis fromQuad(const QuadHypothesis& q, const CameraModel& camera, const ImageBoardDetectorOptions& o) {
+  Hypothesis h;
+  h.source = "lines";
+  h.inside_u = 0.25 * (q.corners[0] + q.corners[1] + q.corners[2] + q.corners[3]);
+  for (int s = 0; s < kNumEdges; ++s) {
+    Eigen::Vector2d a, b;
+    const Eigen::Vector2d& p = q.corners[(s + 3) % 4];
+    const Eigen::Vector2d& r = q.corners[s];
+    if (!visibleSideInterval(camera, p, r, o.border_margin_px, &a, &b)) continue;
+    CoarseEdge e;
+    e.a_corner = (a - p).norm() < kCornerMatchPx;
+    e.b_corner = (b - r).norm() < kCornerMatchPx;
+    e.a = camera.distortPixel(a);
+    e.b = camera.distortPixel(b);
+    e.length = (b - a).norm();
+    const Eigen::Vector3d l = lineThrough(a, b, h.inside_u);
+    e.angle = std::atan2(l.y(), l.x());
+    h.sides.push_back(e);
+    h.outline_raw.push_back(e.a);
+    h.outline_raw.push_back(e.b);
+  }
+  // Clockwise image order (v down) for the cyclic edge naming.
+  if (h.sides.size() == static_cast<size_t>(kNumEdges)) {
+    const Eigen::Vector2d e1 = q.corners[1] - q.corners[0], e2 = q.corners[2] - q.corners[1];
+    if (e1.x() * e2.y() - e1.y() * e2.x() < 0) {
+      std::reverse(h.sides.begin(), h.sides.end());
+      for (auto& e : h.sides) {
+        std::swap(e.a, e.b);
+        std::swap(e.a_corner, e.b_corner);
+      }
+    }
+  }
+  return h;
+}
+
+// Fits the board edges, corners and pose to one hypothesis; false (reason in f) when it is not a
+// complete board. `score` is the edge support (px of edge samples along the four sides).
 bool fitCandidate(const cv::Mat& gray, const CameraModel& camera, const Target& target, const ImageBoardDetectorOptions& o,
-                  const Candidate& board, double sx, cv::Size small_size, ImageDetection* out) {
+                  const Hypothesis& h, double min_gradient, ImageDetection* out, double* score,
+                  double* min_coverage) {
   CameraBoardFeatures& f = out->features;
   ImageDetectionDetails& d = out->details;
-  for (const auto& p : board.contour) d.outline_raw.emplace_back((p.x + 0.5) * sx - 0.5, (p.y + 0.5) * sx - 0.5);
-  Eigen::Vector2d centroid;
-  const std::vector<CoarseEdge> sides = coarseEdges(board.contour, sx, small_size, o, &centroid);
+  *score = 0;
+  d.outline_raw = h.outline_raw;
+  const std::vector<CoarseEdge>& sides = h.sides;
   if (sides.size() < 2) {
     f.reason = "board not found: " + std::to_string(sides.size()) + " straight board edge(s) in the outline";
     return false;
@@ -418,17 +519,19 @@ bool fitCandidate(const cv::Mat& gray, const CameraModel& camera, const Target& 
     weights.push_back(s.length);
   }
   const std::vector<int> names = nameEdges(angles, weights, sides.size() == static_cast<size_t>(kNumEdges));
-  const Eigen::Vector2d inside_u = camera.undistortPixel(centroid);
+  const Eigen::Vector2d& inside_u = h.inside_u;
   for (int j = 0; j < kNumEdges; ++j) d.edge_reason[j] = "not in the outline (outside the image or along its border)";
   for (size_t k = 0; k < sides.size(); ++k) {
     const int j = names[k];
     if (j < 0) continue;
-    const EdgeFit fit = refineEdge(gray, camera, sides[k], inside_u, o);
+    const EdgeFit fit = refineEdge(gray, camera, sides[k], inside_u, o, min_gradient);
     f.edge_lines[j] = fit.line;
     f.edge_valid[j] = fit.valid;
     d.edge_points_raw[j] = fit.raw_inliers;
     d.edge_rms_px[j] = fit.rms;
     d.edge_reason[j] = fit.reason;
+    if (fit.valid) *score += fit.coverage * sides[k].length;
+    *min_coverage = k == 0 ? fit.coverage : std::min(*min_coverage, fit.coverage);
   }
   int valid = 0;
   for (int j = 0; j < kNumEdges; ++j) valid += f.edge_valid[j];
@@ -447,8 +550,10 @@ bool fitCandidate(const cv::Mat& gray, const CameraModel& camera, const Target& 
   }
   // The four corners must form a convex quadrilateral in clockwise image order with sides of a
   // usable length; otherwise the edges were mislabelled or belong to something else.
+  double perimeter = 0;
   for (int j = 0; j < kNumEdges; ++j) {
     const Eigen::Vector2d e1 = f.corners_px[(j + 1) % 4] - f.corners_px[j];
+    perimeter += e1.norm();
     const Eigen::Vector2d e2 = f.corners_px[(j + 2) % 4] - f.corners_px[(j + 1) % 4];
     if (e1.x() * e2.y() - e1.y() * e2.x() <= 0) {
       f.reason = "board not found: edge lines do not form a convex quadrilateral";
@@ -462,7 +567,30 @@ bool fitCandidate(const cv::Mat& gray, const CameraModel& camera, const Target& 
   const auto outer = target.outerCorners();
   const Points3 obj(outer.begin(), outer.end());
   const Points2 img(f.corners_px.begin(), f.corners_px.end());
-  const PoseFit pose = fitPose(obj, img, f.K, o.pixel_sigma_px);
+  PoseFit pose = fitPose(obj, img, f.K, o.pixel_sigma_px);
+  if (std::abs(target.width - target.height) > kSquareTolerance * std::max(target.width, target.height)) {
+    // A rectangular board held near upright (or turned by ~45 deg) is as close to a diamond with
+    // its width on the upper right side as on the upper left: the naming one step round that
+    // fits the declared width and height better decides (names shift cyclically, the image
+    // order stays).
+    const int shift = rotatedNamingShift(f.edge_lines);
+    Points2 rotated(kNumEdges);
+    for (int k = 0; k < kNumEdges; ++k) rotated[k] = f.corners_px[(k + shift) % kNumEdges];
+    const PoseFit alternative = fitPose(obj, rotated, f.K, o.pixel_sigma_px);
+    if (alternative.ok && (!pose.ok || alternative.rms_px < pose.rms_px)) {
+      pose = alternative;
+      auto rotate = [shift](auto& array) {
+        auto copy = array;
+        for (int k = 0; k < kNumEdges; ++k) array[k] = copy[(k + shift) % kNumEdges];
+      };
+      rotate(f.edge_lines);
+      rotate(f.edge_valid);
+      rotate(f.corners_px);
+      rotate(d.edge_points_raw);
+      rotate(d.edge_rms_px);
+      rotate(d.edge_reason);
+    }
+  }
   if (!pose.ok) {
     f.reason = pose.reason;
     return false;
@@ -472,9 +600,23 @@ bool fitCandidate(const cv::Mat& gray, const CameraModel& camera, const Target& 
   f.reprojection_rms_px = pose.rms_px;
   d.pattern_errors_px = pose.errors_px;
   d.pose_covariance = pose.covariance;
-  if (pose.rms_px > o.max_plain_corner_rms_px) {
-    f.reason = cv::format("corners do not fit a %.3f x %.3f m board (rms %.2f px)", target.width, target.height,
-                          pose.rms_px);
+  // Corner misfit grows with the board in the image (flex, a slightly wrong declared size).
+  const double max_rms = std::min(o.max_plain_corner_rms_px, o.max_plain_corner_rms_fraction * perimeter / kNumEdges);
+  if (pose.rms_px > max_rms) {
+    f.reason = cv::format("corners do not fit a %.3f x %.3f m board (rms %.2f px > %.2f)", target.width, target.height,
+                          pose.rms_px, max_rms);
+    return false;
+  }
+  const Eigen::Vector3d centre = pose.camera_T_board * target.center();
+  const double tilt_deg =
+      std::acos(std::min(1.0, std::abs(f.plane.normal.dot(centre.normalized())))) * 180.0 / M_PI;
+  if (centre.norm() > o.max_board_distance_m) {
+    f.reason = cv::format("a %.3f x %.3f m board would be %.1f m away (max %.1f m): another rectangle", target.width,
+                          target.height, centre.norm(), o.max_board_distance_m);
+    return false;
+  }
+  if (tilt_deg > o.max_board_tilt_deg) {
+    f.reason = cv::format("board turned %.0f deg from the line of sight (max %.0f)", tilt_deg, o.max_board_tilt_deg);
     return false;
   }
   f.found = true;
@@ -494,29 +636,110 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
   else
     small = gray;
   const double sx = static_cast<double>(gray.cols) / small.cols;
+  // Edge pixels must stand out of this image's own noise (sensor, compression, texture).
+  const double noise = estimateNoiseSigma(gray);
+  const double min_gradient = std::max(o.min_edge_contrast, o.edge_snr * kGradientNoiseGain * noise);
+  out->details.noise_sigma = noise;
+
+  // Hypotheses: regions (best score first, then openings of the rejected ones) and quadrilaterals
+  // of long straight edges. None is a gate for the others.
   Segmentation seg = segmentBoard(small, o);
-  // The best-scored region is not always the board (a bright ceiling cut by the image border):
-  // try them best first, then the openings of the rejected regions. When none is a complete
-  // board, report the attempt that got furthest (most valid edges, then the better score).
+  std::vector<Hypothesis> hypotheses;
+  for (size_t i = 0; i < seg.candidates.size() && i < static_cast<size_t>(o.max_board_candidates); ++i)
+    hypotheses.push_back(fromRegion(seg.candidates[i], sx, small.size(), camera, o));
+  const size_t first_regions = hypotheses.size();
+  const std::string region_reason = seg.reason();
+  proposeOpenedRegions(small.size(), o, &seg);
+  for (size_t i = 0; i < seg.candidates.size() && i < static_cast<size_t>(o.max_board_candidates); ++i)
+    hypotheses.push_back(fromRegion(seg.candidates[i], sx, small.size(), camera, o));
+  const size_t regions = hypotheses.size();
+  LineEvidence evidence;
+  std::vector<QuadHypothesis> quads;
+  bool lines_tried = false;
+
+  // Every hypothesis is tried (a duplicate of an accepted board is skipped); the accepted one with
+  // the most edge support wins. When none is a board, report the attempt that got furthest (most
+  // valid edges, then the more edge support).
   const ImageDetection fresh = *out;
+  ImageDetection best_miss;
   int best_valid = -1;
-  for (int stage = 0; stage < 2; ++stage) {
-    if (stage == 1) proposeOpenedRegions(small.size(), o, &seg);
-    for (size_t i = 0; i < seg.candidates.size() && i < static_cast<size_t>(o.max_board_candidates); ++i) {
-      ImageDetection attempt = fresh;
-      if (fitCandidate(gray, camera, target, o, seg.candidates[i], sx, small.size(), &attempt)) {
-        *out = std::move(attempt);
-        return;
-      }
-      int valid = 0;
-      for (int j = 0; j < kNumEdges; ++j) valid += attempt.features.edge_valid[j];
-      if (valid > best_valid) {
-        best_valid = valid;
-        *out = std::move(attempt);
+  double best_miss_score = -1, best_score = -1;
+  ImageDetection best_found;
+  std::vector<std::array<Eigen::Vector2d, 4>> tried;
+  std::vector<std::string> reasons;
+  double best_min_coverage = 0;
+  for (size_t i = 0;; ++i) {
+    if (i == regions && !lines_tried) {
+      // Line evidence (the costly part) unless a region already gave a board whose four sides
+      // show their edge along nearly all their visible length.
+      lines_tried = true;
+      if (!(best_score > 0 && best_min_coverage >= kCleanBoardCoverage)) {
+        quads = lineQuadHypotheses(gray, camera, o, &evidence);
+        for (const auto& q : quads) hypotheses.push_back(fromQuad(q, camera, o));
       }
     }
+    if (i >= hypotheses.size()) break;
+    if (i >= first_regions && i < regions && best_score > 0) continue;  // openings only when no region was the board
+    // The edge support of a hypothesis cannot exceed the length of its sides: skip those that
+    // cannot beat the board already accepted.
+    double bound = 0;
+    for (const auto& side : hypotheses[i].sides) bound += side.length;
+    if (bound <= best_score) continue;
+    ImageDetection attempt = fresh;
+    double score = 0;
+    double min_coverage = 0;
+    const bool found =
+        fitCandidate(gray, camera, target, o, hypotheses[i], min_gradient, &attempt, &score, &min_coverage);
+    const CameraBoardFeatures& af = attempt.features;
+    std::array<Eigen::Vector2d, 4> corners = af.corners_px;
+    if (i >= regions) corners = quads[i - regions].corners;
+    if (i >= regions && best_score > 0) {
+      // A line quadrilateral on the accepted board adds nothing.
+      double worst = 0, size = 0;
+      for (int s = 0; s < kNumEdges; ++s) {
+        double nearest = 1e18;
+        for (int t = 0; t < kNumEdges; ++t) nearest = std::min(nearest, (corners[s] - best_found.features.corners_px[t]).norm());
+        worst = std::max(worst, nearest);
+        size += (best_found.features.corners_px[(s + 1) % 4] - best_found.features.corners_px[s]).norm() / kNumEdges;
+      }
+      if (worst < kDuplicateHypothesisFraction * size) continue;
+    }
+    tried.push_back(corners);
+    reasons.push_back(std::string(hypotheses[i].source) + ": " + (found ? "board" : af.reason));
+    if (found) {
+      if (score > best_score) {
+        best_score = score;
+        best_min_coverage = min_coverage;
+        best_found = std::move(attempt);
+      }
+      continue;
+    }
+    int valid = 0;
+    for (int j = 0; j < kNumEdges; ++j) valid += af.edge_valid[j];
+    if (valid > best_valid || (valid == best_valid && score > best_miss_score)) {
+      best_valid = valid;
+      best_miss_score = score;
+      best_miss = std::move(attempt);
+    }
   }
-  if (best_valid < 0) out->features.reason = seg.reason();
+  if (best_score > 0) {
+    *out = std::move(best_found);
+  } else if (best_valid >= 0) {
+    *out = std::move(best_miss);
+  } else {
+    out->features.reason = hypotheses.empty() && evidence.lines < kNumEdges
+                               ? region_reason + cv::format("; %d straight lines from %d segments (need 4)",
+                                                            evidence.lines, evidence.segments)
+                               : region_reason + cv::format("; no quadrilateral of straight edges among %d lines",
+                                                            evidence.lines);
+  }
+  out->details.segments_raw = std::move(evidence.segments_raw);
+  out->details.line_segments = evidence.segments;
+  out->details.straight_lines = evidence.lines;
+  out->details.line_quads = evidence.quads;
+  out->details.hypotheses_px = std::move(tried);
+  out->details.hypothesis_reasons = std::move(reasons);
+  out->details.noise_sigma = noise;
 }
 
 }  // namespace image_detection

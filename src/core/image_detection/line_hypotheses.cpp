@@ -1,0 +1,371 @@
+// Plain board hypotheses from line evidence (as PBPC-Cal does with LSD): segments from OpenCV's
+// line segment detector on a downscaled image, merged in undistorted pixels into long straight
+// lines of either polarity, then quadrilaterals of four such lines whose sides carry the segments.
+// Only geometry is judged here; edge support along each whole side is measured at full
+// resolution by the plain detector.
+#include "detection_internal.h"
+
+#include <Eigen/Eigenvalues>
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+namespace board_calib {
+namespace image_detection {
+namespace {
+
+constexpr double kMinSegmentPx = 5.0;           // LSD-scale px: shorter segments are texture, not edges
+constexpr double kSegmentEndSigmaPx = 0.7;      // LSD-scale px, endpoint noise of a segment
+constexpr double kMergeSigmas = 3.0;            // angle tolerance of a merge, in endpoint-noise sigmas
+constexpr double kMinMergeAngleRad = 0.02;      // ~1 deg: floor of that tolerance (long segments)
+constexpr double kMaxMergeAngleRad = 0.10;      // ~6 deg: cap (short segments)
+constexpr double kMergeOffsetPx = 3.5;          // full-res px: a held board bows ~3 px
+constexpr int kMaxLines = 80;                   // longest merged lines kept (a floor or ceiling has many longer than the board)
+constexpr size_t kMaxQuads = 20000;             // quadrilaterals scored (bounds the time in line-rich scenes)
+constexpr double kMaxOppositeAngleRad = 0.70;   // ~40 deg: opposite sides converge under perspective
+constexpr double kMinCornerSin = 0.42;          // ~25 deg: adjacent sides meet at a real angle
+constexpr double kMaxCornerGapFraction = 0.9;   // gap between a line's support and its corner, of the support extent
+constexpr double kCornerToleranceFraction = 0.03;  // of the side length: support this close to a corner counts
+constexpr double kOvershootWeight = 0.5;        // support continuing past a corner counts against a side
+constexpr double kGapWeight = 1.0;              // a visible stretch of a side without segments counts against it
+constexpr double kMinSideSupportFraction = 0.12;   // of the whole side (corners may lie far outside the image)
+constexpr double kDuplicateCornerFraction = 0.05;  // quads whose corners agree to this fraction of their size are one
+constexpr int kVisibilitySamples = 24;          // samples along a side to measure its visible part
+// LSD misses weak stretches the gradient search still finds: segments need only cover this share
+// of the side coverage required of the refined edge.
+constexpr double kLineCoverageShare = 0.5;
+
+double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return a.x() * b.y() - a.y() * b.x(); }
+
+struct Member {
+  Eigen::Vector2d a, b;
+  double length;
+};
+
+struct MergedLine {
+  Eigen::Vector2d point, dir;  // undistorted px, unit direction
+  std::vector<Member> members;
+  std::vector<std::pair<double, double>> intervals;  // union of member projections along dir
+  double support = 0, t_min = 0, t_max = 0;
+
+  double offset(const Eigen::Vector2d& p) const { return cross2(dir, p - point); }
+  double along(const Eigen::Vector2d& p) const { return dir.dot(p - point); }
+
+  // Length-weighted total least squares through the member segments (each sampled at its ends
+  // and middle), then the union of their projections.
+  void refit() {
+    double w = 0;
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (const auto& m : members)
+      for (const Eigen::Vector2d& p : {m.a, m.b, Eigen::Vector2d(0.5 * (m.a + m.b))}) {
+        mean += m.length * p;
+        w += m.length;
+      }
+    mean /= w;
+    Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+    for (const auto& m : members)
+      for (const Eigen::Vector2d& p : {m.a, m.b, Eigen::Vector2d(0.5 * (m.a + m.b))})
+        cov += m.length * (p - mean) * (p - mean).transpose();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
+    Eigen::Vector2d d = eig.eigenvectors().col(1);
+    if (d.dot(dir) < 0) d = -d;
+    point = mean;
+    dir = d.normalized();
+    intervals.clear();
+    for (const auto& m : members) {
+      const double ta = along(m.a), tb = along(m.b);
+      intervals.emplace_back(std::min(ta, tb), std::max(ta, tb));
+    }
+    std::sort(intervals.begin(), intervals.end());
+    std::vector<std::pair<double, double>> merged;
+    for (const auto& iv : intervals) {
+      if (!merged.empty() && iv.first <= merged.back().second)
+        merged.back().second = std::max(merged.back().second, iv.second);
+      else
+        merged.push_back(iv);
+    }
+    intervals = std::move(merged);
+    support = 0;
+    for (const auto& iv : intervals) support += iv.second - iv.first;
+    t_min = intervals.front().first;
+    t_max = intervals.back().second;
+  }
+
+  // Support inside [lo, hi] along the line.
+  double supportWithin(double lo, double hi) const {
+    double s = 0;
+    for (const auto& iv : intervals) s += std::max(0.0, std::min(hi, iv.second) - std::max(lo, iv.first));
+    return s;
+  }
+
+  Eigen::Vector3d homogeneous() const {
+    const Eigen::Vector2d n(-dir.y(), dir.x());
+    return {n.x(), n.y(), -n.dot(point)};
+  }
+};
+
+// Bounding box of the image border in undistorted px.
+cv::Rect2d undistortedBounds(const CameraModel& camera) {
+  double box[4] = {1e18, 1e18, -1e18, -1e18};
+  constexpr int kSamples = 32;
+  for (int i = 0; i <= kSamples; ++i) {
+    const double s = static_cast<double>(i) / kSamples;
+    const Eigen::Vector2d border[4] = {{s * (camera.width() - 1), 0.0},
+                                       {s * (camera.width() - 1), camera.height() - 1.0},
+                                       {0.0, s * (camera.height() - 1)},
+                                       {camera.width() - 1.0, s * (camera.height() - 1)}};
+    for (const auto& b : border) {
+      const Eigen::Vector2d u = camera.undistortPixel(b);
+      box[0] = std::min(box[0], u.x());
+      box[1] = std::min(box[1], u.y());
+      box[2] = std::max(box[2], u.x());
+      box[3] = std::max(box[3], u.y());
+    }
+  }
+  return {box[0], box[1], box[2] - box[0], box[3] - box[1]};
+}
+
+// Length of the segment p-q inside a box (Liang-Barsky clipping): a quick upper bound of the
+// visible length of a side.
+double clippedLength(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const cv::Rect2d& box) {
+  const Eigen::Vector2d d = q - p;
+  double t0 = 0, t1 = 1;
+  const double pk[4] = {-d.x(), d.x(), -d.y(), d.y()};
+  const double qk[4] = {p.x() - box.x, box.x + box.width - p.x(), p.y() - box.y, box.y + box.height - p.y()};
+  for (int k = 0; k < 4; ++k) {
+    if (pk[k] == 0) {
+      if (qk[k] < 0) return 0;
+      continue;
+    }
+    const double t = qk[k] / pk[k];
+    if (pk[k] < 0)
+      t0 = std::max(t0, t);
+    else
+      t1 = std::min(t1, t);
+  }
+  return t1 > t0 ? (t1 - t0) * d.norm() : 0.0;
+}
+
+double angleBetweenLines(const Eigen::Vector2d& d1, const Eigen::Vector2d& d2) {
+  return std::acos(std::min(1.0, std::abs(d1.dot(d2))));
+}
+
+}  // namespace
+
+bool visibleUndistorted(const CameraModel& camera, const Eigen::Vector2d& u, double margin) {
+  const Eigen::Matrix3d K = camera.K();
+  return camera.isVisible(Eigen::Vector3d((u.x() - K(0, 2)) / K(0, 0), (u.y() - K(1, 2)) / K(1, 1), 1.0), margin);
+}
+
+bool visibleSideInterval(const CameraModel& camera, const Eigen::Vector2d& p, const Eigen::Vector2d& q, double margin,
+                         Eigen::Vector2d* a, Eigen::Vector2d* b) {
+  int first = -1, last = -1;
+  for (int i = 0; i <= kVisibilitySamples; ++i) {
+    const Eigen::Vector2d x = p + (q - p) * (static_cast<double>(i) / kVisibilitySamples);
+    if (!visibleUndistorted(camera, x, margin)) continue;
+    if (first < 0) first = i;
+    last = i;
+  }
+  if (first < 0) return false;
+  // Widen by half a sample step towards the invisible neighbours (the edge refinement skips
+  // samples outside the image anyway).
+  const double step = 1.0 / kVisibilitySamples;
+  const double s0 = first > 0 ? (first - 0.5) * step : 0.0, s1 = last < kVisibilitySamples ? (last + 0.5) * step : 1.0;
+  *a = p + (q - p) * s0;
+  *b = p + (q - p) * s1;
+  return true;
+}
+
+std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
+                                               const ImageBoardDetectorOptions& o, LineEvidence* evidence) {
+  std::vector<QuadHypothesis> quads;
+  if (o.line_detection_width_px <= 0) return quads;
+  const double scale = std::max(1.0, static_cast<double>(gray.cols) / o.line_detection_width_px);
+  cv::Mat small;
+  if (scale > 1.0)
+    cv::resize(gray, small,
+               cv::Size(static_cast<int>(std::lround(gray.cols / scale)), static_cast<int>(std::lround(gray.rows / scale))),
+               0, 0, cv::INTER_AREA);
+  else
+    small = gray;
+  const double sx = static_cast<double>(gray.cols) / small.cols, sy = static_cast<double>(gray.rows) / small.rows;
+  // LSD with its own a-contrario false-detection control; no internal rescale (done above, by
+  // area averaging, which also lowers the noise).
+  const cv::Ptr<cv::LineSegmentDetector> lsd = cv::createLineSegmentDetector(cv::LSD_REFINE_NONE, 1.0);
+  std::vector<cv::Vec4f> raw_segments;
+  lsd->detect(small, raw_segments);
+
+  std::vector<Member> segments;
+  for (const auto& s : raw_segments) {
+    const double len_small = std::hypot(s[2] - s[0], s[3] - s[1]);
+    if (len_small < kMinSegmentPx) continue;
+    const Eigen::Vector2d a_raw((s[0] + 0.5) * sx - 0.5, (s[1] + 0.5) * sy - 0.5);
+    const Eigen::Vector2d b_raw((s[2] + 0.5) * sx - 0.5, (s[3] + 0.5) * sy - 0.5);
+    if (evidence) evidence->segments_raw.push_back({a_raw, b_raw});
+    Member m{camera.undistortPixel(a_raw), camera.undistortPixel(b_raw), 0};
+    m.length = (m.b - m.a).norm();
+    if (m.length > 0) segments.push_back(m);
+  }
+  if (evidence) evidence->segments = static_cast<int>(segments.size());
+  std::sort(segments.begin(), segments.end(), [](const Member& x, const Member& y) { return x.length > y.length; });
+
+  // Greedy merge, longest first: a segment joins a line when its direction agrees within its own
+  // endpoint noise and both its ends lie within the bow of a held board.
+  std::vector<MergedLine> lines;
+  const double end_sigma = kSegmentEndSigmaPx * scale;
+  const double max_offset = std::max(kMergeOffsetPx, 2.0 * end_sigma);
+  for (const Member& s : segments) {
+    const Eigen::Vector2d d = (s.b - s.a) / s.length;
+    const double angle_tol =
+        std::clamp(kMergeSigmas * std::sqrt(2.0) * end_sigma / s.length, kMinMergeAngleRad, kMaxMergeAngleRad);
+    MergedLine* host = nullptr;
+    for (auto& l : lines) {
+      if (angleBetweenLines(d, l.dir) > angle_tol) continue;
+      if (std::abs(l.offset(s.a)) > max_offset || std::abs(l.offset(s.b)) > max_offset) continue;
+      host = &l;
+      break;
+    }
+    if (host) {
+      host->members.push_back(s);
+      host->refit();
+    } else {
+      MergedLine l;
+      l.point = s.a;
+      l.dir = d;
+      l.members.push_back(s);
+      l.refit();
+      lines.push_back(std::move(l));
+    }
+  }
+  const double min_support = std::max(o.min_edge_length_px, 0.5 * o.min_board_size_px);
+  lines.erase(std::remove_if(lines.begin(), lines.end(), [&](const MergedLine& l) { return l.support < min_support; }),
+              lines.end());
+  std::sort(lines.begin(), lines.end(), [](const MergedLine& x, const MergedLine& y) { return x.support > y.support; });
+  if (lines.size() > static_cast<size_t>(kMaxLines)) lines.resize(kMaxLines);
+  if (evidence) evidence->lines = static_cast<int>(lines.size());
+  const int n = static_cast<int>(lines.size());
+  if (n < kNumEdges) return quads;
+
+  // Corner of lines i and j when it is plausible: a real angle, and near both lines' support or
+  // outside the image (corners of a board held close often are).
+  std::vector<std::vector<char>> adjacent(n, std::vector<char>(n, 0));
+  std::vector<std::vector<Eigen::Vector2d>> corner(n, std::vector<Eigen::Vector2d>(n, Eigen::Vector2d::Zero()));
+  for (int i = 0; i < n; ++i)
+    for (int j = i + 1; j < n; ++j) {
+      const double s = std::abs(cross2(lines[i].dir, lines[j].dir));
+      if (s < kMinCornerSin) continue;
+      Eigen::Vector2d c;
+      if (!intersectLines(lines[i].homogeneous(), lines[j].homogeneous(), &c)) continue;
+      const bool outside = !visibleUndistorted(camera, c, 0.0);
+      bool near = true;
+      for (const MergedLine* l : {&lines[i], &lines[j]}) {
+        const double t = l->along(c);
+        const double gap = std::max({0.0, l->t_min - t, t - l->t_max});
+        near &= gap <= kMaxCornerGapFraction * (l->t_max - l->t_min);
+      }
+      if (!near && !outside) continue;
+      adjacent[i][j] = adjacent[j][i] = 1;
+      corner[i][j] = corner[j][i] = c;
+    }
+
+  auto parallel = [&](int i, int k) { return angleBetweenLines(lines[i].dir, lines[k].dir) <= kMaxOppositeAngleRad; };
+  const cv::Rect2d ubox = undistortedBounds(camera);
+  std::vector<std::vector<int>> neighbours(n);
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j)
+      if (adjacent[i][j]) neighbours[i].push_back(j);
+  for (int i = 0; i < n && quads.size() < kMaxQuads; ++i)
+    for (const int j : neighbours[i]) {
+      if (j <= i) continue;
+      for (const int k : neighbours[j]) {
+        if (k <= i || !parallel(i, k)) continue;
+        for (const int m : neighbours[k]) {
+          // i is the smallest index and j < m: each cycle i-j-k-m is met once.
+          if (m <= j || !adjacent[m][i] || !parallel(j, m)) continue;
+          const std::array<int, 4> idx = {i, j, k, m};
+          // Corner c[s] ends side s (line idx[s]) and starts side s+1.
+          std::array<Eigen::Vector2d, 4> c;
+          for (int s = 0; s < 4; ++s) c[s] = corner[idx[s]][idx[(s + 1) % 4]];
+          // Convex, not self-intersecting: all turns of one sign.
+          double turn_sign = 0;
+          bool convex = true;
+          for (int s = 0; s < 4 && convex; ++s) {
+            const double t = cross2(c[(s + 1) % 4] - c[s], c[(s + 2) % 4] - c[(s + 1) % 4]);
+            if (turn_sign == 0) turn_sign = t;
+            convex = t * turn_sign > 0;
+          }
+          if (!convex) continue;
+          QuadHypothesis q;
+          bool ok = true;
+          double score = 0, size = 0;
+          for (int s = 0; s < 4 && ok; ++s) {
+            const MergedLine& l = lines[idx[s]];
+            const Eigen::Vector2d& p = c[(s + 3) % 4];
+            const Eigen::Vector2d& r = c[s];
+            const double side = (r - p).norm();
+            if (side < o.min_board_size_px) {
+              ok = false;
+              break;
+            }
+            const double tp = l.along(p), tr = l.along(r);
+            const double tol = kCornerToleranceFraction * side;
+            const double inside = l.supportWithin(std::min(tp, tr) - tol, std::max(tp, tr) + tol);
+            const double overshoot = l.support - inside;
+            if (inside < kMinSideSupportFraction * side && inside < o.min_edge_length_px) ok = false;
+            // A board shows its edge along most of each visible side: unsupported stretches count
+            // against a quadrilateral as much as supported ones count for it.
+            const double gap = std::max(0.0, clippedLength(p, r, ubox) - inside);
+            score += inside - kGapWeight * gap - kOvershootWeight * overshoot;
+            size += side;
+            q.support[s] = inside;
+          }
+          if (!ok || score <= 0) continue;
+          q.corners = c;
+          q.score = score;
+          q.size_px = size / 4;
+          quads.push_back(q);
+        }
+      }
+    }
+  std::sort(quads.begin(), quads.end(), [](const QuadHypothesis& x, const QuadHypothesis& y) { return x.score > y.score; });
+  if (evidence) evidence->quads = static_cast<int>(quads.size());
+  // Visible support: the fraction of each side inside the image that carries segments; a board
+  // shows its edges along most of every visible side. Keep the best distinct quadrilaterals.
+  std::vector<QuadHypothesis> kept;
+  for (QuadHypothesis& q : quads) {
+    if (static_cast<int>(kept.size()) >= o.max_line_hypotheses) break;
+    bool duplicate = false;
+    for (const auto& k : kept) {
+      double worst = 0;
+      for (int s = 0; s < 4; ++s) {
+        double best = 1e18;
+        for (int t = 0; t < 4; ++t) best = std::min(best, (q.corners[s] - k.corners[t]).norm());
+        worst = std::max(worst, best);
+      }
+      duplicate |= worst < kDuplicateCornerFraction * std::min(q.size_px, k.size_px);
+    }
+    if (duplicate) continue;
+    bool ok = true;
+    for (int s = 0; s < 4 && ok; ++s) {
+      Eigen::Vector2d a, b;
+      const Eigen::Vector2d& p = q.corners[(s + 3) % 4];
+      const Eigen::Vector2d& r = q.corners[s];
+      if (!visibleSideInterval(camera, p, r, o.border_margin_px, &a, &b)) {
+        q.visible[s] = 0;
+        continue;  // a side fully outside the image: judged by the others
+      }
+      q.visible[s] = (b - a).norm();
+      ok = q.support[s] >= o.min_side_coverage * q.visible[s] * kLineCoverageShare;
+    }
+    int visible_sides = 0;
+    for (int s = 0; s < 4; ++s) visible_sides += q.visible[s] > 0;
+    if (!ok || visible_sides < kNumEdges) continue;
+    kept.push_back(q);
+  }
+  return kept;
+}
+
+}  // namespace image_detection
+}  // namespace board_calib
