@@ -52,7 +52,7 @@ NOT_COMMANDS = {
 
 SHARED = None  # set in main: ../shared/data
 # README's replay comment: the arguments it tells a user to add for a recorded bag.
-REPLAY_ARGS = "use_sim_time:=true still_frames:=1"
+REPLAY_ARGS = "use_sim_time:=true"
 
 # command text (continuations joined, whitespace collapsed, trailing comment dropped) -> recipe
 CASES = {
