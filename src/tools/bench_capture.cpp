@@ -71,22 +71,9 @@ int main(int argc, char** argv) {
   for (const auto& rate : split(rates))
     for (const auto& layout : split(layouts))
       for (int seed = 1; seed <= seeds; ++seed) {
-        sim::Scenario s = *base;
-        auto& cam = s.cameras.front();
-        cam.intrinsics.width = static_cast<int>(cam.intrinsics.width * scale);
-        cam.intrinsics.height = static_cast<int>(cam.intrinsics.height * scale);
-        cam.intrinsics.fx *= scale;
-        cam.intrinsics.fy *= scale;
-        cam.intrinsics.cx *= scale;
-        cam.intrinsics.cy *= scale;
-        cam.rate_hz = std::stod(rate);
-        cam.render.noise_sigma = 2.0;
-        s.lidars.front().spec.organized = layout == "organized";
-        s.lidars.front().spec.with_ring = layout == "organized";
-        s.motion.poses = poses;
-        s.motion.still_frames_per_hold = 0;
-        s.motion.frames_per_move = -1;
-        s.seed = static_cast<unsigned>(seed);
+        const sim::Scenario s =
+            test_support::captureScenario(*base, scale, std::stod(rate), layout == "organized", poses,
+                                          static_cast<unsigned>(seed));
         auto session = test_support::runSimulatedSession(s, PipelineOptions{});
         if (!session) {
           std::printf("| %s | %s | %d | simulation failed: %s |\n", rate.c_str(), layout.c_str(), seed,

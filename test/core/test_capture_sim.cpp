@@ -24,24 +24,8 @@ struct Config {
 sim::Scenario scenarioFor(const Config& c) {
   auto s = sim::loadScenario(std::string(BOARD_CALIB_SOURCE_DIR) + "/config/scenarios/plain_vlp32c_1920.yaml");
   EXPECT_TRUE(s.ok()) << s.error();
-  sim::Scenario out = *s;
-  auto& cam = out.cameras.front();
-  constexpr double kScale = 0.5;
-  cam.intrinsics.width = static_cast<int>(cam.intrinsics.width * kScale);
-  cam.intrinsics.height = static_cast<int>(cam.intrinsics.height * kScale);
-  cam.intrinsics.fx *= kScale;
-  cam.intrinsics.fy *= kScale;
-  cam.intrinsics.cx *= kScale;
-  cam.intrinsics.cy *= kScale;
-  cam.render.supersampling = 2;
-  cam.render.noise_sigma = 2.0;
-  cam.rate_hz = c.camera_hz;
-  out.lidars.front().spec.organized = c.organized;
-  out.lidars.front().spec.with_ring = c.organized;
-  out.motion.poses = 8;
-  out.motion.still_frames_per_hold = 0;  // every frame of the holds ...
-  out.motion.frames_per_move = -1;       // ... and of the moves
-  out.seed = c.seed;
+  sim::Scenario out = test_support::captureScenario(*s, 0.5, c.camera_hz, c.organized, 8, c.seed);
+  out.cameras.front().render.supersampling = 2;
   return out;
 }
 

@@ -7,6 +7,28 @@
 namespace board_calib {
 namespace test_support {
 
+sim::Scenario captureScenario(const sim::Scenario& base, double image_scale, double camera_hz, bool organized,
+                              int poses, unsigned seed) {
+  constexpr double kImageNoise = 2.0;  // grey levels
+  sim::Scenario s = base;
+  auto& cam = s.cameras.front();
+  cam.intrinsics.width = static_cast<int>(cam.intrinsics.width * image_scale);
+  cam.intrinsics.height = static_cast<int>(cam.intrinsics.height * image_scale);
+  cam.intrinsics.fx *= image_scale;
+  cam.intrinsics.fy *= image_scale;
+  cam.intrinsics.cx *= image_scale;
+  cam.intrinsics.cy *= image_scale;
+  cam.render.noise_sigma = kImageNoise;
+  cam.rate_hz = camera_hz;
+  s.lidars.front().spec.organized = organized;
+  s.lidars.front().spec.with_ring = organized;
+  s.motion.poses = poses;
+  s.motion.still_frames_per_hold = 0;  // every frame of the holds ...
+  s.motion.frames_per_move = -1;       // ... and of the moves
+  s.seed = seed;
+  return s;
+}
+
 Expected<SimulatedSession> runSimulatedSession(const sim::Scenario& scenario, const PipelineOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   auto timeline = sim::makeTimeline(scenario);

@@ -22,6 +22,12 @@ struct SimulatedSession {
   double seconds = 0.0;      ///< simulation and pipeline, wall
 };
 
+/// `base` with its first camera scaled by `image_scale` (size and focal length) at `camera_hz`,
+/// 2 grey levels of image noise, the first LiDAR organized with a ring field or not, `poses`
+/// holds, and every frame emitted (holds and moves): a capture test's recording.
+sim::Scenario captureScenario(const sim::Scenario& base, double image_scale, double camera_hz, bool organized,
+                              int poses, unsigned seed);
+
 /// Simulates `scenario` (first camera, first LiDAR) and feeds every frame in stamp order.
 Expected<SimulatedSession> runSimulatedSession(const sim::Scenario& scenario, const PipelineOptions& options);
 

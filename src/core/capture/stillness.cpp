@@ -1,3 +1,4 @@
+#include <board_calib/core/common/format.h>
 #include <board_calib/core/capture/stillness.h>
 
 #include <algorithm>
@@ -12,14 +13,6 @@ constexpr double kDegPerRadian = 57.29577951308232;
 
 double angleRad(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0));
-}
-
-std::string fixed(double v, int precision) {
-  std::ostringstream s;
-  s.setf(std::ios::fixed);
-  s.precision(precision);
-  s << v;
-  return s.str();
 }
 
 }  // namespace
@@ -91,7 +84,7 @@ StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, d
   if (!rates_known && !ended) return j;  // every stream's rate decides the rule: wait for it
   if (all_sparse && j.fastest_stream >= 0) {
     j.state = StillState::kSnapshot;
-    j.why = "snapshot recording (every stream " + fixed(fastest_interval, 2) +
+    j.why = "snapshot recording (every stream " + formatFixed(fastest_interval, 2) +
             " s or more between frames): each synchronised pair is a candidate";
     return j;
   }
@@ -120,7 +113,7 @@ StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, d
       if (x.stamp > stamp) ++after;
       if (!x.found) {
         j.state = StillState::kNoBoard;
-        j.why = streams[s].name + " lost the board " + fixed(std::abs(x.stamp - stamp), 2) + " s from the image";
+        j.why = streams[s].name + " lost the board " + formatFixed(std::abs(x.stamp - stamp), 2) + " s from the image";
         return j;
       }
       const double move = (x.centre - ref->centre).norm();
@@ -131,9 +124,9 @@ StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, d
           o.max_rotation_deg / kDegPerRadian + o.noise_factor * std::hypot(x.normal_sigma_rad, ref->normal_sigma_rad);
       if (move > move_tol || turn > turn_tol) {
         j.state = StillState::kMoving;
-        j.why = "board moving: " + streams[s].name + " saw it move " + fixed(move * 100, 1) + " cm, turn " +
-                fixed(turn * kDegPerRadian, 1) + " deg within " + fixed(o.window_s, 2) + " s of the image (allowed " +
-                fixed(move_tol * 100, 1) + " cm, " + fixed(turn_tol * kDegPerRadian, 1) + " deg)";
+        j.why = "board moving: " + streams[s].name + " saw it move " + formatFixed(move * 100, 1) + " cm, turn " +
+                formatFixed(turn * kDegPerRadian, 1) + " deg within " + formatFixed(o.window_s, 2) + " s of the image (allowed " +
+                formatFixed(move_tol * 100, 1) + " cm, " + formatFixed(turn_tol * kDegPerRadian, 1) + " deg)";
         return j;
       }
     }
@@ -142,8 +135,8 @@ StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, d
       // Frames on both sides: the board was still across the moment, not only up to it.
       if (count < o.min_frames || before == 0 || after == 0) {
         j.state = StillState::kTooFewFrames;
-        j.why = streams[s].name + " (the fastest stream, " + fixed(fastest_interval * 1e3, 0) + " ms between frames) has " +
-                std::to_string(count) + " frame(s) within " + fixed(o.window_s, 2) + " s of the image (" +
+        j.why = streams[s].name + " (the fastest stream, " + formatFixed(fastest_interval * 1e3, 0) + " ms between frames) has " +
+                std::to_string(count) + " frame(s) within " + formatFixed(o.window_s, 2) + " s of the image (" +
                 std::to_string(before) + " before, " + std::to_string(after) + " after; need " +
                 std::to_string(o.min_frames) + " spanning it)";
         return j;
@@ -151,7 +144,7 @@ StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, d
     }
   }
   j.state = StillState::kStill;
-  j.why = "board still for +-" + fixed(o.window_s, 2) + " s (" + std::to_string(j.fastest_frames) + " " +
+  j.why = "board still for +-" + formatFixed(o.window_s, 2) + " s (" + std::to_string(j.fastest_frames) + " " +
           streams[static_cast<size_t>(j.fastest_stream)].name + " frames)";
   return j;
 }

@@ -1,3 +1,4 @@
+#include <board_calib/core/common/format.h>
 #include <board_calib/core/session.h>
 #include <board_calib/core/transform.h>
 
@@ -16,14 +17,6 @@ double angleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
 // Board centre seen by the camera (camera frame); the pose is the best-conditioned cue.
 Eigen::Vector3d cameraBoardCentre(const CameraBoardFeatures& c, const Target& target) {
   return c.camera_T_board * target.center();
-}
-
-std::string fmt(double v, int precision = 2) {
-  std::ostringstream s;
-  s.setf(std::ios::fixed);
-  s.precision(precision);
-  s << v;
-  return s.str();
 }
 
 }  // namespace
@@ -223,8 +216,8 @@ SessionEvent CalibrationSession::decide(const CameraBoardFeatures& camera, bool 
   stats_.last_stillness = judged.why;
   if (!lidar || gap > options_.sync_tolerance_s)
     return skip("no cloud within the sync tolerance",
-                "no LiDAR cloud within " + fmt(options_.sync_tolerance_s * 1e3, 0) + " ms of the image (closest " +
-                    (lidar ? fmt(gap * 1e3, 0) + " ms" : std::string("none")) + "): check sync_tolerance");
+                "no LiDAR cloud within " + formatFixed(options_.sync_tolerance_s * 1e3, 0) + " ms of the image (closest " +
+                    (lidar ? formatFixed(gap * 1e3, 0) + " ms" : std::string("none")) + "): check sync_tolerance");
   if (judged.state == StillState::kMoving || judged.state == StillState::kNoBoard) hold_view_id_ = -1;
   if (judged.state == StillState::kMoving) return skip("board moving", judged.why);
   if (judged.state == StillState::kNoBoard) return skip("board lost around the image", judged.why);
@@ -297,17 +290,17 @@ SessionEvent CalibrationSession::gate(const View& v, bool /*forced*/) const {
     const Eigen::Vector2d declared(target_.width, target_.height);
     const Eigen::Vector2d mismatch = (v.lidar.measured_size_m.cwiseQuotient(declared).array() - 1.0).abs();
     if (mismatch.maxCoeff() > options_.max_size_mismatch)
-      return reject("LiDAR board measures " + fmt(v.lidar.measured_size_m.x()) + " x " +
-                    fmt(v.lidar.measured_size_m.y()) + " m, the target is " + fmt(target_.width) + " x " +
-                    fmt(target_.height) + " m");
+      return reject("LiDAR board measures " + formatFixed(v.lidar.measured_size_m.x()) + " x " +
+                    formatFixed(v.lidar.measured_size_m.y()) + " m, the target is " + formatFixed(target_.width) + " x " +
+                    formatFixed(target_.height) + " m");
   }
   if (estimate_) {
     const Plane lidar_in_camera = v.lidar.plane.transformed(*estimate_);
     const double angle = angleDeg(lidar_in_camera.normal, v.camera.plane.normal);
     const double offset = std::abs(lidar_in_camera.offset - v.camera.plane.offset);
     if (angle > options_.max_plane_angle_deg || offset > options_.max_plane_offset_m)
-      return reject("sensors disagree on the board plane under the current estimate (" + fmt(angle, 1) + " deg, " +
-                    fmt(offset * 100, 1) + " cm)");
+      return reject("sensors disagree on the board plane under the current estimate (" + formatFixed(angle, 1) + " deg, " +
+                    formatFixed(offset * 100, 1) + " cm)");
   }
   if (static_cast<int>(views_.size()) >= options_.max_views)
     return reject("session holds the maximum of " + std::to_string(options_.max_views) + " views");
@@ -322,8 +315,8 @@ SessionEvent CalibrationSession::addView(const View& view, const std::string& wh
           (cameraBoardCentre(kept.view.camera, target_) - cameraBoardCentre(view.camera, target_)).norm();
       if (turn < options_.min_view_rotation_deg && move < options_.min_view_translation_m)
         return {SessionEvent::Kind::kRejected,
-                "too similar to view " + std::to_string(kept.view.id) + " (" + fmt(turn, 1) + " deg, " +
-                    fmt(move * 100, 0) + " cm); move or tilt the board more",
+                "too similar to view " + std::to_string(kept.view.id) + " (" + formatFixed(turn, 1) + " deg, " +
+                    formatFixed(move * 100, 0) + " cm); move or tilt the board more",
                 -1};
     }
   }
@@ -414,7 +407,7 @@ CoverageReport CalibrationSession::coverage() const {
   if (max_ud < kTiltWanted) r.advice.push_back("tilt the board top towards the camera");
   if (min_ud > -kTiltWanted) r.advice.push_back("tilt the board top away from the camera");
   if (r.range_max_m - r.range_min_m < kRangeSpreadWanted)
-    r.advice.push_back("vary the distance: current views span " + fmt(r.range_min_m, 1) + "-" + fmt(r.range_max_m, 1) +
+    r.advice.push_back("vary the distance: current views span " + formatFixed(r.range_min_m, 1) + "-" + formatFixed(r.range_max_m, 1) +
                        " m");
   if (r.image_coverage < 0.5) r.advice.push_back("move the board across the image (left/right/top/bottom)");
   if (r.views < kEnoughViews) r.advice.push_back(std::to_string(kEnoughViews - r.views) + " more views recommended");

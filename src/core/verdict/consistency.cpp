@@ -1,3 +1,4 @@
+#include <board_calib/core/common/format.h>
 #include <board_calib/core/transform.h>
 #include <board_calib/core/verdict/consistency.h>
 
@@ -25,14 +26,6 @@ struct Obs {
   double dc = 0, dl = 0;
   double fa = 1, fo = 1;  // distance factors of the normal and offset errors
 };
-
-std::string fixed(double v, int p) {
-  std::ostringstream s;
-  s.setf(std::ios::fixed);
-  s.precision(p);
-  s << v;
-  return s.str();
-}
 
 Eigen::Matrix3d kabsch(const std::vector<const Obs*>& obs) {
   Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
@@ -72,12 +65,6 @@ double normalResidualRad(const Obs& o, const Eigen::Matrix3d& R) {
   return std::acos(std::clamp(o.nc.dot(R * o.nl), -1.0, 1.0));
 }
 double offsetResidual(const Obs& o, const Eigen::Vector3d& t, double s) { return std::abs(s * o.dc - o.dl - o.nc.dot(t)); }
-
-double medianOf(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
 
 }  // namespace
 
@@ -209,7 +196,7 @@ ConsistencyReport checkViewConsistency(const std::vector<View>& views, const Tar
   }
   if (best.size() < 3) {
     r.reason = "no three views agree on one rigid motion (the board normals must differ by " +
-               fixed(o.min_sample_spread_deg, 0) + " deg or more, and the two sensors must see the same board)";
+               formatFixed(o.min_sample_spread_deg, 0) + " deg or more, and the two sensors must see the same board)";
     return r;
   }
   // Refit on the consensus, then set the tolerances from its residuals' robust spread.
@@ -264,11 +251,11 @@ ConsistencyReport checkViewConsistency(const std::vector<View>& views, const Tar
     vc.consistent = planes_agree && on_board;
     if (!planes_agree)
       vc.reason = "the two sensors' board planes disagree with the other views (normal " +
-                  fixed(vc.normal_residual_deg, 2) + " deg, offset " + fixed(vc.offset_residual_m * 100, 1) +
-                  " cm; allowed " + fixed(ta, 2) + " deg, " + fixed(to * 100, 1) +
+                  formatFixed(vc.normal_residual_deg, 2) + " deg, offset " + formatFixed(vc.offset_residual_m * 100, 1) +
+                  " cm; allowed " + formatFixed(ta, 2) + " deg, " + formatFixed(to * 100, 1) +
                   " cm): another object taken for the board, or the board moved between the sensors' frames";
     else if (!on_board)
-      vc.reason = "only " + fixed(vc.on_board_fraction * 100, 0) +
+      vc.reason = "only " + formatFixed(vc.on_board_fraction * 100, 0) +
                   " % of the LiDAR board points land on the camera's board: the LiDAR found another object";
     r.consistent_views += vc.consistent;
   }

@@ -1,3 +1,4 @@
+#include <board_calib/core/common/format.h>
 #include <board_calib/core/transform.h>
 #include <board_calib/core/verdict/verdict.h>
 
@@ -9,20 +10,6 @@ namespace board_calib {
 namespace {
 
 constexpr double kSqrtHalf = 0.7071067811865476;
-
-std::string fixed(double v, int p) {
-  std::ostringstream s;
-  s.setf(std::ios::fixed);
-  s.precision(p);
-  s << v;
-  return s.str();
-}
-
-double medianOf(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
 
 // Camera plane error at a point of the board: the PnP's offset error grows as D^2 / size, its
 // tilt error as D / size over the board's extent.
@@ -139,17 +126,17 @@ VerdictReport judgeSolution(const CalibrationSolution& sol, const std::vector<Vi
     // Residuals against the noise model.
     std::vector<double> per_view;
     r.plane_residual_ratio = planeResidualRatio(views, target, sol.camera_T_lidar, sol.plane_scale, o, &per_view);
-    const std::string ratio_text = "the LiDAR board points lie " + fixed(r.plane_residual_ratio, 1) +
+    const std::string ratio_text = "the LiDAR board points lie " + formatFixed(r.plane_residual_ratio, 1) +
                                    "x as far from the camera's board planes as the sensors' noise explains (plane RMS " +
-                                   fixed(sol.plane_rms_mm, 1) + " mm)";
+                                   formatFixed(sol.plane_rms_mm, 1) + " mm)";
     if (r.plane_residual_ratio > o.failed_residual_ratio) failed.push_back(ratio_text);
     else if (r.plane_residual_ratio > o.doubtful_residual_ratio) doubtful.push_back(ratio_text);
     std::vector<double> sizes;
     for (const auto& v : views) sizes.push_back(boardSizePx(v, target));
     if (!sizes.empty()) r.board_size_px = medianOf(sizes);
     if (sol.mlre_px && r.board_size_px && *sol.mlre_px > o.failed_edge_fraction * *r.board_size_px)
-      failed.push_back("LiDAR edges land " + fixed(*sol.mlre_px, 1) + " px from the image edges on average, on a board about " +
-                       fixed(*r.board_size_px, 0) + " px across");
+      failed.push_back("LiDAR edges land " + formatFixed(*sol.mlre_px, 1) + " px from the image edges on average, on a board about " +
+                       formatFixed(*r.board_size_px, 0) + " px across");
     // Outlier views and edges (MATLAB-style error bars would show them).
     std::vector<double> view_mlre, edge_mlre;
     for (const auto& vr : sol.views) {
@@ -165,7 +152,7 @@ VerdictReport judgeSolution(const CalibrationSolution& sol, const std::vector<Vi
         if (e.mlre_px && *e.mlre_px > std::max(o.outlier_factor * med_edge, med_edge + o.outlier_min_excess_px)) {
           name(vr.view_id);
           outlier_edges.push_back("view " + std::to_string(vr.view_id) + " edge " + edgeName(j) + ": " +
-                                  fixed(*e.mlre_px, 1) + " px against a median edge error of " + fixed(med_edge, 1) +
+                                  formatFixed(*e.mlre_px, 1) + " px against a median edge error of " + formatFixed(med_edge, 1) +
                                   " px (a hand, a wrong line?)");
         }
       }
@@ -243,11 +230,11 @@ VerdictReport judgeSolution(const CalibrationSolution& sol, const std::vector<Vi
       // Prediction against fit: a model that only fits its own views does not generalise.
       if (cv.heldout_mlre_px && sol.mlre_px && *sol.mlre_px > 0 &&
           *cv.heldout_mlre_px > o.doubtful_heldout_ratio * std::max(*sol.mlre_px, 1.0))
-        doubtful.push_back("left-out views' edges are predicted " + fixed(*cv.heldout_mlre_px, 1) + " px off against " +
-                           fixed(*sol.mlre_px, 1) + " px fitted");
+        doubtful.push_back("left-out views' edges are predicted " + formatFixed(*cv.heldout_mlre_px, 1) + " px off against " +
+                           formatFixed(*sol.mlre_px, 1) + " px fitted");
       if (cv.heldout_plane_ratio > o.doubtful_heldout_ratio * std::max(r.plane_residual_ratio, 1.0))
-        doubtful.push_back("left-out views' planes are predicted " + fixed(cv.heldout_plane_ratio, 1) +
-                           "x the noise against " + fixed(r.plane_residual_ratio, 1) + "x fitted");
+        doubtful.push_back("left-out views' planes are predicted " + formatFixed(cv.heldout_plane_ratio, 1) +
+                           "x the noise against " + formatFixed(r.plane_residual_ratio, 1) + "x fitted");
       // Name the views whose prediction is far off the others'.
       std::vector<double> pred;
       for (const auto& m : cv.view_heldout_mlre_px)
@@ -257,8 +244,8 @@ VerdictReport judgeSolution(const CalibrationSolution& sol, const std::vector<Vi
         const auto& m = cv.view_heldout_mlre_px[i];
         if (m && *m > std::max(o.outlier_factor * med_pred, med_pred + o.outlier_min_excess_px)) {
           name(views[i].id);
-          doubtful.push_back("view " + std::to_string(views[i].id) + " is predicted " + fixed(*m, 1) +
-                             " px off by the others (median " + fixed(med_pred, 1) + " px)");
+          doubtful.push_back("view " + std::to_string(views[i].id) + " is predicted " + formatFixed(*m, 1) +
+                             " px off by the others (median " + formatFixed(med_pred, 1) + " px)");
         }
       }
     }
@@ -275,13 +262,13 @@ VerdictReport judgeSolution(const CalibrationSolution& sol, const std::vector<Vi
     r.stddev_inflation = std::sqrt(inflation2);
     r.stddev = stddevFromCovariance(r.covariance);
     const double st = r.stddev.translation_m.maxCoeff(), sr = r.stddev.rotation_deg.maxCoeff();
-    const std::string sigma_text = "1 sigma " + fixed(st * 1e3, 1) + " mm / " + fixed(sr, 3) + " deg";
+    const std::string sigma_text = "1 sigma " + formatFixed(st * 1e3, 1) + " mm / " + formatFixed(sr, 3) + " deg";
     if (!std::isfinite(st) || !std::isfinite(sr) || st > o.failed_stddev_translation_m || sr > o.failed_stddev_rotation_deg)
       failed.push_back(sigma_text + ": the views do not determine the calibration");
     else if (st > o.doubtful_stddev_translation_m || sr > o.doubtful_stddev_rotation_deg)
       doubtful.push_back(sigma_text + ": loosely determined; add views with other tilts and distances");
     if (r.stddev_inflation > 1.5)
-      r.details.push_back("1 sigma scaled by " + fixed(r.stddev_inflation, 1) +
+      r.details.push_back("1 sigma scaled by " + formatFixed(r.stddev_inflation, 1) +
                           " (residuals beyond the noise model, or the spread of the cross-validation)");
   }
 
@@ -294,7 +281,7 @@ VerdictReport judgeSolution(const CalibrationSolution& sol, const std::vector<Vi
   } else {
     r.verdict = Verdict::kGood;
     std::ostringstream why;
-    why << "residuals as the noise predicts (" << fixed(r.plane_residual_ratio, 1) << "x)";
+    why << "residuals as the noise predicts (" << formatFixed(r.plane_residual_ratio, 1) << "x)";
     if (r.cross_validation.ran) why << ", left-out views predicted (" << r.cross_validation.solves << " solves)";
     if (!r.views_to_check.empty()) why << "; " << r.views_to_check.size() << " view(s) named in the details";
     r.reason = why.str();
@@ -321,9 +308,9 @@ void judgeMethodAgreement(const std::vector<CalibrationSolution>& solutions, std
         if (c(i, i) > 0) worst = std::max(worst, std::abs(d(i)) / std::sqrt(c(i, i)));
       if (worst > o.method_disagreement_sigmas) {
         const std::string text = std::string(methodName(solutions[b].method)) + " differs by " +
-                                 fixed(rotationErrorDeg(solutions[a].camera_T_lidar, solutions[b].camera_T_lidar), 2) + " deg / " +
-                                 fixed(translationErrorM(solutions[a].camera_T_lidar, solutions[b].camera_T_lidar) * 1e3, 0) +
-                                 " mm (" + fixed(worst, 1) + " sigma)";
+                                 formatFixed(rotationErrorDeg(solutions[a].camera_T_lidar, solutions[b].camera_T_lidar), 2) + " deg / " +
+                                 formatFixed(translationErrorM(solutions[a].camera_T_lidar, solutions[b].camera_T_lidar) * 1e3, 0) +
+                                 " mm (" + formatFixed(worst, 1) + " sigma)";
         va.details.push_back(text);
         if (va.verdict == Verdict::kGood) {
           va.verdict = Verdict::kDoubtful;
@@ -370,7 +357,7 @@ int chooseMethod(const std::vector<CalibrationSolution>& solutions, const std::v
       for (size_t i = 0; i < solutions.size(); ++i) {
         if (i) s << ", ";
         s << methodName(solutions[i].method) << " " << verdictName(verdicts[i].verdict);
-        if (verdicts[i].verdict != Verdict::kFailed) s << " " << fixed(score(i), 2) << (all_edges ? " px" : "x");
+        if (verdicts[i].verdict != Verdict::kFailed) s << " " << formatFixed(score(i), 2) << (all_edges ? " px" : "x");
       }
       s << ")";
     }
