@@ -39,7 +39,7 @@ import time
 import xml.etree.ElementTree as ET
 
 COMMAND_WORDS = ("scripts/", "rosrun ", "roslaunch ", "rosservice ", "rostest ", "rosbag ", "rostopic ",
-                 "make ", "cmake ", "export ", "build/")
+                 "make ", "cmake ", "export ", "build/", "ws/")
 
 # Inline spans that are not runnable commands (paths, partial forms) with the reason.
 NOT_COMMANDS = {
@@ -48,6 +48,12 @@ NOT_COMMANDS = {
     "build/lead/devel/lib/board_calib/calibrate_bag": "names the binary a benchmark record used",
     "rosbag play --clock": "names the replay mode in a benchmark record",
     "scripts/env.sh": "names the script in prose",
+    "roslaunch --nodes": "names how a launch file was checked in a benchmark record",
+    "make all": "names a build step in a benchmark record",
+    "rosbag reindex FILE": "advice for the user's own truncated bag (FILE)",
+    "scripts/env.sh /usr/bin/python3 scripts/bench_cloud_memory.py --bag ../shared/data/basler_os1_plain/session.bag "
+    "--topic /os1/points --target ../shared/data/basler_os1_plain/target.yaml --clouds 1000 --rate 2":
+        "the memory benchmark's record: 1,000 clouds at 2 Hz take 8 minutes",
 }
 
 SHARED = None  # set in main: ../shared/data
@@ -122,6 +128,17 @@ CASES = {
     "build/<you>/devel/lib/board_calib/bench_sim": {"kind": "dev"},
     "build/<you>/devel/lib/board_calib/bench_sim --poses 30 config/scenarios/plain_vlp32c_1920.yaml": {"kind": "dev"},
     "build/<you>/devel/lib/board_calib/bench_image_detector --frames 20": {"kind": "dev"},
+    "scripts/build.sh bench_lidar_detector test_lidar_detector test_lidar_detector_real": {
+        "kind": "run", "expect": r"built in", "timeout": 900},
+    "ws/ci/devel/lib/board_calib/bench_lidar_detector --repeat 3 [--no-sparse]": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/bench_lidar_detector --sim-table config/scenarios/plain_vlp16_outdoor_far.yaml": {
+        "kind": "dev"},
+    "ws/ci/devel/lib/board_calib/test_lidar_detector --gtest_filter='*Scenario*'": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/bench_capture --scale 0.5 --poses 12 --seeds 2 --rates 1,2,5,10,30": {"kind": "dev"},
+    # docs/RELIABILITY.md
+    "scripts/build.sh test_fuzz_inputs test_fuzz_rig && ws/ci/devel/lib/board_calib/test_fuzz_inputs": {
+        "kind": "run", "expect": r"PASSED", "timeout": 900},
+    "scripts/test.sh --sanitize": {"kind": "runner"},
 }
 
 

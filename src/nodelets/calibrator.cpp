@@ -14,6 +14,7 @@
 #include <board_calib/conversions.h>
 #include <board_calib/core/file_io.h>
 #include <board_calib/core/pipeline/pair_calibration.h>
+#include <board_calib/core/pipeline/pair_report.h>
 #include <board_calib/core/report.h>
 #include <board_calib/core/session.h>
 #include <board_calib/core/transform.h>
@@ -60,6 +61,7 @@ class CalibratorNodelet : public nodelet::Nodelet {
   CalibrationResult toResultMsg(const CalibrationSolution& s, const VerdictReport& verdict, const ResultFile& file) const;
   std::string writeOutputs(const ResultFile& file);
   std::string writeFailedResult(const ResultFile& file);
+  std::string writeReport(const PairCalibration& run);
 
   std::mutex mutex_;  // guards session_, last_event_, last_solution_
   std::unique_ptr<CalibrationSession> session_;
@@ -317,6 +319,22 @@ CalibrationResult CalibratorNodelet::toResultMsg(const CalibrationSolution& s, c
   return m;
 }
 
+// The same report folder as calibrate_bag --report (no overlays: the calibrator keeps features,
+// not raw frames), in ~output_dir/report.
+std::string CalibratorNodelet::writeReport(const PairCalibration& run) {
+  if (output_dir_.empty()) return "";
+  PairReportInputs inputs;
+  inputs.source = "live session";
+  inputs.child_frame = child_frame_;
+  std::lock_guard<std::mutex> lock(mutex_);
+  const Status st = writePairReport(output_dir_ + "/report", run, *session_, inputs);
+  if (!st) {
+    NODELET_ERROR_STREAM("calibrator: report: " << st.reason);
+    return "";
+  }
+  return output_dir_ + "/report/report.md";
+}
+
 std::string CalibratorNodelet::writeFailedResult(const ResultFile& file) {
   if (output_dir_.empty()) return "";
   std::error_code error;
@@ -401,6 +419,7 @@ bool CalibratorNodelet::calibrate(Calibrate::Request& req, Calibrate::Response& 
     if (res.result.reason.empty()) res.result.reason = run.reason;
     const std::string kept = writeFailedResult(run.result);
     if (!kept.empty()) res.message += "failed result kept for inspection in " + kept + "\n";
+    if (const std::string report = writeReport(run); !report.empty()) res.message += "report written to " + report + "\n";
     NODELET_WARN_STREAM("calibrator: calibration FAILED: " << run.reason);
     result_pub_.publish(res.result);
     return true;
@@ -421,6 +440,7 @@ bool CalibratorNodelet::calibrate(Calibrate::Request& req, Calibrate::Response& 
   }
   const std::string written = writeOutputs(run.result);
   if (!written.empty()) res.message += "result written to " + written + "\n";
+  if (const std::string report = writeReport(run); !report.empty()) res.message += "report written to " + report + "\n";
   {
     std::lock_guard<std::mutex> lock(mutex_);
     session_->setEstimate(chosen.camera_T_lidar);

@@ -9,12 +9,11 @@
 #include <board_calib/core/file_io.h>
 #include <board_calib/core/pipeline.h>
 #include <board_calib/core/pipeline/pair_calibration.h>
+#include <board_calib/core/pipeline/pair_report.h>
 #include <board_calib/core/projection.h>
 #include <board_calib/core/report.h>
 #include <board_calib/core/report_plots.h>
 #include <board_calib/core/transform.h>
-
-#include <opencv2/imgcodecs.hpp>
 
 #include <unistd.h>
 
@@ -185,12 +184,6 @@ Args parseArgs(int argc, char** argv) {
   return a;
 }
 
-bool makeDir(const std::string& path) {
-  std::error_code error;
-  std::filesystem::create_directories(path, error);
-  return !error;
-}
-
 void progress(bool quiet, size_t done, size_t total, size_t views) {
   if (quiet || total == 0) return;
   // A redrawn bar on a terminal; a line per quarter in logs.
@@ -204,11 +197,6 @@ void progress(bool quiet, size_t done, size_t total, size_t views) {
   std::cerr << "\r[" << std::string(filled, '#') << std::string(kWidth - filled, '.') << "] " << done << "/" << total
             << " frames, " << views << " views" << std::flush;
   if (done == total) std::cerr << "\n";
-}
-
-void writeText(const std::string& path, const std::string& text) {
-  const Status written = writeFileAtomic(path, text);
-  if (!written) fail(written.reason);
 }
 
 }  // namespace
@@ -388,62 +376,21 @@ int main(int argc, char** argv) {
   }
 
   if (!args.report.empty()) {
-    if (!makeDir(args.report)) fail("cannot create report folder '" + args.report + "'");
-    std::ostringstream md;
-    md << "# board_calib report\n\n";
-    md << "bags:";
-    for (const auto& b : args.bags) md << " `" << b << "`";
-    md << "\n\ncamera frame `" << camera_frame << "`, LiDAR frame `" << lidar_frame << "`, " << views.size()
-       << " views\n\n";
+    PairReportInputs report;
+    report.source = "bags:";
+    for (const auto& b : args.bags) report.source += " `" + b + "`";
+    if (!args.load_session.empty()) report.source = "session `" + args.load_session + "`";
     if (pipeline) {
       const PipelineStats& st = pipeline->stats();
-      md << "board found in " << st.images_with_board << "/" << st.images << " images and " << st.clouds_with_board
-         << "/" << st.clouds << " clouds\n\n";
+      report.detection = "board found in " + std::to_string(st.images_with_board) + "/" + std::to_string(st.images) +
+                         " images and " + std::to_string(st.clouds_with_board) + "/" + std::to_string(st.clouds) +
+                         " clouds";
+      report.view_images = &pipeline->viewImages();
+      report.view_clouds = &pipeline->viewClouds();
+      report.camera = pipeline->cameraModel();
     }
-    md << "## Verdict: " << verdictName(run.verdict) << "\n\n```\n" << verdictSummary(run) << "```\n\n";
-    md << "## Result\n\n```\n";
-    for (const auto& s : solutions) md << solutionSummary(s);
-    md << "```\n\n";
-    if (solutions.size() > 1) md << "## Methods side by side\n\n" << comparisonTable(solutions) << "\n";
-    if (!result.notes.empty()) {
-      md << "## Findings\n\n";
-      for (const auto& n : result.notes) md << "* " << n << "\n";
-      md << "\n";
-    }
-    md << "## Views\n\n";
-    for (const auto& sv : session->views()) md << "* view " << sv.view.id << ": " << sv.why << "\n";
-    md << "\n## Per-view residuals (" << methodName(chosen.method) << ")\n\n" << perViewTable(chosen) << "\n";
-    const CoverageReport cov = session->coverage();
-    md << "## Coverage\n\ntilt span " << cov.tilt_span_deg << " deg, range " << cov.range_min_m << "-"
-       << cov.range_max_m << " m, image coverage " << cov.image_coverage * 100 << " %\n\n";
-    for (const auto& a : cov.advice) md << "* " << a << "\n";
-    writeText(args.report + "/report.md", md.str());
-    (void)writeResultFile(args.report + (run.failed() ? "/result.failed.yaml" : "/result.yaml"), result);
-    if (!run.failed()) {  // no ready-to-use snippet of a failed calibration
-      writeText(args.report + "/static_transform.launch", staticTransformLaunchSnippet(result, child));
-      writeText(args.report + "/urdf_joint.xml", urdfJointSnippet(result, child));
-    }
-    (void)session->save(args.report + "/session.yaml");
-    // Overlays: projected cloud and the projected-edges check of every view.
-    if (pipeline && pipeline->cameraModel()) {
-      const CameraModel& camera = *pipeline->cameraModel();
-      for (const auto& sv : session->views()) {
-        const auto img = pipeline->viewImages().find(sv.view.id);
-        const auto cloud = pipeline->viewClouds().find(sv.view.id);
-        if (img == pipeline->viewImages().end() || cloud == pipeline->viewClouds().end()) continue;
-        cv::Mat canvas = img->second.clone();
-        auto projected = projectCloud(cloud->second, camera, chosen.camera_T_lidar, ProjectionOptions{});
-        if (projected) (void)drawProjectedCloud(*projected, OverlayOptions{}, &canvas);
-        EdgeCheckOptions edge_options;
-        auto check = checkProjectedEdges(sv.view.lidar, sv.view.camera, camera, chosen.camera_T_lidar, edge_options);
-        if (check) (void)drawEdgeCheck(sv.view.camera, *check, camera, edge_options, &canvas);
-        cv::imwrite(args.report + "/overlay_view_" + std::to_string(sv.view.id) + ".jpg", canvas,
-                    {cv::IMWRITE_JPEG_QUALITY, 85});
-      }
-    }
-    // Figures (per-edge errors, pose coverage, methods) and links to every overlay.
-    if (auto figures = appendReportFigures(args.report, run.used_views, solutions, run.chosen); !figures)
-      std::cerr << "calibrate_bag: report figures: " << figures.error() << "\n";
+    report.child_frame = child;
+    if (const Status st = writePairReport(args.report, run, *session, report); !st) fail(st.reason);
     std::cout << "report written to " << args.report << "/report.md\n";
   }
   if (run.failed()) fail("calibration failed: " + run.reason);

@@ -93,12 +93,13 @@ TEST(AutosaveResume, KilledManagerLosesNoView) {
     ros::WallDuration(0.05).sleep();
   ASSERT_GT(lidar_pub.getNumSubscribers(), 0u);
 
-  // Each pose held still for 3 frames (auto-capture needs 2), poses 40 cm apart (diversity gate).
+  // Each pose held still for 7 frames at 10 Hz (auto-capture needs the board still for 0.25 s on
+  // both sides of an image), poses 40 cm apart (diversity gate).
   double stamp = 100.0;
   for (int v = 0; v < kViews; ++v) {
     const Eigen::Isometry3d pose = board_calib::makeTransform(Eigen::Vector3d(-1.5 + 0.4 * v, -0.5, 3.0),
                                                               Eigen::Vector4d(0.05 * (v % 3), 0.05 * (v % 2), 0, 1));
-    for (int frame = 0; frame < 3; ++frame, stamp += 0.1) {
+    for (int frame = 0; frame < 7; ++frame, stamp += 0.1) {
       board_calib::LidarBoard lidar;
       board_calib::CameraBoard camera;
       features(pose, stamp, &lidar, &camera);

@@ -7,6 +7,8 @@
 
 #include <gtest/gtest.h>
 #include <cstdlib>
+#include <fstream>
+#include <iterator>
 #include <ros/ros.h>
 
 TEST(LiveReplayReal, SnapshotRecordingGivesAPbpcResult) {
@@ -39,6 +41,17 @@ TEST(LiveReplayReal, SnapshotRecordingGivesAPbpcResult) {
   EXPECT_EQ(r.method, "pbpc");
   // PBPC uses the views with edges in both sensors (one pose has none).
   EXPECT_GE(static_cast<int>(r.views_used), min_views - 1) << "views used by pbpc";
+  // The live calibrator writes the same report as calibrate_bag --report.
+  const std::string marker = "report written to ";
+  const auto at = srv.response.message.find(marker);
+  ASSERT_NE(at, std::string::npos) << srv.response.message;
+  const std::string report =
+      srv.response.message.substr(at + marker.size(), srv.response.message.find('\n', at) - at - marker.size());
+  std::ifstream md(report);
+  ASSERT_TRUE(md.good()) << report;
+  const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("## Verdict: "), std::string::npos);
+  EXPECT_NE(text.find("edge_errors.png"), std::string::npos);
   // The independent tool scores this calibration at about 6 px on these frames (docs/BENCHMARKS.md).
   EXPECT_LT(r.mlre_px, 10.0);
 }
