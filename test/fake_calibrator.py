@@ -149,7 +149,7 @@ class FakeCalibrator:
         s.message = "%d views collected" % len(views) if len(views) >= 3 else "collecting views (%d)" % len(views)
         values = [("services", self.ns), ("views", str(len(views))), ("view ids", " ".join(map(str, views))),
                   ("lidar board", "found"), ("camera board", "not found: no line hypothesis"),
-                  ("board motion", "still (2/2 frames)"), ("last event", event),
+                  ("board motion", "board still for +-0.25 s (5 LiDAR frames)"), ("last event", event),
                   ("advice 1", "tilt the board more (span 12 deg)")]
         s.values = [KeyValue(k, v) for k, v in values]
         # A second calibrator in another namespace: the panel must ignore it.

@@ -206,7 +206,7 @@ def run_fake_phase(ses):
                  lambda s: s["summary"] == "collecting views (0)", START_TIMEOUT_S)
     expect(s["lidar_board"] == "found" and s["camera_board"] == "not found: no line hypothesis",
            "board found per sensor", s)
-    expect(s["board"] == "still (2/2 frames)" and "tilt the board more" in s["advice"], "stillness and advice", s)
+    expect(s["board"] == "board still for +-0.25 s (5 LiDAR frames)" and "tilt the board more" in s["advice"], "stillness and advice", s)
     expect(s["views"] == "0", "the other calibrator's status (99 views) is ignored", s)
     expect(s["verdict"] == "no solve yet", "no verdict before a solve", s)
     ses.settle()
@@ -299,7 +299,7 @@ def run_real_phase(ses):
     s = ses.wait("the real calibrator's status", lambda s: s["summary"] == "no LiDAR board features received",
                  START_TIMEOUT_S)
     ses.settle()
-    expect(s["board"] == "no synchronised pair yet" and s["lidar_board"] == "no message", "real status keys", s)
+    expect(s["board"] == "no image judged yet" and s["lidar_board"] == "no message", "real status keys", s)
     ses.click("capture")
     ses.wait("real capture reply", lambda s: s["reply"] == "capture: no synchronised LiDAR/camera pair seen yet")
     ses.click("calibrate")
