@@ -189,6 +189,9 @@ class Env:
         os.makedirs(os.path.join(work, "tmp"), exist_ok=True)
         for name in ("scripts", "config"):
             os.symlink(os.path.join(source_dir, name), os.path.join(work, name))
+        # Commands written from the package root name the build as ws/ci.
+        os.makedirs(os.path.join(work, "ws"), exist_ok=True)
+        os.symlink(build_dir, os.path.join(work, "ws", "ci"))
         plain = os.path.join(SHARED, "basler_os1_plain")
         os.symlink(os.path.join(plain, "session.bag"), os.path.join(work, "session.bag"))
         os.symlink(os.path.join(plain, "target.yaml"), os.path.join(work, "target.yaml"))

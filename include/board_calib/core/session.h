@@ -15,6 +15,7 @@
 
 #include <deque>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -93,6 +94,10 @@ class CalibrationSession {
   /// streams went quiet). Returns the most significant event.
   SessionEvent finish();
   const CaptureStats& captureStats() const { return stats_; }
+  /// Stamp of the oldest image still waiting for its judgement (its frames must be kept).
+  std::optional<double> oldestPendingStamp() const {
+    return pending_.empty() ? std::nullopt : std::optional<double>(pending_.front().stamp);
+  }
   void setAutoCapture(bool enabled) { auto_capture_ = enabled; }
   bool autoCapture() const { return auto_capture_; }
 

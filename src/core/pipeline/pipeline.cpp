@@ -44,11 +44,15 @@ struct CalibrationPipeline::Impl {
   std::map<int, LidarCloud> view_clouds;
 
   // Raw frames wait until the session has judged them: the still window plus the sync tolerance.
+  // Images still waiting for their judgement keep their frames (a snapshot recording judges its
+  // first images only once later frames show the rates).
   template <typename Frames>
   void trimFrames(Frames& frames) {
     const double keep_s = options.session.still_window_s + options.session.sync_tolerance_s + kFrameMarginS;
-    while (frames.size() > 1 && (static_cast<int>(frames.size()) > options.frame_history ||
-                                 frames.front().first < frames.back().first - keep_s))
+    double cutoff = frames.back().first - keep_s;
+    if (const auto pending = session.oldestPendingStamp()) cutoff = std::min(cutoff, *pending - keep_s);
+    while (frames.size() > 1 &&
+           (static_cast<int>(frames.size()) > options.frame_history || frames.front().first < cutoff))
       frames.pop_front();
   }
 
