@@ -403,13 +403,19 @@ bool CalibratorNodelet::calibrate(Calibrate::Request& req, Calibrate::Response& 
     return calibratePair(views, *methods, target, camera_frame, lidar_frame, PairCalibrationOptions{}, guess);
   });
   const PairCalibration run = solving.get();
+  if (run.runs.empty()) {  // refused before any solve (options, guess, views)
+    res.success = false;
+    res.message = "calibration failed: " + run.reason;
+    NODELET_WARN_STREAM("calibrator: " << res.message);
+    return true;
+  }
   for (const auto& r : run.runs) {
     ResultFile file = makeResultFile(r.solution, run.used_views, target, camera_frame, lidar_frame);
     file.verdict = verdictName(r.verdict.verdict);
     file.verdict_reason = r.verdict.reason;
     res.all_results.push_back(toResultMsg(r.solution, r.verdict, file));
   }
-  const MethodRun& shown = run.runs[run.chosen >= 0 ? static_cast<size_t>(run.chosen) : 0];
+  const MethodRun& shown = run.shownRun();
   res.result = toResultMsg(shown.solution, shown.verdict, run.result);
   res.message = verdictSummary(run);
   if (run.failed()) {

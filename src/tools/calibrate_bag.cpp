@@ -331,6 +331,7 @@ int main(int argc, char** argv) {
   PairCalibrationOptions run_options;
   run_options.solver = solver;
   const PairCalibration run = calibratePair(views, methods, *target, camera_frame, lidar_frame, run_options, args.guess);
+  if (run.runs.empty()) fail("calibration failed: " + run.reason);  // refused before any solve
   std::vector<CalibrationSolution> solutions;
   for (const auto& r : run.runs) solutions.push_back(r.solution);
   for (const auto& r : run.runs)
@@ -338,7 +339,7 @@ int main(int argc, char** argv) {
               << r.verdict.reason << "\n";
   if (solutions.size() > 1) std::cout << "\n" << comparisonTable(solutions);
   std::cout << "\n" << verdictSummary(run);
-  const CalibrationSolution& chosen = run.runs[run.chosen >= 0 ? static_cast<size_t>(run.chosen) : 0].solution;
+  const CalibrationSolution& chosen = run.shownRun().solution;
   const ResultFile& result = run.result;
   for (const auto& n : result.notes)
     if (std::find(chosen.notes.begin(), chosen.notes.end(), n) == chosen.notes.end()) std::cout << "note: " << n << "\n";

@@ -72,8 +72,7 @@ PairCalibration calibratePair(const std::vector<View>& views, const std::vector<
   out.chosen = chooseMethod(solutions, verdicts, &out.choice);
   for (size_t i = 0; i < methods.size(); ++i) out.runs.push_back({solutions[i], verdicts[i]});
 
-  const size_t shown = out.chosen >= 0 ? static_cast<size_t>(out.chosen) : 0;
-  const MethodRun& run = out.runs[shown];
+  const MethodRun& run = out.shownRun();
   out.verdict = run.verdict.verdict;
   out.reason = run.verdict.reason;
   out.result = makeResultFile(run.solution, out.used_views, target, camera_frame, lidar_frame);

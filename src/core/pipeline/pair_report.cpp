@@ -33,7 +33,7 @@ std::string reportMarkdown(const PairCalibration& run, const CalibrationSession&
   }
   md << "## Views\n\n";
   for (const auto& sv : session.views()) md << "* view " << sv.view.id << ": " << sv.why << "\n";
-  const CalibrationSolution& shown = run.runs[run.chosen >= 0 ? static_cast<size_t>(run.chosen) : 0].solution;
+  const CalibrationSolution& shown = run.shownRun().solution;
   md << "\n## Per-view residuals (" << methodName(shown.method) << ")\n\n" << perViewTable(shown) << "\n";
   const CoverageReport cov = session.coverage();
   md << "## Coverage\n\ntilt span " << cov.tilt_span_deg << " deg, range " << cov.range_min_m << "-" << cov.range_max_m
@@ -65,7 +65,7 @@ Status writePairReport(const std::string& dir, const PairCalibration& run, const
   if (Status st = session.save(dir + "/session.yaml"); !st) return st;
 
   // Overlays: the projected cloud and the projected-edges check of every view with its frames.
-  const CalibrationSolution& shown = solutions[run.chosen >= 0 ? static_cast<size_t>(run.chosen) : 0];
+  const CalibrationSolution& shown = run.shownRun().solution;
   if (in.camera && in.view_images && in.view_clouds) {
     for (const auto& sv : session.views()) {
       const auto img = in.view_images->find(sv.view.id);

@@ -42,6 +42,9 @@ struct PairCalibration {
 
   bool failed() const { return verdict == Verdict::kFailed; }
   const MethodRun* chosenRun() const { return chosen >= 0 ? &runs[static_cast<size_t>(chosen)] : nullptr; }
+  /// The run the result file shows: the chosen one, or the first when every method failed.
+  /// Needs at least one run (calibratePair makes one per asked method).
+  const MethodRun& shownRun() const { return runs[chosen >= 0 ? static_cast<size_t>(chosen) : 0]; }
 };
 
 /// Methods by name: "ppc", "pbpc", "msg" or "all".
