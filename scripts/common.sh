@@ -10,9 +10,8 @@ BOARD_CALIB_BUILD="${BOARD_CALIB_BUILD:-${BOARD_CALIB_ROOT}/ws/ci}"
 
 BOARD_CALIB_PACKAGES=(
   catkin ros-base-dev rosbash python3-dynamic-reconfigure libtf2-ros-dev libtf2-eigen-dev
-  libpcl-ros-dev libpcl-conversions-dev libcv-bridge-dev libimage-transport-dev libimage-geometry-dev
-  libnodelet-topic-tools-dev libdiagnostic-updater-dev libopencv-dev libpcl-dev libceres-dev
-  libeigen3-dev libapriltag-dev libyaml-cpp-dev python3-rostest python3-sensor-msgs libgtest-dev
+  libcv-bridge-dev libimage-transport-dev libmessage-filters-dev libdiagnostic-updater-dev
+  libopencv-dev libceres-dev libeigen3-dev libapriltag-dev libyaml-cpp-dev python3-rostest python3-sensor-msgs libgtest-dev
   python3-tf2-msgs python3-yaml python3-numpy cmake g++ make rviz xvfb ccache
   # To watch a session: rostopic echo /diagnostics, tf_echo / view_frames, a tf2 listener in
   # Python, image_view for the overlay (Debian 12 ships no rqt; image_view's package.xml and

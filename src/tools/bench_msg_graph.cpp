@@ -4,7 +4,7 @@
 // convergence from random starts.
 //   bench_msg_graph [--views N] [--scenes N] [--trials N] [--seed S]
 #include <board_calib/core/msg_graph.h>
-#include <board_calib/core/msg_synthetic.h>
+#include "support/synthetic_rig.h"
 #include <board_calib/core/transform.h>
 
 #include <algorithm>
@@ -50,7 +50,7 @@ bool parseArgs(int argc, char** argv, Args* args) {
 }
 
 // Worst pair error among `sensors` against the ground truth.
-void worstPair(const MsgSolution& sol, const MsgSyntheticScene& scene, int sensors, double* rot_deg, double* trans_mm) {
+void worstPair(const MsgSolution& sol, const sim::RigScene& scene, int sensors, double* rot_deg, double* trans_mm) {
   *rot_deg = 0;
   *trans_mm = 0;
   for (int a = 0; a < sensors; ++a)
@@ -77,9 +77,9 @@ int main(int argc, char** argv) {
   // 1. Speed: 4 sensors x N views, single-threaded.
   {
     std::mt19937 rng(args.seed);
-    MsgSyntheticOptions so;
+    sim::RigSceneOptions so;
     so.num_poses = args.views;
-    auto scene = generateMsgScene(defaultRig(), so, rng);
+    auto scene = sim::generateRigScene(sim::defaultRig(), so, rng);
     if (!scene) {
       std::fprintf(stderr, "scene: %s\n", scene.error().c_str());
       return 1;
@@ -150,12 +150,12 @@ int main(int argc, char** argv) {
                 args.scenes, noisy ? "rig + VLP-16 with 3x noise" : "rig (stereo + VLP-32C + OS1-64)");
     std::printf("  %-50s %10s %10s %10s %10s %8s %8s\n", "variant", "rot mean", "rot max", "trans mean", "trans max",
                 "MLRE px", "ms");
-    std::vector<MsgSyntheticScene> scenes;
+    std::vector<sim::RigScene> scenes;
     for (int i = 0; i < args.scenes; ++i) {
       std::mt19937 rng(args.seed * 1000 + i);
-      auto rig = defaultRig();
-      if (noisy) rig.push_back(extraLidar16("vlp16_noisy", 3.0));
-      auto scene = generateMsgScene(rig, MsgSyntheticOptions(), rng);
+      auto rig = sim::defaultRig();
+      if (noisy) rig.push_back(sim::extraLidar16("vlp16_noisy", 3.0));
+      auto scene = sim::generateRigScene(rig, sim::RigSceneOptions(), rng);
       if (!scene) {
         std::fprintf(stderr, "scene: %s\n", scene.error().c_str());
         return 1;
@@ -202,7 +202,7 @@ int main(int argc, char** argv) {
   // 3. Random starts (sigma 90 deg, 50 cm on every non-reference sensor).
   if (args.trials > 0) {
     std::mt19937 rng(args.seed + 77);
-    auto scene = generateMsgScene(defaultRig(), MsgSyntheticOptions(), rng);
+    auto scene = sim::generateRigScene(sim::defaultRig(), sim::RigSceneOptions(), rng);
     MsgGraphOptions o;
     o.compute_covariance = false;
     const MsgSolution ref = solveMsgGraph(scene->problem, o);

@@ -4,7 +4,7 @@
 //
 //   bench_solvers [--seeds N] [--trials N]
 #include <board_calib/core/solvers.h>
-#include <board_calib/core/synthetic_features.h>
+#include "support/synthetic_views.h"
 #include <board_calib/core/transform.h>
 
 #include <algorithm>
@@ -21,14 +21,14 @@ using namespace board_calib;
 namespace {
 
 struct Scenario {
-  synth::SyntheticScene scene;
+  sim::SyntheticScene scene;
   double board_points = 0, edge_points = 0;  // per view
 };
 
-Scenario makeScenario(unsigned seed, const synth::SyntheticFeatureOptions& o) {
+Scenario makeScenario(unsigned seed, const sim::SyntheticFeatureOptions& o) {
   std::mt19937 rng(seed);
-  const Eigen::Isometry3d truth = synth::randomCameraTLidar(rng);
-  auto scene = synth::generateSyntheticViews(o, truth, rng);
+  const Eigen::Isometry3d truth = sim::randomCameraTLidar(rng);
+  auto scene = sim::generateSyntheticViews(o, truth, rng);
   if (!scene) {
     std::fprintf(stderr, "scene generation failed: %s\n", scene.error().c_str());
     std::exit(1);
@@ -43,8 +43,8 @@ Scenario makeScenario(unsigned seed, const synth::SyntheticFeatureOptions& o) {
   return s;
 }
 
-synth::SyntheticFeatureOptions issueOptions() {
-  synth::SyntheticFeatureOptions o;
+sim::SyntheticFeatureOptions issueOptions() {
+  sim::SyntheticFeatureOptions o;
   o.num_views = 30;
   o.lidar_range_noise_m = 0.02;
   o.lidar_horizontal_resolution_deg = 0.2;
@@ -59,7 +59,7 @@ struct Accuracy {
   int failures = 0;
 };
 
-Accuracy accuracy(Method method, const SolverOptions& options, int seeds, const synth::SyntheticFeatureOptions& o) {
+Accuracy accuracy(Method method, const SolverOptions& options, int seeds, const sim::SyntheticFeatureOptions& o) {
   Accuracy a;
   std::vector<double> times;
   for (int seed = 1; seed <= seeds; ++seed) {
@@ -115,7 +115,7 @@ int main(int argc, char** argv) {
     if (!std::strcmp(argv[i], "--seeds")) seeds = std::atoi(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--trials")) trials = std::atoi(argv[i + 1]);
   }
-  const synth::SyntheticFeatureOptions o = issueOptions();
+  const sim::SyntheticFeatureOptions o = issueOptions();
   const Scenario s = makeScenario(1, o);
   std::printf("Scenario: %zu views, %.0f board points and %.0f edge points per view, range noise %.0f mm, "
               "horizontal step %.2f deg, line noise %.1f px\n",
@@ -147,7 +147,7 @@ int main(int argc, char** argv) {
               "(0.2 deg, 3 mm):\n");
   SolverOptions paper_ppc = defaults;
   paper_ppc.ppc_plane_error_model = false;
-  synth::SyntheticFeatureOptions flat = o;
+  sim::SyntheticFeatureOptions flat = o;
   flat.camera_plane_from_pnp = false;
   printAccuracy("ppc error model (default), pnp planes", accuracy(Method::kPpc, defaults, seeds, o));
   printAccuracy("ppc 1/p_i (paper), pnp planes", accuracy(Method::kPpc, paper_ppc, seeds, o));
@@ -166,7 +166,7 @@ int main(int argc, char** argv) {
   }
 
   std::printf("\nBoard declared 3 %% too small (camera plane offsets / 1.03):\n");
-  synth::SyntheticFeatureOptions small = o;
+  sim::SyntheticFeatureOptions small = o;
   small.declared_size_factor = 1.0 / 1.03;
   SolverOptions no_scale = defaults;
   no_scale.estimate_plane_scale = false;

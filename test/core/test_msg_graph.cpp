@@ -1,7 +1,7 @@
 // MSG graph on simulated rigs at known ground truth: a stereo pair, a VLP-32C-like and an
 // OS1-64-like LiDAR, 40 board poses of a 1 m AprilTag grid (issue 9 targets).
 #include <board_calib/core/msg_graph.h>
-#include <board_calib/core/msg_synthetic.h>
+#include "support/synthetic_rig.h"
 #include <board_calib/core/transform.h>
 
 #include <gtest/gtest.h>
@@ -24,11 +24,11 @@ constexpr double kPairTranslationTolM = 0.01;
 constexpr double kNoisyRotationTolDeg = 0.3;
 constexpr double kNoisyTranslationTolM = 0.015;
 
-MsgSyntheticScene makeScene(const std::vector<SimSensor>& rig, unsigned seed, int poses = 40) {
+sim::RigScene makeScene(const std::vector<sim::RigSensor>& rig, unsigned seed, int poses = 40) {
   std::mt19937 rng(seed);
-  MsgSyntheticOptions opt;
+  sim::RigSceneOptions opt;
   opt.num_poses = poses;
-  auto scene = generateMsgScene(rig, opt, rng);
+  auto scene = sim::generateRigScene(rig, opt, rng);
   EXPECT_TRUE(scene.ok()) << scene.error();
   return *scene;
 }
@@ -37,14 +37,14 @@ struct PairError {
   double rotation_deg = 0, translation_m = 0;
 };
 
-PairError pairError(const MsgSolution& sol, const MsgSyntheticScene& scene, int a, int b) {
+PairError pairError(const MsgSolution& sol, const sim::RigScene& scene, int a, int b) {
   const Eigen::Isometry3d truth = scene.sensors[a].reference_T_sensor.inverse() * scene.sensors[b].reference_T_sensor;
   const Eigen::Isometry3d est = *sensorTSensor(sol, a, b);
   return {rotationErrorDeg(est, truth), translationErrorM(est, truth)};
 }
 
 // Every pair among `sensors` within the tolerances.
-void expectPairsWithin(const MsgSolution& sol, const MsgSyntheticScene& scene, const std::vector<int>& sensors,
+void expectPairsWithin(const MsgSolution& sol, const sim::RigScene& scene, const std::vector<int>& sensors,
                        double rot_tol_deg, double trans_tol_m) {
   for (size_t i = 0; i < sensors.size(); ++i)
     for (size_t j = i + 1; j < sensors.size(); ++j) {
@@ -54,13 +54,13 @@ void expectPairsWithin(const MsgSolution& sol, const MsgSyntheticScene& scene, c
     }
 }
 
-double maxPairRotationDeg(const MsgSolution& sol, const MsgSyntheticScene& scene, const std::vector<int>& sensors) {
+double maxPairRotationDeg(const MsgSolution& sol, const sim::RigScene& scene, const std::vector<int>& sensors) {
   double m = 0;
   for (size_t i = 0; i < sensors.size(); ++i)
     for (size_t j = i + 1; j < sensors.size(); ++j) m = std::max(m, pairError(sol, scene, sensors[i], sensors[j]).rotation_deg);
   return m;
 }
-double maxPairTranslationM(const MsgSolution& sol, const MsgSyntheticScene& scene, const std::vector<int>& sensors) {
+double maxPairTranslationM(const MsgSolution& sol, const sim::RigScene& scene, const std::vector<int>& sensors) {
   double m = 0;
   for (size_t i = 0; i < sensors.size(); ++i)
     for (size_t j = i + 1; j < sensors.size(); ++j)
@@ -69,7 +69,7 @@ double maxPairTranslationM(const MsgSolution& sol, const MsgSyntheticScene& scen
 }
 
 TEST(MsgGraph, FourSensorRigEveryPairWithinTolerance) {
-  const MsgSyntheticScene scene = makeScene(defaultRig(), 1);
+  const sim::RigScene scene = makeScene(sim::defaultRig(), 1);
   const MsgSolution sol = solveMsgGraph(scene.problem, MsgGraphOptions());
   ASSERT_TRUE(sol.success) << sol.reason;
   EXPECT_TRUE(sol.used_pairwise_init);
@@ -103,13 +103,13 @@ struct SpreadRatio {
   std::string frame;
   double rotation = 0.0, translation = 0.0;
 };
-std::vector<SpreadRatio> spreadOverPredicted(const std::vector<SimSensor>& rig, const MsgGraphOptions& options,
+std::vector<SpreadRatio> spreadOverPredicted(const std::vector<sim::RigSensor>& rig, const MsgGraphOptions& options,
                                              int scenes) {
   const int n = static_cast<int>(rig.size());
   std::vector<double> err_r(n, 0.0), pred_r(n, 0.0), err_t(n, 0.0), pred_t(n, 0.0);
   int reference = 0;
   for (unsigned seed = 100; seed < 100u + scenes; ++seed) {
-    const MsgSyntheticScene scene = makeScene(rig, seed);
+    const sim::RigScene scene = makeScene(rig, seed);
     const MsgSolution sol = solveMsgGraph(scene.problem, options);
     EXPECT_TRUE(sol.success) << sol.reason;
     if (!sol.success) return {};
@@ -145,10 +145,10 @@ std::vector<SpreadRatio> spreadOverPredicted(const std::vector<SimSensor>& rig, 
 TEST(MsgGraph, CovarianceMatchesTheSpreadOfRandomNoise) {
   constexpr int kScenes = 25;
   constexpr double kFactor = 1.5;
-  std::vector<SimSensor> rig = defaultRig();
+  std::vector<sim::RigSensor> rig = sim::defaultRig();
   for (auto& sensor : rig) sensor.ring_bias_m = 0.0;
   MsgGraphOptions options;
-  options.camera_pixel_sigma_px = 0.3;  // as simulated (SimSensor::pixel_noise_px)
+  options.camera_pixel_sigma_px = 0.3;  // as simulated (sim::RigSensor::pixel_noise_px)
   for (const SpreadRatio& r : spreadOverPredicted(rig, options, kScenes)) {
     EXPECT_GT(r.rotation, 1.0 / kFactor) << r.frame;
     EXPECT_LT(r.rotation, kFactor) << r.frame;
@@ -167,7 +167,7 @@ TEST(MsgGraph, CovarianceWithinAFactorOfTwoOnTheDefaultRig) {
   constexpr double kFactor = 2.0;
   MsgGraphOptions options;
   options.camera_pixel_sigma_px = 0.3;  // as simulated
-  for (const SpreadRatio& r : spreadOverPredicted(defaultRig(), options, kScenes)) {
+  for (const SpreadRatio& r : spreadOverPredicted(sim::defaultRig(), options, kScenes)) {
     EXPECT_GT(r.rotation, 1.0 / kFactor) << r.frame;
     EXPECT_LT(r.rotation, kFactor) << r.frame;
     EXPECT_GT(r.translation, 1.0 / kFactor) << r.frame;
@@ -176,9 +176,9 @@ TEST(MsgGraph, CovarianceWithinAFactorOfTwoOnTheDefaultRig) {
 }
 
 TEST(MsgGraph, NoisyFifthSensorDoesNotRuinTheOthers) {
-  auto rig = defaultRig();
-  rig.push_back(extraLidar16("vlp16_noisy", 3.0));
-  const MsgSyntheticScene scene = makeScene(rig, 2);
+  auto rig = sim::defaultRig();
+  rig.push_back(sim::extraLidar16("vlp16_noisy", 3.0));
+  const sim::RigScene scene = makeScene(rig, 2);
   const MsgSolution sol = solveMsgGraph(scene.problem, MsgGraphOptions());
   ASSERT_TRUE(sol.success) << sol.reason;
   expectPairsWithin(sol, scene, {0, 1, 2, 3}, kNoisyRotationTolDeg, kNoisyTranslationTolM);
@@ -191,9 +191,9 @@ TEST(MsgGraph, NoisyFifthSensorDoesNotRuinTheOthers) {
 
 // The same with one of the rig's own LiDARs made 3x noisier.
 TEST(MsgGraph, OneLidarThreeTimesNoisier) {
-  auto rig = defaultRig();
+  auto rig = sim::defaultRig();
   rig[3].noise_scale = 3.0;
-  const MsgSyntheticScene scene = makeScene(rig, 3);
+  const sim::RigScene scene = makeScene(rig, 3);
   const MsgSolution sol = solveMsgGraph(scene.problem, MsgGraphOptions());
   ASSERT_TRUE(sol.success) << sol.reason;
   expectPairsWithin(sol, scene, {0, 1, 2}, kNoisyRotationTolDeg, kNoisyTranslationTolM);
@@ -207,7 +207,7 @@ TEST(MsgGraph, ConvergesFromPairwiseInitialisationEveryTime) {
   constexpr int kScenes = 5;
   int ok = 0;
   for (int i = 0; i < kScenes; ++i) {
-    const MsgSyntheticScene scene = makeScene(defaultRig(), 100 + i);
+    const sim::RigScene scene = makeScene(sim::defaultRig(), 100 + i);
     const MsgSolution sol = solveMsgGraph(scene.problem, MsgGraphOptions());
     if (sol.success && maxPairRotationDeg(sol, scene, {0, 1, 2, 3}) < kPairRotationTolDeg &&
         maxPairTranslationM(sol, scene, {0, 1, 2, 3}) < kPairTranslationTolM)
@@ -219,7 +219,7 @@ TEST(MsgGraph, ConvergesFromPairwiseInitialisationEveryTime) {
 // Random starts (sigma 90 deg per rotation axis, 50 cm per translation axis, applied to every
 // non-reference sensor): >= 95% reach the pairwise-initialised solution.
 TEST(MsgGraph, ConvergesFromRandomStarts) {
-  const MsgSyntheticScene scene = makeScene(defaultRig(), 4);
+  const sim::RigScene scene = makeScene(sim::defaultRig(), 4);
   MsgGraphOptions options;
   options.compute_covariance = false;
   const MsgSolution reference = solveMsgGraph(scene.problem, options);
@@ -248,7 +248,7 @@ TEST(MsgGraph, ConvergesFromRandomStarts) {
 
 // Two groups of sensors that never saw the same board pose: refused with the unreachable ones.
 TEST(MsgGraph, DisconnectedGraphIsRefusedWithReason) {
-  MsgSyntheticScene scene = makeScene(defaultRig(), 5, 20);
+  sim::RigScene scene = makeScene(sim::defaultRig(), 5, 20);
   for (size_t p = 0; p < scene.problem.poses.size(); ++p) {
     auto& pose = scene.problem.poses[p];
     if (p % 2 == 0) {
@@ -265,7 +265,7 @@ TEST(MsgGraph, DisconnectedGraphIsRefusedWithReason) {
 }
 
 TEST(MsgGraph, DegenerateInputGivesReasons) {
-  MsgSyntheticScene scene = makeScene(defaultRig(), 6, 10);
+  sim::RigScene scene = makeScene(sim::defaultRig(), 6, 10);
   // No sensors / one sensor.
   MsgProblem empty;
   EXPECT_FALSE(solveMsgGraph(empty, MsgGraphOptions()).success);
@@ -313,7 +313,7 @@ TEST(MsgGraph, DegenerateInputGivesReasons) {
 // Gross errors (a wrong LiDAR plane offset, a camera pose from a mis-detection) are rejected
 // and the accuracy holds.
 TEST(MsgGraph, OutlierObservationsAreRejected) {
-  MsgSyntheticScene scene = makeScene(defaultRig(), 8);
+  sim::RigScene scene = makeScene(sim::defaultRig(), 8);
   const std::vector<int> corrupted_lidar_poses = {3, 11, 25};
   for (int p : corrupted_lidar_poses) scene.problem.poses[p].lidars.at(2).plane.offset += 0.15;
   auto& cam = scene.problem.poses[17].cameras.at(1);
@@ -336,7 +336,7 @@ TEST(MsgGraph, OutlierObservationsAreRejected) {
 // PBPC line terms are on by default (measured better, docs/BENCHMARKS.md); the graph meets the
 // targets without them too, and with them the LiDAR edges fit the image lines at least as well.
 TEST(MsgGraph, LineTermsOptional) {
-  const MsgSyntheticScene scene = makeScene(defaultRig(), 9);
+  const sim::RigScene scene = makeScene(sim::defaultRig(), 9);
   const MsgSolution with_lines = solveMsgGraph(scene.problem, MsgGraphOptions());
   ASSERT_TRUE(with_lines.success) << with_lines.reason;
   EXPECT_GT(with_lines.residuals.line_terms, 0);
@@ -360,7 +360,7 @@ TEST(MsgGraph, LineTermsOptional) {
 // The fixed sensor is a choice of frame, not of answer: a LiDAR as the reference gives the same
 // relative poses (to well below the accuracy targets).
 TEST(MsgGraph, ReferenceSensorChoiceDoesNotChangeTheRelativePoses) {
-  MsgSyntheticScene scene = makeScene(defaultRig(), 11, 25);
+  sim::RigScene scene = makeScene(sim::defaultRig(), 11, 25);
   const MsgSolution camera_ref = solveMsgGraph(scene.problem, MsgGraphOptions());
   scene.problem.reference_sensor = 3;
   const MsgSolution lidar_ref = solveMsgGraph(scene.problem, MsgGraphOptions());
@@ -397,14 +397,14 @@ TEST(MsgGraph, PairCovarianceMatchesTheSpreadAndNeedsTheCrossTerms) {
   constexpr int kScenes = 20;
   constexpr double kFactor = 1.5;
   constexpr int kReference = 2;  // vlp32c
-  std::vector<SimSensor> rig = defaultRig();
+  std::vector<sim::RigSensor> rig = sim::defaultRig();
   for (auto& sensor : rig) sensor.ring_bias_m = 0.0;  // random noise only
   MsgGraphOptions options;
   options.camera_pixel_sigma_px = 0.3;  // as simulated
   std::map<std::pair<int, int>, PairSpread> pairs;
   PairSpread stereo, stereo_without_cross;
   for (unsigned seed = 300; seed < 300u + kScenes; ++seed) {
-    MsgSyntheticScene scene = makeScene(rig, seed);
+    sim::RigScene scene = makeScene(rig, seed);
     scene.problem.reference_sensor = kReference;
     const MsgSolution sol = solveMsgGraph(scene.problem, options);
     ASSERT_TRUE(sol.success) << sol.reason;
@@ -449,7 +449,7 @@ TEST(MsgGraph, PairCovarianceMatchesTheSpreadAndNeedsTheCrossTerms) {
 }
 
 TEST(MsgGraph, ResultFileListsEverySensorAndPair) {
-  const MsgSyntheticScene scene = makeScene(defaultRig(), 10, 20);
+  const sim::RigScene scene = makeScene(sim::defaultRig(), 10, 20);
   const MsgSolution sol = solveMsgGraph(scene.problem, MsgGraphOptions());
   ASSERT_TRUE(sol.success) << sol.reason;
   const ResultFile file = msgResultFile(scene.problem, sol);

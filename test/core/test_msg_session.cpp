@@ -1,6 +1,6 @@
 // Grouping per-sensor streams by stamp into board poses, then solving the graph from them.
 #include <board_calib/core/msg_session.h>
-#include <board_calib/core/msg_synthetic.h>
+#include "support/synthetic_rig.h"
 #include <board_calib/core/transform.h>
 
 #include <gtest/gtest.h>
@@ -15,7 +15,7 @@ struct Streams {
   std::map<int, std::vector<LidarBoardFeatures>> lidars;
 };
 
-Streams split(const MsgSyntheticScene& scene, double period_s, double jitter_s, std::mt19937& rng) {
+Streams split(const sim::RigScene& scene, double period_s, double jitter_s, std::mt19937& rng) {
   std::uniform_real_distribution<double> jitter(-jitter_s, jitter_s);
   Streams out;
   for (const auto& pose : scene.problem.poses) {
@@ -34,9 +34,9 @@ Streams split(const MsgSyntheticScene& scene, double period_s, double jitter_s, 
 
 TEST(MsgSession, GroupsJitteredStreamsIntoTheBoardPoses) {
   std::mt19937 rng(21);
-  MsgSyntheticOptions so;
+  sim::RigSceneOptions so;
   so.num_poses = 30;
-  auto scene = generateMsgScene(defaultRig(), so, rng);
+  auto scene = sim::generateRigScene(sim::defaultRig(), so, rng);
   ASSERT_TRUE(scene.ok()) << scene.error();
   // 1 s between board poses, +-20 ms jitter: a 50 ms tolerance separates them exactly.
   Streams streams = split(*scene, 1.0, 0.02, rng);

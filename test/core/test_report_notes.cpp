@@ -1,7 +1,7 @@
 // consistencyNotes: board size compared side by side (rectangular boards too), and a plane scale
 // that the solve compensated is reported with the compensated figures.
 #include <board_calib/core/report.h>
-#include <board_calib/core/synthetic_features.h>
+#include "support/synthetic_views.h"
 
 #include <gtest/gtest.h>
 
@@ -55,12 +55,12 @@ TEST(ReportNotes, RectangularBoardComparedSideBySide) {
 
 TEST(ReportNotes, CompensatedPlaneScaleQuotesCompensatedFigures) {
   // Board declared 5 % too small: the PBPC solve estimates the plane scale and uses it.
-  synth::SyntheticFeatureOptions o;
+  sim::SyntheticFeatureOptions o;
   o.num_views = 20;
   o.declared_size_factor = 1.0 / 1.05;
   std::mt19937 rng(5);
-  const Eigen::Isometry3d truth = synth::randomCameraTLidar(rng);
-  auto scene = synth::generateSyntheticViews(o, truth, rng);
+  const Eigen::Isometry3d truth = sim::randomCameraTLidar(rng);
+  auto scene = sim::generateSyntheticViews(o, truth, rng);
   ASSERT_TRUE(scene.ok()) << scene.error();
   const CalibrationSolution s = calibrate(scene->views, Method::kPbpc, SolverOptions{});
   ASSERT_TRUE(s.success) << s.reason;

@@ -1,7 +1,7 @@
 // Report figures: PNGs written at the requested size, an edge with a wrong image line flagged
 // and drawn as an outlier, the Markdown section links figures and overlays.
 #include <board_calib/core/report_plots.h>
-#include <board_calib/core/synthetic_features.h>
+#include "support/synthetic_views.h"
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
@@ -30,11 +30,11 @@ struct Fixture {
 // 12 synthetic views (0.3 px line noise: edge MLREs of a few tenths of a px); optionally one
 // image line moved outward by kLineShiftPx.
 Fixture makeFixture(bool corrupt) {
-  synth::SyntheticFeatureOptions o;
+  sim::SyntheticFeatureOptions o;
   o.num_views = 12;
   std::mt19937 rng(11);
-  const Eigen::Isometry3d truth = synth::randomCameraTLidar(rng);
-  auto scene = synth::generateSyntheticViews(o, truth, rng);
+  const Eigen::Isometry3d truth = sim::randomCameraTLidar(rng);
+  auto scene = sim::generateSyntheticViews(o, truth, rng);
   EXPECT_TRUE(scene.ok()) << scene.error();
   Fixture f;
   f.views = scene->views;

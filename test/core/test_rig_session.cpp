@@ -1,7 +1,7 @@
 // Live rig session: board poses captured from interleaved per-sensor streams (holds and moves,
 // as a person waving the board produces them), solved against the ground truth, saved and
 // reloaded; bad input gives specific events.
-#include <board_calib/core/msg_synthetic.h>
+#include "support/synthetic_rig.h"
 #include <board_calib/core/rig_session.h>
 #include <board_calib/core/transform.h>
 
@@ -42,7 +42,7 @@ struct Feed {
 
 // Plays the scene into the session: per pose `hold_frames` still frames from every sensor
 // (per-sensor stamp offsets like real drivers), then `move_frames` frames of a moving board.
-Feed play(RigSession& session, const MsgSyntheticScene& scene, int hold_frames, int move_frames,
+Feed play(RigSession& session, const sim::RigScene& scene, int hold_frames, int move_frames,
           double t0 = 100.0, const std::vector<int>& only_sensors = {}) {
   Feed feed;
   const std::vector<double> offset = {0.005, 0.006, 0.0, 0.013};
@@ -73,9 +73,9 @@ class RigSessionTest : public ::testing::Test {
  protected:
   void SetUp() override {
     std::mt19937 rng(31);
-    MsgSyntheticOptions so;
+    sim::RigSceneOptions so;
     so.num_poses = 25;
-    auto s = generateMsgScene(defaultRig(), so, rng);
+    auto s = sim::generateRigScene(sim::defaultRig(), so, rng);
     ASSERT_TRUE(s.ok()) << s.error();
     scene = *s;
     options.stamp_tolerance_s = 0.05;
@@ -83,7 +83,7 @@ class RigSessionTest : public ::testing::Test {
   RigSession makeSession() const {
     return RigSession({"left", "right", "vlp32", "os1"}, scene.problem.sensors, options);
   }
-  MsgSyntheticScene scene;
+  sim::RigScene scene;
   RigSessionOptions options;
 };
 

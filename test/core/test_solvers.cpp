@@ -1,6 +1,6 @@
 // Solvers on synthetic features at known ground truth (issue 3 targets).
 #include <board_calib/core/solvers.h>
-#include <board_calib/core/synthetic_features.h>
+#include "support/synthetic_views.h"
 #include <board_calib/core/transform.h>
 
 #include <gtest/gtest.h>
@@ -14,8 +14,8 @@ namespace board_calib {
 namespace {
 
 // The issue's scenario: 30 views, 2 cm range noise, 0.2 deg horizontal step, 0.3 px lines.
-synth::SyntheticFeatureOptions issueScenario() {
-  synth::SyntheticFeatureOptions o;
+sim::SyntheticFeatureOptions issueScenario() {
+  sim::SyntheticFeatureOptions o;
   o.num_views = 30;
   o.lidar_range_noise_m = 0.02;
   o.lidar_horizontal_resolution_deg = 0.2;
@@ -23,10 +23,10 @@ synth::SyntheticFeatureOptions issueScenario() {
   return o;
 }
 
-synth::SyntheticScene makeScene(unsigned seed, const synth::SyntheticFeatureOptions& o = issueScenario()) {
+sim::SyntheticScene makeScene(unsigned seed, const sim::SyntheticFeatureOptions& o = issueScenario()) {
   std::mt19937 rng(seed);
-  const Eigen::Isometry3d truth = synth::randomCameraTLidar(rng);
-  auto scene = synth::generateSyntheticViews(o, truth, rng);
+  const Eigen::Isometry3d truth = sim::randomCameraTLidar(rng);
+  auto scene = sim::generateSyntheticViews(o, truth, rng);
   EXPECT_TRUE(scene.ok()) << scene.error();
   return *scene;
 }

@@ -2,7 +2,7 @@
 // and its reported 1 sigma covers its error; corrupted views are left out or the result refused;
 // every fault of the sweep is failed or doubtful with a reason, never a silent success.
 #include <board_calib/core/pipeline/pair_calibration.h>
-#include <board_calib/core/synthetic_features.h>
+#include "support/synthetic_views.h"
 #include <board_calib/core/transform.h>
 
 #include <gtest/gtest.h>
@@ -22,13 +22,13 @@ Target plainTarget() {
   return t;
 }
 
-synth::SyntheticScene makeScene(unsigned seed, int views = 30, double range_noise_m = 0.02) {
-  synth::SyntheticFeatureOptions o;
+sim::SyntheticScene makeScene(unsigned seed, int views = 30, double range_noise_m = 0.02) {
+  sim::SyntheticFeatureOptions o;
   o.num_views = views;
   o.lidar_range_noise_m = range_noise_m;
   std::mt19937 rng(seed);
-  const Eigen::Isometry3d truth = synth::randomCameraTLidar(rng);
-  auto scene = synth::generateSyntheticViews(o, truth, rng);
+  const Eigen::Isometry3d truth = sim::randomCameraTLidar(rng);
+  auto scene = sim::generateSyntheticViews(o, truth, rng);
   EXPECT_TRUE(scene.ok()) << scene.error();
   return *scene;
 }

@@ -1,5 +1,5 @@
 // Synthetic board features at known ground truth (see synthetic_features.h).
-#include <board_calib/core/synthetic_features.h>
+#include "support/synthetic_views.h"
 #include <board_calib/core/transform.h>
 
 #include <Eigen/Eigenvalues>
@@ -8,7 +8,7 @@
 #include <cmath>
 
 namespace board_calib {
-namespace synth {
+namespace sim {
 
 namespace {
 
@@ -352,5 +352,5 @@ Expected<SyntheticScene> generateSyntheticViews(const SyntheticFeatureOptions& o
   return scene;
 }
 
-}  // namespace synth
+}  // namespace sim
 }  // namespace board_calib

@@ -1,5 +1,5 @@
 // Synthetic multi-sensor rigs for the MSG graph (see msg_synthetic.h).
-#include <board_calib/core/msg_synthetic.h>
+#include "support/synthetic_rig.h"
 #include <board_calib/core/transform.h>
 
 #include <ceres/ceres.h>
@@ -11,7 +11,7 @@
 #include <cmath>
 
 namespace board_calib {
-namespace msg {
+namespace sim {
 
 namespace {
 
@@ -75,16 +75,16 @@ Eigen::Isometry3d refinePnp(const std::vector<PatternObservation>& pattern, cons
   return makeTransform(expSO3(r), t);
 }
 
-Eigen::Vector2d project(const SimSensor& s, const Eigen::Vector3d& p) {
+Eigen::Vector2d project(const RigSensor& s, const Eigen::Vector3d& p) {
   return {s.fx * p.x() / p.z() + s.cx, s.fy * p.y() / p.z() + s.cy};
 }
 
-bool insideImage(const SimSensor& s, const Eigen::Vector2d& uv) {
+bool insideImage(const RigSensor& s, const Eigen::Vector2d& uv) {
   return uv.x() >= 0 && uv.y() >= 0 && uv.x() <= s.image_width - 1 && uv.y() <= s.image_height - 1;
 }
 
 // Camera observation; nullopt when the board is not completely in view.
-std::optional<CameraBoardFeatures> observeCamera(const SimSensor& s, const Target& target,
+std::optional<CameraBoardFeatures> observeCamera(const RigSensor& s, const Target& target,
                                                  const Eigen::Isometry3d& sensor_T_board, std::mt19937& rng) {
   std::normal_distribution<double> noise(0.0, s.pixel_noise_px * s.noise_scale);
   const auto outer = target.outerCorners();
@@ -132,7 +132,7 @@ std::optional<CameraBoardFeatures> observeCamera(const SimSensor& s, const Targe
 }
 
 // LiDAR observation by ray casting; nullopt when too few rings / points hit the board.
-std::optional<LidarBoardFeatures> observeLidar(const SimSensor& s, const MsgSyntheticOptions& opt,
+std::optional<LidarBoardFeatures> observeLidar(const RigSensor& s, const RigSceneOptions& opt,
                                                const std::vector<double>& ring_bias,
                                                const Eigen::Isometry3d& sensor_T_board, std::mt19937& rng) {
   const Target& target = opt.target;
@@ -228,7 +228,7 @@ std::optional<LidarBoardFeatures> observeLidar(const SimSensor& s, const MsgSynt
   return f;
 }
 
-Eigen::Isometry3d drawBoardPose(const MsgSyntheticOptions& opt, std::mt19937& rng) {
+Eigen::Isometry3d drawBoardPose(const RigSceneOptions& opt, std::mt19937& rng) {
   std::uniform_real_distribution<double> uni(0.0, 1.0);
   const double two_pi = 2.0 * M_PI;
   // Centre direction inside a cone around the optical axis (z).
@@ -255,20 +255,20 @@ Eigen::Isometry3d drawBoardPose(const MsgSyntheticOptions& opt, std::mt19937& rn
 
 }  // namespace
 
-std::vector<SimSensor> defaultRig() {
-  std::vector<SimSensor> rig;
-  SimSensor left;
+std::vector<RigSensor> defaultRig() {
+  std::vector<RigSensor> rig;
+  RigSensor left;
   left.frame = "camera_left";
-  left.kind = SensorKind::kCamera;
+  left.kind = msg::SensorKind::kCamera;
   rig.push_back(left);
-  SimSensor right = left;
+  RigSensor right = left;
   right.frame = "camera_right";
   right.reference_T_sensor =
       makeTransform(fromRollPitchYaw(Eigen::Vector3d(0.3, -0.4, 0.2) * kRadPerDeg), Eigen::Vector3d(0.12, 0.002, -0.001));
   rig.push_back(right);
-  SimSensor vlp;
+  RigSensor vlp;
   vlp.frame = "vlp32c";
-  vlp.kind = SensorKind::kLidar;
+  vlp.kind = msg::SensorKind::kLidar;
   vlp.reference_T_sensor = lidarPose(Eigen::Vector3d(0.06, -0.18, -0.05), Eigen::Vector3d(1.5, -2.0, 3.0));
   vlp.rings = 32;
   vlp.min_elevation_deg = -25.0;
@@ -276,7 +276,7 @@ std::vector<SimSensor> defaultRig() {
   vlp.horizontal_resolution_deg = 0.2;
   vlp.range_noise_m = 0.01;
   rig.push_back(vlp);
-  SimSensor os1 = vlp;
+  RigSensor os1 = vlp;
   os1.frame = "os1_64";
   os1.reference_T_sensor = lidarPose(Eigen::Vector3d(0.04, 0.15, 0.02), Eigen::Vector3d(-1.0, 2.5, -4.0));
   os1.rings = 64;
@@ -288,10 +288,10 @@ std::vector<SimSensor> defaultRig() {
   return rig;
 }
 
-SimSensor extraLidar16(const std::string& frame, double noise_scale) {
-  SimSensor s;
+RigSensor extraLidar16(const std::string& frame, double noise_scale) {
+  RigSensor s;
   s.frame = frame;
-  s.kind = SensorKind::kLidar;
+  s.kind = msg::SensorKind::kLidar;
   s.reference_T_sensor = lidarPose(Eigen::Vector3d(-0.35, -0.10, 0.10), Eigen::Vector3d(0.5, 1.0, 6.0));
   s.rings = 16;
   s.min_elevation_deg = -15.0;
@@ -302,7 +302,7 @@ SimSensor extraLidar16(const std::string& frame, double noise_scale) {
   return s;
 }
 
-MsgSyntheticOptions::MsgSyntheticOptions() {
+RigSceneOptions::RigSceneOptions() {
   target.type = TargetType::kAprilTagGrid;
   target.width = 1.0;
   target.height = 1.0;
@@ -313,7 +313,7 @@ MsgSyntheticOptions::MsgSyntheticOptions() {
   target.apriltag_grid.origin = Eigen::Vector2d(0.04, 0.04);
 }
 
-std::string MsgSyntheticOptions::validate() const {
+std::string RigSceneOptions::validate() const {
   if (num_poses < 1) return "num_poses must be >= 1";
   const std::string t = target.validate();
   if (!t.empty()) return "target: " + t;
@@ -326,18 +326,18 @@ std::string MsgSyntheticOptions::validate() const {
   return "";
 }
 
-Expected<MsgSyntheticScene> generateMsgScene(const std::vector<SimSensor>& sensors, const MsgSyntheticOptions& options,
+Expected<RigScene> generateRigScene(const std::vector<RigSensor>& sensors, const RigSceneOptions& options,
                                              std::mt19937& rng) {
   const std::string invalid = options.validate();
-  if (!invalid.empty()) return Expected<MsgSyntheticScene>::failure("invalid synthetic options: " + invalid);
-  if (sensors.size() < 2) return Expected<MsgSyntheticScene>::failure("a rig needs >= 2 sensors");
+  if (!invalid.empty()) return Expected<RigScene>::failure("invalid synthetic options: " + invalid);
+  if (sensors.size() < 2) return Expected<RigScene>::failure("a rig needs >= 2 sensors");
   for (const auto& s : sensors)
-    if (s.kind == SensorKind::kLidar && (s.rings < 1 || !(s.horizontal_resolution_deg > 0)))
-      return Expected<MsgSyntheticScene>::failure("LiDAR '" + s.frame + "' needs >= 1 ring and a resolution > 0");
-  MsgSyntheticScene scene;
+    if (s.kind == msg::SensorKind::kLidar && (s.rings < 1 || !(s.horizontal_resolution_deg > 0)))
+      return Expected<RigScene>::failure("LiDAR '" + s.frame + "' needs >= 1 ring and a resolution > 0");
+  RigScene scene;
   scene.sensors = sensors;
   for (const auto& s : sensors) {
-    SensorSpec spec;
+    msg::SensorSpec spec;
     spec.frame = s.frame;
     spec.kind = s.kind;
     scene.problem.sensors.push_back(spec);
@@ -346,7 +346,7 @@ Expected<MsgSyntheticScene> generateMsgScene(const std::vector<SimSensor>& senso
   std::vector<std::vector<double>> ring_bias(sensors.size());
   for (size_t i = 0; i < sensors.size(); ++i) {
     std::normal_distribution<double> bias(0.0, sensors[i].ring_bias_m * sensors[i].noise_scale);
-    if (sensors[i].kind == SensorKind::kLidar)
+    if (sensors[i].kind == msg::SensorKind::kLidar)
       for (int r = 0; r < sensors[i].rings; ++r) ring_bias[i].push_back(bias(rng));
   }
   // Board poses are drawn around the reference sensor's (sensor 0) optical axis.
@@ -354,16 +354,16 @@ Expected<MsgSyntheticScene> generateMsgScene(const std::vector<SimSensor>& senso
   int attempts = 0;
   while (static_cast<int>(scene.problem.poses.size()) < options.num_poses) {
     if (++attempts > options.max_attempts)
-      return Expected<MsgSyntheticScene>::failure(
+      return Expected<RigScene>::failure(
           "only " + std::to_string(scene.problem.poses.size()) + " of " + std::to_string(options.num_poses) +
           " board poses fit every sensor's field of view after " + std::to_string(options.max_attempts) + " draws");
     const Eigen::Isometry3d ref_T_board = ref_T_s0 * drawBoardPose(options, rng);
-    BoardPoseObservation obs;
+    msg::BoardPoseObservation obs;
     obs.id = static_cast<int>(scene.problem.poses.size());
     bool all = true;
     for (size_t i = 0; i < sensors.size() && all; ++i) {
       const Eigen::Isometry3d s_T_board = sensors[i].reference_T_sensor.inverse() * ref_T_board;
-      if (sensors[i].kind == SensorKind::kCamera) {
+      if (sensors[i].kind == msg::SensorKind::kCamera) {
         auto f = observeCamera(sensors[i], options.target, s_T_board, rng);
         if (f) obs.cameras[static_cast<int>(i)] = std::move(*f);
         else all = false;
@@ -383,5 +383,5 @@ Expected<MsgSyntheticScene> generateMsgScene(const std::vector<SimSensor>& senso
   return scene;
 }
 
-}  // namespace msg
+}  // namespace sim
 }  // namespace board_calib

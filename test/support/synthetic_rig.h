@@ -13,11 +13,11 @@
 #include <random>
 
 namespace board_calib {
-namespace msg {
+namespace sim {
 
-struct SimSensor {
+struct RigSensor {
   std::string frame;
-  SensorKind kind = SensorKind::kCamera;
+  msg::SensorKind kind = msg::SensorKind::kCamera;
   Eigen::Isometry3d reference_T_sensor = Eigen::Isometry3d::Identity();  ///< ground truth
   // Camera (pinhole, undistorted pixels).
   int image_width = 1280, image_height = 960;  ///< px
@@ -39,11 +39,11 @@ struct SimSensor {
 
 /// Ground-truth sensors of the rig, in the reference frame of the left camera
 /// (optical frame): a stereo pair (12 cm baseline), a VLP-32C-like and an OS1-64-like LiDAR.
-std::vector<SimSensor> defaultRig();
+std::vector<RigSensor> defaultRig();
 /// A VLP-16-like LiDAR beside the rig, to add as a further (e.g. noisy) sensor.
-SimSensor extraLidar16(const std::string& frame, double noise_scale);
+RigSensor extraLidar16(const std::string& frame, double noise_scale);
 
-struct MsgSyntheticOptions {
+struct RigSceneOptions {
   int num_poses = 40;
   Target target;  ///< defaults to a 1 m AprilTag grid (4 x 4 tags of 0.2 m)
   double min_distance_m = 2.0, max_distance_m = 5.0;  ///< board centre from the reference sensor
@@ -54,21 +54,21 @@ struct MsgSyntheticOptions {
   int min_lidar_points = 60;
   int max_attempts = 5000;           ///< board pose draws before giving up
 
-  MsgSyntheticOptions();
+  RigSceneOptions();
   std::string validate() const;
 };
 
-struct MsgSyntheticScene {
-  MsgProblem problem;  ///< reference sensor 0, sigmas left at the defaults (<= 0)
-  std::vector<SimSensor> sensors;
+struct RigScene {
+  msg::MsgProblem problem;  ///< reference sensor 0, sigmas left at the defaults (<= 0)
+  std::vector<RigSensor> sensors;
   std::vector<Eigen::Isometry3d> reference_T_board;  ///< per board pose
 };
 
 /// Board poses every sensor sees completely (cameras: all corners inside the image; LiDARs:
 /// enough rings and points). Fails with a reason when the options are invalid or the sensors
 /// share too little field of view.
-Expected<MsgSyntheticScene> generateMsgScene(const std::vector<SimSensor>& sensors,
-                                             const MsgSyntheticOptions& options, std::mt19937& rng);
+Expected<RigScene> generateRigScene(const std::vector<RigSensor>& sensors,
+                                             const RigSceneOptions& options, std::mt19937& rng);
 
-}  // namespace msg
+}  // namespace sim
 }  // namespace board_calib

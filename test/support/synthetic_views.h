@@ -10,7 +10,7 @@
 #include <random>
 
 namespace board_calib {
-namespace synth {
+namespace sim {
 
 struct SyntheticFeatureOptions {
   int num_views = 30;
@@ -68,5 +68,5 @@ struct SyntheticScene {
 Expected<SyntheticScene> generateSyntheticViews(const SyntheticFeatureOptions& options,
                                                 const Eigen::Isometry3d& camera_T_lidar, std::mt19937& rng);
 
-}  // namespace synth
+}  // namespace sim
 }  // namespace board_calib
