@@ -43,7 +43,7 @@ Scenario makeScenario(unsigned seed, const sim::SyntheticFeatureOptions& o) {
   return s;
 }
 
-sim::SyntheticFeatureOptions issueOptions() {
+sim::SyntheticFeatureOptions thirtyViewsOf84Rings() {
   sim::SyntheticFeatureOptions o;
   o.num_views = 30;
   o.lidar_range_noise_m = 0.02;
@@ -115,7 +115,7 @@ int main(int argc, char** argv) {
     if (!std::strcmp(argv[i], "--seeds")) seeds = std::atoi(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--trials")) trials = std::atoi(argv[i + 1]);
   }
-  const sim::SyntheticFeatureOptions o = issueOptions();
+  const sim::SyntheticFeatureOptions o = thirtyViewsOf84Rings();
   const Scenario s = makeScenario(1, o);
   std::printf("Scenario: %zu views, %.0f board points and %.0f edge points per view, range noise %.0f mm, "
               "horizontal step %.2f deg, line noise %.1f px\n",

@@ -13,8 +13,8 @@
 namespace board_calib {
 namespace {
 
-// The issue's scenario: 30 views, 2 cm range noise, 0.2 deg horizontal step, 0.3 px lines.
-sim::SyntheticFeatureOptions issueScenario() {
+// 30 views, 2 cm range noise, 0.2 deg horizontal step, 0.3 px lines: the accuracy scenario.
+sim::SyntheticFeatureOptions thirtyViewsAt2cmRangeNoise() {
   sim::SyntheticFeatureOptions o;
   o.num_views = 30;
   o.lidar_range_noise_m = 0.02;
@@ -23,7 +23,7 @@ sim::SyntheticFeatureOptions issueScenario() {
   return o;
 }
 
-sim::SyntheticScene makeScene(unsigned seed, const sim::SyntheticFeatureOptions& o = issueScenario()) {
+sim::SyntheticScene makeScene(unsigned seed, const sim::SyntheticFeatureOptions& o = thirtyViewsAt2cmRangeNoise()) {
   std::mt19937 rng(seed);
   const Eigen::Isometry3d truth = sim::randomCameraTLidar(rng);
   auto scene = sim::generateSyntheticViews(o, truth, rng);
@@ -293,7 +293,7 @@ TEST(Solvers, DegenerateInputGivesSpecificReasons) {
 
 TEST(Solvers, CovarianceShrinksWithMoreViewsAndMatchesSpread) {
   SolverOptions options;
-  auto o = issueScenario();
+  auto o = thirtyViewsAt2cmRangeNoise();
   o.num_views = 40;
   const auto scene = makeScene(9, o);
   std::vector<View> few(scene.views.begin(), scene.views.begin() + 8);
@@ -375,7 +375,7 @@ TEST(Solvers, GuessIsAccepted) {
 TEST(Solvers, WeakDirectionDetected) {
   // Boards all facing the camera (tilt <= 3 deg, near the optical axis): the normals barely
   // differ, so PPC's translation across the normal is weak.
-  auto o = issueScenario();
+  auto o = thirtyViewsAt2cmRangeNoise();
   o.max_tilt_deg = 3.0;
   o.max_off_axis_fraction = 0.1;
   const auto scene = makeScene(4, o);
@@ -396,7 +396,7 @@ TEST(Solvers, WeakDirectionDetected) {
 }
 
 TEST(Solvers, BoardSizeMismatchIsAbsorbedByPlaneScale) {
-  auto o = issueScenario();
+  auto o = thirtyViewsAt2cmRangeNoise();
   o.declared_size_factor = 1.0 / 1.03;  // declared 3 % too small, as on the real OS1 data
   const auto scene = makeScene(13, o);
   SolverOptions with_scale, without_scale;

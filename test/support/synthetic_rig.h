@@ -37,7 +37,7 @@ struct RigSensor {
   double noise_scale = 1.0;
 };
 
-/// Ground-truth sensors of the rig, in the reference frame of the left camera
+/// Ground-truth sensors of the reference test rig, in the frame of the left camera
 /// (optical frame): a stereo pair (12 cm baseline), a VLP-32C-like and an OS1-64-like LiDAR.
 std::vector<RigSensor> defaultRig();
 /// A VLP-16-like LiDAR beside the rig, to add as a further (e.g. noisy) sensor.
