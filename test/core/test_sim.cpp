@@ -247,7 +247,7 @@ TEST(SimCamera, AprilTagFindsEveryTagAtTruth) {
     apriltag_detection_t* det = nullptr;
     zarray_get(detections, i, &det);
     std::array<Eigen::Vector2d, 4> corners;
-    // libapriltag's pixel centres sit at integer + 0.5 (ENVIRONMENT.md): shift to OpenCV's.
+    // libapriltag's pixel centres sit at integer + 0.5 (libapriltag's convention): shift to OpenCV's.
     for (int k = 0; k < 4; ++k) corners[k] = Eigen::Vector2d(det->p[k][0] - 0.5, det->p[k][1] - 0.5);
     found[det->id] = corners;
   }

@@ -97,7 +97,7 @@ TEST(RigLiveEndToEnd, EverySensorTfMatchesGroundTruth) {
     EXPECT_LT(trans, translation_tol_m) << s.frame;
   }
 
-  // The result file lists every sensor and every camera <- LiDAR pair (DESIGN.md 3.4).
+  // The result file lists every sensor and every camera <- LiDAR pair: the rig result file format.
   auto written = board_calib::loadResultFile(output_dir + "/msg_rig_result.yaml");
   ASSERT_TRUE(written.ok()) << written.error();
   EXPECT_EQ(written->sensors.size(), 4u);

@@ -1,4 +1,4 @@
-// The result file of DESIGN.md §3.4 (contract): writer and reader.
+// The result file (a contract: tools outside this package read it): writer and reader.
 #pragma once
 
 #include <board_calib/core/types.h>

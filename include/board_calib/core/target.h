@@ -1,4 +1,4 @@
-// Calibration target (board) description: parsed from the target YAML of DESIGN.md §3.2 and
+// Calibration target (board) description: parsed from a target YAML (config/targets/) and
 // turned into geometry in the board frame (origin at the top-left outer corner, x right along
 // the width, y down along the height, z = x × y into the board).
 #pragma once
