@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: BSD-3-Clause
 // Test support: a simulated recording run through the offline pipeline frame by frame, with
 // the capture scored against the simulator's ground truth (which frames were still, which
 // pose each belongs to).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: BSD-3-Clause
 // Synthetic multi-sensor rigs for the MSG graph (see msg_synthetic.h).
 #include "support/synthetic_rig.h"
 #include <board_calib/core/transform.h>

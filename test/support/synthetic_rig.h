@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: BSD-3-Clause
 // Synthetic multi-sensor rigs at known ground truth for the MSG graph tests and benchmark:
 // cameras see AprilTag-grid corners (projected, pixel noise) and get their board pose from a
 // PnP refinement of those noisy corners (so plane and corners are consistent, as from a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: BSD-3-Clause
 // Synthetic board features at known ground truth (see synthetic_features.h).
 #include "support/synthetic_views.h"
 #include <board_calib/core/transform.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: BSD-3-Clause
 // Synthetic board features at known ground truth, for solver tests and benchmarks (no images,
 // no full clouds): a spinning LiDAR's rings are ray-cast against the board rectangle, the edge
 // points are the per-scan-line extremes (so they lie up to one horizontal step inside the true
