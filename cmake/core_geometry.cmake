@@ -4,5 +4,6 @@ board_calib_core_module(geometry
   src/core/camera_model.cpp
   src/core/transform.cpp
   src/core/result_io.cpp
-  src/core/file_io.cpp)
+  src/core/file_io.cpp
+  src/core/common/board_geometry.cpp)
 target_link_libraries(bc_geometry PUBLIC yaml-cpp)

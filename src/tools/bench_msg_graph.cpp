@@ -2,7 +2,7 @@
 // views, single-threaded), accuracy of every pair, the effect of each ingredient (corner
 // terms, PBPC line terms, noise estimation) with and without a 3x-noise fifth sensor, and
 // convergence from random starts.
-//   bench_msg_graph [--views N] [--scenes N] [--trials N] [--seed S]
+//   bench_msg_graph [--views N] [--scenes N] [--trials N] [--seed S] [--only-pairs]
 #include <board_calib/core/msg_graph.h>
 #include <board_calib/core/msg_synthetic.h>
 #include <board_calib/core/transform.h>
@@ -25,6 +25,7 @@ struct Args {
   int scenes = 10;
   int trials = 100;
   unsigned seed = 1;
+  bool only_pairs = false;  ///< only the pairs-against-PBPC section
 };
 
 bool parseArgs(int argc, char** argv, Args* args) {
@@ -39,11 +40,15 @@ bool parseArgs(int argc, char** argv, Args* args) {
     if (a == "--views" && next(&args->views)) continue;
     if (a == "--scenes" && next(&args->scenes)) continue;
     if (a == "--trials" && next(&args->trials)) continue;
+    if (a == "--only-pairs") {
+      args->only_pairs = true;
+      continue;
+    }
     if (a == "--seed" && next(&v)) {
       args->seed = static_cast<unsigned>(v);
       continue;
     }
-    std::fprintf(stderr, "usage: bench_msg_graph [--views N] [--scenes N] [--trials N] [--seed S]\n");
+    std::fprintf(stderr, "usage: bench_msg_graph [--views N] [--scenes N] [--trials N] [--seed S] [--only-pairs]\n");
     return false;
   }
   return args->views >= 3 && args->scenes >= 1 && args->trials >= 0;
@@ -68,12 +73,96 @@ struct Variant {
   MsgGraphOptions options;
 };
 
+// The views of one camera <- LiDAR pair of a graph problem (board poses both saw).
+std::vector<View> pairViews(const MsgProblem& problem, int camera, int lidar) {
+  std::vector<View> views;
+  for (const auto& pose : problem.poses) {
+    const auto c = pose.cameras.find(camera);
+    const auto l = pose.lidars.find(lidar);
+    if (c == pose.cameras.end() || l == pose.lidars.end() || !c->second.found || !l->second.found) continue;
+    View v;
+    v.id = pose.id;
+    v.camera = c->second;
+    v.lidar = l->second;
+    views.push_back(std::move(v));
+  }
+  return views;
+}
+
+// Issue 13 item 4: each camera <- LiDAR pair of the graph against a PBPC solve of the same pair
+// (MLRE ratio graph / PBPC, and both errors against the truth), over scenes, noise levels and
+// with a 3x-noise LiDAR; plus the stereo consistency the graph must keep.
+void pairsAgainstPbpc(const Args& args) {
+  std::printf("\ncamera <- LiDAR pairs of the graph vs a PBPC solve of the same pair (%d scenes each):\n",
+              args.scenes);
+  std::printf("  %-34s %9s %9s %9s %11s %11s %11s %11s %9s\n", "rig", "ratio avg", "ratio max", "MLRE px",
+              "graph deg", "graph mm", "PBPC deg", "PBPC mm", "stereo mm");
+  struct Case {
+    const char* name;
+    double noise;
+    bool noisy_lidar;
+  };
+  for (const Case& k : {Case{"rig, nominal noise", 1.0, false}, Case{"rig, 2x noise on every sensor", 2.0, false},
+                        Case{"rig + VLP-16 with 3x noise", 1.0, true}}) {
+    double ratio_sum = 0, ratio_max = 0, mlre_sum = 0, g_rot = 0, g_tr = 0, p_rot = 0, p_tr = 0, stereo = 0;
+    int count = 0, solves = 0;
+    for (int i = 0; i < args.scenes; ++i) {
+      std::mt19937 rng(args.seed * 1000 + i);
+      auto rig = defaultRig();
+      for (auto& s : rig) s.noise_scale = k.noise;
+      if (k.noisy_lidar) rig.push_back(extraLidar16("vlp16_noisy", 3.0));
+      auto scene = generateMsgScene(rig, MsgSyntheticOptions(), rng);
+      if (!scene) continue;
+      MsgGraphOptions o;
+      o.compute_covariance = false;
+      const MsgSolution sol = solveMsgGraph(scene->problem, o);
+      if (!sol.success) continue;
+      ++solves;
+      const Eigen::Isometry3d stereo_truth =
+          scene->sensors[0].reference_T_sensor.inverse() * scene->sensors[1].reference_T_sensor;
+      stereo = std::max(stereo, stereoConsistency(sol, 0, 1, stereo_truth)->translation_mm);
+      SolverOptions so;
+      so.compute_covariance = false;
+      for (int c = 0; c < 2; ++c)
+        for (int l = 2; l < static_cast<int>(rig.size()); ++l) {
+          const std::vector<View> views = pairViews(scene->problem, c, l);
+          const CalibrationSolution pbpc = calibrate(views, Method::kPbpc, so);
+          const Eigen::Isometry3d graph = *sensorTSensor(sol, c, l);
+          const auto mg = meanLineReprojectionErrorPx(views, graph);
+          const auto mp = meanLineReprojectionErrorPx(views, pbpc.camera_T_lidar);
+          if (!pbpc.success || !mg || !mp) continue;
+          const Eigen::Isometry3d truth =
+              scene->sensors[c].reference_T_sensor.inverse() * scene->sensors[l].reference_T_sensor;
+          ratio_sum += *mg / *mp;
+          ratio_max = std::max(ratio_max, *mg / *mp);
+          mlre_sum += *mg;
+          g_rot = std::max(g_rot, rotationErrorDeg(graph, truth));
+          g_tr = std::max(g_tr, 1000.0 * translationErrorM(graph, truth));
+          p_rot = std::max(p_rot, rotationErrorDeg(pbpc.camera_T_lidar, truth));
+          p_tr = std::max(p_tr, 1000.0 * translationErrorM(pbpc.camera_T_lidar, truth));
+          ++count;
+        }
+    }
+    if (count == 0) {
+      std::printf("  %-34s no usable pair (%d graph solves)\n", k.name, solves);
+      continue;
+    }
+    std::printf("  %-34s %9.3f %9.3f %9.2f %11.3f %11.2f %11.3f %11.2f %9.2f\n", k.name, ratio_sum / count, ratio_max,
+                mlre_sum / count, g_rot, g_tr, p_rot, p_tr, stereo);
+  }
+  std::printf("  (deg / mm: worst pair against the truth; stereo: worst camera <-> camera translation error)\n");
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   Args args;
   if (!parseArgs(argc, argv, &args)) return 2;
 
+  if (args.only_pairs) {
+    pairsAgainstPbpc(args);
+    return 0;
+  }
   // 1. Speed: 4 sensors x N views, single-threaded.
   {
     std::mt19937 rng(args.seed);
@@ -113,6 +202,8 @@ int main(int argc, char** argv) {
                   sol.residuals.plane_terms, sol.residuals.line_terms, rot, trans);
     }
   }
+
+  pairsAgainstPbpc(args);
 
   // 2. Accuracy of each variant over several scenes (40 poses), clean rig and rig + noisy sensor.
   std::vector<Variant> variants;

@@ -240,6 +240,20 @@ PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& corre
                                    const SolverOptions& options,
                                    const std::optional<Eigen::Isometry3d>& initial_guess = std::nullopt);
 
+/// Board points of one plane correspondence (core/common/board_geometry.h boardPoint, in a and
+/// in b); zero = the sensor origin.
+struct BoardPointPair {
+  Eigen::Vector3d in_a = Eigen::Vector3d::Zero();
+  Eigen::Vector3d in_b = Eigen::Vector3d::Zero();
+};
+
+/// solvePlaneToPlane with the offset residual measured at the boards (the MSG graph's pairwise
+/// links); `points` is empty (offsets compared at the origins, as the overload above) or
+/// parallel to `correspondences`.
+PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& correspondences,
+                                   const std::vector<BoardPointPair>& points, const SolverOptions& options,
+                                   const std::optional<Eigen::Isometry3d>& initial_guess = std::nullopt);
+
 /// Camera plane (a) and LiDAR plane (b) of every view where both were found.
 std::vector<PlaneCorrespondence> planeCorrespondences(const std::vector<View>& views);
 

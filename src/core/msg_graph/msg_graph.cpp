@@ -1,8 +1,9 @@
 // MSG-Cal multi-sensor graph: pairwise initialisation, spanning tree, global Ceres solve with
 // outlier-observation rejection (see msg_graph.h for the formulation).
 #include "msg_costs.h"
-#include "../solvers/ceres_helpers.h"  // shared with the pairwise solvers (bc_solvers)
-#include "../solvers/internal.h"       // board points and the plane gap of the pairwise solver
+
+#include <board_calib/core/common/board_geometry.h>
+#include <board_calib/core/common/ceres_helpers.h>
 
 #include <ceres/product_manifold.h>
 
@@ -87,7 +88,7 @@ struct Sigmas {
 struct Obs {
   bool active = false;
   Plane plane;
-  Eigen::Vector3d point = Eigen::Vector3d::Zero();  // board point on the plane (solvers_detail::boardPoint)
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();  // board point on the plane (boardPoint)
   const CameraBoardFeatures* camera = nullptr;
   const LidarBoardFeatures* lidar = nullptr;
 };
@@ -152,7 +153,7 @@ PlanePairError planePairError(const Obs& oa, const Obs& ob, const Eigen::Isometr
   const Plane& pa = oa.plane;
   const Eigen::Vector3d rnb = a_T_b.linear() * ob.plane.normal;
   e.angle_rad = std::atan2(pa.normal.cross(rnb).norm(), pa.normal.dot(rnb));
-  e.offset_m = solvers_detail::planeGapM(pa, oa.point, ob.plane, ob.point, a_T_b);
+  e.offset_m = planeGapM(pa, oa.point, ob.plane, ob.point, a_T_b);
   const double sn = std::sqrt(sa.normal_rad * sa.normal_rad + sb.normal_rad * sb.normal_rad);
   const double sd = pairOffsetSigma(sa, sb);
   e.whitened = std::sqrt(0.5 * (std::pow(e.angle_rad / sn, 2) + std::pow(e.offset_m / sd, 2)));
@@ -276,7 +277,7 @@ class Graph {
                                             obs_[p][b].plane.normal, obs_[p][b].plane.offset, obs_[p][b].point,
                                             inflate * pairNormalSigmaComponent(sigmas_[a], sigmas_[b]),
                                             inflate * pairOffsetSigma(sigmas_[a], sigmas_[b])),
-              solvers_detail::makeLoss(loss, scale), poses_[a].q, poses_[a].t, poses_[b].q, poses_[b].t);
+              ceres_common::makeLoss(loss, scale), poses_[a].q, poses_[a].t, poses_[b].q, poses_[b].t);
         }
       }
       if (!cams.empty()) {
@@ -293,7 +294,7 @@ class Graph {
           for (const auto& corner : cam.pattern)
             problem->AddResidualBlock(detail::CornerCost::Create(corner.board_point, corner.pixel, cam.K,
                                                                  sigmas_[c].pixel_px, kMinCornerDepthM),
-                                      solvers_detail::makeLoss(loss, scale), poses_[c].q, poses_[c].t, boards_[p].x);
+                                      ceres_common::makeLoss(loss, scale), poses_[c].q, poses_[c].t, boards_[p].x);
         }
       }
       if (!planes_only && options_.use_line_terms) addLineTerms(p, problem.get(), loss, scale);
@@ -316,7 +317,7 @@ class Graph {
     } else {
       so.linear_solver_type = ceres::DENSE_QR;
     }
-    solvers_detail::applyStopCriteria(options_, &so);
+    ceres_common::applyStopCriteria(options_, &so);
     ceres::Solver::Summary summary;
     ceres::Solve(so, problem.get(), &summary);
     StageResult r;
@@ -420,7 +421,7 @@ class Graph {
           const double sigma = std::sqrt(sigmas_[l].edge_m * sigmas_[l].edge_m + line_m * line_m);
           const double w = 1.0 / (sigma * std::sqrt(static_cast<double>(lid.edge_points[e].size())));
           for (const auto& q : lid.edge_points[e])
-            problem->AddResidualBlock(detail::LineCost::Create(q, N, w), solvers_detail::makeLoss(loss, scale), poses_[c].q,
+            problem->AddResidualBlock(detail::LineCost::Create(q, N, w), ceres_common::makeLoss(loss, scale), poses_[c].q,
                                       poses_[c].t, poses_[l].q, poses_[l].t);
         }
       }
@@ -497,7 +498,7 @@ Sigmas resolveSigmas(const SensorSpec& spec, const MsgGraphOptions& o) {
 void solvePair(const std::vector<std::vector<Obs>>& obs, const Sigmas& sa, const Sigmas& sb,
                const MsgGraphOptions& options, PairLink* link) {
   std::vector<PlaneCorrespondence> all;
-  std::vector<solvers_detail::BoardPointPair> all_points;
+  std::vector<BoardPointPair> all_points;
   for (size_t p = 0; p < obs.size(); ++p) {
     const Obs& a = obs[p][link->a];
     const Obs& b = obs[p][link->b];
@@ -529,11 +530,11 @@ void solvePair(const std::vector<std::vector<Obs>>& obs, const Sigmas& sa, const
   so.min_normal_spread_deg = options.min_normal_spread_deg;
   so.compute_covariance = false;
   std::vector<PlaneCorrespondence> used = all;
-  std::vector<solvers_detail::BoardPointPair> used_points = all_points;
-  PairwiseSolution sol = solvers_detail::solvePlaneToPlaneAtBoards(used, used_points, so);
+  std::vector<BoardPointPair> used_points = all_points;
+  PairwiseSolution sol = solvePlaneToPlane(used, used_points, so);
   for (int round = 0; sol.success && round < std::max(1, options.outlier_rounds); ++round) {
     std::vector<PlaneCorrespondence> kept;
-    std::vector<solvers_detail::BoardPointPair> kept_points;
+    std::vector<BoardPointPair> kept_points;
     for (size_t k = 0; k < used.size(); ++k) {
       const Obs oa{true, used[k].in_a, used_points[k].in_a}, ob{true, used[k].in_b, used_points[k].in_b};
       if (planePairError(oa, ob, sol.a_T_b, sa, sb).whitened <= options.outlier_gate_sigma) {
@@ -544,7 +545,7 @@ void solvePair(const std::vector<std::vector<Obs>>& obs, const Sigmas& sa, const
     if (kept.size() == used.size() || static_cast<int>(kept.size()) < options.min_shared_views) break;
     used = kept;
     used_points = kept_points;
-    sol = solvers_detail::solvePlaneToPlaneAtBoards(used, used_points, so, sol.a_T_b);
+    sol = solvePlaneToPlane(used, used_points, so, sol.a_T_b);
   }
   link->success = sol.success;
   link->reason = sol.reason;
@@ -630,14 +631,14 @@ MsgSolution solveMsgGraph(const MsgProblem& problem, const MsgGraphOptions& opti
         ++skipped;
         continue;
       }
-      obs[p][s] = {true, f.plane, solvers_detail::boardPoint(f), &f, nullptr};
+      obs[p][s] = {true, f.plane, boardPoint(f), &f, nullptr};
     }
     for (const auto& [s, f] : pose.lidars) {
       if (!f.found || !validPlane(f.plane)) {
         ++skipped;
         continue;
       }
-      obs[p][s] = {true, f.plane, solvers_detail::boardPoint(f), nullptr, &f};
+      obs[p][s] = {true, f.plane, boardPoint(f), nullptr, &f};
     }
   }
   if (skipped > 0)
@@ -815,7 +816,7 @@ MsgSolution solveMsgGraph(const MsgProblem& problem, const MsgGraphOptions& opti
   // Covariance of every sensor pose (tangent space: left rotation perturbation, translation),
   // jointly: the pairs need the cross-covariance of their two poses.
   if (options.compute_covariance) {
-    solvers_detail::quietCeresLogging();
+    ceres_common::quietCeresLogging();
     ceres::Covariance::Options co;
     co.num_threads = options.num_threads;
     ceres::Covariance covariance(co);
