@@ -5,5 +5,6 @@ board_calib_core_module(geometry
   src/core/transform.cpp
   src/core/result_io.cpp
   src/core/file_io.cpp
-  src/core/common/board_geometry.cpp)
+  src/core/common/board_geometry.cpp
+  src/core/common/edge_association.cpp)
 target_link_libraries(bc_geometry PUBLIC yaml-cpp)

@@ -4,6 +4,7 @@
 
 #include <board_calib/core/common/board_geometry.h>
 #include <board_calib/core/common/ceres_helpers.h>
+#include <board_calib/core/common/edge_association.h>
 
 #include <ceres/product_manifold.h>
 
@@ -196,47 +197,15 @@ class Graph {
   }
 
   // Image line matched to each LiDAR edge of (camera c, LiDAR l) at board pose p, by projection
-  // with the current estimate (the sensors may name the edges differently); -1 when unmatched.
-  std::array<int, kNumEdges> associateEdges(size_t p, int c, int l) const {
+  // with the current estimate (core/common/edge_association.h, as the pair solvers and the
+  // overlay pair them); -1 when unmatched.
+  std::array<int, kNumEdges> matchedLines(size_t p, int c, int l) const {
+    const Eigen::Isometry3d c_T_l = poses_[c].iso().inverse() * poses_[l].iso();
+    const EdgeAssociation a = associateEdges(*obs_[p][c].camera, *obs_[p][l].lidar, c_T_l, options_.min_edge_points);
     std::array<int, kNumEdges> match;
     match.fill(-1);
-    const CameraBoardFeatures& cam = *obs_[p][c].camera;
-    const LidarBoardFeatures& lid = *obs_[p][l].lidar;
-    const Eigen::Isometry3d c_T_l = poses_[c].iso().inverse() * poses_[l].iso();
-    std::array<double, kNumEdges> best_cost;
-    best_cost.fill(std::numeric_limits<double>::infinity());
-    std::array<int, kNumEdges> owner;
-    owner.fill(-1);
-    for (int e = 0; e < kNumEdges; ++e) {
-      if (static_cast<int>(lid.edge_points[e].size()) < options_.min_edge_points) continue;
-      double best = std::numeric_limits<double>::infinity();
-      int best_j = -1;
-      for (int j = 0; j < kNumEdges; ++j) {
-        if (!cam.edge_valid[j]) continue;
-        double sum = 0.0;
-        int count = 0;
-        for (const auto& q : lid.edge_points[e]) {
-          const Eigen::Vector3d pc = c_T_l * q;
-          if (pc.z() <= kMinCornerDepthM) continue;
-          sum += std::abs(cam.edge_lines[j].dot((cam.K * pc).hnormalized().homogeneous()));
-          ++count;
-        }
-        if (count == 0) continue;
-        const double mean = sum / count;
-        if (mean < best) {
-          best = mean;
-          best_j = j;
-        }
-      }
-      if (best_j < 0) continue;
-      // One LiDAR edge per image line: keep the closer.
-      if (best < best_cost[best_j]) {
-        if (owner[best_j] >= 0) match[owner[best_j]] = -1;
-        best_cost[best_j] = best;
-        owner[best_j] = e;
-        match[e] = best_j;
-      }
-    }
+    for (int j = 0; j < kNumEdges; ++j)
+      if (a.scored[j]) match[a.lidar_edge[j]] = j;
     return match;
   }
 
@@ -375,7 +344,7 @@ class Graph {
           if (!obs_[p][c].active || !obs_[p][c].camera) continue;
           for (int l = 0; l < n_; ++l) {
             if (!obs_[p][l].active || !obs_[p][l].lidar) continue;
-            const auto match = associateEdges(p, c, l);
+            const auto match = matchedLines(p, c, l);
             const Eigen::Isometry3d c_T_l = poses_[c].iso().inverse() * poses_[l].iso();
             for (int e = 0; e < kNumEdges; ++e) {
               if (match[e] < 0) continue;
@@ -411,7 +380,7 @@ class Graph {
       for (int l = 0; l < n_; ++l) {
         if (!obs_[p][l].active || !obs_[p][l].lidar) continue;
         const LidarBoardFeatures& lid = *obs_[p][l].lidar;
-        const auto match = associateEdges(p, c, l);
+        const auto match = matchedLines(p, c, l);
         for (int e = 0; e < kNumEdges; ++e) {
           if (match[e] < 0) continue;
           const Eigen::Vector3d N = lineNormal(cam, match[e]);

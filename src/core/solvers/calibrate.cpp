@@ -3,6 +3,7 @@
 #include "cost_functions.h"
 #include "internal.h"
 
+#include <board_calib/core/common/edge_association.h>
 #include <board_calib/core/transform.h>
 
 #include <Eigen/Eigenvalues>
@@ -23,7 +24,6 @@ constexpr int kMinEdgePoints = 2;          // a line term needs two points to co
 constexpr int kMinPpcViews = 3;            // 3 non-coplanar planes fix the translation
 constexpr int kMinPbpcViews = 2;           // 8 line correspondences: DLT-lines needs 6
 constexpr double kUnitNormalTolerance = 1e-3;
-constexpr double kReassociationGain = 2.0;  // switch edge labels only when clearly better
 constexpr double kPlaneScaleMin = 0.5;     // bounds of the offset factor: a plausible board
 constexpr double kPlaneScaleMax = 2.0;
 constexpr double kSameScanLineRad = 0.05 * kRadPerDeg;  // elevation gap that separates scan lines
@@ -484,72 +484,23 @@ bool finalCovariance(const std::vector<Cluster>& clusters, bool estimate_scale, 
   return solvers_detail::clusterRobustCovariance(&problem, parameters, blocks, covariance);
 }
 
-// Mean pixel distance of LiDAR edge k's points (projected) to image line j.
-double edgePixelDistance(const View& view, const Points3& points, int j, const Eigen::Isometry3d& T, int* count) {
-  const Eigen::Vector3d& l = view.camera.edge_lines[j];
-  const double norm = l.head<2>().norm();
-  double sum = 0.0;
-  *count = 0;
-  for (const auto& q : points) {
-    const Eigen::Vector3d p = T * q;
-    if (!(p.z() > 0.0)) continue;
-    sum += std::abs(l.dot(view.camera.K * (p / p.z()))) / norm;
-    ++*count;
-  }
-  return *count > 0 ? sum / *count : std::numeric_limits<double>::infinity();
-}
-
-// Re-assigns LiDAR edges to image lines by projection; true if any view changed.
+// Re-assigns LiDAR edges to image lines by projection (core/common/edge_association.h, the
+// association the MLRE figures and the overlay use); true if any view changed.
 bool reassociateEdges(const std::vector<View>& views, std::vector<PreparedView>* prepared, const Eigen::Isometry3d& T,
                       std::vector<std::string>* notes) {
   bool changed = false;
-  std::array<int, kNumEdges> perm{{0, 1, 2, 3}};
   for (PreparedView& v : *prepared) {
     if (!v.used) continue;
     const View& view = views[v.index];
-    double cost[kNumEdges][kNumEdges];
-    for (int j = 0; j < kNumEdges; ++j)
-      for (int k = 0; k < kNumEdges; ++k) {
-        int count = 0;
-        cost[j][k] = (v.image_edge_ok[j] && v.lidar_edge_ok[k])
-                         ? edgePixelDistance(view, view.lidar.edge_points[k], j, T, &count)
-                         : std::numeric_limits<double>::infinity();
-      }
-    auto total = [&](const std::array<int, kNumEdges>& p, int* matched) {
-      double sum = 0.0;
-      *matched = 0;
-      for (int j = 0; j < kNumEdges; ++j)
-        if (std::isfinite(cost[j][p[j]])) {
-          sum += cost[j][p[j]];
-          ++*matched;
-        }
-      return sum;
-    };
-    int identity_matched = 0;
-    const double identity_cost = total(v.association, &identity_matched);
-    std::array<int, kNumEdges> best = v.association;
-    double best_cost = identity_cost;
-    int best_matched = identity_matched;
-    std::sort(perm.begin(), perm.end());
-    do {
-      int matched = 0;
-      const double c = total(perm, &matched);
-      if (matched > best_matched || (matched == best_matched && c < best_cost)) {
-        best = perm;
-        best_cost = c;
-        best_matched = matched;
-      }
-    } while (std::next_permutation(perm.begin(), perm.end()));
-    if (best != v.association && best_matched >= identity_matched &&
-        (best_matched > identity_matched || best_cost * kReassociationGain < identity_cost)) {
-      std::ostringstream note;
-      note << "view " << v.id << ": LiDAR edges re-associated to image lines by projection (";
-      for (int j = 0; j < kNumEdges; ++j) note << (j ? ", " : "") << edgeName(j) << "<-" << edgeName(best[j]);
-      note << ")";
-      notes->push_back(note.str());
-      v.association = best;
-      changed = true;
-    }
+    const EdgeAssociation a = associateEdges(view.camera, view.lidar, T, kMinEdgePoints);
+    if (a.lidar_edge == v.association) continue;
+    std::ostringstream note;
+    note << "view " << v.id << ": LiDAR edges re-associated to image lines by projection (";
+    for (int j = 0; j < kNumEdges; ++j) note << (j ? ", " : "") << edgeName(j) << "<-" << edgeName(a.lidar_edge[j]);
+    note << ")";
+    notes->push_back(note.str());
+    v.association = a.lidar_edge;
+    changed = true;
   }
   return changed;
 }
@@ -773,7 +724,7 @@ void fillResidualFigures(const std::vector<View>& views, const std::vector<Prepa
       line_sq += er.distance.rms_m * er.distance.rms_m * er.distance.count;
       line_count += er.distance.count;
       int count = 0;
-      const double mean = edgePixelDistance(views[v.index], views[v.index].lidar.edge_points[k], j, T, &count);
+      const double mean = edgeLineDistancePx(views[v.index].camera, j, views[v.index].lidar.edge_points[k], T, &count);
       if (count > 0) {
         er.mlre_px = mean;
         view_sum += mean * count;
