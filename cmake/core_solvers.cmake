@@ -4,6 +4,8 @@ board_calib_core_module(solvers
   src/core/solvers/common.cpp
   src/core/solvers/metrics.cpp
   src/core/solvers/calibrate.cpp
+  src/core/solvers/prepared_views.cpp
+  src/core/solvers/cluster_solve.cpp
   src/core/solvers/plane_to_plane.cpp
   src/core/solvers/robustness.cpp
   src/core/solvers/covariance.cpp
