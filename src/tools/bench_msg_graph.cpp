@@ -3,14 +3,21 @@
 // terms, PBPC line terms, noise estimation) with and without a 3x-noise fifth sensor, and
 // convergence from random starts.
 //   bench_msg_graph [--views N] [--scenes N] [--trials N] [--seed S] [--only-pairs]
+//   bench_msg_graph --scenario RIG_SCENARIO.yaml [--scenes N] [--seed S]: the graph pairs against
+//     PBPC on features the detectors find in simulated frames (one still frame per sensor and
+//     hold), e.g. test/data/msg_rig_checker_scenario.yaml
+#include <board_calib/core/image_board_detector.h>
+#include <board_calib/core/lidar_board_detector.h>
 #include <board_calib/core/msg_graph.h>
 #include <board_calib/core/msg_synthetic.h>
+#include <board_calib/core/sim/scenario.h>
 #include <board_calib/core/transform.h>
 
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
+#include <map>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -26,6 +33,7 @@ struct Args {
   int trials = 100;
   unsigned seed = 1;
   bool only_pairs = false;  ///< only the pairs-against-PBPC section
+  std::string scenario;     ///< rig scenario: only the pairs against PBPC on detected features
 };
 
 bool parseArgs(int argc, char** argv, Args* args) {
@@ -40,6 +48,10 @@ bool parseArgs(int argc, char** argv, Args* args) {
     if (a == "--views" && next(&args->views)) continue;
     if (a == "--scenes" && next(&args->scenes)) continue;
     if (a == "--trials" && next(&args->trials)) continue;
+    if (a == "--scenario" && i + 1 < argc) {
+      args->scenario = argv[++i];
+      continue;
+    }
     if (a == "--only-pairs") {
       args->only_pairs = true;
       continue;
@@ -48,7 +60,7 @@ bool parseArgs(int argc, char** argv, Args* args) {
       args->seed = static_cast<unsigned>(v);
       continue;
     }
-    std::fprintf(stderr, "usage: bench_msg_graph [--views N] [--scenes N] [--trials N] [--seed S] [--only-pairs]\n");
+    std::fprintf(stderr, "usage: bench_msg_graph [--views N] [--scenes N] [--trials N] [--seed S] [--only-pairs] [--scenario FILE]\n");
     return false;
   }
   return args->views >= 3 && args->scenes >= 1 && args->trials >= 0;
@@ -87,6 +99,101 @@ std::vector<View> pairViews(const MsgProblem& problem, int camera, int lidar) {
     views.push_back(std::move(v));
   }
   return views;
+}
+
+// One board pose per hold of a simulated rig recording: each sensor's first still frame of the
+// hold through the detectors (the image with 2 grey levels of noise).
+Expected<MsgProblem> detectedProblem(sim::Scenario scenario) {
+  for (auto& c : scenario.cameras) c.render.noise_sigma = 2.0;
+  auto timeline = sim::makeTimeline(scenario);
+  if (!timeline) return Expected<MsgProblem>::failure(timeline.error());
+  auto generator = sim::FrameGenerator::create(scenario);
+  if (!generator) return Expected<MsgProblem>::failure(generator.error());
+  const Target& target = scenario.scene.target;
+  std::vector<ImageBoardDetector> detectors;
+  for (size_t c = 0; c < scenario.cameras.size(); ++c) {
+    auto d = ImageBoardDetector::create(target, ImageBoardDetectorOptions{});
+    if (!d) return Expected<MsgProblem>::failure(d.error());
+    detectors.push_back(std::move(*d));
+  }
+  MsgProblem problem;
+  const int cameras = static_cast<int>(scenario.cameras.size());
+  for (const auto& c : scenario.cameras) problem.sensors.push_back({c.frame_id, SensorKind::kCamera});
+  for (const auto& l : scenario.lidars) problem.sensors.push_back({l.frame_id, SensorKind::kLidar});
+  std::map<int, BoardPoseObservation> poses;
+  for (size_t i = 0; i < timeline->frames.size(); ++i) {
+    const sim::Frame& f = timeline->frames[i];
+    if (!f.still || f.pose < 0) continue;
+    BoardPoseObservation& o = poses[f.pose];
+    o.id = f.pose;
+    if (f.is_camera && !o.cameras.count(f.sensor)) {
+      CameraBoardFeatures feat =
+          detectors[f.sensor].detect(generator->image(f, i), generator->cameraModel(f.sensor)).features;
+      if (feat.found) o.cameras[f.sensor] = feat;
+    } else if (!f.is_camera && !o.lidars.count(cameras + f.sensor)) {
+      LidarBoardFeatures feat = detectLidarBoard(generator->cloud(f, i), target).features;
+      if (feat.found) o.lidars[cameras + f.sensor] = feat;
+    }
+  }
+  for (auto& [id, o] : poses) problem.poses.push_back(std::move(o));
+  return problem;
+}
+
+// The graph's camera <- LiDAR pairs against PBPC of each pair (real-LiDAR settings, as
+// calibrate_bag solves a pair) on detected features of a simulated rig, over seeds.
+int scenarioPairs(const Args& args) {
+  auto base = sim::loadScenario(args.scenario);
+  if (!base) {
+    std::fprintf(stderr, "scenario: %s\n", base.error().c_str());
+    return 1;
+  }
+  std::printf("%s: camera <- LiDAR pairs of the graph vs PBPC of the pair on detected features\n",
+              args.scenario.c_str());
+  std::printf("  %-6s %-26s %6s %9s %9s %7s %11s %11s %11s %11s %9s\n", "seed", "pair", "views", "graph px",
+              "PBPC px", "ratio", "graph deg", "graph mm", "PBPC deg", "PBPC mm", "stereo mm");
+  const int cameras = static_cast<int>(base->cameras.size());
+  for (int k = 0; k < args.scenes; ++k) {
+    sim::Scenario scenario = *base;
+    scenario.seed = args.seed * 1000 + static_cast<unsigned>(k);
+    auto problem = detectedProblem(scenario);
+    if (!problem) {
+      std::fprintf(stderr, "seed %u: %s\n", scenario.seed, problem.error().c_str());
+      continue;
+    }
+    const MsgSolution sol = solveMsgGraph(*problem, MsgGraphOptions());
+    if (!sol.success) {
+      std::printf("  %-6u graph failed: %s\n", scenario.seed, sol.reason.c_str());
+      continue;
+    }
+    auto cameraPose = [&](int s) {
+      return s < cameras ? sim::worldTCamera(scenario, s) : sim::worldTLidar(scenario, s - cameras);
+    };
+    double stereo = 0.0;
+    if (cameras >= 2) {
+      const auto c = stereoConsistency(sol, 0, 1, cameraPose(0).inverse() * cameraPose(1));
+      stereo = c ? c->translation_mm : 0.0;
+    }
+    for (int c = 0; c < cameras; ++c)
+      for (int l = cameras; l < static_cast<int>(problem->sensors.size()); ++l) {
+        const std::vector<View> views = pairViews(*problem, c, l);
+        const CalibrationSolution pbpc = calibrate(views, Method::kPbpc, realLidarSolverOptions());
+        const Eigen::Isometry3d graph = *sensorTSensor(sol, c, l);
+        const Eigen::Isometry3d truth = cameraPose(c).inverse() * cameraPose(l);
+        const auto mg = meanLineReprojectionErrorPx(views, graph);
+        const auto mp = meanLineReprojectionErrorPx(views, pbpc.camera_T_lidar);
+        if (!pbpc.success || !mg || !mp) {
+          std::printf("  %-6u %-26s PBPC failed: %s\n", scenario.seed,
+                      (problem->sensors[c].frame + " <- " + problem->sensors[l].frame).c_str(), pbpc.reason.c_str());
+          continue;
+        }
+        std::printf("  %-6u %-26s %6zu %9.2f %9.2f %7.3f %11.3f %11.2f %11.3f %11.2f %9.2f\n", scenario.seed,
+                    (problem->sensors[c].frame + " <- " + problem->sensors[l].frame).c_str(), views.size(), *mg, *mp,
+                    *mg / *mp, rotationErrorDeg(graph, truth), 1000.0 * translationErrorM(graph, truth),
+                    rotationErrorDeg(pbpc.camera_T_lidar, truth), 1000.0 * translationErrorM(pbpc.camera_T_lidar, truth),
+                    stereo);
+      }
+  }
+  return 0;
 }
 
 // Issue 13 item 4: each camera <- LiDAR pair of the graph against a PBPC solve of the same pair
@@ -159,6 +266,7 @@ int main(int argc, char** argv) {
   Args args;
   if (!parseArgs(argc, argv, &args)) return 2;
 
+  if (!args.scenario.empty()) return scenarioPairs(args);
   if (args.only_pairs) {
     pairsAgainstPbpc(args);
     return 0;
