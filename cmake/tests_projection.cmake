@@ -1,7 +1,8 @@
-# Projection core: maths against CameraModel, culling, z-buffer, drawing, projected-edges check.
+# Projection core: maths against CameraModel, culling, z-buffer, drawing, projected-edges check;
+# the one edge association shared by the overlay and the solvers.
 board_calib_core_gtest(test_projection
-  SOURCES test/core/test_projection.cpp
-  MODULES bc_projection bc_geometry
+  SOURCES test/core/test_projection.cpp test/core/test_edge_association.cpp
+  MODULES bc_projection bc_solvers bc_geometry
   LIBS ${OpenCV_LIBRARIES})
 
 # Overlay on simulated data: projected LiDAR edge points land on the rendered board edges.

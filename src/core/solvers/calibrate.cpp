@@ -78,13 +78,21 @@ bool runPbpc(const std::vector<View>& views, std::vector<PreparedView>* prepared
   if (options.pbpc_schedule == PbpcSchedule::kSequential) {
     const auto plane_terms = buildClusters(*prepared, true, false, false, lw);
     ok = plane_terms.empty() || solveTerms(plane_terms, false, true, options, run, sol);
+    // The plane-only pose already tells which LiDAR edge lies on which image line: pair them
+    // before the line terms pull the pose towards wrongly named edges.
+    if (ok && !plane_terms.empty() && options.edge_reassociation)
+      reassociateEdges(views, prepared, run->pose.isometry(), &sol->notes);
     ok = ok && solveTerms(buildClusters(*prepared, false, true, false, lw), false, plane_terms.empty(), options, run,
                           sol);
   }
   run->final_terms = buildClusters(*prepared, planes, true, run->use_scale, lw);
   ok = ok && solveTerms(run->final_terms, run->use_scale, options.pbpc_schedule == PbpcSchedule::kJoint, options,
                         run, sol);
-  if (ok && options.edge_reassociation && reassociateEdges(views, prepared, run->pose.isometry(), &sol->notes)) {
+  // Re-pair and re-solve until the pairs are those of the final pose (the MLRE figures and the
+  // overlay pair edges at that pose).
+  for (int round = 0; ok && options.edge_reassociation && round < kMaxReassociationRounds &&
+                      reassociateEdges(views, prepared, run->pose.isometry(), &sol->notes);
+       ++round) {
     run->final_terms = buildClusters(*prepared, planes, true, run->use_scale, lw);
     ok = solveTerms(run->final_terms, run->use_scale, false, options, run, sol);
   }

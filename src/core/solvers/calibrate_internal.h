@@ -15,6 +15,7 @@ namespace calibrate_detail {
 
 constexpr int kMinEdgePoints = 2;          // a line term needs two points to constrain anything
 constexpr int kPlaneErrorRounds = 3;       // PPC: re-estimations of the camera plane error
+constexpr int kMaxReassociationRounds = 3; // PBPC: re-pair-and-solve rounds after the final solve
 
 // A set of points that must lie on one plane n . x = s d in the camera frame: one view's board
 // points (camera plane) or one edge's points (back-projected plane, d = 0). Points share the
