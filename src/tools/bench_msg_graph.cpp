@@ -260,18 +260,8 @@ void pairsAgainstPbpc(const Args& args) {
   std::printf("  (deg / mm: worst pair against the truth; stereo: worst camera <-> camera translation error)\n");
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  Args args;
-  if (!parseArgs(argc, argv, &args)) return 2;
-
-  if (!args.scenario.empty()) return scenarioPairs(args);
-  if (args.only_pairs) {
-    pairsAgainstPbpc(args);
-    return 0;
-  }
-  // 1. Speed: 4 sensors x N views, single-threaded.
+// 1. Speed: 4 sensors x N views, single-threaded.
+int speed(const Args& args) {
   {
     std::mt19937 rng(args.seed);
     MsgSyntheticOptions so;
@@ -311,9 +301,11 @@ int main(int argc, char** argv) {
     }
   }
 
-  pairsAgainstPbpc(args);
+  return 0;
+}
 
-  // 2. Accuracy of each variant over several scenes (40 poses), clean rig and rig + noisy sensor.
+// The graph options compared: the default and one ingredient off at a time.
+std::vector<Variant> graphVariants() {
   std::vector<Variant> variants;
   variants.push_back({"default (planes + corners + PBPC lines)", MsgGraphOptions()});
   {
@@ -344,6 +336,12 @@ int main(int argc, char** argv) {
     o.outlier_rounds = 0;
     variants.push_back({"paper-like (no lines, noise est., loss, rejection)", o});
   }
+  return variants;
+}
+
+// 2. Accuracy of each variant over several scenes (40 poses), clean rig and rig + noisy sensor.
+int accuracyOfVariants(const Args& args) {
+  std::vector<Variant> variants = graphVariants();
   for (bool noisy : {false, true}) {
     std::printf("\naccuracy over %d scenes of 40 poses, %s (worst pair among the 4 rig sensors, vs truth):\n",
                 args.scenes, noisy ? "rig + VLP-16 with 3x noise" : "rig (stereo + VLP-32C + OS1-64)");
@@ -398,7 +396,11 @@ int main(int argc, char** argv) {
     }
   }
 
-  // 3. Random starts (sigma 90 deg, 50 cm on every non-reference sensor).
+  return 0;
+}
+
+// 3. Random starts (sigma 90 deg, 50 cm on every non-reference sensor).
+void randomStarts(const Args& args) {
   if (args.trials > 0) {
     std::mt19937 rng(args.seed + 77);
     auto scene = generateMsgScene(defaultRig(), MsgSyntheticOptions(), rng);
@@ -422,5 +424,22 @@ int main(int argc, char** argv) {
                 "(%.0f ms mean)\n",
                 converged, args.trials, ms / args.trials);
   }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args args;
+  if (!parseArgs(argc, argv, &args)) return 2;
+
+  if (!args.scenario.empty()) return scenarioPairs(args);
+  if (args.only_pairs) {
+    pairsAgainstPbpc(args);
+    return 0;
+  }
+  if (speed(args) != 0) return 1;
+  pairsAgainstPbpc(args);
+  if (accuracyOfVariants(args) != 0) return 1;
+  randomStarts(args);
   return 0;
 }
