@@ -206,6 +206,29 @@ PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& corre
   return solvePlaneToPlane(correspondences, std::vector<BoardPointPair>{}, options, initial_guess);
 }
 
+namespace {
+
+// RMS normal angle and plane gap of the correspondences under sol->a_T_b.
+void residualFigures(const std::vector<PlaneCorrespondence>& correspondences, const std::vector<BoardPointPair>& points,
+                     PairwiseSolution* sol) {
+  const Eigen::Matrix3d R = sol->a_T_b.linear();
+  double angle_sq = 0.0, offset_sq = 0.0;
+  for (size_t k = 0; k < correspondences.size(); ++k) {
+    const PlaneCorrespondence& c = correspondences[k];
+    const Eigen::Vector3d rnb = R * c.in_b.normal;
+    const double angle = std::atan2(c.in_a.normal.cross(rnb).norm(), c.in_a.normal.dot(rnb));
+    angle_sq += angle * angle;
+    const BoardPointPair at = pointsOf(points, k);
+    const double ro = planeGapM(c.in_a, at.in_a, c.in_b, at.in_b, sol->a_T_b);
+    offset_sq += ro * ro;
+  }
+  const double n = static_cast<double>(correspondences.size());
+  sol->normal_rms_deg = std::sqrt(angle_sq / n) * kDegPerRad;
+  sol->offset_rms_mm = 1000.0 * std::sqrt(offset_sq / n);
+}
+
+}  // namespace
+
 PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& correspondences,
                                    const std::vector<BoardPointPair>& points, const SolverOptions& options,
                                    const std::optional<Eigen::Isometry3d>& initial_guess) {
@@ -261,21 +284,7 @@ PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& corre
   }
   sol.correspondences_used = static_cast<int>(correspondences.size());
 
-  // Residual figures.
-  const Eigen::Matrix3d R = sol.a_T_b.linear();
-  double angle_sq = 0.0, offset_sq = 0.0;
-  for (size_t k = 0; k < correspondences.size(); ++k) {
-    const PlaneCorrespondence& c = correspondences[k];
-    const Eigen::Vector3d rnb = R * c.in_b.normal;
-    const double angle = std::atan2(c.in_a.normal.cross(rnb).norm(), c.in_a.normal.dot(rnb));
-    angle_sq += angle * angle;
-    const BoardPointPair at = pointsOf(points, k);
-    const double ro = planeGapM(c.in_a, at.in_a, c.in_b, at.in_b, sol.a_T_b);
-    offset_sq += ro * ro;
-  }
-  const double n = static_cast<double>(correspondences.size());
-  sol.normal_rms_deg = std::sqrt(angle_sq / n) * kDegPerRad;
-  sol.offset_rms_mm = 1000.0 * std::sqrt(offset_sq / n);
+  residualFigures(correspondences, points, &sol);
   if (options.compute_covariance) {
     const bool cov_ok = outcome.covariance_ok;
     sol.covariance = outcome.covariance;
