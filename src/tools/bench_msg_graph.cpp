@@ -2,8 +2,14 @@
 // views, single-threaded), accuracy of every pair, the effect of each ingredient (corner
 // terms, PBPC line terms, noise estimation) with and without a 3x-noise fifth sensor, and
 // convergence from random starts.
-//   bench_msg_graph [--views N] [--scenes N] [--trials N] [--seed S]
+//   bench_msg_graph [--views N] [--scenes N] [--trials N] [--seed S] [--only-pairs]
+//   bench_msg_graph --scenario RIG_SCENARIO.yaml [--scenes N] [--seed S]: the graph pairs against
+//     PBPC on features the detectors find in simulated frames (one still frame per sensor and
+//     hold), e.g. test/data/msg_rig_checker_scenario.yaml
+#include <board_calib/core/image_board_detector.h>
+#include <board_calib/core/lidar_board_detector.h>
 #include <board_calib/core/msg_graph.h>
+#include <board_calib/core/sim/scenario.h>
 #include "support/synthetic_rig.h"
 #include <board_calib/core/transform.h>
 
@@ -11,6 +17,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
+#include <map>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -25,6 +32,8 @@ struct Args {
   int scenes = 10;
   int trials = 100;
   unsigned seed = 1;
+  bool only_pairs = false;  ///< only the pairs-against-PBPC section
+  std::string scenario;     ///< rig scenario: only the pairs against PBPC on detected features
 };
 
 bool parseArgs(int argc, char** argv, Args* args) {
@@ -39,11 +48,19 @@ bool parseArgs(int argc, char** argv, Args* args) {
     if (a == "--views" && next(&args->views)) continue;
     if (a == "--scenes" && next(&args->scenes)) continue;
     if (a == "--trials" && next(&args->trials)) continue;
+    if (a == "--scenario" && i + 1 < argc) {
+      args->scenario = argv[++i];
+      continue;
+    }
+    if (a == "--only-pairs") {
+      args->only_pairs = true;
+      continue;
+    }
     if (a == "--seed" && next(&v)) {
       args->seed = static_cast<unsigned>(v);
       continue;
     }
-    std::fprintf(stderr, "usage: bench_msg_graph [--views N] [--scenes N] [--trials N] [--seed S]\n");
+    std::fprintf(stderr, "usage: bench_msg_graph [--views N] [--scenes N] [--trials N] [--seed S] [--only-pairs] [--scenario FILE]\n");
     return false;
   }
   return args->views >= 3 && args->scenes >= 1 && args->trials >= 0;
@@ -68,13 +85,183 @@ struct Variant {
   MsgGraphOptions options;
 };
 
-}  // namespace
+// The views of one camera <- LiDAR pair of a graph problem (board poses both saw).
+std::vector<View> pairViews(const MsgProblem& problem, int camera, int lidar) {
+  std::vector<View> views;
+  for (const auto& pose : problem.poses) {
+    const auto c = pose.cameras.find(camera);
+    const auto l = pose.lidars.find(lidar);
+    if (c == pose.cameras.end() || l == pose.lidars.end() || !c->second.found || !l->second.found) continue;
+    View v;
+    v.id = pose.id;
+    v.camera = c->second;
+    v.lidar = l->second;
+    views.push_back(std::move(v));
+  }
+  return views;
+}
 
-int main(int argc, char** argv) {
-  Args args;
-  if (!parseArgs(argc, argv, &args)) return 2;
+// One board pose per hold of a simulated rig recording: each sensor's first still frame of the
+// hold through the detectors (the image with 2 grey levels of noise).
+Expected<MsgProblem> detectedProblem(sim::Scenario scenario) {
+  for (auto& c : scenario.cameras) c.render.noise_sigma = 2.0;
+  auto timeline = sim::makeTimeline(scenario);
+  if (!timeline) return Expected<MsgProblem>::failure(timeline.error());
+  auto generator = sim::FrameGenerator::create(scenario);
+  if (!generator) return Expected<MsgProblem>::failure(generator.error());
+  const Target& target = scenario.scene.target;
+  std::vector<ImageBoardDetector> detectors;
+  for (size_t c = 0; c < scenario.cameras.size(); ++c) {
+    auto d = ImageBoardDetector::create(target, ImageBoardDetectorOptions{});
+    if (!d) return Expected<MsgProblem>::failure(d.error());
+    detectors.push_back(std::move(*d));
+  }
+  MsgProblem problem;
+  const int cameras = static_cast<int>(scenario.cameras.size());
+  for (const auto& c : scenario.cameras) problem.sensors.push_back({c.frame_id, SensorKind::kCamera});
+  for (const auto& l : scenario.lidars) problem.sensors.push_back({l.frame_id, SensorKind::kLidar});
+  std::map<int, BoardPoseObservation> poses;
+  for (size_t i = 0; i < timeline->frames.size(); ++i) {
+    const sim::Frame& f = timeline->frames[i];
+    if (!f.still || f.pose < 0) continue;
+    BoardPoseObservation& o = poses[f.pose];
+    o.id = f.pose;
+    if (f.is_camera && !o.cameras.count(f.sensor)) {
+      CameraBoardFeatures feat =
+          detectors[f.sensor].detect(generator->image(f, i), generator->cameraModel(f.sensor)).features;
+      if (feat.found) o.cameras[f.sensor] = feat;
+    } else if (!f.is_camera && !o.lidars.count(cameras + f.sensor)) {
+      LidarBoardFeatures feat = detectLidarBoard(generator->cloud(f, i), target).features;
+      if (feat.found) o.lidars[cameras + f.sensor] = feat;
+    }
+  }
+  for (auto& [id, o] : poses) problem.poses.push_back(std::move(o));
+  return problem;
+}
 
-  // 1. Speed: 4 sensors x N views, single-threaded.
+// The graph's camera <- LiDAR pairs against PBPC of each pair (real-LiDAR settings, as
+// calibrate_bag solves a pair) on detected features of a simulated rig, over seeds.
+int scenarioPairs(const Args& args) {
+  auto base = sim::loadScenario(args.scenario);
+  if (!base) {
+    std::fprintf(stderr, "scenario: %s\n", base.error().c_str());
+    return 1;
+  }
+  std::printf("%s: camera <- LiDAR pairs of the graph vs PBPC of the pair on detected features\n",
+              args.scenario.c_str());
+  std::printf("  %-6s %-26s %6s %9s %9s %7s %11s %11s %11s %11s %9s\n", "seed", "pair", "views", "graph px",
+              "PBPC px", "ratio", "graph deg", "graph mm", "PBPC deg", "PBPC mm", "stereo mm");
+  const int cameras = static_cast<int>(base->cameras.size());
+  for (int k = 0; k < args.scenes; ++k) {
+    sim::Scenario scenario = *base;
+    scenario.seed = args.seed * 1000 + static_cast<unsigned>(k);
+    auto problem = detectedProblem(scenario);
+    if (!problem) {
+      std::fprintf(stderr, "seed %u: %s\n", scenario.seed, problem.error().c_str());
+      continue;
+    }
+    const MsgSolution sol = solveMsgGraph(*problem, MsgGraphOptions());
+    if (!sol.success) {
+      std::printf("  %-6u graph failed: %s\n", scenario.seed, sol.reason.c_str());
+      continue;
+    }
+    auto cameraPose = [&](int s) {
+      return s < cameras ? sim::worldTCamera(scenario, s) : sim::worldTLidar(scenario, s - cameras);
+    };
+    double stereo = 0.0;
+    if (cameras >= 2) {
+      const auto c = stereoConsistency(sol, 0, 1, cameraPose(0).inverse() * cameraPose(1));
+      stereo = c ? c->translation_mm : 0.0;
+    }
+    for (int c = 0; c < cameras; ++c)
+      for (int l = cameras; l < static_cast<int>(problem->sensors.size()); ++l) {
+        const std::vector<View> views = pairViews(*problem, c, l);
+        const CalibrationSolution pbpc = calibrate(views, Method::kPbpc, realLidarSolverOptions());
+        const Eigen::Isometry3d graph = *sensorTSensor(sol, c, l);
+        const Eigen::Isometry3d truth = cameraPose(c).inverse() * cameraPose(l);
+        const auto mg = meanLineReprojectionErrorPx(views, graph);
+        const auto mp = meanLineReprojectionErrorPx(views, pbpc.camera_T_lidar);
+        if (!pbpc.success || !mg || !mp) {
+          std::printf("  %-6u %-26s PBPC failed: %s\n", scenario.seed,
+                      (problem->sensors[c].frame + " <- " + problem->sensors[l].frame).c_str(), pbpc.reason.c_str());
+          continue;
+        }
+        std::printf("  %-6u %-26s %6zu %9.2f %9.2f %7.3f %11.3f %11.2f %11.3f %11.2f %9.2f\n", scenario.seed,
+                    (problem->sensors[c].frame + " <- " + problem->sensors[l].frame).c_str(), views.size(), *mg, *mp,
+                    *mg / *mp, rotationErrorDeg(graph, truth), 1000.0 * translationErrorM(graph, truth),
+                    rotationErrorDeg(pbpc.camera_T_lidar, truth), 1000.0 * translationErrorM(pbpc.camera_T_lidar, truth),
+                    stereo);
+      }
+  }
+  return 0;
+}
+
+// Issue 13 item 4: each camera <- LiDAR pair of the graph against a PBPC solve of the same pair
+// (MLRE ratio graph / PBPC, and both errors against the truth), over scenes, noise levels and
+// with a 3x-noise LiDAR; plus the stereo consistency the graph must keep.
+void pairsAgainstPbpc(const Args& args) {
+  std::printf("\ncamera <- LiDAR pairs of the graph vs a PBPC solve of the same pair (%d scenes each):\n",
+              args.scenes);
+  std::printf("  %-34s %9s %9s %9s %11s %11s %11s %11s %9s\n", "rig", "ratio avg", "ratio max", "MLRE px",
+              "graph deg", "graph mm", "PBPC deg", "PBPC mm", "stereo mm");
+  struct Case {
+    const char* name;
+    double noise;
+    bool noisy_lidar;
+  };
+  for (const Case& k : {Case{"rig, nominal noise", 1.0, false}, Case{"rig, 2x noise on every sensor", 2.0, false},
+                        Case{"rig + VLP-16 with 3x noise", 1.0, true}}) {
+    double ratio_sum = 0, ratio_max = 0, mlre_sum = 0, g_rot = 0, g_tr = 0, p_rot = 0, p_tr = 0, stereo = 0;
+    int count = 0, solves = 0;
+    for (int i = 0; i < args.scenes; ++i) {
+      std::mt19937 rng(args.seed * 1000 + i);
+      auto rig = sim::defaultRig();
+      for (auto& s : rig) s.noise_scale = k.noise;
+      if (k.noisy_lidar) rig.push_back(sim::extraLidar16("vlp16_noisy", 3.0));
+      auto scene = sim::generateRigScene(rig, sim::RigSceneOptions(), rng);
+      if (!scene) continue;
+      MsgGraphOptions o;
+      o.compute_covariance = false;
+      const MsgSolution sol = solveMsgGraph(scene->problem, o);
+      if (!sol.success) continue;
+      ++solves;
+      const Eigen::Isometry3d stereo_truth =
+          scene->sensors[0].reference_T_sensor.inverse() * scene->sensors[1].reference_T_sensor;
+      stereo = std::max(stereo, stereoConsistency(sol, 0, 1, stereo_truth)->translation_mm);
+      SolverOptions so;
+      so.compute_covariance = false;
+      for (int c = 0; c < 2; ++c)
+        for (int l = 2; l < static_cast<int>(rig.size()); ++l) {
+          const std::vector<View> views = pairViews(scene->problem, c, l);
+          const CalibrationSolution pbpc = calibrate(views, Method::kPbpc, so);
+          const Eigen::Isometry3d graph = *sensorTSensor(sol, c, l);
+          const auto mg = meanLineReprojectionErrorPx(views, graph);
+          const auto mp = meanLineReprojectionErrorPx(views, pbpc.camera_T_lidar);
+          if (!pbpc.success || !mg || !mp) continue;
+          const Eigen::Isometry3d truth =
+              scene->sensors[c].reference_T_sensor.inverse() * scene->sensors[l].reference_T_sensor;
+          ratio_sum += *mg / *mp;
+          ratio_max = std::max(ratio_max, *mg / *mp);
+          mlre_sum += *mg;
+          g_rot = std::max(g_rot, rotationErrorDeg(graph, truth));
+          g_tr = std::max(g_tr, 1000.0 * translationErrorM(graph, truth));
+          p_rot = std::max(p_rot, rotationErrorDeg(pbpc.camera_T_lidar, truth));
+          p_tr = std::max(p_tr, 1000.0 * translationErrorM(pbpc.camera_T_lidar, truth));
+          ++count;
+        }
+    }
+    if (count == 0) {
+      std::printf("  %-34s no usable pair (%d graph solves)\n", k.name, solves);
+      continue;
+    }
+    std::printf("  %-34s %9.3f %9.3f %9.2f %11.3f %11.2f %11.3f %11.2f %9.2f\n", k.name, ratio_sum / count, ratio_max,
+                mlre_sum / count, g_rot, g_tr, p_rot, p_tr, stereo);
+  }
+  std::printf("  (deg / mm: worst pair against the truth; stereo: worst camera <-> camera translation error)\n");
+}
+
+// 1. Speed: 4 sensors x N views, single-threaded.
+int speed(const Args& args) {
   {
     std::mt19937 rng(args.seed);
     sim::RigSceneOptions so;
@@ -114,7 +301,11 @@ int main(int argc, char** argv) {
     }
   }
 
-  // 2. Accuracy of each variant over several scenes (40 poses), clean rig and rig + noisy sensor.
+  return 0;
+}
+
+// The graph options compared: the default and one ingredient off at a time.
+std::vector<Variant> graphVariants() {
   std::vector<Variant> variants;
   variants.push_back({"default (planes + corners + PBPC lines)", MsgGraphOptions()});
   {
@@ -145,6 +336,12 @@ int main(int argc, char** argv) {
     o.outlier_rounds = 0;
     variants.push_back({"paper-like (no lines, noise est., loss, rejection)", o});
   }
+  return variants;
+}
+
+// 2. Accuracy of each variant over several scenes (40 poses), clean rig and rig + noisy sensor.
+int accuracyOfVariants(const Args& args) {
+  std::vector<Variant> variants = graphVariants();
   for (bool noisy : {false, true}) {
     std::printf("\naccuracy over %d scenes of 40 poses, %s (worst pair among the 4 rig sensors, vs truth):\n",
                 args.scenes, noisy ? "rig + VLP-16 with 3x noise" : "rig (stereo + VLP-32C + OS1-64)");
@@ -199,7 +396,11 @@ int main(int argc, char** argv) {
     }
   }
 
-  // 3. Random starts (sigma 90 deg, 50 cm on every non-reference sensor).
+  return 0;
+}
+
+// 3. Random starts (sigma 90 deg, 50 cm on every non-reference sensor).
+void randomStarts(const Args& args) {
   if (args.trials > 0) {
     std::mt19937 rng(args.seed + 77);
     auto scene = sim::generateRigScene(sim::defaultRig(), sim::RigSceneOptions(), rng);
@@ -223,5 +424,22 @@ int main(int argc, char** argv) {
                 "(%.0f ms mean)\n",
                 converged, args.trials, ms / args.trials);
   }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args args;
+  if (!parseArgs(argc, argv, &args)) return 2;
+
+  if (!args.scenario.empty()) return scenarioPairs(args);
+  if (args.only_pairs) {
+    pairsAgainstPbpc(args);
+    return 0;
+  }
+  if (speed(args) != 0) return 1;
+  pairsAgainstPbpc(args);
+  if (accuracyOfVariants(args) != 0) return 1;
+  randomStarts(args);
   return 0;
 }

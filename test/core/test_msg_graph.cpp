@@ -201,6 +201,47 @@ TEST(MsgGraph, OneLidarThreeTimesNoisier) {
   expectPairsWithin(sol, scene, {0, 1, 2, 3}, 3 * kNoisyRotationTolDeg, 3 * kNoisyTranslationTolM);
 }
 
+// Issue 13 item 4: each camera <- LiDAR pair of the graph fits the image edges about as well as a
+// PBPC solve of that pair alone (MLRE within 1.3x), with a 3x-noise LiDAR in the graph, while
+// the stereo pair stays within the issue-9 tolerance. PBPC minimises the line residuals of its
+// pair alone, so its MLRE is the floor; the graph balances every sensor. Measured over 5 scenes
+// (bench_msg_graph --only-pairs): ratio mean 1.06, max 1.18.
+TEST(MsgGraph, CameraLidarPairsFitTheImageEdgesAsWellAsTheirPbpcSolve) {
+  constexpr double kMaxMlreRatio = 1.3;
+  auto rig = sim::defaultRig();
+  rig.push_back(sim::extraLidar16("vlp16_noisy", 3.0));
+  const sim::RigScene scene = makeScene(rig, 4);
+  MsgGraphOptions options;
+  options.compute_covariance = false;
+  const MsgSolution sol = solveMsgGraph(scene.problem, options);
+  ASSERT_TRUE(sol.success) << sol.reason;
+  SolverOptions pbpc_options;
+  pbpc_options.compute_covariance = false;
+  for (int c = 0; c < 2; ++c)
+    for (int l = 2; l < 5; ++l) {
+      std::vector<View> views;
+      for (const auto& pose : scene.problem.poses) {
+        View v;
+        v.id = pose.id;
+        v.camera = pose.cameras.at(c);
+        v.lidar = pose.lidars.at(l);
+        views.push_back(v);
+      }
+      const CalibrationSolution pbpc = calibrate(views, Method::kPbpc, pbpc_options);
+      ASSERT_TRUE(pbpc.success) << pbpc.reason;
+      const auto graph_mlre = pairMlrePx(scene.problem, c, l, *sensorTSensor(sol, c, l));
+      const auto pbpc_mlre = meanLineReprojectionErrorPx(views, pbpc.camera_T_lidar);
+      ASSERT_TRUE(graph_mlre && pbpc_mlre);
+      EXPECT_LT(*graph_mlre, kMaxMlreRatio * *pbpc_mlre)
+          << scene.sensors[c].frame << " <- " << scene.sensors[l].frame << ": graph " << *graph_mlre << " px, PBPC "
+          << *pbpc_mlre << " px";
+    }
+  const auto stereo = stereoConsistency(sol, 0, 1, scene.sensors[1].reference_T_sensor);
+  ASSERT_TRUE(stereo.ok()) << stereo.error();
+  EXPECT_LT(stereo->rotation_deg, kPairRotationTolDeg);
+  EXPECT_LT(stereo->translation_mm, 1000 * kPairTranslationTolM);
+}
+
 // 100% convergence from the pairwise initialisation over independent rigs (fresh noise and
 // board poses each time).
 TEST(MsgGraph, ConvergesFromPairwiseInitialisationEveryTime) {

@@ -230,7 +230,8 @@ Expected<StereoConsistency> stereoConsistency(const MsgSolution& solution, int c
                                               const Eigen::Isometry3d& known_camera1_T_camera2);
 
 /// Mean line reprojection error (px) of one camera<->LiDAR pair over the board poses both saw
-/// with edges (image edge j against LiDAR edge j); nullopt when none is usable.
+/// with edges (edges paired as by the solvers: core/common/edge_association.h); nullopt when
+/// none is usable.
 std::optional<double> pairMlrePx(const MsgProblem& problem, int camera, int lidar,
                                  const Eigen::Isometry3d& camera_T_lidar);
 

@@ -95,8 +95,8 @@ int drawUndistortedSegment(const Eigen::Vector2d& from, const Eigen::Vector2d& t
 /// The "projected edges" check: LiDAR edge points projected with an estimate against the
 /// image edge lines.
 struct EdgeCheckOptions {
-  /// Assign each LiDAR edge to the image line nearest to its projected points instead of by
-  /// index (the two detectors may name the edges differently for boards held near upright).
+  /// Pair LiDAR edges with image lines by projection (core/common/edge_association.h, as the
+  /// solvers do) instead of by index (the detectors may name the edges differently).
   bool reassociate = true;
   double residual_scale_px = 5.0;  ///< px, residual drawn fully magenta (0 px is white)
   int point_radius_px = 4;         ///< px

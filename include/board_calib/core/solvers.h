@@ -184,13 +184,14 @@ Expected<Eigen::Isometry3d> closedFormInitialGuess(const std::vector<View>& view
                                                    const SolverOptions& options);
 
 /// Mean perpendicular distance (undistorted px) between each image edge line and the LiDAR edge
-/// points of the same edge projected with camera_T_lidar and the view's K. Uses edges valid on
-/// both sides; nullopt when none is usable.
+/// points paired with it (core/common/edge_association.h, as the solver and the overlay pair
+/// them) projected with camera_T_lidar and the view's K. Uses edges valid on both sides;
+/// nullopt when none is usable.
 std::optional<double> meanLineReprojectionErrorPx(const std::vector<View>& views,
                                                   const Eigen::Isometry3d& camera_T_lidar);
 /// The same for one view (over its valid edges).
 std::optional<double> viewLineReprojectionErrorPx(const View& view, const Eigen::Isometry3d& camera_T_lidar);
-/// The same for one edge of one view.
+/// The same for one image edge of one view.
 std::optional<double> edgeLineReprojectionErrorPx(const View& view, int edge,
                                                   const Eigen::Isometry3d& camera_T_lidar);
 /// RMS distance (m) of the LiDAR board points, mapped with camera_T_lidar, to the camera planes.
@@ -238,6 +239,20 @@ Expected<Eigen::Isometry3d> closedFormPlaneToPlane(const std::vector<PlaneCorres
 /// the board points, compare them at the boards instead and are more accurate.
 PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& correspondences,
                                    const SolverOptions& options,
+                                   const std::optional<Eigen::Isometry3d>& initial_guess = std::nullopt);
+
+/// Board points of one plane correspondence (core/common/board_geometry.h boardPoint, in a and
+/// in b); zero = the sensor origin.
+struct BoardPointPair {
+  Eigen::Vector3d in_a = Eigen::Vector3d::Zero();
+  Eigen::Vector3d in_b = Eigen::Vector3d::Zero();
+};
+
+/// solvePlaneToPlane with the offset residual measured at the boards (the MSG graph's pairwise
+/// links); `points` is empty (offsets compared at the origins, as the overload above) or
+/// parallel to `correspondences`.
+PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& correspondences,
+                                   const std::vector<BoardPointPair>& points, const SolverOptions& options,
                                    const std::optional<Eigen::Isometry3d>& initial_guess = std::nullopt);
 
 /// Camera plane (a) and LiDAR plane (b) of every view where both were found.

@@ -17,7 +17,7 @@ using Vec3 = Eigen::Matrix<T, 3, 1>;
 
 // Plane to plane between sensors a and b for one board pose. Plane {n . x = d} of a sensor maps
 // into the reference frame as {(R n) . x = d + (R n) . t}; both images must coincide. c_a, c_b
-// are each sensor's board point (solvers_detail::boardPoint: where its plane is best
+// are each sensor's board point (boardPoint: where its plane is best
 // determined, on the plane), and the offsets are compared at their midpoint in the reference
 // frame, p = (R_a c_a + t_a + R_b c_b + t_b) / 2:
 //   r[0..2] = (R_a n_a - R_b n_b) / sigma_n

@@ -1,5 +1,6 @@
 // The reference paper's "projected edges" check: LiDAR edge points projected with an
 // extrinsic, scored by their perpendicular distance to the image edge lines (MLRE).
+#include <board_calib/core/common/edge_association.h>
 #include <board_calib/core/projection.h>
 
 #include <opencv2/imgproc.hpp>
@@ -14,9 +15,6 @@ namespace board_calib {
 
 namespace {
 
-// Cost of leaving a LiDAR edge without a valid image line in the association search: larger
-// than any plausible mean distance, so complete associations always win.
-constexpr double kUnmatchedCostPx = 1e7;
 constexpr double kTextScale = 1.2;
 constexpr int kTextThickness = 2;
 constexpr int kTextMarginPx = 12;
@@ -65,32 +63,12 @@ Expected<EdgeCheck> checkProjectedEdges(const LidarBoardFeatures& lidar, const C
   if (std::none_of(image.edge_valid.begin(), image.edge_valid.end(), [](bool v) { return v; }))
     return Expected<EdgeCheck>::failure("the image board has no valid edge line");
 
-  // Mean distance of each LiDAR edge's points to each image line.
-  double cost[kNumEdges][kNumEdges];
-  for (int j = 0; j < kNumEdges; ++j)
-    for (int k = 0; k < kNumEdges; ++k) {
-      cost[j][k] = kUnmatchedCostPx;
-      if (undistorted[j].empty() || !image.edge_valid[k]) continue;
-      double sum = 0;
-      for (const auto& u : undistorted[j]) sum += lineDistancePx(image.edge_lines[k], u);
-      cost[j][k] = sum / undistorted[j].size();
-    }
-
+  // LiDAR edge j -> image line: the association the solvers use (core/common/edge_association.h),
+  // so the overlay scores the pairs the solver fitted.
   std::array<int, kNumEdges> assignment{{0, 1, 2, 3}};
   if (options.reassociate) {
-    // Best one-to-one association over all 24 permutations.
-    std::array<int, kNumEdges> perm{{0, 1, 2, 3}}, best = perm;
-    double best_cost = std::numeric_limits<double>::max();
-    do {
-      double c = 0;
-      for (int j = 0; j < kNumEdges; ++j)
-        if (!undistorted[j].empty()) c += cost[j][perm[j]];
-      if (c < best_cost) {
-        best_cost = c;
-        best = perm;
-      }
-    } while (std::next_permutation(perm.begin(), perm.end()));
-    assignment = best;
+    const EdgeAssociation a = associateEdges(camera.K(), image, lidar, camera_T_lidar);
+    for (int k = 0; k < kNumEdges; ++k) assignment[a.lidar_edge[k]] = k;
   }
 
   EdgeCheck check;

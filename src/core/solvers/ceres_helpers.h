@@ -1,49 +1,21 @@
-// Ceres pieces shared by the solver and the MSG-graph translation units (private: includes
-// Ceres, so it stays out of the public headers).
+// Ceres pieces private to the solver translation units (the settings shared with the MSG graph
+// are in core/common/ceres_helpers.h).
 #pragma once
 
+#include <board_calib/core/common/ceres_helpers.h>
 #include <board_calib/core/solvers.h>
 
 #include <ceres/ceres.h>
 
-#include <mutex>
 #include <utility>
 #include <vector>
 
 namespace board_calib {
 namespace solvers_detail {
 
-/// Ceres logs through glog to stderr (e.g. "Covariance matrix is near rank deficient" in a
-/// solve that then succeeds). The core never logs: every failure already comes back as a
-/// reason, so Ceres' log lines below FATAL are switched off once for the process.
-inline void quietCeresLogging() {
-  static std::once_flag once;
-  std::call_once(once, [] { FLAGS_minloglevel = google::GLOG_FATAL; });
-}
-
-/// The Ceres loss for a robust-loss kind at `scale`; nullptr (squared loss) for kNone.
-inline ceres::LossFunction* makeLoss(RobustLoss loss, double scale) {
-  switch (loss) {
-    case RobustLoss::kNone: return nullptr;
-    case RobustLoss::kHuber: return new ceres::HuberLoss(scale);
-    case RobustLoss::kCauchy: return new ceres::CauchyLoss(scale);
-    case RobustLoss::kTukey: return new ceres::TukeyLoss(scale);
-  }
-  return nullptr;
-}
-
-/// Iteration, tolerance and thread settings of an options struct (SolverOptions,
-/// msg::MsgGraphOptions) applied to a silent Ceres solve.
-template <typename Options>
-void applyStopCriteria(const Options& options, ceres::Solver::Options* so) {
-  so->max_num_iterations = options.max_iterations;
-  so->function_tolerance = options.function_tolerance;
-  so->gradient_tolerance = options.gradient_tolerance;
-  so->parameter_tolerance = options.parameter_tolerance;
-  so->num_threads = options.num_threads;
-  so->logging_type = ceres::SILENT;
-  quietCeresLogging();
-}
+using ceres_common::applyStopCriteria;
+using ceres_common::makeLoss;
+using ceres_common::quietCeresLogging;
 
 /// Covariance of a solved problem, computed with Ceres and robust to errors shared within a
 /// cluster of residuals (one camera plane, one image line, one MSG plane pair):

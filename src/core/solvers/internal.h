@@ -1,6 +1,7 @@
 // Private helpers shared by the solver translation units (no Ceres here).
 #pragma once
 
+#include <board_calib/core/common/board_geometry.h>
 #include <board_calib/core/solvers.h>
 
 #include <string>
@@ -24,30 +25,6 @@ Expected<Eigen::Matrix3d> alignVectors(const std::vector<Eigen::Vector3d>& a, co
 /// stacked unit normals divided by sqrt(count): 0 when all normals are parallel (k = 1) or
 /// coplanar (k = 2).
 double normalSpreadDeg(const std::vector<Eigen::Vector3d>& normals, int k);
-
-/// A point of the board on the sensor's own plane where that plane is best determined: the
-/// LiDAR board points' centroid; the camera's PnP data centre (pattern points, else the four
-/// image corners back-projected, else the board origin), each projected onto the plane.
-Eigen::Vector3d boardPoint(const LidarBoardFeatures& features);
-Eigen::Vector3d boardPoint(const CameraBoardFeatures& features);
-
-/// Gap (m) between plane a and plane b mapped with a_T_b, at the midpoint of the two board
-/// points (point_a in a, point_b in b): the MSG offset residual (cost_functions.h PlaneGapCost).
-double planeGapM(const Plane& in_a, const Eigen::Vector3d& point_a, const Plane& in_b, const Eigen::Vector3d& point_b,
-                 const Eigen::Isometry3d& a_T_b);
-
-/// Board points of one plane correspondence (see boardPoint); zero = the sensor origin.
-struct BoardPointPair {
-  Eigen::Vector3d in_a = Eigen::Vector3d::Zero();
-  Eigen::Vector3d in_b = Eigen::Vector3d::Zero();
-};
-
-/// solvePlaneToPlane with the offset residual measured at the boards; `points` is empty (the
-/// offsets compared at the origins, as the public overload without board points) or parallel
-/// to `correspondences`.
-PairwiseSolution solvePlaneToPlaneAtBoards(const std::vector<PlaneCorrespondence>& correspondences,
-                                           const std::vector<BoardPointPair>& points, const SolverOptions& options,
-                                           const std::optional<Eigen::Isometry3d>& initial_guess = std::nullopt);
 
 /// calibrate() for Method::kMsgPair: camera plane (a) and LiDAR plane (b) per view, then
 /// solvePlaneToPlane, with the same quality figures as the other methods (plane_to_plane.cpp).

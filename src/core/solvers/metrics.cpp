@@ -1,4 +1,5 @@
 // Quality figures that need no solver: MLRE and plane RMS for a given extrinsic.
+#include <board_calib/core/common/edge_association.h>
 #include <board_calib/core/solvers.h>
 
 #include <cmath>
@@ -7,20 +8,17 @@ namespace board_calib {
 
 namespace {
 
-// Sum of perpendicular pixel distances of one LiDAR edge's points to one image line.
-void accumulateEdge(const View& view, int image_edge, int lidar_edge, const Eigen::Isometry3d& camera_T_lidar,
-                    double* sum, int* count) {
-  const CameraBoardFeatures& cam = view.camera;
-  if (!cam.edge_valid[image_edge] || !view.lidar.edge_valid[lidar_edge]) return;
-  const Eigen::Vector3d& l = cam.edge_lines[image_edge];
-  const double norm = l.head<2>().norm();
-  if (!(norm > 0.0) || !l.allFinite()) return;
-  for (const Eigen::Vector3d& q : view.lidar.edge_points[lidar_edge]) {
-    const Eigen::Vector3d p = camera_T_lidar * q;
-    if (!p.allFinite() || !(p.z() > 0.0)) continue;
-    const Eigen::Vector3d uv1 = cam.K * (p / p.z());
-    *sum += std::abs(l.dot(uv1)) / norm;
-    ++*count;
+// Sum and count of the perpendicular pixel distances of the LiDAR edge points paired with
+// image edges by the one association (core/common/edge_association.h); only image edge `only`
+// when it is >= 0.
+void accumulateView(const View& view, const Eigen::Isometry3d& camera_T_lidar, int only, double* sum, int* count) {
+  const EdgeAssociation a = associateEdges(view.camera, view.lidar, camera_T_lidar);
+  for (int j = 0; j < kNumEdges; ++j) {
+    if (!a.scored[j] || (only >= 0 && j != only)) continue;
+    int n = 0;
+    const double mean = edgeLineDistancePx(view.camera, j, view.lidar.edge_points[a.lidar_edge[j]], camera_T_lidar, &n);
+    *sum += mean * n;
+    *count += n;
   }
 }
 
@@ -35,14 +33,14 @@ std::optional<double> edgeLineReprojectionErrorPx(const View& view, int edge, co
   if (edge < 0 || edge >= kNumEdges) return std::nullopt;
   double sum = 0.0;
   int count = 0;
-  accumulateEdge(view, edge, edge, camera_T_lidar, &sum, &count);
+  accumulateView(view, camera_T_lidar, edge, &sum, &count);
   return mean(sum, count);
 }
 
 std::optional<double> viewLineReprojectionErrorPx(const View& view, const Eigen::Isometry3d& camera_T_lidar) {
   double sum = 0.0;
   int count = 0;
-  for (int j = 0; j < kNumEdges; ++j) accumulateEdge(view, j, j, camera_T_lidar, &sum, &count);
+  accumulateView(view, camera_T_lidar, -1, &sum, &count);
   return mean(sum, count);
 }
 
@@ -50,8 +48,7 @@ std::optional<double> meanLineReprojectionErrorPx(const std::vector<View>& views
                                                   const Eigen::Isometry3d& camera_T_lidar) {
   double sum = 0.0;
   int count = 0;
-  for (const View& view : views)
-    for (int j = 0; j < kNumEdges; ++j) accumulateEdge(view, j, j, camera_T_lidar, &sum, &count);
+  for (const View& view : views) accumulateView(view, camera_T_lidar, -1, &sum, &count);
   return mean(sum, count);
 }
 

@@ -23,8 +23,6 @@ bool validPlane(const Plane& p) {
   return p.normal.allFinite() && std::isfinite(p.offset) && std::abs(p.normal.norm() - 1.0) <= kUnitTolerance;
 }
 
-using solvers_detail::BoardPointPair;
-
 // The board point of correspondence k (the origins when none are given).
 BoardPointPair pointsOf(const std::vector<BoardPointPair>& points, size_t k) {
   return points.empty() ? BoardPointPair() : points[k];
@@ -205,58 +203,35 @@ Expected<Eigen::Isometry3d> closedFormPlaneToPlane(const std::vector<PlaneCorres
 
 PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& correspondences,
                                    const SolverOptions& options, const std::optional<Eigen::Isometry3d>& initial_guess) {
-  return solvers_detail::solvePlaneToPlaneAtBoards(correspondences, {}, options, initial_guess);
+  return solvePlaneToPlane(correspondences, std::vector<BoardPointPair>{}, options, initial_guess);
 }
 
-namespace solvers_detail {
+namespace {
 
-Eigen::Vector3d boardPoint(const LidarBoardFeatures& f) {
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  int count = 0;
-  for (const auto& p : f.board_points)
-    if (p.allFinite()) {
-      sum += p;
-      ++count;
-    }
-  const Eigen::Vector3d c = count > 0 ? Eigen::Vector3d(sum / count) : Eigen::Vector3d(f.plane.offset * f.plane.normal);
-  return c - f.plane.signedDistance(c) * f.plane.normal;
-}
-
-Eigen::Vector3d boardPoint(const CameraBoardFeatures& f) {
-  Eigen::Vector3d c = f.camera_T_board.translation();
-  if (!f.pattern.empty()) {
-    // PnP on the pattern: its position is best determined at the points' centroid.
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    for (const auto& o : f.pattern) sum += f.camera_T_board * o.board_point;
-    c = sum / static_cast<double>(f.pattern.size());
-  } else {
-    // PnP on the four outer corners: their centroid on the plane (rays through the image corners).
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    int count = 0;
-    const Eigen::Matrix3d K_inv = f.K.inverse();
-    for (const auto& px : f.corners_px) {
-      const Eigen::Vector3d ray = K_inv * px.homogeneous();
-      const double along = f.plane.normal.dot(ray);
-      if (!ray.allFinite() || !(along > 0.0)) continue;
-      sum += ray * (f.plane.offset / along);
-      ++count;
-    }
-    if (count == kNumEdges) c = sum / count;
+// RMS normal angle and plane gap of the correspondences under sol->a_T_b.
+void residualFigures(const std::vector<PlaneCorrespondence>& correspondences, const std::vector<BoardPointPair>& points,
+                     PairwiseSolution* sol) {
+  const Eigen::Matrix3d R = sol->a_T_b.linear();
+  double angle_sq = 0.0, offset_sq = 0.0;
+  for (size_t k = 0; k < correspondences.size(); ++k) {
+    const PlaneCorrespondence& c = correspondences[k];
+    const Eigen::Vector3d rnb = R * c.in_b.normal;
+    const double angle = std::atan2(c.in_a.normal.cross(rnb).norm(), c.in_a.normal.dot(rnb));
+    angle_sq += angle * angle;
+    const BoardPointPair at = pointsOf(points, k);
+    const double ro = planeGapM(c.in_a, at.in_a, c.in_b, at.in_b, sol->a_T_b);
+    offset_sq += ro * ro;
   }
-  if (!c.allFinite()) c = f.plane.offset * f.plane.normal;
-  return c - f.plane.signedDistance(c) * f.plane.normal;
+  const double n = static_cast<double>(correspondences.size());
+  sol->normal_rms_deg = std::sqrt(angle_sq / n) * kDegPerRad;
+  sol->offset_rms_mm = 1000.0 * std::sqrt(offset_sq / n);
 }
 
-double planeGapM(const Plane& in_a, const Eigen::Vector3d& point_a, const Plane& in_b, const Eigen::Vector3d& point_b,
-                 const Eigen::Isometry3d& a_T_b) {
-  const Eigen::Vector3d rnb = a_T_b.linear() * in_b.normal;
-  const Eigen::Vector3d p = 0.5 * (point_a + a_T_b * point_b);
-  return (in_a.normal.dot(p) - in_a.offset) - (rnb.dot(p - a_T_b.translation()) - in_b.offset);
-}
+}  // namespace
 
-PairwiseSolution solvePlaneToPlaneAtBoards(const std::vector<PlaneCorrespondence>& correspondences,
-                                           const std::vector<BoardPointPair>& points, const SolverOptions& options,
-                                           const std::optional<Eigen::Isometry3d>& initial_guess) {
+PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& correspondences,
+                                   const std::vector<BoardPointPair>& points, const SolverOptions& options,
+                                   const std::optional<Eigen::Isometry3d>& initial_guess) {
   PairwiseSolution sol;
   const std::string invalid = options.validate();
   if (!invalid.empty()) {
@@ -309,21 +284,7 @@ PairwiseSolution solvePlaneToPlaneAtBoards(const std::vector<PlaneCorrespondence
   }
   sol.correspondences_used = static_cast<int>(correspondences.size());
 
-  // Residual figures.
-  const Eigen::Matrix3d R = sol.a_T_b.linear();
-  double angle_sq = 0.0, offset_sq = 0.0;
-  for (size_t k = 0; k < correspondences.size(); ++k) {
-    const PlaneCorrespondence& c = correspondences[k];
-    const Eigen::Vector3d rnb = R * c.in_b.normal;
-    const double angle = std::atan2(c.in_a.normal.cross(rnb).norm(), c.in_a.normal.dot(rnb));
-    angle_sq += angle * angle;
-    const BoardPointPair at = pointsOf(points, k);
-    const double ro = planeGapM(c.in_a, at.in_a, c.in_b, at.in_b, sol.a_T_b);
-    offset_sq += ro * ro;
-  }
-  const double n = static_cast<double>(correspondences.size());
-  sol.normal_rms_deg = std::sqrt(angle_sq / n) * kDegPerRad;
-  sol.offset_rms_mm = 1000.0 * std::sqrt(offset_sq / n);
+  residualFigures(correspondences, points, &sol);
   if (options.compute_covariance) {
     const bool cov_ok = outcome.covariance_ok;
     sol.covariance = outcome.covariance;
@@ -336,6 +297,8 @@ PairwiseSolution solvePlaneToPlaneAtBoards(const std::vector<PlaneCorrespondence
   sol.success = true;
   return sol;
 }
+
+namespace solvers_detail {
 
 CalibrationSolution calibrateMsgPair(const std::vector<View>& views, const SolverOptions& options,
                                      const std::optional<Eigen::Isometry3d>& initial_guess) {
@@ -365,7 +328,7 @@ CalibrationSolution calibrateMsgPair(const std::vector<View>& views, const Solve
     correspondences.push_back(pc);
     points.push_back({boardPoint(v.camera), boardPoint(v.lidar)});
   }
-  const PairwiseSolution pair = solvePlaneToPlaneAtBoards(correspondences, points, options, initial_guess);
+  const PairwiseSolution pair = solvePlaneToPlane(correspondences, points, options, initial_guess);
   sol.camera_T_lidar = pair.a_T_b;
   sol.initial_guess = pair.initial_guess;
   sol.used_closed_form_init = pair.used_closed_form_init;
