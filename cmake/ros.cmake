@@ -28,7 +28,7 @@ endforeach()
 
 # Command-line tools (src/tools/<name>.cpp), run with rosrun.
 set(BOARD_CALIB_TOOLS)
-foreach(tool board_info calibrate_bag simulate_bag publish_calibration bench_solvers bench_lidar_detector bench_image_detector
+foreach(tool board_info calibrate_bag simulate_bag publish_calibration rig_bringup bench_solvers bench_lidar_detector bench_image_detector
         bench_projection bench_sim bench_msg_graph bench_capture)
   if(EXISTS ${CMAKE_CURRENT_SOURCE_DIR}/src/tools/${tool}.cpp)
     add_executable(${tool} src/tools/${tool}.cpp)
