@@ -4,7 +4,7 @@ include_directories(include)
 include_directories(SYSTEM ${catkin_INCLUDE_DIRS} ${EIGEN3_INCLUDE_DIRS} ${PCL_INCLUDE_DIRS} ${OpenCV_INCLUDE_DIRS})
 
 # The one conversions unit where ROS messages meet core types.
-add_library(board_calib_ros SHARED src/ros/conversions.cpp src/ros/bag_reader.cpp)
+add_library(board_calib_ros SHARED src/ros/conversions.cpp src/ros/result_conversions.cpp src/ros/bag_reader.cpp)
 target_compile_options(board_calib_ros PRIVATE ${BOARD_CALIB_WARNINGS})
 target_link_libraries(board_calib_ros board_calib_core ${catkin_LIBRARIES} ${OpenCV_LIBRARIES})
 add_dependencies(board_calib_ros ${PROJECT_NAME}_generate_messages_cpp)

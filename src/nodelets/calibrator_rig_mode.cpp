@@ -132,35 +132,6 @@ struct RigCalibratorMode::Impl {
     session->setOptions(o);
   }
 
-  // `p` is the result-file entry of `pair` (same order in msgResultFile).
-  static CalibrationResult pairMsg(const PairEntry& p, const msg::PairEstimate& pair, const msg::MsgSolution& s) {
-    CalibrationResult m;
-    m.header.stamp = ros::Time::now();
-    m.header.frame_id = p.lidar_frame;
-    m.success = true;
-    m.method = "msg";
-    m.camera_frame = p.camera_frame;
-    m.lidar_frame = p.lidar_frame;
-    m.camera_T_lidar = toTransformMsg(p.camera_T_lidar);
-    m.views_used = static_cast<uint32_t>(std::max(0, s.poses_used));
-    m.mlre_px = p.mlre_px ? *p.mlre_px : std::nan("");
-    m.plane_rms_mm = std::nan("");
-    m.final_cost = s.final_cost;
-    m.covariance.fill(std::nan(""));
-    m.stddev_translation_m.fill(std::nan(""));
-    m.stddev_rotation_deg.fill(std::nan(""));
-    if (pair.has_covariance) {
-      for (int i = 0; i < 3; ++i) {
-        m.stddev_translation_m[i] = pair.stddev.translation_m[i];
-        m.stddev_rotation_deg[i] = pair.stddev.rotation_deg[i];
-      }
-      for (int r = 0; r < 6; ++r)
-        for (int c = 0; c < 6; ++c) m.covariance[r * 6 + c] = pair.covariance(r, c);
-    }
-    m.notes = s.notes;
-    return m;
-  }
-
   std::string writeOutputs(const ResultFile& file, const msg::MsgSolution& s) {
     if (output_dir.empty()) return "";
     std::error_code error;
@@ -235,21 +206,9 @@ struct RigCalibratorMode::Impl {
     res.message = rigSolutionSummary(rig, solution, file);
     for (const auto& p : problems) res.message += "warning: " + p + "\n";
     res.reference_frame = solution.sensors[solution.reference_sensor].frame;
-    for (const auto& s : solution.sensors) {
-      SensorPose p;
-      p.frame = s.frame;
-      p.kind = msg::sensorKindName(s.kind);
-      p.reference_T_sensor = toTransformMsg(s.reference_T_sensor);
-      for (int i = 0; i < 3; ++i) {
-        p.stddev_translation_m[i] = s.stddev.translation_m[i];
-        p.stddev_rotation_deg[i] = s.stddev.rotation_deg[i];
-      }
-      p.poses_used = static_cast<uint32_t>(std::max(0, s.observations));
-      p.poses_rejected = static_cast<uint32_t>(std::max(0, s.observations_rejected));
-      res.sensors.push_back(p);
-    }
+    for (const auto& s : solution.sensors) res.sensors.push_back(toSensorPoseMsg(s));
     for (size_t i = 0; i < file.pairs.size() && i < solution.pairs.size(); ++i)
-      res.all_results.push_back(pairMsg(file.pairs[i], solution.pairs[i], solution));
+      res.all_results.push_back(toPairResultMsg(file.pairs[i], solution.pairs[i], solution, ros::Time::now()));
     if (!res.all_results.empty()) {
       res.result = res.all_results.front();
       result_pub.publish(res.result);

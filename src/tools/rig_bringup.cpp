@@ -157,7 +157,7 @@ int main(int argc, char** argv) {
   bool projections = true;
   double manager_wait_s = 30.0, check_period_s = 2.0;
   if (!pnh.getParam("rig_file", rig_file) || rig_file.empty()) {
-    ROS_FATAL_NAMED(kLog, "rig_bringup: private parameter ~rig_file (the rig YAML, docs/MSG.md) is required");
+    ROS_FATAL_NAMED(kLog, "rig_bringup: no rig file: give rig_file:=RIG.yaml to rig_calibration.launch (~rig_file; docs/MSG.md)");
     return 2;
   }
   pnh.param("working_dir", working_dir, std::string());
