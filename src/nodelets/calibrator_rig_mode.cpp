@@ -8,6 +8,7 @@
 #include <board_calib/CalibratorConfig.h>
 #include <board_calib/DropView.h>
 #include <board_calib/SessionFile.h>
+#include <board_calib/calibrator_status.h>
 #include <board_calib/conversions.h>
 #include <board_calib/core/file_io.h>
 #include <board_calib/core/msg_graph.h>
@@ -50,6 +51,8 @@ struct RigCalibratorMode::Impl {
   std::string output_dir;
   bool broadcast_tf = true;
   std::string autosave_path;  // empty: autosave off
+  std::vector<ros::WallTime> last_message_wall;  // per sensor, for "silent" in diagnostics
+  static constexpr double kSilentS = 2.0;        // s of wall time without features: the stream stopped
 
   std::vector<ros::Subscriber> subscribers;
   ros::Publisher result_pub;
@@ -57,7 +60,7 @@ struct RigCalibratorMode::Impl {
   std::unique_ptr<tf2_ros::StaticTransformBroadcaster> tf_broadcaster;
   std::unique_ptr<dynamic_reconfigure::Server<CalibratorConfig>> reconfigure_server;
   std::unique_ptr<diagnostic_updater::Updater> diagnostics;
-  ros::Timer diagnostics_timer;
+  ros::WallTimer diagnostics_timer;
 
   void report(const SessionEvent& e, const std::string& source) {
     if (e.kind == SessionEvent::Kind::kAccepted) {
@@ -112,11 +115,13 @@ struct RigCalibratorMode::Impl {
 
   void onCamera(int k, const CameraBoardConstPtr& m) {
     std::lock_guard<std::mutex> lock(mutex);
+    last_message_wall[k] = ros::WallTime::now();
     report(session->addCamera(k, fromMsg(*m)), rig.cameras[k].name);
   }
 
   void onLidar(int k, const LidarBoardConstPtr& m) {
     std::lock_guard<std::mutex> lock(mutex);
+    last_message_wall[k] = ros::WallTime::now();
     const size_t i = static_cast<size_t>(k) - rig.cameras.size();
     report(session->addLidar(k, fromMsg(*m)), rig.lidars[i].name);
   }
@@ -285,26 +290,59 @@ struct RigCalibratorMode::Impl {
     return true;
   }
 
+  // One sensor in words: does it see the board now, which poses it joined, or why none.
+  std::string sensorLine(const msg::RigSensorHealth& h, double silent_s) const {
+    std::ostringstream v;
+    if (h.counts.messages == 0) v << "no features yet";
+    else if (silent_s > kSilentS) v << "silent for " << std::fixed << std::setprecision(0) << silent_s << " s";
+    else if (h.counts.board_now) v << "sees the board now";
+    else v << "no board now: " << h.counts.last_reason;
+    v << "; " << h.counts.found << "/" << h.counts.messages << " frames with the board";
+    if (h.pose_ids.empty()) {
+      v << "; in no pose: " << h.why_no_pose;
+    } else {
+      v << "; in " << h.pose_ids.size() << " poses:";
+      for (int id : h.pose_ids) v << " " << id;
+    }
+    return v.str();
+  }
+
+  // The pair mode's keys (calibrator_status.h), so the rviz panel reads either mode; the LiDAR
+  // and camera rows list every sensor of that kind, one key per sensor has the details.
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
+    namespace keys = calibrator_status;
     std::lock_guard<std::mutex> lock(mutex);
     using diagnostic_msgs::DiagnosticStatus;
     const std::vector<std::string> problems = session->problems();
-    const std::vector<int> in_poses = session->posesPerSensor();
+    const std::vector<msg::RigSensorHealth> health = session->health();
     const size_t poses = session->poses().size();
     if (!problems.empty()) stat.summary(DiagnosticStatus::WARN, problems.front());
     else if (poses < 3) stat.summary(DiagnosticStatus::WARN, "collecting board poses (" + std::to_string(poses) + ")");
     else stat.summary(DiagnosticStatus::OK, std::to_string(poses) + " board poses collected");
+    stat.add(keys::kServices, pnh.getNamespace());
     stat.add("rig", rig_file);
-    stat.add("board poses", poses);
-    for (size_t i = 0; i < problems.size(); ++i) stat.add("problem " + std::to_string(i + 1), problems[i]);
-    for (size_t k = 0; k < session->counts().size(); ++k) {
-      const auto& c = session->counts()[k];
-      std::string v = std::to_string(c.found) + "/" + std::to_string(c.messages) + " with the board, in " +
-                      std::to_string(in_poses[k]) + " poses";
-      if (c.found < c.messages && !c.last_reason.empty()) v += "; last miss: " + c.last_reason;
-      stat.add(session->names()[k] + " (" + session->sensors()[k].frame + ")", v);
+    stat.add(keys::kViews, poses);
+    std::string ids;
+    for (const auto& p : session->poses()) ids += (ids.empty() ? "" : " ") + std::to_string(p.observation.id);
+    stat.add(keys::kViewIds, ids);
+    const ros::WallTime now = ros::WallTime::now();
+    std::string seen_now, lidars, cameras;
+    for (size_t k = 0; k < health.size(); ++k) {
+      const auto& h = health[k];
+      const double silent_s = last_message_wall[k].isZero() ? 0.0 : (now - last_message_wall[k]).toSec();
+      const bool now_seen = h.counts.board_now && silent_s <= kSilentS;
+      if (now_seen) seen_now += (seen_now.empty() ? "" : ", ") + h.name;
+      const bool camera = session->sensors()[k].kind == msg::SensorKind::kCamera;
+      std::string& row = camera ? cameras : lidars;
+      row += (row.empty() ? "" : "; ") + h.name + ": " +
+             (now_seen ? "found" : h.counts.messages == 0 ? "no message" : "not found");
+      stat.add("sensor " + h.name + " (" + h.frame + ")", sensorLine(h, silent_s));
     }
-    stat.add("last event", last_event);
+    stat.add("board seen now by", seen_now.empty() ? "no sensor" : seen_now);
+    stat.add(keys::kLidarBoard, lidars);
+    stat.add(keys::kCameraBoard, cameras);
+    for (size_t i = 0; i < problems.size(); ++i) stat.add("problem " + std::to_string(i + 1), problems[i]);
+    stat.add(keys::kLastEvent, last_event);
     if (last_solution) {
       stat.add("last solve", std::to_string(last_solution->poses_used) + " board poses");
       stat.add("loop consistency (deg / mm)", std::to_string(last_solution->loop_rotation_max_deg) + " / " +
@@ -340,6 +378,7 @@ std::unique_ptr<RigCalibratorMode> RigCalibratorMode::create(ros::NodeHandle nh,
   pnh.param("broadcast_tf", m.broadcast_tf, true);
   m.output_dir = outputDirParam(pnh);
 
+  m.last_message_wall.assign(rig->cameras.size() + rig->lidars.size(), ros::WallTime());
   m.session = std::make_unique<msg::RigSession>(rig->sensorNames(), rig->sensorSpecs(), msg::rigSessionOptionsFor(*rig));
   std::string session_file;
   if (pnh.getParam("session_file", session_file) && !session_file.empty()) {
@@ -373,9 +412,12 @@ std::unique_ptr<RigCalibratorMode> RigCalibratorMode::create(ros::NodeHandle nh,
   m.services.push_back(pnh.advertiseService("load_session", &Impl::load, &m));
   m.services.push_back(pnh.advertiseService("drop_view", &Impl::drop, &m));
   m.diagnostics = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
-  m.diagnostics->setHardwareID("board_calib calibrator (rig)");
-  m.diagnostics->add("rig session", [&m](diagnostic_updater::DiagnosticStatusWrapper& s) { m.diagnose(s); });
-  m.diagnostics_timer = nh.createTimer(ros::Duration(1.0), [&m](const ros::TimerEvent&) { m.diagnostics->update(); });
+  m.diagnostics->setHardwareID(calibrator_status::kHardwareId);
+  m.diagnostics->add(calibrator_status::kStatusName, [&m](diagnostic_updater::DiagnosticStatusWrapper& s) { m.diagnose(s); });
+  // Wall time and force_update: with a replayed bag the sim clock stops at its end, and
+  // Updater::update() paces itself by that clock, so health would freeze just when it is read.
+  m.diagnostics_timer =
+      nh.createWallTimer(ros::WallDuration(1.0), [&m](const ros::WallTimerEvent&) { m.diagnostics->force_update(); });
 
   // Eager subscriptions: the calibrator must see every feature to capture poses.
   std::ostringstream topics;

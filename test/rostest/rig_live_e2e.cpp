@@ -4,6 +4,7 @@
 // truth, the result file must list every sensor and pair, and a saved rig session must reload to
 // the same poses. ~sensors, ~pairs and ~min_poses describe the rig under test.
 #include <board_calib/Calibrate.h>
+#include <board_calib/calibrator_status.h>
 #include <board_calib/SessionFile.h>
 #include <board_calib/core/result_io.h>
 #include <board_calib/conversions.h>
@@ -11,6 +12,7 @@
 
 #include "wait_for_bag_end.h"
 
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <tf2_eigen/tf2_eigen.h>
@@ -49,6 +51,13 @@ TEST(RigLiveEndToEnd, EverySensorTfMatchesGroundTruth) {
 
   tf2_ros::Buffer buffer;
   tf2_ros::TransformListener listener(buffer);
+  // The calibrator's per-sensor health on /diagnostics (the newest status, read after the solve).
+  std::optional<diagnostic_msgs::DiagnosticStatus> health;
+  ros::Subscriber diagnostics = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
+      "/diagnostics", 10, [&](const diagnostic_msgs::DiagnosticArrayConstPtr& a) {
+        for (const auto& s : a->status)
+          if (s.hardware_id == board_calib::calibrator_status::kHardwareId) health = s;
+      });
   ASSERT_TRUE(board_calib_test::waitForBagEnd(nh, timeout_s)) << "the bag did not play to its end within " << timeout_s << " s";
 
   ros::ServiceClient client = nh.serviceClient<board_calib::Calibrate>("calibrator/calibrate");
@@ -117,6 +126,22 @@ TEST(RigLiveEndToEnd, EverySensorTfMatchesGroundTruth) {
     // The target for the simulated rig: every pair within 0.2 deg / 1 cm.
     EXPECT_LT(rot, rotation_tol_deg) << s.frame;
     EXPECT_LT(trans, translation_tol_m) << s.frame;
+  }
+
+  // Diagnostics name, per sensor, the poses it joined (every sensor joined some here).
+  health.reset();
+  const ros::WallTime diagnostics_deadline = ros::WallTime::now() + ros::WallDuration(5.0);
+  while (!health && ros::WallTime::now() < diagnostics_deadline) {
+    ros::spinOnce();
+    ros::WallDuration(0.05).sleep();
+  }
+  ASSERT_TRUE(health) << "no calibrator status on /diagnostics";
+  for (const auto& s : srv.response.sensors) {
+    const auto kv = std::find_if(health->values.begin(), health->values.end(), [&](const auto& v) {
+      return v.key.rfind("sensor ", 0) == 0 && v.key.find("(" + s.frame + ")") != std::string::npos;
+    });
+    ASSERT_NE(kv, health->values.end()) << "no diagnostics line for " << s.frame;
+    EXPECT_NE(kv->value.find(" poses: "), std::string::npos) << kv->key << ": " << kv->value;
   }
 
   // The result file lists every sensor and every camera <- LiDAR pair (DESIGN.md 3.4).
