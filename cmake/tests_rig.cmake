@@ -35,3 +35,11 @@ if(TARGET simulate_bag AND TARGET calibrate_bag)
       --check-truth 0.2 0.01 --quiet)
   set_tests_properties(rig_e2e_calibrate_still PROPERTIES FIXTURES_REQUIRED rig_bag TIMEOUT 120)
 endif()
+
+# Rig report (core/pipeline/rig_report.h): per-pair figures at the graph's pose, report folder.
+board_calib_core_gtest(test_rig_report
+  SOURCES test/core/test_rig_report.cpp
+  LIBS board_calib_core Ceres::ceres yaml-cpp ${OpenCV_LIBRARIES})
+if(TARGET test_rig_report)
+  target_include_directories(test_rig_report SYSTEM PRIVATE ${OpenCV_INCLUDE_DIRS})
+endif()

@@ -12,6 +12,7 @@
 #include <board_calib/conversions.h>
 #include <board_calib/core/file_io.h>
 #include <board_calib/core/msg_graph.h>
+#include <board_calib/core/pipeline/rig_report.h>
 #include <board_calib/core/result_io.h>
 #include <board_calib/core/rig_config.h>
 #include <board_calib/core/rig_report.h>
@@ -172,6 +173,28 @@ struct RigCalibratorMode::Impl {
     return base + "_result.yaml";
   }
 
+  // The same report folder as calibrate_bag --config --report, in ~output_dir/report (figures per
+  // pair from the captured features; the projections draw the live overlays).
+  std::string writeReport(const msg::MsgProblem& problem, const msg::MsgSolution& solution, const ResultFile& file) {
+    if (output_dir.empty()) return "";
+    RigReportInputs inputs;
+    inputs.source = "live session, rig `" + rig_file + "`";
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      for (const auto& h : session->health())
+        inputs.input_lines.push_back("`" + h.name + "` (" + h.frame + "): board in " + std::to_string(h.counts.found) +
+                                     "/" + std::to_string(h.counts.messages) + " frames, in " +
+                                     std::to_string(h.pose_ids.size()) + " poses");
+    }
+    const std::string dir = output_dir + "/report";
+    const Status st = writeRigReport(dir, rig, problem, solution, file, inputs);
+    if (!st) {
+      ROS_ERROR_STREAM_NAMED(kLog, "calibrator: rig report: " << st.reason);
+      return "";
+    }
+    return dir + "/report.md";
+  }
+
   bool calibrate(Calibrate::Request& req, Calibrate::Response& res) {
     std::lock_guard<std::mutex> solve_lock(solve_mutex);
     if (!req.method.empty() && req.method != "msg" && req.method != "all") {
@@ -235,6 +258,8 @@ struct RigCalibratorMode::Impl {
     }
     const std::string written = writeOutputs(file, solution);
     if (!written.empty()) res.message += "result written to " + written + "\n";
+    const std::string report = writeReport(problem, solution, file);
+    if (!report.empty()) res.message += "report written to " + report + "\n";
     std::lock_guard<std::mutex> lock(mutex);
     last_solution = solution;
     return true;
