@@ -20,6 +20,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <map>
 #include <optional>
 
@@ -149,6 +150,13 @@ TEST(RigLiveEndToEnd, EverySensorTfMatchesGroundTruth) {
   ASSERT_TRUE(written.ok()) << written.error();
   EXPECT_EQ(written->sensors.size(), static_cast<size_t>(sensors));
   EXPECT_EQ(written->pairs.size(), static_cast<size_t>(pairs));
+  // The rig report: the rig page and one page per pair with its figures (core/pipeline/rig_report.h).
+  EXPECT_TRUE(std::filesystem::exists(output_dir + "/report/report.md"));
+  for (const auto& p : written->pairs) {
+    const std::string page = output_dir + "/report/" + p.camera_frame + "__" + p.lidar_frame;
+    EXPECT_TRUE(std::filesystem::exists(page + "/report.md")) << page;
+    EXPECT_TRUE(std::filesystem::exists(page + "/edge_errors.png")) << page;
+  }
 
   // Save, reset, reload: the same number of poses comes back.
   ros::ServiceClient save = nh.serviceClient<board_calib::SessionFile>("calibrator/save_session");
