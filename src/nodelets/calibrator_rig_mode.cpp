@@ -315,6 +315,25 @@ struct RigCalibratorMode::Impl {
     return true;
   }
 
+  // Eager subscriptions: the calibrator must see every feature to capture poses. Returns the
+  // resolved topics, for the start-up log.
+  std::string subscribeFeatures() {
+    std::ostringstream topics;
+    for (size_t i = 0; i < rig.cameras.size(); ++i) {
+      const int k = static_cast<int>(i);
+      subscribers.push_back(nh.subscribe<CameraBoard>(rig.cameras[i].features_topic, 10,
+                                                      [this, k](const CameraBoardConstPtr& f) { onCamera(k, f); }));
+      topics << " " << nh.resolveName(rig.cameras[i].features_topic);
+    }
+    for (size_t i = 0; i < rig.lidars.size(); ++i) {
+      const int k = static_cast<int>(rig.cameras.size() + i);
+      subscribers.push_back(nh.subscribe<LidarBoard>(rig.lidars[i].features_topic, 10,
+                                                     [this, k](const LidarBoardConstPtr& f) { onLidar(k, f); }));
+      topics << " " << nh.resolveName(rig.lidars[i].features_topic);
+    }
+    return topics.str();
+  }
+
   // One sensor in words: does it see the board now, which poses it joined, or why none.
   std::string sensorLine(const msg::RigSensorHealth& h, double silent_s) const {
     std::ostringstream v;
@@ -444,23 +463,10 @@ std::unique_ptr<RigCalibratorMode> RigCalibratorMode::create(ros::NodeHandle nh,
   m.diagnostics_timer =
       nh.createWallTimer(ros::WallDuration(1.0), [&m](const ros::WallTimerEvent&) { m.diagnostics->force_update(); });
 
-  // Eager subscriptions: the calibrator must see every feature to capture poses.
-  std::ostringstream topics;
-  for (size_t i = 0; i < rig->cameras.size(); ++i) {
-    const int k = static_cast<int>(i);
-    m.subscribers.push_back(nh.subscribe<CameraBoard>(rig->cameras[i].features_topic, 10,
-                                                      [&m, k](const CameraBoardConstPtr& f) { m.onCamera(k, f); }));
-    topics << " " << nh.resolveName(rig->cameras[i].features_topic);
-  }
-  for (size_t i = 0; i < rig->lidars.size(); ++i) {
-    const int k = static_cast<int>(rig->cameras.size() + i);
-    m.subscribers.push_back(nh.subscribe<LidarBoard>(rig->lidars[i].features_topic, 10,
-                                                     [&m, k](const LidarBoardConstPtr& f) { m.onLidar(k, f); }));
-    topics << " " << nh.resolveName(rig->lidars[i].features_topic);
-  }
+  const std::string topics = m.subscribeFeatures();
   ROS_INFO_STREAM_NAMED(kLog, "calibrator: rig mode (" << rig_file << "): " << rig->cameras.size() << " camera(s), "
                                                        << rig->lidars.size() << " LiDAR(s), reference " << reference
-                                                       << "; waiting for" << topics.str());
+                                                       << "; waiting for" << topics);
   return mode;
 }
 
