@@ -40,12 +40,29 @@ struct NodeletSpec {
   std::map<std::string, std::string> params;
 };
 
-// Sensor names become node and topic names: they must be valid ROS graph names.
+// Sensor names become node and topic names, and every topic is remapped: all must be valid ROS
+// names (resolveName would throw on the first bad one). The reason names the key.
 std::string checkNames(const board_calib::RigConfig& rig) {
   std::string why;
   for (const auto& name : rig.sensorNames())
     if (!ros::names::validate(name, why) || name.find('/') != std::string::npos || name.front() == '~')
       return "sensor name '" + name + "' is not usable as a ROS node name (letters, digits, '_' only)";
+  auto topic = [&](const std::string& key, const std::string& value) {
+    return ros::names::validate(value, why) ? std::string() : key + ": '" + value + "' is not a ROS name: " + why;
+  };
+  for (size_t i = 0; i < rig.cameras.size(); ++i) {
+    const std::string at = "cameras[" + std::to_string(i) + "].";
+    for (const auto& bad : {topic(at + "image_topic", rig.cameras[i].image_topic),
+                            topic(at + "camera_info_topic", rig.cameras[i].camera_info_topic),
+                            topic(at + "features_topic", rig.cameras[i].features_topic)})
+      if (!bad.empty()) return bad;
+  }
+  for (size_t i = 0; i < rig.lidars.size(); ++i) {
+    const std::string at = "lidars[" + std::to_string(i) + "].";
+    for (const auto& bad : {topic(at + "cloud_topic", rig.lidars[i].cloud_topic),
+                            topic(at + "features_topic", rig.lidars[i].features_topic)})
+      if (!bad.empty()) return bad;
+  }
   return "";
 }
 
