@@ -14,6 +14,9 @@ added untested and a stale entry cannot linger. How an entry is checked:
   dev       developer commands of a personal build folder (`build/<you>`): the make targets
             exist in the build and every documented --flag is parsed by the tool's source
             (running the benchmarks takes minutes);
+  rig_bringup  the one-line bring-up of a custom rig: a rig file my_rig.yaml with sensor names
+            of its own in the work folder, the command as written, then every nodelet it must
+            have loaded (detectors on the rig's topics, calibrator, projections) is checked;
   same_as   an inline form of a tested command (its text is a prefix of the tested one, after
             placeholders are replaced);
   runner    scripts/test.sh: the suite this test runs in.
@@ -83,8 +86,7 @@ CASES = {
     "rostopic echo -n 1 /diagnostics": {"kind": "live_pair"},
     "rosrun tf tf_echo os1_lidar camera": {"kind": "live_pair"},
     "rosrun image_view image_view image:=/overlay": {"kind": "live_pair"},
-    "roslaunch board_calib rig_calibration.launch": {
-        "kind": "same_as", "of": "roslaunch board_calib rig_calibration.launch use_sim_time:=true"},
+    "roslaunch board_calib rig_calibration.launch rig_file:=my_rig.yaml": {"kind": "rig_bringup"},
     'rosservice call /calibrator/calibrate "{method: msg}"': {"kind": "live_rig"},
     "rosrun board_calib simulate_bag --scenario config/scenarios/<name>.yaml --out X.bag": {
         "kind": "run", "subs": [("<name>", "plain_vlp32c_1920")], "files": ["X.bag", "X.truth.yaml"],
@@ -96,7 +98,7 @@ CASES = {
     "--output /tmp/rig_result.yaml --report /tmp/rig_report [--truth /tmp/rig.truth.yaml [--check-truth 0.2 0.01]] "
     "[--quiet]": {"kind": "run", "files": ["tmp/rig_result.yaml", "tmp/rig_report/report.md"], "timeout": 300,
                   "order": 2},
-    "roslaunch board_calib rig_calibration.launch use_sim_time:=true": {"kind": "live_rig"},
+    "roslaunch board_calib example_rig_calibration.launch use_sim_time:=true": {"kind": "live_rig"},
     "rosbag play --clock /tmp/rig.bag": {"kind": "live_rig"},
     'rosservice call /calibrator/save_session "{path: /tmp/rig_session.yaml}"': {"kind": "live_rig"},
     "roslaunch board_calib publish_calibration.launch result_file:=.../msg_rig_result.yaml": {"kind": "live_rig"},
@@ -408,6 +410,47 @@ def check_live_pair(env, log):
     return "; ".join(problems)
 
 
+# A rig whose names appear nowhere in the package; its target relative to the rig file (the work
+# folder, where config/ is linked), as a user writes it next to their own board file.
+MY_RIG = """target: config/targets/apriltag_grid_4x4.yaml
+reference: roof_lidar
+cameras:
+  - {name: front_cam, image_topic: /front_cam/image_raw, camera_info_topic: /front_cam/camera_info}
+lidars:
+  - {name: roof_lidar, cloud_topic: /roof_lidar/points}
+  - {name: bumper_lidar, cloud_topic: /bumper_lidar/points}
+"""
+
+
+def check_rig_bringup(env, command, log):
+    """The one-liner from a relative rig file: every nodelet of the rig comes up, subscribed to
+    the rig file's topics (seen in the master's graph)."""
+    with open(os.path.join(env.work, "my_rig.yaml"), "w") as f:
+        f.write(MY_RIG)
+    why = launch_args_declared(env, command)
+    if why:
+        return why
+    proc = env.start(command, os.path.join(env.work, "rig_bringup_launch.log"))
+    try:
+        if wait_until(env, "rosservice list | grep -q /calibrator/calibrate", 90, log) is None:
+            return "the rig calibrator never came up (see rig_bringup_launch.log)"
+        want = ["/front_cam/camera_board", "/roof_lidar/lidar_board", "/bumper_lidar/lidar_board",
+                "/front_cam_roof_lidar/overlay", "/front_cam_bumper_lidar/overlay"]
+        missing = []
+        for topic in want:
+            if wait_until(env, "rostopic list | grep -qx " + topic, 30, log) is None:
+                missing.append(topic)
+        # The detectors' inputs are the rig file's topics: the calibrator subscribes to the
+        # features, which wakes the lazy detectors onto them.
+        for topic in ["/front_cam/image_raw", "/roof_lidar/points", "/bumper_lidar/points"]:
+            if wait_until(env, "rostopic info %s | sed -n '/Subscribers:/,$p' | grep -q board_calib_manager" % topic,
+                          30, log) is None:
+                missing.append(topic + " (no subscriber)")
+        return "missing: " + ", ".join(missing) if missing else ""
+    finally:
+        stop(proc)
+
+
 def check_live_rig(env, log):
     """docs/MSG.md live: rig bring-up with sim time, replay of the simulated rig bag, calibrate
     and save_session, then publish_calibration on msg_rig_result.yaml."""
@@ -415,7 +458,7 @@ def check_live_rig(env, log):
     if not os.path.exists(bag):
         return "no %s (the MSG.md simulate_bag line runs first)" % bag
     problems = []
-    proc = env.start("roslaunch board_calib rig_calibration.launch use_sim_time:=true",
+    proc = env.start("roslaunch board_calib example_rig_calibration.launch use_sim_time:=true",
                      os.path.join(env.work, "live_rig_launch.log"))
     try:
         if wait_until(env, "rosservice list | grep -q /calibrator/calibrate", 90, log) is None:
@@ -512,7 +555,10 @@ def main():
             results.append((command, "covered", "in the %s session above" % kind, 0.0))
             continue
         try:
-            why = check_dev(env, command, case, log) if kind == "dev" else check_run(env, command, case, log)
+            if kind == "rig_bringup":
+                why = check_rig_bringup(env, command, log)
+            else:
+                why = check_dev(env, command, case, log) if kind == "dev" else check_run(env, command, case, log)
         except subprocess.TimeoutExpired:
             why = "timed out"
         results.append((command, "FAIL" if why else "ok", why, time.time() - start))

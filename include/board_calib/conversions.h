@@ -5,12 +5,16 @@
 #include <board_calib/core/camera_model.h>
 #include <board_calib/core/features.h>
 #include <board_calib/core/lidar_cloud.h>
+#include <board_calib/core/msg_graph.h>
 #include <board_calib/core/projection.h>
 #include <board_calib/core/result_io.h>
+#include <board_calib/core/solvers.h>
+#include <board_calib/core/verdict/verdict.h>
 
 #include <board_calib/CalibrationResult.h>
 #include <board_calib/CameraBoard.h>
 #include <board_calib/LidarBoard.h>
+#include <board_calib/SensorPose.h>
 #include <geometry_msgs/Pose.h>
 #include <opencv2/core.hpp>
 #include <geometry_msgs/Transform.h>
@@ -66,5 +70,17 @@ geometry_msgs::Transform toTransformMsg(const Eigen::Isometry3d& T);
 Eigen::Isometry3d fromTransformMsg(const geometry_msgs::Transform& msg);
 geometry_msgs::Pose toPoseMsg(const Eigen::Isometry3d& T);
 Eigen::Isometry3d fromPoseMsg(const geometry_msgs::Pose& msg);
+
+/// One pair method's solution -> CalibrationResult (stamped `stamp`, frames from `file`). The
+/// uncertainty is the verdict's (never below the cross-validation's spread) once judged;
+/// success needs the solve and a verdict other than failed.
+CalibrationResult toResultMsg(const CalibrationSolution& solution, const VerdictReport& verdict, const ResultFile& file,
+                              const ros::Time& stamp);
+/// One camera <- LiDAR pair of a rig solve: `pair` is the result-file entry of `estimate`
+/// (msgResultFile keeps the solution's pair order). NaN 1 sigma without a covariance.
+CalibrationResult toPairResultMsg(const PairEntry& pair, const msg::PairEstimate& estimate,
+                                  const msg::MsgSolution& solution, const ros::Time& stamp);
+/// One sensor's pose of a rig solve.
+SensorPose toSensorPoseMsg(const msg::SensorEstimate& sensor);
 
 }  // namespace board_calib

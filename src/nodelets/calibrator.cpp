@@ -58,7 +58,6 @@ class CalibratorNodelet : public nodelet::Nodelet {
   bool dropView(DropView::Request& req, DropView::Response& res);
   void publishMarkers(const std::vector<View>& views, const std::optional<CalibrationSolution>& solution);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
-  CalibrationResult toResultMsg(const CalibrationSolution& s, const VerdictReport& verdict, const ResultFile& file) const;
   std::string writeOutputs(const ResultFile& file);
   std::string writeFailedResult(const ResultFile& file);
   std::string writeReport(const PairCalibration& run);
@@ -279,46 +278,6 @@ void CalibratorNodelet::onCamera(const CameraBoardConstPtr& msg) {
   report(session_->addCamera(fromMsg(*msg)), "camera");
 }
 
-CalibrationResult CalibratorNodelet::toResultMsg(const CalibrationSolution& s, const VerdictReport& verdict,
-                                                  const ResultFile& file) const {
-  CalibrationResult m;
-  m.header.stamp = ros::Time::now();
-  m.header.frame_id = file.lidar_frame;
-  m.success = s.success;
-  m.reason = s.reason;
-  m.method = methodName(s.method);
-  m.camera_frame = file.camera_frame;
-  m.lidar_frame = file.lidar_frame;
-  m.camera_T_lidar = toTransformMsg(s.camera_T_lidar);
-  m.views_used = static_cast<uint32_t>(std::max(0, s.views_used));
-  m.mlre_px = s.mlre_px ? *s.mlre_px : std::nan("");
-  m.plane_rms_mm = s.plane_rms_mm;
-  // The reported uncertainty is the verdict's: never below the cross-validation's spread.
-  const bool judged = s.success && verdict.covariance.diagonal().maxCoeff() > 0;
-  const PoseStddev& sd = judged ? verdict.stddev : s.stddev;
-  const Matrix6d& cov = judged ? verdict.covariance : s.covariance;
-  for (int i = 0; i < 3; ++i) {
-    m.stddev_translation_m[i] = sd.translation_m[i];
-    m.stddev_rotation_deg[i] = sd.rotation_deg[i];
-  }
-  for (int r = 0; r < 6; ++r)
-    for (int c = 0; c < 6; ++c) m.covariance[r * 6 + c] = cov(r, c);
-  m.verdict = verdictName(verdict.verdict);
-  m.verdict_reason = verdict.reason;
-  m.success = s.success && verdict.verdict != Verdict::kFailed;
-  if (!m.success && m.reason.empty()) m.reason = verdict.reason;
-  m.final_cost = s.final_cost;
-  m.notes = file.notes;
-  // Per-view residuals, parallel arrays (NaN where a view was skipped or has no edges).
-  const double nan = std::nan("");
-  for (const auto& v : s.views) {
-    m.view_ids.push_back(v.view_id);
-    m.view_mlre_px.push_back(v.used && v.mlre_px ? *v.mlre_px : nan);
-    m.view_plane_rms_mm.push_back(v.used && v.plane.count > 0 ? v.plane.rms_m * 1000.0 : nan);
-  }
-  return m;
-}
-
 // The same report folder as calibrate_bag --report (no overlays: the calibrator keeps features,
 // not raw frames), in ~output_dir/report.
 std::string CalibratorNodelet::writeReport(const PairCalibration& run) {
@@ -413,10 +372,10 @@ bool CalibratorNodelet::calibrate(Calibrate::Request& req, Calibrate::Response& 
     ResultFile file = makeResultFile(r.solution, run.used_views, target, camera_frame, lidar_frame);
     file.verdict = verdictName(r.verdict.verdict);
     file.verdict_reason = r.verdict.reason;
-    res.all_results.push_back(toResultMsg(r.solution, r.verdict, file));
+    res.all_results.push_back(toResultMsg(r.solution, r.verdict, file, ros::Time::now()));
   }
   const MethodRun& shown = run.shownRun();
-  res.result = toResultMsg(shown.solution, shown.verdict, run.result);
+  res.result = toResultMsg(shown.solution, shown.verdict, run.result, ros::Time::now());
   res.message = verdictSummary(run);
   if (run.failed()) {
     // Never broadcast, never replace a good result file: keep the failed one for inspection.

@@ -8,9 +8,11 @@
 #include <board_calib/CalibratorConfig.h>
 #include <board_calib/DropView.h>
 #include <board_calib/SessionFile.h>
+#include <board_calib/calibrator_status.h>
 #include <board_calib/conversions.h>
 #include <board_calib/core/file_io.h>
 #include <board_calib/core/msg_graph.h>
+#include <board_calib/core/pipeline/rig_report.h>
 #include <board_calib/core/result_io.h>
 #include <board_calib/core/rig_config.h>
 #include <board_calib/core/rig_report.h>
@@ -50,6 +52,8 @@ struct RigCalibratorMode::Impl {
   std::string output_dir;
   bool broadcast_tf = true;
   std::string autosave_path;  // empty: autosave off
+  std::vector<ros::WallTime> last_message_wall;  // per sensor, for "silent" in diagnostics
+  static constexpr double kSilentS = 2.0;        // s of wall time without features: the stream stopped
 
   std::vector<ros::Subscriber> subscribers;
   ros::Publisher result_pub;
@@ -57,7 +61,7 @@ struct RigCalibratorMode::Impl {
   std::unique_ptr<tf2_ros::StaticTransformBroadcaster> tf_broadcaster;
   std::unique_ptr<dynamic_reconfigure::Server<CalibratorConfig>> reconfigure_server;
   std::unique_ptr<diagnostic_updater::Updater> diagnostics;
-  ros::Timer diagnostics_timer;
+  ros::WallTimer diagnostics_timer;
 
   void report(const SessionEvent& e, const std::string& source) {
     if (e.kind == SessionEvent::Kind::kAccepted) {
@@ -112,11 +116,13 @@ struct RigCalibratorMode::Impl {
 
   void onCamera(int k, const CameraBoardConstPtr& m) {
     std::lock_guard<std::mutex> lock(mutex);
+    last_message_wall[k] = ros::WallTime::now();
     report(session->addCamera(k, fromMsg(*m)), rig.cameras[k].name);
   }
 
   void onLidar(int k, const LidarBoardConstPtr& m) {
     std::lock_guard<std::mutex> lock(mutex);
+    last_message_wall[k] = ros::WallTime::now();
     const size_t i = static_cast<size_t>(k) - rig.cameras.size();
     report(session->addLidar(k, fromMsg(*m)), rig.lidars[i].name);
   }
@@ -130,35 +136,6 @@ struct RigCalibratorMode::Impl {
       return;
     }
     session->setOptions(o);
-  }
-
-  // `p` is the result-file entry of `pair` (same order in msgResultFile).
-  static CalibrationResult pairMsg(const PairEntry& p, const msg::PairEstimate& pair, const msg::MsgSolution& s) {
-    CalibrationResult m;
-    m.header.stamp = ros::Time::now();
-    m.header.frame_id = p.lidar_frame;
-    m.success = true;
-    m.method = "msg";
-    m.camera_frame = p.camera_frame;
-    m.lidar_frame = p.lidar_frame;
-    m.camera_T_lidar = toTransformMsg(p.camera_T_lidar);
-    m.views_used = static_cast<uint32_t>(std::max(0, s.poses_used));
-    m.mlre_px = p.mlre_px ? *p.mlre_px : std::nan("");
-    m.plane_rms_mm = std::nan("");
-    m.final_cost = s.final_cost;
-    m.covariance.fill(std::nan(""));
-    m.stddev_translation_m.fill(std::nan(""));
-    m.stddev_rotation_deg.fill(std::nan(""));
-    if (pair.has_covariance) {
-      for (int i = 0; i < 3; ++i) {
-        m.stddev_translation_m[i] = pair.stddev.translation_m[i];
-        m.stddev_rotation_deg[i] = pair.stddev.rotation_deg[i];
-      }
-      for (int r = 0; r < 6; ++r)
-        for (int c = 0; c < 6; ++c) m.covariance[r * 6 + c] = pair.covariance(r, c);
-    }
-    m.notes = s.notes;
-    return m;
   }
 
   std::string writeOutputs(const ResultFile& file, const msg::MsgSolution& s) {
@@ -194,6 +171,28 @@ struct RigCalibratorMode::Impl {
     const Status snippet = writeFileAtomic(base + "_static_transforms.launch", launch.str());
     if (!snippet) ROS_ERROR_STREAM_NAMED(kLog, "calibrator: " << snippet.reason);
     return base + "_result.yaml";
+  }
+
+  // The same report folder as calibrate_bag --config --report, in ~output_dir/report (figures per
+  // pair from the captured features; the projections draw the live overlays).
+  std::string writeReport(const msg::MsgProblem& problem, const msg::MsgSolution& solution, const ResultFile& file) {
+    if (output_dir.empty()) return "";
+    RigReportInputs inputs;
+    inputs.source = "live session, rig `" + rig_file + "`";
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      for (const auto& h : session->health())
+        inputs.input_lines.push_back("`" + h.name + "` (" + h.frame + "): board in " + std::to_string(h.counts.found) +
+                                     "/" + std::to_string(h.counts.messages) + " frames, in " +
+                                     std::to_string(h.pose_ids.size()) + " poses");
+    }
+    const std::string dir = output_dir + "/report";
+    const Status st = writeRigReport(dir, rig, problem, solution, file, inputs);
+    if (!st) {
+      ROS_ERROR_STREAM_NAMED(kLog, "calibrator: rig report: " << st.reason);
+      return "";
+    }
+    return dir + "/report.md";
   }
 
   bool calibrate(Calibrate::Request& req, Calibrate::Response& res) {
@@ -235,21 +234,9 @@ struct RigCalibratorMode::Impl {
     res.message = rigSolutionSummary(rig, solution, file);
     for (const auto& p : problems) res.message += "warning: " + p + "\n";
     res.reference_frame = solution.sensors[solution.reference_sensor].frame;
-    for (const auto& s : solution.sensors) {
-      SensorPose p;
-      p.frame = s.frame;
-      p.kind = msg::sensorKindName(s.kind);
-      p.reference_T_sensor = toTransformMsg(s.reference_T_sensor);
-      for (int i = 0; i < 3; ++i) {
-        p.stddev_translation_m[i] = s.stddev.translation_m[i];
-        p.stddev_rotation_deg[i] = s.stddev.rotation_deg[i];
-      }
-      p.poses_used = static_cast<uint32_t>(std::max(0, s.observations));
-      p.poses_rejected = static_cast<uint32_t>(std::max(0, s.observations_rejected));
-      res.sensors.push_back(p);
-    }
+    for (const auto& s : solution.sensors) res.sensors.push_back(toSensorPoseMsg(s));
     for (size_t i = 0; i < file.pairs.size() && i < solution.pairs.size(); ++i)
-      res.all_results.push_back(pairMsg(file.pairs[i], solution.pairs[i], solution));
+      res.all_results.push_back(toPairResultMsg(file.pairs[i], solution.pairs[i], solution, ros::Time::now()));
     if (!res.all_results.empty()) {
       res.result = res.all_results.front();
       result_pub.publish(res.result);
@@ -271,6 +258,8 @@ struct RigCalibratorMode::Impl {
     }
     const std::string written = writeOutputs(file, solution);
     if (!written.empty()) res.message += "result written to " + written + "\n";
+    const std::string report = writeReport(problem, solution, file);
+    if (!report.empty()) res.message += "report written to " + report + "\n";
     std::lock_guard<std::mutex> lock(mutex);
     last_solution = solution;
     return true;
@@ -326,26 +315,78 @@ struct RigCalibratorMode::Impl {
     return true;
   }
 
+  // Eager subscriptions: the calibrator must see every feature to capture poses. Returns the
+  // resolved topics, for the start-up log.
+  std::string subscribeFeatures() {
+    std::ostringstream topics;
+    for (size_t i = 0; i < rig.cameras.size(); ++i) {
+      const int k = static_cast<int>(i);
+      subscribers.push_back(nh.subscribe<CameraBoard>(rig.cameras[i].features_topic, 10,
+                                                      [this, k](const CameraBoardConstPtr& f) { onCamera(k, f); }));
+      topics << " " << nh.resolveName(rig.cameras[i].features_topic);
+    }
+    for (size_t i = 0; i < rig.lidars.size(); ++i) {
+      const int k = static_cast<int>(rig.cameras.size() + i);
+      subscribers.push_back(nh.subscribe<LidarBoard>(rig.lidars[i].features_topic, 10,
+                                                     [this, k](const LidarBoardConstPtr& f) { onLidar(k, f); }));
+      topics << " " << nh.resolveName(rig.lidars[i].features_topic);
+    }
+    return topics.str();
+  }
+
+  // One sensor in words: does it see the board now, which poses it joined, or why none.
+  std::string sensorLine(const msg::RigSensorHealth& h, double silent_s) const {
+    std::ostringstream v;
+    if (h.counts.messages == 0) v << "no features yet";
+    else if (silent_s > kSilentS) v << "silent for " << std::fixed << std::setprecision(0) << silent_s << " s";
+    else if (h.counts.board_now) v << "sees the board now";
+    else v << "no board now: " << h.counts.last_reason;
+    v << "; " << h.counts.found << "/" << h.counts.messages << " frames with the board";
+    if (h.pose_ids.empty()) {
+      v << "; in no pose: " << h.why_no_pose;
+    } else {
+      v << "; in " << h.pose_ids.size() << " poses:";
+      for (int id : h.pose_ids) v << " " << id;
+    }
+    return v.str();
+  }
+
+  // The pair mode's keys (calibrator_status.h), so the rviz panel reads either mode; the LiDAR
+  // and camera rows list every sensor of that kind, one key per sensor has the details.
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
+    namespace keys = calibrator_status;
     std::lock_guard<std::mutex> lock(mutex);
     using diagnostic_msgs::DiagnosticStatus;
     const std::vector<std::string> problems = session->problems();
-    const std::vector<int> in_poses = session->posesPerSensor();
+    const std::vector<msg::RigSensorHealth> health = session->health();
     const size_t poses = session->poses().size();
     if (!problems.empty()) stat.summary(DiagnosticStatus::WARN, problems.front());
     else if (poses < 3) stat.summary(DiagnosticStatus::WARN, "collecting board poses (" + std::to_string(poses) + ")");
     else stat.summary(DiagnosticStatus::OK, std::to_string(poses) + " board poses collected");
+    stat.add(keys::kServices, pnh.getNamespace());
     stat.add("rig", rig_file);
-    stat.add("board poses", poses);
-    for (size_t i = 0; i < problems.size(); ++i) stat.add("problem " + std::to_string(i + 1), problems[i]);
-    for (size_t k = 0; k < session->counts().size(); ++k) {
-      const auto& c = session->counts()[k];
-      std::string v = std::to_string(c.found) + "/" + std::to_string(c.messages) + " with the board, in " +
-                      std::to_string(in_poses[k]) + " poses";
-      if (c.found < c.messages && !c.last_reason.empty()) v += "; last miss: " + c.last_reason;
-      stat.add(session->names()[k] + " (" + session->sensors()[k].frame + ")", v);
+    stat.add(keys::kViews, poses);
+    std::string ids;
+    for (const auto& p : session->poses()) ids += (ids.empty() ? "" : " ") + std::to_string(p.observation.id);
+    stat.add(keys::kViewIds, ids);
+    const ros::WallTime now = ros::WallTime::now();
+    std::string seen_now, lidars, cameras;
+    for (size_t k = 0; k < health.size(); ++k) {
+      const auto& h = health[k];
+      const double silent_s = last_message_wall[k].isZero() ? 0.0 : (now - last_message_wall[k]).toSec();
+      const bool now_seen = h.counts.board_now && silent_s <= kSilentS;
+      if (now_seen) seen_now += (seen_now.empty() ? "" : ", ") + h.name;
+      const bool camera = session->sensors()[k].kind == msg::SensorKind::kCamera;
+      std::string& row = camera ? cameras : lidars;
+      row += (row.empty() ? "" : "; ") + h.name + ": " +
+             (now_seen ? "found" : h.counts.messages == 0 ? "no message" : "not found");
+      stat.add("sensor " + h.name + " (" + h.frame + ")", sensorLine(h, silent_s));
     }
-    stat.add("last event", last_event);
+    stat.add("board seen now by", seen_now.empty() ? "no sensor" : seen_now);
+    stat.add(keys::kLidarBoard, lidars);
+    stat.add(keys::kCameraBoard, cameras);
+    for (size_t i = 0; i < problems.size(); ++i) stat.add("problem " + std::to_string(i + 1), problems[i]);
+    stat.add(keys::kLastEvent, last_event);
     if (last_solution) {
       stat.add("last solve", std::to_string(last_solution->poses_used) + " board poses");
       stat.add("loop consistency (deg / mm)", std::to_string(last_solution->loop_rotation_max_deg) + " / " +
@@ -381,6 +422,7 @@ std::unique_ptr<RigCalibratorMode> RigCalibratorMode::create(ros::NodeHandle nh,
   pnh.param("broadcast_tf", m.broadcast_tf, true);
   m.output_dir = outputDirParam(pnh);
 
+  m.last_message_wall.assign(rig->cameras.size() + rig->lidars.size(), ros::WallTime());
   m.session = std::make_unique<msg::RigSession>(rig->sensorNames(), rig->sensorSpecs(), msg::rigSessionOptionsFor(*rig));
   std::string session_file;
   if (pnh.getParam("session_file", session_file) && !session_file.empty()) {
@@ -414,27 +456,17 @@ std::unique_ptr<RigCalibratorMode> RigCalibratorMode::create(ros::NodeHandle nh,
   m.services.push_back(pnh.advertiseService("load_session", &Impl::load, &m));
   m.services.push_back(pnh.advertiseService("drop_view", &Impl::drop, &m));
   m.diagnostics = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
-  m.diagnostics->setHardwareID("board_calib calibrator (rig)");
-  m.diagnostics->add("rig session", [&m](diagnostic_updater::DiagnosticStatusWrapper& s) { m.diagnose(s); });
-  m.diagnostics_timer = nh.createTimer(ros::Duration(1.0), [&m](const ros::TimerEvent&) { m.diagnostics->update(); });
+  m.diagnostics->setHardwareID(calibrator_status::kHardwareId);
+  m.diagnostics->add(calibrator_status::kStatusName, [&m](diagnostic_updater::DiagnosticStatusWrapper& s) { m.diagnose(s); });
+  // Wall time and force_update: with a replayed bag the sim clock stops at its end, and
+  // Updater::update() paces itself by that clock, so health would freeze just when it is read.
+  m.diagnostics_timer =
+      nh.createWallTimer(ros::WallDuration(1.0), [&m](const ros::WallTimerEvent&) { m.diagnostics->force_update(); });
 
-  // Eager subscriptions: the calibrator must see every feature to capture poses.
-  std::ostringstream topics;
-  for (size_t i = 0; i < rig->cameras.size(); ++i) {
-    const int k = static_cast<int>(i);
-    m.subscribers.push_back(nh.subscribe<CameraBoard>(rig->cameras[i].features_topic, 10,
-                                                      [&m, k](const CameraBoardConstPtr& f) { m.onCamera(k, f); }));
-    topics << " " << nh.resolveName(rig->cameras[i].features_topic);
-  }
-  for (size_t i = 0; i < rig->lidars.size(); ++i) {
-    const int k = static_cast<int>(rig->cameras.size() + i);
-    m.subscribers.push_back(nh.subscribe<LidarBoard>(rig->lidars[i].features_topic, 10,
-                                                     [&m, k](const LidarBoardConstPtr& f) { m.onLidar(k, f); }));
-    topics << " " << nh.resolveName(rig->lidars[i].features_topic);
-  }
+  const std::string topics = m.subscribeFeatures();
   ROS_INFO_STREAM_NAMED(kLog, "calibrator: rig mode (" << rig_file << "): " << rig->cameras.size() << " camera(s), "
                                                        << rig->lidars.size() << " LiDAR(s), reference " << reference
-                                                       << "; waiting for" << topics.str());
+                                                       << "; waiting for" << topics);
   return mode;
 }
 

@@ -13,6 +13,7 @@
 #include <board_calib/core/msg_session.h>
 #include <board_calib/core/result_io.h>
 #include <board_calib/core/rig_config.h>
+#include <board_calib/core/pipeline/rig_report.h>
 #include <board_calib/core/rig_report.h>
 #include <board_calib/core/rig_session.h>
 #include <board_calib/core/target.h>
@@ -293,33 +294,19 @@ int runRigCalibration(const RigArgs& args) {
   }
   if (!args.report.empty()) {
     if (!makeDirs(args.report)) return failWith("cannot create report folder '" + args.report + "'");
-    std::ostringstream md;
-    md << "# board_calib MSG-Cal report\n\nrig `" << args.config << "`, bags:";
-    for (const auto& b : args.bags) md << " `" << b << "`";
-    md << "\n\n## Detection\n\n";
+    RigReportInputs inputs;
+    inputs.source = "rig `" + args.config + "`, bags:";
+    for (const auto& b : args.bags) inputs.source += " `" + b + "`";
     for (size_t i = 0; i < num_cameras; ++i)
-      md << "* camera `" << specs[i].frame << "`: board in " << cameras[i].found << "/" << cameras[i].images
-         << " images\n";
+      inputs.input_lines.push_back("camera `" + specs[i].frame + "`: board in " + std::to_string(cameras[i].found) +
+                                   "/" + std::to_string(cameras[i].images) + " images");
     for (size_t i = 0; i < lidars.size(); ++i)
-      md << "* LiDAR `" << specs[num_cameras + i].frame << "`: board in " << lidars[i].found << "/"
-         << lidars[i].clouds << " clouds\n";
-    md << "* " << poses.size() << " board poses seen by two or more sensors (capture: " << args.capture << ")\n\n";
-    md << "## Result\n\n```\n" << out.str() << "```\n";
-    if (!solution.rejected.empty()) {
-      md << "\n## Rejected observations\n\n";
-      for (const auto& r : solution.rejected)
-        md << "* pose " << r.pose_id << ", sensor `" << solution.sensors[r.sensor].frame << "`: median "
-           << r.median_whitened << " sigma\n";
-    }
-    md << "\n## Pairwise links\n\n| a | b | shared | used | rot diff to graph (deg) | trans diff (mm) | tree | note |\n"
-       << "|---|---|---|---|---|---|---|---|\n";
-    for (const auto& l : solution.links)
-      md << "| " << solution.sensors[l.a].frame << " | " << solution.sensors[l.b].frame << " | " << l.shared_views
-         << " | " << l.views_used << " | " << l.graph_rotation_diff_deg << " | " << l.graph_translation_diff_mm
-         << " | " << (l.in_spanning_tree ? "yes" : "") << " | " << (l.success ? "" : l.reason) << " |\n";
-    const Status written = writeFileAtomic(args.report + "/report.md", md.str());
-    if (!written) return failWith(written.reason);
-    const Status st = writeResultFile(args.report + "/result.yaml", result);
+      inputs.input_lines.push_back("LiDAR `" + specs[num_cameras + i].frame + "`: board in " +
+                                   std::to_string(lidars[i].found) + "/" + std::to_string(lidars[i].clouds) + " clouds");
+    inputs.input_lines.push_back("capture: " + args.capture);
+    const std::string printed = out.str(), summary = rigSolutionSummary(*rig, solution, result);
+    if (printed.size() > summary.size()) inputs.extra_result_text = printed.substr(summary.size());  // vs truth
+    const Status st = writeRigReport(args.report, *rig, problem, solution, result, inputs);
     if (!st) return failWith(st.reason);
     std::cout << "report written to " << args.report << "/report.md\n";
   }

@@ -88,6 +88,14 @@ TEST(RigConfig, ErrorsNameTheKey) {
             std::string::npos);
   EXPECT_NE(errorOf(variant("pixel_sigma_px: 0.3", "pixel_sigma: 0.3")).find("unknown key 'pixel_sigma'"),
             std::string::npos);
+  // Unknown keys at every level name the key and where it is (a typo never falls back silently).
+  EXPECT_NE(errorOf(variant("image_topic: /l/img", "imagetopic: /l/img")).find("cameras[0]: unknown key 'imagetopic'"),
+            std::string::npos);
+  EXPECT_NE(errorOf(variant("cloud_topic: /vlp/points", "cloud_topic: /vlp/points, topic: /x"))
+                .find("lidars[0]: unknown key 'topic'"),
+            std::string::npos);
+  EXPECT_NE(errorOf(variant("reference: vlp", "reference: vlp\nlidar: []")).find("rig: unknown key 'lidar'"),
+            std::string::npos);
   EXPECT_NE(errorOf(variant("stamp_tolerance_s: 0.02", "stamp_tolerance_s: 0")).find("stamp_tolerance_s"),
             std::string::npos);
   EXPECT_NE(errorOf(variant("stamp_tolerance_s: 0.02", "stamp_tolerance_s: soon")).find("rig.stamp_tolerance_s"),

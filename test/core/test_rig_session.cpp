@@ -132,6 +132,32 @@ TEST_F(RigSessionTest, APoseSeenByOneSensorIsRejectedWithTheReason) {
   EXPECT_TRUE(told);
 }
 
+TEST_F(RigSessionTest, HealthNamesThePosesEachSensorJoinedAndWhyNot) {
+  RigSession session = makeSession();
+  // Sensors 0 (left), 2 (vlp32), 3 (os1) see every hold; right (1) sends nothing.
+  play(session, scene, 4, 0, 100.0, {0, 2, 3});
+  session.flush();
+  const size_t poses = session.poses().size();
+  ASSERT_EQ(poses, scene.problem.poses.size());
+  const auto health = session.health();
+  ASSERT_EQ(health.size(), 4u);
+  EXPECT_EQ(health[0].pose_ids.size(), poses);
+  EXPECT_EQ(health[0].pose_ids.front(), session.poses().front().observation.id);
+  EXPECT_TRUE(health[0].why_no_pose.empty());
+  EXPECT_TRUE(health[2].counts.board_now) << "the last hold was seen";
+  EXPECT_TRUE(health[1].pose_ids.empty());
+  EXPECT_NE(health[1].why_no_pose.find("right: no board features received"), std::string::npos)
+      << health[1].why_no_pose;
+  // A miss makes the sensor's "now" false, with its reason kept.
+  CameraBoardFeatures miss;
+  miss.found = false;
+  miss.reason = "no tag decoded";
+  miss.stamp = 1000.0;
+  session.addCamera(0, miss);
+  EXPECT_FALSE(session.health()[0].counts.board_now);
+  EXPECT_EQ(session.health()[0].counts.last_reason, "no tag decoded");
+}
+
 TEST_F(RigSessionTest, SaveLoadRoundTripGivesTheSameSolution) {
   RigSession session = makeSession();
   play(session, scene, 3, 2);

@@ -336,3 +336,84 @@ TEST(ConversionsValidation, TransformSanity) {
   t.translation.y = std::nan("");
   EXPECT_NE(validateTransform(t).find("non-finite"), std::string::npos);
 }
+
+// Solve results -> messages (result_conversions.cpp): the nodelets only publish what these build.
+TEST(ResultConversions, PairSolutionTakesTheVerdictsUncertaintyAndFailure) {
+  board_calib::CalibrationSolution s;
+  s.success = true;
+  s.method = board_calib::Method::kPbpc;
+  s.camera_T_lidar.translation() = Eigen::Vector3d(0.1, -0.2, 0.3);
+  s.views_used = 12;
+  s.mlre_px = 1.5;
+  s.plane_rms_mm = 4.0;
+  s.stddev.translation_m = Eigen::Vector3d(0.001, 0.001, 0.001);
+  s.covariance = board_calib::Matrix6d::Identity() * 1e-6;
+  board_calib::ViewResidual skipped;
+  skipped.view_id = 7;
+  skipped.used = false;
+  s.views.push_back(skipped);
+  board_calib::VerdictReport verdict;
+  verdict.verdict = board_calib::Verdict::kGood;
+  verdict.stddev.translation_m = Eigen::Vector3d(0.004, 0.005, 0.006);
+  verdict.covariance = board_calib::Matrix6d::Identity() * 4e-6;
+  board_calib::ResultFile file;
+  file.camera_frame = "cam";
+  file.lidar_frame = "lidar";
+  const ros::Time stamp(12.5);
+  auto m = board_calib::toResultMsg(s, verdict, file, stamp);
+  EXPECT_TRUE(m.success);
+  EXPECT_EQ(m.header.stamp, stamp);
+  EXPECT_EQ(m.header.frame_id, "lidar");
+  EXPECT_EQ(m.method, "pbpc");
+  EXPECT_EQ(m.verdict, "good");
+  EXPECT_DOUBLE_EQ(m.camera_T_lidar.translation.y, -0.2);
+  EXPECT_DOUBLE_EQ(m.stddev_translation_m[2], 0.006);  // the verdict's, not the solver's
+  EXPECT_DOUBLE_EQ(m.covariance[0], 4e-6);
+  EXPECT_DOUBLE_EQ(m.covariance[1], 0.0);
+  ASSERT_EQ(m.view_ids.size(), 1u);
+  EXPECT_TRUE(std::isnan(m.view_mlre_px[0]));  // a skipped view has no residual
+
+  verdict.verdict = board_calib::Verdict::kFailed;
+  verdict.reason = "too few views";
+  m = board_calib::toResultMsg(s, verdict, file, stamp);
+  EXPECT_FALSE(m.success);
+  EXPECT_EQ(m.reason, "too few views");
+}
+
+TEST(ResultConversions, RigPairAndSensorPose) {
+  board_calib::msg::MsgSolution s;
+  s.poses_used = 9;
+  board_calib::PairEntry entry;
+  entry.camera_frame = "cam";
+  entry.lidar_frame = "lidar";
+  entry.camera_T_lidar.translation() = Eigen::Vector3d(0.5, 0.0, 0.0);
+  board_calib::msg::PairEstimate estimate;
+  auto m = board_calib::toPairResultMsg(entry, estimate, s, ros::Time(3.0));
+  EXPECT_TRUE(m.success);
+  EXPECT_EQ(m.method, "msg");
+  EXPECT_EQ(m.views_used, 9u);
+  EXPECT_DOUBLE_EQ(m.camera_T_lidar.translation.x, 0.5);
+  EXPECT_TRUE(std::isnan(m.mlre_px));                  // no shared edges measured
+  EXPECT_TRUE(std::isnan(m.stddev_translation_m[0]));  // no covariance: unknown, not zero
+  estimate.has_covariance = true;
+  estimate.stddev.rotation_deg = Eigen::Vector3d(0.1, 0.2, 0.3);
+  estimate.covariance(5, 4) = 2e-6;
+  m = board_calib::toPairResultMsg(entry, estimate, s, ros::Time(3.0));
+  EXPECT_DOUBLE_EQ(m.stddev_rotation_deg[1], 0.2);
+  EXPECT_DOUBLE_EQ(m.covariance[5 * 6 + 4], 2e-6);  // row-major
+
+  board_calib::msg::SensorEstimate sensor;
+  sensor.frame = "os1";
+  sensor.kind = board_calib::msg::SensorKind::kLidar;
+  sensor.reference_T_sensor.translation() = Eigen::Vector3d(0.0, 0.0, 0.16);
+  sensor.stddev.translation_m = Eigen::Vector3d(0.001, 0.002, 0.003);
+  sensor.observations = 14;
+  sensor.observations_rejected = -1;  // never a wrapped unsigned count
+  const auto p = board_calib::toSensorPoseMsg(sensor);
+  EXPECT_EQ(p.frame, "os1");
+  EXPECT_EQ(p.kind, "lidar");
+  EXPECT_DOUBLE_EQ(p.reference_T_sensor.translation.z, 0.16);
+  EXPECT_DOUBLE_EQ(p.stddev_translation_m[1], 0.002);
+  EXPECT_EQ(p.poses_used, 14u);
+  EXPECT_EQ(p.poses_rejected, 0u);
+}

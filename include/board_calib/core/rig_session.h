@@ -53,6 +53,16 @@ struct RigSensorCounts {
   int found = 0;
   std::string last_reason;  ///< newest "not found" reason
   double newest_stamp = -std::numeric_limits<double>::infinity();  ///< s, newest message (since a restart)
+  bool board_now = false;   ///< the newest message saw the board
+};
+
+/// One sensor's part in the session, for diagnostics and the panel.
+struct RigSensorHealth {
+  std::string name;
+  std::string frame;            ///< from its features (the sensor name until one arrived)
+  RigSensorCounts counts;
+  std::vector<int> pose_ids;    ///< captured poses it takes part in
+  std::string why_no_pose;      ///< when in no pose: why, in words (empty otherwise)
 };
 
 class RigSession {
@@ -81,6 +91,9 @@ class RigSession {
   const RigSessionOptions& options() const { return options_; }
   /// Captured poses each sensor takes part in (index as the specs).
   std::vector<int> posesPerSensor() const;
+  /// Per sensor (index as the specs): counts, whether it sees the board now, the poses it joined
+  /// and, when none, why.
+  std::vector<RigSensorHealth> health() const;
   /// Specific hints about sensors that do not join the poses: never saw the board (with the last
   /// reason), or saw it often but never within stamp_tolerance_s of the others (stamps offset,
   /// with the measured offset of its newest message). Empty when every sensor takes part.
@@ -117,6 +130,7 @@ class RigSession {
   void prune();
   bool readyToAssemble(const Pending& pending) const;
   bool seenBefore(int sensor, const Summary& s, int* pose_id) const;
+  std::string whyNoPose(size_t sensor) const;  // empty unless a specific reason is known
   std::optional<Summary> summaryOf(int sensor, const BoardPoseObservation& o) const;
   static std::optional<Summary> summarize(const CameraBoardFeatures& f);  // nullopt unless found
   static std::optional<Summary> summarize(const LidarBoardFeatures& f);   // nullopt unless found with points
