@@ -11,6 +11,7 @@
 #include <board_calib/CalibrationResult.h>
 #include <board_calib/CameraBoard.h>
 #include <board_calib/LidarBoard.h>
+#include <geometry_msgs/Point.h>
 #include <geometry_msgs/Pose.h>
 #include <opencv2/core.hpp>
 #include <geometry_msgs/Transform.h>
@@ -65,6 +66,11 @@ CameraBoardFeatures fromMsg(const CameraBoard& msg);
 geometry_msgs::Transform toTransformMsg(const Eigen::Isometry3d& T);
 Eigen::Isometry3d fromTransformMsg(const geometry_msgs::Transform& msg);
 geometry_msgs::Pose toPoseMsg(const Eigen::Isometry3d& T);
+geometry_msgs::Point toPointMsg(const Eigen::Vector3d& p);
+
+/// Same image size, K, D and distortion model: the cached camera model still applies
+/// (CameraInfo arrives with every image).
+bool sameCameraInfo(const sensor_msgs::CameraInfo& a, const sensor_msgs::CameraInfo& b);
 Eigen::Isometry3d fromPoseMsg(const geometry_msgs::Pose& msg);
 
 }  // namespace board_calib

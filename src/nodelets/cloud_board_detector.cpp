@@ -30,14 +30,6 @@ constexpr double kMarkerLineWidthM = 0.01;
 constexpr double kCornerMarkerSizeM = 0.04;
 constexpr double kNormalArrowLengthM = 0.3;
 
-geometry_msgs::Point toPointMsg(const Eigen::Vector3d& p) {
-  geometry_msgs::Point q;
-  q.x = p.x();
-  q.y = p.y();
-  q.z = p.z();
-  return q;
-}
-
 LidarCloud pointsCloud(const std_msgs::Header& header, const Points3& points, float intensity) {
   LidarCloud c;
   c.frame_id = header.frame_id;
