@@ -110,19 +110,25 @@ SideFit fitSide(const Points2& side, double outward, const LidarBoardDetectorOpt
   return s;
 }
 
-void extractEdgesByLines(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const std::vector<int>& board,
-                         const Target& target, const LidarBoardDetectorOptions& o, std::mt19937& rng,
-                         LidarBoardDetection* det) {
-  auto& f = det->features;
-  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-  for (int i : board) centroid += pts[i].p;
-  centroid /= static_cast<double>(board.size());
-  centroid -= f.plane.normal * f.plane.signedDistance(centroid);
-  PlaneFrame frame;
-  if (!makePlaneFrame(f.plane.normal, centroid, &frame)) {
-    f.reason = "board plane is nearly horizontal: its edges cannot be named";
-    return;
-  }
+// The extreme returns of every scan line on the board (left = larger azimuth, seen from the
+// sensor), projected into the board plane, with each line's direction and sample spacing.
+struct SideExtremes {
+  std::vector<int> left_pts, right_pts;  // indices into the valid points
+  Points2 left2, right2;                 // in-plane positions
+  Points2 left_dir, right_dir;           // the scan line's in-plane direction
+  std::vector<double> left_gap, right_gap;  // its mean spacing between samples
+};
+
+SideExtremes sideExtremes(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const std::vector<int>& board,
+                          const LidarBoardDetectorOptions& o, const PlaneFrame& frame, const Eigen::Vector3d& centroid,
+                          LidarBoardDetection* det) {
+  SideExtremes x;
+  auto& left_pts = x.left_pts;
+  auto& right_pts = x.right_pts;
+  auto& left_dir = x.left_dir;
+  auto& right_dir = x.right_dir;
+  auto& left_gap = x.left_gap;
+  auto& right_gap = x.right_gap;
   const std::vector<int> line = scanLines(cloud, board, pts, o, &det->scan_line_source);
   // Per scan line: the extreme points in azimuth (left = larger azimuth, seen from the sensor).
   const double center_azimuth = std::atan2(centroid.y(), centroid.x());
@@ -146,10 +152,7 @@ void extractEdgesByLines(const LidarCloud& cloud, const std::vector<ValidPoint>&
       e.right = board[k];
     }
   }
-  std::vector<int> left_pts, right_pts;
   // Per extreme: the scan line's in-plane direction and its mean spacing between samples.
-  Points2 left_dir, right_dir;
-  std::vector<double> left_gap, right_gap;
   for (const auto& kv : per_line) {
     if (kv.second.count < o.min_points_per_scan_line || kv.second.left == kv.second.right) continue;
     ++det->num_scan_lines;
@@ -162,9 +165,25 @@ void extractEdgesByLines(const LidarCloud& cloud, const std::vector<ValidPoint>&
     left_gap.push_back(gap);
     right_gap.push_back(gap);
   }
-  Points2 left2, right2;
-  for (int i : left_pts) left2.push_back(frame.project(pts[i].p));
-  for (int i : right_pts) right2.push_back(frame.project(pts[i].p));
+  for (int i : left_pts) x.left2.push_back(frame.project(pts[i].p));
+  for (int i : right_pts) x.right2.push_back(frame.project(pts[i].p));
+  return x;
+}
+
+struct TwoSides {
+  SideFit left, right;
+};
+
+// Upper and lower edge of each side; the split search where the corners are not right angles,
+// then the sampling bias (extremes lie inside the true edge) corrected.
+TwoSides fitSides(const SideExtremes& x, const LidarBoardDetectorOptions& o, const Eigen::Vector3d& centroid,
+                  std::mt19937& rng) {
+  const Points2& left2 = x.left2;
+  const Points2& right2 = x.right2;
+  const auto& left_gap = x.left_gap;
+  const auto& right_gap = x.right_gap;
+  const auto& left_dir = x.left_dir;
+  const auto& right_dir = x.right_dir;
   // Extremes scatter inward by up to one sample spacing: the inlier band must cover that at
   // long range, where the spacing exceeds the configured threshold.
   LidarBoardDetectorOptions edge_options = o;
@@ -221,6 +240,18 @@ void extractEdgesByLines(const LidarCloud& cloud, const std::vector<ValidPoint>&
     shiftOut(right.lower, right.lower_members, right_dir, right_gap);
   }
 
+  return {left, right};
+}
+
+// The four edges (UL, UR, LR, LL) and corners from the two sides; false with the reason when
+// they are inconsistent or rejected.
+bool writeEdges(const SideExtremes& x, const TwoSides& sides, const std::vector<ValidPoint>& pts,
+                const LidarBoardDetectorOptions& o, const PlaneFrame& frame, LidarBoardFeatures* features) {
+  auto& f = *features;
+  const SideFit& left = sides.left;
+  const SideFit& right = sides.right;
+  const auto& left_pts = x.left_pts;
+  const auto& right_pts = x.right_pts;
   // Edge order: UL, UR, LR, LL.
   const std::array<const LineFit2D*, kNumEdges> lines = {&left.upper, &right.upper, &right.lower, &left.lower};
   const std::array<const std::vector<int>*, kNumEdges> members = {&left.upper_members, &right.upper_members,
@@ -268,18 +299,24 @@ void extractEdgesByLines(const LidarCloud& cloud, const std::vector<ValidPoint>&
   if (!angle_problems.empty()) {
     for (int j = 0; j < kNumEdges; ++j) f.edge_valid[j] = false;
     f.reason = "edges inconsistent:" + angle_problems;
-    return;
+    return false;
   }
   if (!edge_problems.empty()) {
     f.reason = "edges rejected: " + edge_problems;
-    return;
+    return false;
   }
   bool all_corners = corner_ok[0] && corner_ok[1] && corner_ok[2] && corner_ok[3];
   if (!all_corners) {
     for (int j = 0; j < kNumEdges; ++j) f.edge_valid[j] = false;
     f.reason = "edges inconsistent: parallel adjacent edges";
-    return;
+    return false;
   }
+  return true;
+}
+
+// Measured size against the declared one.
+void checkSize(const Target& target, const LidarBoardDetectorOptions& o, LidarBoardFeatures* features) {
+  auto& f = *features;
   // Sides: UL (left-top) and LR (right-bottom) are opposite, as are UR and LL.
   const double ul = (f.corners[0] - f.corners[3]).norm(), ur = (f.corners[1] - f.corners[0]).norm();
   const double lr = (f.corners[2] - f.corners[1]).norm(), ll = (f.corners[3] - f.corners[2]).norm();
@@ -298,6 +335,25 @@ void extractEdgesByLines(const LidarCloud& cloud, const std::vector<ValidPoint>&
   if (std::abs(rw - 1.0) > o.size_doubt_ratio || std::abs(rh - 1.0) > o.size_doubt_ratio)
     f.reason = fmt("measured %.3f x %.3f m, declared %.3f x %.3f m", f.measured_size_m.x(), f.measured_size_m.y(), w,
                    h);
+}
+
+void extractEdgesByLines(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const std::vector<int>& board,
+                         const Target& target, const LidarBoardDetectorOptions& o, std::mt19937& rng,
+                         LidarBoardDetection* det) {
+  auto& f = det->features;
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (int i : board) centroid += pts[i].p;
+  centroid /= static_cast<double>(board.size());
+  centroid -= f.plane.normal * f.plane.signedDistance(centroid);
+  PlaneFrame frame;
+  if (!makePlaneFrame(f.plane.normal, centroid, &frame)) {
+    f.reason = "board plane is nearly horizontal: its edges cannot be named";
+    return;
+  }
+  const SideExtremes x = sideExtremes(cloud, pts, board, o, frame, centroid, det);
+  const TwoSides sides = fitSides(x, o, centroid, rng);
+  if (!writeEdges(x, sides, pts, o, frame, &f)) return;
+  checkSize(target, o, &f);
 }
 
 // Sparse boards (a few scan lines): too few extremes per edge for four line fits, but the
