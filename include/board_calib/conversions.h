@@ -15,6 +15,7 @@
 #include <board_calib/CameraBoard.h>
 #include <board_calib/LidarBoard.h>
 #include <board_calib/SensorPose.h>
+#include <geometry_msgs/Point.h>
 #include <geometry_msgs/Pose.h>
 #include <opencv2/core.hpp>
 #include <geometry_msgs/Transform.h>
@@ -69,6 +70,11 @@ CameraBoardFeatures fromMsg(const CameraBoard& msg);
 geometry_msgs::Transform toTransformMsg(const Eigen::Isometry3d& T);
 Eigen::Isometry3d fromTransformMsg(const geometry_msgs::Transform& msg);
 geometry_msgs::Pose toPoseMsg(const Eigen::Isometry3d& T);
+geometry_msgs::Point toPointMsg(const Eigen::Vector3d& p);
+
+/// Same image size, K, D and distortion model: the cached camera model still applies
+/// (CameraInfo arrives with every image).
+bool sameCameraInfo(const sensor_msgs::CameraInfo& a, const sensor_msgs::CameraInfo& b);
 Eigen::Isometry3d fromPoseMsg(const geometry_msgs::Pose& msg);
 
 /// One pair method's solution -> CalibrationResult (stamped `stamp`, frames from `file`). The

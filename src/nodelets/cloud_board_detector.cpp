@@ -30,14 +30,6 @@ constexpr double kMarkerLineWidthM = 0.01;
 constexpr double kCornerMarkerSizeM = 0.04;
 constexpr double kNormalArrowLengthM = 0.3;
 
-geometry_msgs::Point toPointMsg(const Eigen::Vector3d& p) {
-  geometry_msgs::Point q;
-  q.x = p.x();
-  q.y = p.y();
-  q.z = p.z();
-  return q;
-}
-
 LidarCloud pointsCloud(const std_msgs::Header& header, const Points3& points, float intensity) {
   LidarCloud c;
   c.frame_id = header.frame_id;
@@ -145,7 +137,7 @@ class CloudBoardDetectorNodelet : public nodelet::Nodelet {
     target_ = *target;
     pnh.param("background_frames", background_frames_, 5);
     // Memory of the session: board-like planes that stay put are background (issue 14).
-    pnh.param("session_memory", session_memory_, false);
+    pnh.param("session_memory", session_memory_, StaticMemoryOptions().enabled);
     tracker_ = std::make_unique<LidarBoardTracker>(target_);
     if (background_frames_ < 1) background_frames_ = 1;
 
@@ -350,7 +342,7 @@ class CloudBoardDetectorNodelet : public nodelet::Nodelet {
   LidarBoardDetectorOptions options_;
   bool use_background_ = true;
   BackgroundModel background_;
-  bool session_memory_ = false;
+  bool session_memory_ = StaticMemoryOptions().enabled;
   std::unique_ptr<LidarBoardTracker> tracker_;  // one detector state per LiDAR (this nodelet's cloud)
   int background_frames_ = 5;
   int capturing_left_ = 0;

@@ -27,12 +27,6 @@ constexpr double kDiagnosticsPeriodS = 1.0;
 constexpr double kStatsWindowS = 10.0;  // input rate and detection ratio over this window
 constexpr double kWarnThrottleS = 10.0;
 
-// Same calibration as the cached one (CameraInfo arrives with every image).
-bool sameCalibration(const sensor_msgs::CameraInfo& a, const sensor_msgs::CameraInfo& b) {
-  return a.width == b.width && a.height == b.height && a.K == b.K && a.D == b.D &&
-         a.distortion_model == b.distortion_model;
-}
-
 }  // namespace
 
 class ImageBoardDetectorNodelet : public nodelet::Nodelet {
@@ -121,7 +115,7 @@ class ImageBoardDetectorNodelet : public nodelet::Nodelet {
                             info.width, info.height, image.width, image.height, image.header.frame_id.c_str());
       return nullptr;
     }
-    if (camera_ && sameCalibration(info, last_info_)) return &*camera_;
+    if (camera_ && sameCameraInfo(info, last_info_)) return &*camera_;
     auto intrinsics = fromCameraInfo(info);
     if (!intrinsics) {
       NODELET_WARN_THROTTLE(kWarnThrottleS, "camera_info (frame '%s'): %s", info.header.frame_id.c_str(),

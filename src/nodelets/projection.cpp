@@ -31,11 +31,6 @@ constexpr double kWarnPeriodS = 10.0;   // throttle of repeated warnings
 constexpr double kInputCheckPeriodS = 5.0;
 constexpr double kMinDepthSpanM = 0.01;  // keeps max_depth > min_depth whatever the sliders say
 
-bool sameCameraInfo(const sensor_msgs::CameraInfo& a, const sensor_msgs::CameraInfo& b) {
-  return a.width == b.width && a.height == b.height && a.K == b.K && a.D == b.D &&
-         a.distortion_model == b.distortion_model;
-}
-
 }  // namespace
 
 class ProjectionNodelet : public nodelet::Nodelet {

@@ -77,14 +77,6 @@ geometry_msgs::Point32 toPoint32(const Eigen::Vector3d& p) {
   return q;
 }
 
-geometry_msgs::Point toPoint(const Eigen::Vector3d& p) {
-  geometry_msgs::Point q;
-  q.x = p.x();
-  q.y = p.y();
-  q.z = p.z();
-  return q;
-}
-
 geometry_msgs::Vector3 toVector3(const Eigen::Vector3d& p) {
   geometry_msgs::Vector3 q;
   q.x = p.x();
@@ -99,6 +91,20 @@ Eigen::Vector3d toEigen(const P& p) {
 }
 
 }  // namespace
+
+geometry_msgs::Point toPointMsg(const Eigen::Vector3d& p) {
+  geometry_msgs::Point q;
+  q.x = p.x();
+  q.y = p.y();
+  q.z = p.z();
+  return q;
+}
+
+bool sameCameraInfo(const sensor_msgs::CameraInfo& a, const sensor_msgs::CameraInfo& b) {
+  return a.width == b.width && a.height == b.height && a.K == b.K && a.D == b.D &&
+         a.distortion_model == b.distortion_model;
+}
+
 
 std::string validateCameraInfo(const sensor_msgs::CameraInfo& info) {
   const uint64_t width = info.width, height = info.height;
@@ -386,9 +392,9 @@ LidarBoard toMsg(const LidarBoardFeatures& f) {
     auto& e = m.edges[j];
     e.valid = f.edge_valid[j];
     for (const auto& p : f.edge_points[j]) e.points.push_back(toPoint32(p));
-    e.line_point = toPoint(f.edge_line_point[j]);
+    e.line_point = toPointMsg(f.edge_line_point[j]);
     e.line_direction = toVector3(f.edge_line_direction[j]);
-    m.corners[j] = toPoint(f.corners[j]);
+    m.corners[j] = toPointMsg(f.corners[j]);
   }
   m.measured_size[0] = f.measured_size_m.x();
   m.measured_size[1] = f.measured_size_m.y();
@@ -443,7 +449,7 @@ CameraBoard toMsg(const CameraBoardFeatures& f) {
   for (const auto& p : f.pattern) {
     PatternPoint q;
     q.id = p.id;
-    q.board_point = toPoint(p.board_point);
+    q.board_point = toPointMsg(p.board_point);
     q.pixel.u = p.pixel.x();
     q.pixel.v = p.pixel.y();
     m.pattern.push_back(q);
@@ -508,7 +514,7 @@ Eigen::Isometry3d fromTransformMsg(const geometry_msgs::Transform& m) {
 
 geometry_msgs::Pose toPoseMsg(const Eigen::Isometry3d& T) {
   geometry_msgs::Pose m;
-  m.position = toPoint(T.translation());
+  m.position = toPointMsg(T.translation());
   const Eigen::Quaterniond q(T.rotation());
   m.orientation.x = q.x();
   m.orientation.y = q.y();

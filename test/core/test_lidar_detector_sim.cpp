@@ -352,7 +352,8 @@ int boardScanLines(const LidarCloud& cloud, const std::vector<sim::ReturnOrigin>
   return lines;
 }
 
-SessionTally runSession(const sim::Scenario& scenario, bool stateful, const char* label, double warmup_s = 0.0) {
+SessionTally runSession(const sim::Scenario& scenario, bool stateful, const char* label, double warmup_s = 0.0,
+                        const StaticMemoryOptions& memory = {}) {
   auto timeline = sim::makeTimeline(scenario);
   EXPECT_TRUE(timeline.ok()) << timeline.error();
   auto generator = sim::FrameGenerator::create(scenario);
@@ -361,7 +362,7 @@ SessionTally runSession(const sim::Scenario& scenario, bool stateful, const char
   if (!timeline.ok() || !generator.ok()) return t;
   const Target& target = scenario.scene.target;
   const Eigen::Isometry3d lidar_T_world = sim::worldTLidar(scenario, 0).inverse();
-  LidarBoardTracker tracker(target);
+  LidarBoardTracker tracker(target, {}, memory);
   for (size_t i = 0; i < timeline->frames.size(); ++i) {
     const sim::Frame& frame = timeline->frames[i];
     if (frame.is_camera || frame.sensor != 0) continue;
@@ -445,6 +446,14 @@ TEST(LidarDetectorScenario, FarSparseBoardOutdoorsWithoutRing) {
     EXPECT_GE(t.four_edges, (t.clouds * 80 + 99) / 100);
     EXPECT_EQ(t.wrong, 0);
     EXPECT_GE(t.edges_within, (t.edges_measured * 90) / 100);
+    if (organized) continue;
+    // The session memory is on by default (pipeline, cloud detector nodelet): outdoors, with
+    // parked cars and posters in view and a board moving between holds, it must keep every
+    // board the single cloud found and accept nothing else.
+    const SessionTally memory = runSession(s, true, "far-flat-tracker");
+    EXPECT_EQ(memory.wrong, 0);
+    EXPECT_GE(memory.found, t.found);
+    EXPECT_GE(memory.four_edges, t.four_edges);
   }
 }
 
@@ -462,7 +471,13 @@ TEST(LidarDetectorScenario, ClutterIsNeverTakenForTheBoard) {
   // two board-like places are ambiguous. Rates count from then on; wrong boards from the start.
   const double warmup_s = StaticMemoryOptions().static_after_s;
   const SessionTally single = runSession(s, false, "clutter-single-frame", warmup_s);
-  const SessionTally t = runSession(s, true, "clutter-tracker", warmup_s);
+  StaticMemoryOptions strict;
+  strict.strict_ambiguity = true;
+  const SessionTally t = runSession(s, true, "clutter-tracker", warmup_s, strict);
+  // The default memory (no strict ambiguity): the single cloud's rules plus the static places.
+  const SessionTally lenient = runSession(s, true, "clutter-tracker-default", warmup_s);
+  EXPECT_GE(lenient.found, single.found - single.wrong);
+  EXPECT_LE(lenient.wrong, single.wrong);
   EXPECT_EQ(t.wrong, 0);
   ASSERT_GT(t.clouds, 55);
   EXPECT_GE(t.found, (t.clouds * 90) / 100);

@@ -442,7 +442,15 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   double worst_all = 0;
   std::printf("%-40s %8s %8s %8s %12s %10s %9s %8s\n", "case", "found", "basler", "rs16", "edges<=1px", "worst px",
               "mean ms", "max ms");
+  // Development aid: BOARD_CALIB_AUG_CASES="0,3" runs only those cases (all when unset).
+  const char* only = std::getenv("BOARD_CALIB_AUG_CASES");
+  auto selected = [only](size_t k) {
+    if (!only) return true;
+    const std::string list = std::string(",") + only + ",";
+    return list.find("," + std::to_string(k) + ",") != std::string::npos;
+  };
   for (const Case& c : kCases) {
+    if (!selected(static_cast<size_t>(&c - &kCases[0]))) continue;
     int found = 0, n = 0, case_edges = 0, case_within = 0, basler_found = 0, rs16_found = 0;
     double worst = 0, sum_ms = 0, max_ms = 0;
     for (size_t i = 0; i < frames.size(); ++i) {

@@ -158,12 +158,17 @@ LidarBoardDetection detectLidarBoard(const LidarCloud& cloud, const Target& targ
 /// Memory of board-like planes over a session: the board is what moves; a planar candidate
 /// that stays put (door, poster, screen, cabinet) is background.
 struct StaticMemoryOptions {
+  bool enabled = true;                ///< used by the pair pipeline and the cloud detector nodelet (`~session_memory`)
   double place_radius_m = 0.3;        ///< candidates whose centroids are this close (and normals agree) are one place, m
   double max_normal_angle_deg = 10.0; ///< deg
   double static_after_s = 6.0;        ///< seen at one place over this long: background (a held pose lasts a few s), s
   double min_seen_fraction = 0.5;     ///< ... and in at least this fraction of the clouds since (not a board revisiting)
   double forget_after_s = 30.0;       ///< a place unseen this long is forgotten, s
-  bool strict_ambiguity = true;       ///< two board-like places not known as static: ambiguous whatever their support
+  /// Two board-like places not known as static: ambiguous whatever their support. Off by default:
+  /// real rooms keep a second board-like plane that is not static in every cloud (0 of 16
+  /// clouds of basler_os1_plain found with it); on for a cluttered room where a wrong board
+  /// during the first static_after_s is worse than a lost one.
+  bool strict_ambiguity = false;
   std::string validate() const;
 };
 

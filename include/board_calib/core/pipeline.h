@@ -14,6 +14,7 @@ namespace board_calib {
 
 struct PipelineOptions {
   LidarBoardDetectorOptions lidar;
+  StaticMemoryOptions lidar_memory;  ///< enabled: clouds go through a LidarBoardTracker (static planes are background)
   ImageBoardDetectorOptions image;
   SessionOptions session;
   bool keep_view_frames = true;  ///< keep the raw image and cloud of every accepted view (reports)

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <deque>
+#include <optional>
 
 namespace board_calib {
 namespace {
@@ -21,6 +22,7 @@ bool sameIntrinsics(const CameraIntrinsics& a, const CameraIntrinsics& b) {
 
 std::string PipelineOptions::validate() const {
   if (auto why = lidar.validate(); !why.empty()) return "lidar detector: " + why;
+  if (auto why = lidar_memory.validate(); !why.empty()) return "lidar session memory: " + why;
   if (auto why = image.validate(); !why.empty()) return "image detector: " + why;
   if (auto why = session.validate(); !why.empty()) return "session: " + why;
   if (frame_history < 1) return "frame_history must be >= 1";
@@ -29,11 +31,14 @@ std::string PipelineOptions::validate() const {
 
 struct CalibrationPipeline::Impl {
   Impl(const Target& t, const PipelineOptions& o, ImageBoardDetector d)
-      : target(t), options(o), image_detector(std::move(d)), session(t, o.session) {}
+      : target(t), options(o), image_detector(std::move(d)), session(t, o.session) {
+    if (o.lidar_memory.enabled) tracker.emplace(t, o.lidar, o.lidar_memory);
+  }
 
   Target target;
   PipelineOptions options;
   ImageBoardDetector image_detector;
+  std::optional<LidarBoardTracker> tracker;  // session memory of board-like places (issue 14)
   CalibrationSession session;
   std::optional<CameraIntrinsics> intrinsics;
   std::optional<CameraModel> camera;
@@ -128,7 +133,7 @@ FrameOutcome CalibrationPipeline::addCloud(const LidarCloud& cloud) {
   FrameOutcome out;
   ++d.stats.clouds;
   const auto start = std::chrono::steady_clock::now();
-  LidarBoardDetection det = detectLidarBoard(cloud, d.target, d.options.lidar);
+  LidarBoardDetection det = d.tracker ? d.tracker->detect(cloud) : detectLidarBoard(cloud, d.target, d.options.lidar);
   out.detect_ms = elapsedMs(start);
   d.stats.cloud_ms += out.detect_ms;
   det.features.frame_id = cloud.frame_id;

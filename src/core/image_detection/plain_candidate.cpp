@@ -1,0 +1,207 @@
+// Plain board, judging one hypothesis: its sides refined at full resolution, named, the corners
+// a convex quadrilateral, and the four corners the image of a board of the declared size
+// (PnP) at a plausible distance and tilt.
+#include "plain_internal.h"
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+namespace board_calib {
+namespace image_detection {
+namespace {
+
+constexpr double kCornerMatchPx = 1e-6;    // a clipped side end this close to its corner is the corner
+constexpr double kSquareTolerance = 0.01;  // boards whose width and height differ less are square
+
+// Names and refines the sides; returns the number of valid edges (support filled).
+int refineSides(const cv::Mat& gray, const CameraModel& camera, const ImageBoardDetectorOptions& o, const Hypothesis& h,
+                double min_gradient, ImageDetection* out, CandidateSupport* support) {
+  CameraBoardFeatures& f = out->features;
+  ImageDetectionDetails& d = out->details;
+  const std::vector<CoarseEdge>& sides = h.sides;
+  std::vector<double> angles, weights;
+  for (const auto& s : sides) {
+    angles.push_back(s.angle);
+    weights.push_back(s.length);
+  }
+  const std::vector<int> names = nameEdges(angles, weights, sides.size() == static_cast<size_t>(kNumEdges));
+  for (int j = 0; j < kNumEdges; ++j) d.edge_reason[j] = "not in the outline (outside the image or along its border)";
+  for (size_t k = 0; k < sides.size(); ++k) {
+    const int j = names[k];
+    if (j < 0) continue;
+    const EdgeFit fit = refineEdge(gray, camera, sides[k], h.inside_u, o, min_gradient);
+    f.edge_lines[j] = fit.line;
+    f.edge_valid[j] = fit.valid;
+    d.edge_points_raw[j] = fit.raw_inliers;
+    d.edge_rms_px[j] = fit.rms;
+    d.edge_reason[j] = fit.reason;
+    if (fit.valid) support->score += fit.coverage * sides[k].length;
+    support->min_coverage = k == 0 ? fit.coverage : std::min(support->min_coverage, fit.coverage);
+  }
+  int valid = 0;
+  for (int j = 0; j < kNumEdges; ++j) valid += f.edge_valid[j];
+  return valid;
+}
+
+// The four corners must form a convex quadrilateral in clockwise image order with sides of a
+// usable length; otherwise the edges were mislabelled or belong to something else.
+bool convexCorners(const ImageBoardDetectorOptions& o, CameraBoardFeatures* f, double* perimeter) {
+  *perimeter = 0;
+  for (int j = 0; j < kNumEdges; ++j) {
+    const Eigen::Vector2d e1 = f->corners_px[(j + 1) % 4] - f->corners_px[j];
+    *perimeter += e1.norm();
+    const Eigen::Vector2d e2 = f->corners_px[(j + 2) % 4] - f->corners_px[(j + 1) % 4];
+    if (e1.x() * e2.y() - e1.y() * e2.x() <= 0) {
+      f->reason = "board not found: edge lines do not form a convex quadrilateral";
+      return false;
+    }
+    if (e1.norm() < o.min_board_size_px) {
+      f->reason = cv::format("board too small: side %.0f px", e1.norm());
+      return false;
+    }
+  }
+  return true;
+}
+
+// PnP of the four corners; for a rectangular board also the naming one step round.
+PoseFit boardPose(const Target& target, const ImageBoardDetectorOptions& o, ImageDetection* out) {
+  CameraBoardFeatures& f = out->features;
+  ImageDetectionDetails& d = out->details;
+  const auto outer = target.outerCorners();
+  const Points3 obj(outer.begin(), outer.end());
+  const Points2 img(f.corners_px.begin(), f.corners_px.end());
+  PoseFit pose = fitPose(obj, img, f.K, o.pixel_sigma_px);
+  if (std::abs(target.width - target.height) <= kSquareTolerance * std::max(target.width, target.height)) return pose;
+  // A rectangular board held near upright (or turned by ~45 deg) is as close to a diamond with
+  // its width on the upper right side as on the upper left: the naming one step round that
+  // fits the declared width and height better decides (names shift cyclically, the image
+  // order stays).
+  const int shift = rotatedNamingShift(f.edge_lines);
+  Points2 rotated(kNumEdges);
+  for (int k = 0; k < kNumEdges; ++k) rotated[k] = f.corners_px[(k + shift) % kNumEdges];
+  const PoseFit alternative = fitPose(obj, rotated, f.K, o.pixel_sigma_px);
+  if (alternative.ok && (!pose.ok || alternative.rms_px < pose.rms_px)) {
+    pose = alternative;
+    auto rotate = [shift](auto& array) {
+      auto copy = array;
+      for (int k = 0; k < kNumEdges; ++k) array[k] = copy[(k + shift) % kNumEdges];
+    };
+    rotate(f.edge_lines);
+    rotate(f.edge_valid);
+    rotate(f.corners_px);
+    rotate(d.edge_points_raw);
+    rotate(d.edge_rms_px);
+    rotate(d.edge_reason);
+  }
+  return pose;
+}
+
+// The pose must fit the declared size and put the board at a plausible distance and tilt.
+bool plausiblePose(const Target& target, const ImageBoardDetectorOptions& o, const PoseFit& pose, double perimeter,
+                   ImageDetection* out) {
+  CameraBoardFeatures& f = out->features;
+  ImageDetectionDetails& d = out->details;
+  if (!pose.ok) {
+    f.reason = pose.reason;
+    return false;
+  }
+  f.camera_T_board = pose.camera_T_board;
+  f.plane = planeFromPose(pose.camera_T_board);
+  f.reprojection_rms_px = pose.rms_px;
+  d.pattern_errors_px = pose.errors_px;
+  d.pose_covariance = pose.covariance;
+  // Corner misfit grows with the board in the image (flex, a slightly wrong declared size).
+  const double max_rms = std::min(o.max_plain_corner_rms_px, o.max_plain_corner_rms_fraction * perimeter / kNumEdges);
+  if (pose.rms_px > max_rms) {
+    f.reason = cv::format("corners do not fit a %.3f x %.3f m board (rms %.2f px > %.2f)", target.width, target.height,
+                          pose.rms_px, max_rms);
+    return false;
+  }
+  const Eigen::Vector3d centre = pose.camera_T_board * target.center();
+  const double tilt_deg =
+      std::acos(std::min(1.0, std::abs(f.plane.normal.dot(centre.normalized())))) * 180.0 / M_PI;
+  if (centre.norm() > o.max_board_distance_m) {
+    f.reason = cv::format("a %.3f x %.3f m board would be %.1f m away (max %.1f m): another rectangle", target.width,
+                          target.height, centre.norm(), o.max_board_distance_m);
+    return false;
+  }
+  if (tilt_deg > o.max_board_tilt_deg) {
+    f.reason = cv::format("board turned %.0f deg from the line of sight (max %.0f)", tilt_deg, o.max_board_tilt_deg);
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+Hypothesis fromQuad(const QuadHypothesis& q, const CameraModel& camera, const ImageBoardDetectorOptions& o) {
+  Hypothesis h;
+  h.source = "lines";
+  h.inside_u = 0.25 * (q.corners[0] + q.corners[1] + q.corners[2] + q.corners[3]);
+  for (int s = 0; s < kNumEdges; ++s) {
+    Eigen::Vector2d a, b;
+    const Eigen::Vector2d& p = q.corners[(s + 3) % 4];
+    const Eigen::Vector2d& r = q.corners[s];
+    if (!visibleSideInterval(camera, p, r, o.border_margin_px, &a, &b)) continue;
+    CoarseEdge e;
+    e.a_corner = (a - p).norm() < kCornerMatchPx;
+    e.b_corner = (b - r).norm() < kCornerMatchPx;
+    e.a = camera.distortPixel(a);
+    e.b = camera.distortPixel(b);
+    e.length = (b - a).norm();
+    const Eigen::Vector3d l = lineThrough(a, b, h.inside_u);
+    e.angle = std::atan2(l.y(), l.x());
+    h.sides.push_back(e);
+    h.outline_raw.push_back(e.a);
+    h.outline_raw.push_back(e.b);
+  }
+  // Clockwise image order (v down) for the cyclic edge naming.
+  if (h.sides.size() == static_cast<size_t>(kNumEdges)) {
+    const Eigen::Vector2d e1 = q.corners[1] - q.corners[0], e2 = q.corners[2] - q.corners[1];
+    if (e1.x() * e2.y() - e1.y() * e2.x() < 0) {
+      std::reverse(h.sides.begin(), h.sides.end());
+      for (auto& e : h.sides) {
+        std::swap(e.a, e.b);
+        std::swap(e.a_corner, e.b_corner);
+      }
+    }
+  }
+  return h;
+}
+
+bool fitCandidate(const cv::Mat& gray, const CameraModel& camera, const Target& target, const ImageBoardDetectorOptions& o,
+                  const Hypothesis& h, double min_gradient, ImageDetection* out, CandidateSupport* support) {
+  CameraBoardFeatures& f = out->features;
+  ImageDetectionDetails& d = out->details;
+  *support = CandidateSupport{};
+  d.outline_raw = h.outline_raw;
+  if (h.sides.size() < 2) {
+    f.reason = "board not found: " + std::to_string(h.sides.size()) + " straight board edge(s) in the outline";
+    return false;
+  }
+  const int valid = refineSides(gray, camera, o, h, min_gradient, out, support);
+  for (int j = 0; j < kNumEdges; ++j)
+    if (f.edge_valid[j] && f.edge_valid[(j + 1) % 4] &&
+        !intersectLines(f.edge_lines[j], f.edge_lines[(j + 1) % 4], &f.corners_px[j])) {
+      f.reason = std::string("board not found: edges ") + edgeName(j) + " and " + edgeName((j + 1) % 4) + " are parallel";
+      return false;
+    }
+  if (valid < kNumEdges) {
+    std::string why;
+    for (int j = 0; j < kNumEdges; ++j)
+      if (!f.edge_valid[j]) why += std::string(why.empty() ? "" : "; ") + edgeName(j) + ": " + d.edge_reason[j];
+    f.reason = "board edges missing (" + std::to_string(valid) + " of 4 valid): " + why;
+    return false;
+  }
+  double perimeter = 0;
+  if (!convexCorners(o, &f, &perimeter)) return false;
+  const PoseFit pose = boardPose(target, o, out);
+  if (!plausiblePose(target, o, pose, perimeter, out)) return false;
+  f.found = true;
+  return true;
+}
+
+}  // namespace image_detection
+}  // namespace board_calib

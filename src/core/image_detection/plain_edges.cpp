@@ -1,0 +1,240 @@
+// Plain board, sub-pixel edges: the strongest gradient along the edge normal at samples along
+// a side's current line, in raw pixels; the line is fitted to those peaks after undistortion (a
+// straight edge is only straight there), robustly, in passes of narrowing search.
+#include "plain_internal.h"
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+
+namespace board_calib {
+namespace image_detection {
+namespace {
+
+constexpr double kProfileStepPx = 0.5;      // spacing of intensity samples along the edge normal
+constexpr double kWeakPeakFraction = 0.3;   // a gradient peak below this fraction of the median is an outlier
+constexpr double kMadToSigma = 1.4826;
+constexpr int kFinePasses = 2;
+constexpr int kRobustIterations = 3;
+constexpr double kRobustSigmas = 3.0;       // inlier band of the refit, in robust sigmas
+constexpr double kMaxCornerExclusionFraction = 0.15;  // of a side, skipped at each end
+constexpr double kMaxSamplesPerSide = 240;  // more add nothing to a line fit (errors ~1/sqrt(n) are already ~0.02 px)
+constexpr double kPolarityWindowSteps = 8;      // edge polarity is a majority over +-this many samples ...
+constexpr double kPolarityWindowFraction = 0.1;  // ... or this fraction of the side, whichever is longer
+
+double sampleBilinear(const cv::Mat& gray, double x, double y) {
+  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+  const double fx = x - x0, fy = y - y0;
+  const uchar* r0 = gray.ptr<uchar>(y0);
+  const uchar* r1 = gray.ptr<uchar>(y0 + 1);
+  return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x0 + 1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]);
+}
+
+bool insideImage(const cv::Mat& gray, const Eigen::Vector2d& p, double margin) {
+  return p.x() >= margin && p.y() >= margin && p.x() <= gray.cols - 1 - margin && p.y() <= gray.rows - 1 - margin;
+}
+
+// Total least squares line through points (undistorted px).
+Eigen::Vector3d fitLine(const Points2& pts, const std::vector<bool>& use, const Eigen::Vector2d& inside) {
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  int n = 0;
+  for (size_t i = 0; i < pts.size(); ++i)
+    if (use[i]) {
+      mean += pts[i];
+      ++n;
+    }
+  mean /= std::max(1, n);
+  Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+  for (size_t i = 0; i < pts.size(); ++i)
+    if (use[i]) cov += (pts[i] - mean) * (pts[i] - mean).transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
+  const Eigen::Vector2d dir = eig.eigenvectors().col(1);
+  return lineThrough(mean, mean + dir, inside);
+}
+
+// Sign of the intensity change walking outward. It may change along one side (the background
+// is brighter than the board behind one stretch and darker behind another), so it is a local
+// majority: the first pass takes the strongest change of either sign, then each stretch of the
+// side keeps the sign most of its samples showed (an opposite edge beside it is clutter).
+struct LocalPolarity {
+  std::vector<double> t;  // first-pass samples along the side (sorted) ...
+  std::vector<int> sum;   // ... and the prefix sums of their signs
+  double window = 0;
+  int at(double s) const {
+    if (t.empty()) return 0;
+    const size_t lo = std::lower_bound(t.begin(), t.end(), s - window) - t.begin();
+    const size_t hi = std::upper_bound(t.begin(), t.end(), s + window) - t.begin();
+    const int total = sum[hi] - sum[lo];
+    return total > 0 ? 1 : (total < 0 ? -1 : 0);
+  }
+};
+
+// Gradient peaks of one pass along the side a + t dir (undistorted px).
+struct EdgeSamples {
+  Points2 pts_u, pts_raw;
+  std::vector<double> strength;
+  std::vector<int> signs;
+  std::vector<double> ts;
+  int positions = 0;  // sample positions whose profile lies inside the image
+  double step = 0;
+};
+
+// Strongest gradient of the wanted polarity (0: either) in one intensity profile across the edge;
+// false when none stands out of the noise. `offset` is in profile steps from the centre.
+bool profilePeak(const std::vector<double>& profile, double polarity, double min_gradient, double* offset,
+                 double* strength, int* sign) {
+  const int steps = static_cast<int>(profile.size() / 2);
+  int best_k = 0;
+  double best_g = 0;
+  std::vector<double> g(profile.size(), 0.0);
+  for (int k = 1; k + 1 < static_cast<int>(profile.size()); ++k) {
+    // Derivative across one full pixel (samples at +-0.5 px): robust to noise, unbiased.
+    const double raw_g = (profile[k + 1] - profile[k - 1]) / (2 * kProfileStepPx);
+    g[k] = polarity != 0.0 ? polarity * raw_g : std::abs(raw_g);
+    if (g[k] > best_g) {
+      best_g = g[k];
+      best_k = k;
+    }
+  }
+  if (best_k <= 1 || best_k + 2 >= static_cast<int>(profile.size()) || best_g < min_gradient) return false;
+  const double gm = g[best_k - 1], g0 = g[best_k], gp = g[best_k + 1];
+  const double denom = gm - 2 * g0 + gp;
+  const double delta = denom < 0 ? std::clamp(0.5 * (gm - gp) / denom, -0.5, 0.5) : 0.0;
+  *offset = best_k - steps + delta;
+  *strength = best_g;
+  *sign = profile[best_k + 1] > profile[best_k - 1] ? 1 : -1;
+  return true;
+}
+
+EdgeSamples searchPeaks(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse,
+                        const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& n, double half,
+                        const LocalPolarity* polarity, const ImageBoardDetectorOptions& o, double min_gradient) {
+  EdgeSamples s;
+  const int steps = static_cast<int>(std::ceil(half / kProfileStepPx)) + 1;
+  const double len = (b - a).norm();
+  const Eigen::Vector2d dir = (b - a) / std::max(len, 1e-9);
+  std::vector<double> profile(2 * steps + 1);
+  // Corners are rounded by the coarse stage and crowded by the other side: skip their
+  // neighbourhood, at most a fraction of a short (far) side.
+  const double exclusion = std::min(o.corner_exclusion_px, kMaxCornerExclusionFraction * len);
+  // Long sides need no more samples than a line fit can use.
+  s.step = std::max(o.sample_step_px, len / kMaxSamplesPerSide);
+  const double t_end = len - (coarse.b_corner ? exclusion : 0.0);
+  for (double t = coarse.a_corner ? exclusion : 0.0; t <= t_end; t += s.step) {
+    const double sign_wanted = polarity ? polarity->at(t) : 0.0;
+    const Eigen::Vector2d xu = a + t * dir;
+    const Eigen::Vector2d x = camera.distortPixel(xu);
+    Eigen::Vector2d d = camera.distortPixel(xu + n) - x;
+    d.normalize();
+    if (!insideImage(gray, x - (half + kProfileStepPx) * d, 1.0) || !insideImage(gray, x + (half + kProfileStepPx) * d, 1.0))
+      continue;
+    ++s.positions;
+    for (int k = -steps; k <= steps; ++k) {
+      const Eigen::Vector2d p = x + (k * kProfileStepPx) * d;
+      profile[k + steps] = sampleBilinear(gray, p.x(), p.y());
+    }
+    double offset = 0, strength = 0;
+    int sign = 0;
+    if (!profilePeak(profile, sign_wanted, min_gradient, &offset, &strength, &sign)) continue;
+    const Eigen::Vector2d edge_raw = x + (offset * kProfileStepPx) * d;
+    if (!insideImage(gray, edge_raw, o.border_margin_px)) continue;
+    s.pts_raw.push_back(edge_raw);
+    s.pts_u.push_back(camera.undistortPixel(edge_raw));
+    s.strength.push_back(strength);
+    s.signs.push_back(sign);
+    s.ts.push_back(t);
+  }
+  return s;
+}
+
+// Robust line through the peaks (weak peaks out, MAD band never tighter than the configured
+// inlier distance); fills the fit's line, inliers, rms, span and coverage.
+void fitPeaks(const EdgeSamples& s, const Eigen::Vector2d& inside_u, const ImageBoardDetectorOptions& o, EdgeFit* fit) {
+  std::vector<double> sorted = s.strength;
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+  const double median_strength = sorted[sorted.size() / 2];
+  const size_t n = s.pts_u.size();
+  std::vector<bool> use(n);
+  for (size_t i = 0; i < n; ++i) use[i] = s.strength[i] >= kWeakPeakFraction * median_strength;
+  Eigen::Vector3d line = fit->line;
+  for (int iter = 0; iter < kRobustIterations; ++iter) {
+    line = fitLine(s.pts_u, use, inside_u);
+    std::vector<double> res;
+    for (size_t i = 0; i < n; ++i)
+      if (use[i]) res.push_back(std::abs(line.head<2>().dot(s.pts_u[i]) + line.z()));
+    if (res.empty()) break;
+    std::nth_element(res.begin(), res.begin() + res.size() / 2, res.end());
+    const double thr = std::max(o.edge_inlier_px, kRobustSigmas * kMadToSigma * res[res.size() / 2]);
+    for (size_t i = 0; i < n; ++i)
+      use[i] = s.strength[i] >= kWeakPeakFraction * median_strength &&
+               std::abs(line.head<2>().dot(s.pts_u[i]) + line.z()) <= thr;
+  }
+  line = fitLine(s.pts_u, use, inside_u);
+  fit->raw_inliers.clear();
+  double sum_sq = 0, tmin = 1e18, tmax = -1e18;
+  const Eigen::Vector2d ldir(-line.y(), line.x());
+  for (size_t i = 0; i < n; ++i) {
+    if (!use[i]) continue;
+    const double r = line.head<2>().dot(s.pts_u[i]) + line.z();
+    sum_sq += r * r;
+    fit->raw_inliers.push_back(s.pts_raw[i]);
+    tmin = std::min(tmin, ldir.dot(s.pts_u[i]));
+    tmax = std::max(tmax, ldir.dot(s.pts_u[i]));
+  }
+  const int count = static_cast<int>(fit->raw_inliers.size());
+  fit->rms = count > 0 ? std::sqrt(sum_sq / count) : 0.0;
+  fit->coverage = s.positions > 0 ? static_cast<double>(count) / s.positions : 0.0;
+  fit->median_strength = median_strength;
+  fit->span = count > 0 ? tmax - tmin : 0.0;
+  fit->line = line;
+}
+
+}  // namespace
+
+EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse, const Eigen::Vector2d& inside_u,
+                   const ImageBoardDetectorOptions& o, double min_gradient) {
+  EdgeFit fit;
+  Eigen::Vector2d a = camera.undistortPixel(coarse.a), b = camera.undistortPixel(coarse.b);
+  fit.line = lineThrough(a, b, inside_u);
+  LocalPolarity polarity;
+  for (int pass = 0; pass <= kFinePasses; ++pass) {
+    const double half = pass == 0 ? o.coarse_search_px : o.fine_search_px;
+    const Eigen::Vector2d n = fit.line.head<2>();
+    // Project the segment ends onto the current line.
+    a = a - (n.dot(a) + fit.line.z()) * n;
+    b = b - (n.dot(b) + fit.line.z()) * n;
+    EdgeSamples s = searchPeaks(gray, camera, coarse, a, b, n, half, pass == 0 ? nullptr : &polarity, o, min_gradient);
+    if (pass == 0) {
+      polarity.t = s.ts;
+      polarity.sum.assign(1, 0);
+      for (int sgn : s.signs) polarity.sum.push_back(polarity.sum.back() + sgn);
+      polarity.window = std::max(kPolarityWindowSteps * s.step, kPolarityWindowFraction * (b - a).norm());
+      for (size_t i = 0; i < s.signs.size(); ++i)
+        if (s.signs[i] * polarity.at(s.ts[i]) < 0) s.strength[i] = 0;  // against its stretch: clutter
+    }
+    if (static_cast<int>(s.pts_u.size()) < o.min_edge_points) {
+      fit.reason = "too few edge pixels (" + std::to_string(s.pts_u.size()) + ")";
+      return fit;
+    }
+    fitPeaks(s, inside_u, o, &fit);
+    if (static_cast<int>(fit.raw_inliers.size()) < o.min_edge_points) {
+      fit.reason = "too few edge inliers (" + std::to_string(fit.raw_inliers.size()) + ")";
+      return fit;
+    }
+  }
+  if (fit.span < o.min_edge_length_px) {
+    fit.reason = cv::format("visible edge too short (%.0f px)", fit.span);
+  } else if (fit.coverage < o.min_side_coverage) {
+    fit.reason = cv::format("edge seen along %.0f %% of its visible length (need %.0f %%)", 100 * fit.coverage,
+                            100 * o.min_side_coverage);
+  } else if (fit.rms > o.max_edge_rms_px) {
+    fit.reason = cv::format("edge not straight (rms %.2f px)", fit.rms);
+  } else {
+    fit.valid = true;
+  }
+  return fit;
+}
+
+}  // namespace image_detection
+}  // namespace board_calib

@@ -1,0 +1,91 @@
+// Private pieces of the plain-board detector (not installed): the hypotheses (regions of the
+// downscaled image, line quadrilaterals), the sub-pixel edge refinement and the board checks.
+#pragma once
+
+#include "detection_internal.h"
+
+#include <opencv2/core.hpp>
+
+#include <string>
+#include <vector>
+
+namespace board_calib {
+namespace image_detection {
+
+/// One proposed board region on the downscaled image.
+struct RegionCandidate {
+  std::vector<cv::Point> contour;
+  double score = 0;
+};
+
+/// Board region proposals on the downscaled image.
+struct Segmentation {
+  cv::Mat blurred;
+  std::vector<RegionCandidate> candidates;            ///< board-like regions, best first
+  std::vector<std::vector<cv::Point>> rejected;       ///< large regions that are not board-like
+  int proposals = 0;
+  std::string last_rejection = "no region large enough";
+  double min_area = 0;
+
+  std::string reason() const {
+    return proposals == 0 ? "board not found: no region large enough" : "board not found: " + last_rejection;
+  }
+  void add(const std::vector<cv::Point>& contour, const ImageBoardDetectorOptions& o, bool keep_rejected);
+  void sort();
+};
+
+/// Proposes board regions from brightness (Otsu, both polarities) and uniformity.
+Segmentation segmentBoard(const cv::Mat& small, const ImageBoardDetectorOptions& o);
+
+/// Second chance: openings of the rejected regions replace the candidates.
+void proposeOpenedRegions(cv::Size size, const ImageBoardDetectorOptions& o, Segmentation* seg);
+
+/// One straight side of a hypothesis.
+struct CoarseEdge {
+  Eigen::Vector2d a = Eigen::Vector2d::Zero(), b = Eigen::Vector2d::Zero();  ///< raw full-resolution px
+  double angle = 0;   ///< outward normal angle, rad
+  double length = 0;  ///< px; 0 marks a stretch along the image border
+  bool a_corner = true, b_corner = true;  ///< an end at a board corner (not where the image cuts the side)
+};
+
+/// One board hypothesis: its straight sides (raw px; in cyclic order when there are four) and a
+/// point inside it (undistorted px).
+struct Hypothesis {
+  std::vector<CoarseEdge> sides;
+  Eigen::Vector2d inside_u = Eigen::Vector2d::Zero();
+  Points2 outline_raw;
+  const char* source = "";
+};
+
+Hypothesis fromRegion(const RegionCandidate& board, double sx, cv::Size small_size, const CameraModel& camera,
+                      const ImageBoardDetectorOptions& o);
+Hypothesis fromQuad(const QuadHypothesis& q, const CameraModel& camera, const ImageBoardDetectorOptions& o);
+
+/// One side refined at full resolution.
+struct EdgeFit {
+  Eigen::Vector3d line = Eigen::Vector3d::Zero();
+  Points2 raw_inliers;
+  double rms = 0;
+  double span = 0;
+  double coverage = 0;         ///< inlier samples / sample positions inside the image
+  double median_strength = 0;  ///< grey levels per px
+  std::string reason;
+  bool valid = false;
+};
+
+/// Sub-pixel gradient peaks along the edge normal, a robust line through them (undistorted px).
+EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse, const Eigen::Vector2d& inside_u,
+                   const ImageBoardDetectorOptions& o, double min_gradient);
+
+/// Edge support of a fitted hypothesis: px of edge samples along the sides, and the lowest side coverage.
+struct CandidateSupport {
+  double score = 0;
+  double min_coverage = 0;
+};
+
+/// Fits edges, corners and pose to one hypothesis; false (reason in out) when it is not a board.
+bool fitCandidate(const cv::Mat& gray, const CameraModel& camera, const Target& target, const ImageBoardDetectorOptions& o,
+                  const Hypothesis& h, double min_gradient, ImageDetection* out, CandidateSupport* support);
+
+}  // namespace image_detection
+}  // namespace board_calib

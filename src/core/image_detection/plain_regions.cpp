@@ -1,0 +1,231 @@
+// Plain board, region hypotheses: brightness and uniformity regions of a downscaled image,
+// their openings when a neighbour of the board's brightness merged with it, and the straight
+// sides of each region's outline.
+#include "plain_internal.h"
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <climits>
+#include <cmath>
+
+namespace board_calib {
+namespace image_detection {
+namespace {
+
+constexpr double kMergeAngleRad = 0.14;     // ~8 deg: consecutive outline segments this close are one edge
+constexpr double kPolygonEpsilon = 0.01;    // outline simplification, fraction of the perimeter
+constexpr int kFlatOpeningPx = 11;          // downscaled px, opening of the flat-area proposals
+// Openings of a rejected region, fractions of its inradius (a board touching the ceiling band
+// merges with it; the band is thinner than the board).
+constexpr double kOpeningInradiusFractions[] = {0.33, 0.5};
+
+// Scores one proposed region: a board is large, convex and uniform, and differs from its
+// surroundings. Returns false (with the rejection) when it is not board-like.
+bool scoreRegion(const std::vector<cv::Point>& contour, const cv::Mat& blurred, const ImageBoardDetectorOptions& o,
+                 RegionCandidate* candidate, std::string* rejection) {
+  static const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5));
+  const double area = cv::contourArea(contour);
+  std::vector<cv::Point> hull;
+  cv::convexHull(contour, hull);
+  const double solidity = area / std::max(1.0, cv::contourArea(hull));
+  if (solidity < o.min_solidity) {
+    *rejection = cv::format("region not convex (solidity %.2f < %.2f)", solidity, o.min_solidity);
+    return false;
+  }
+  const cv::Rect box = cv::boundingRect(hull);
+  const int pad = 8;
+  const cv::Rect roi = (box + cv::Size(2 * pad, 2 * pad) - cv::Point(pad, pad)) & cv::Rect(0, 0, blurred.cols, blurred.rows);
+  cv::Mat region = cv::Mat::zeros(roi.size(), CV_8U);
+  cv::drawContours(region, std::vector<std::vector<cv::Point>>{contour}, 0, 255, cv::FILLED, cv::LINE_8, cv::noArray(),
+                   INT_MAX, -roi.tl());
+  cv::Mat interior, around;
+  cv::erode(region, interior, kernel, cv::Point(-1, -1), 2);
+  cv::dilate(region, around, kernel, cv::Point(-1, -1), 3);
+  around -= region;
+  if (cv::countNonZero(interior) == 0 || cv::countNonZero(around) == 0) return false;
+  const cv::Mat patch = blurred(roi);
+  cv::Scalar mean_in, std_in;
+  cv::meanStdDev(patch, mean_in, std_in, interior);
+  // Contrast as the mean absolute difference of the surroundings from the board level: the
+  // background may be brighter on one side and darker on another.
+  cv::Mat diff;
+  cv::absdiff(patch, cv::Scalar(mean_in[0]), diff);
+  const double contrast = cv::mean(diff, around)[0];
+  const double texture = std_in[0] / std::max(1.0, contrast);
+  if (texture > o.max_interior_texture) {
+    *rejection = cv::format("region not uniform (texture %.2f > %.2f)", texture, o.max_interior_texture);
+    return false;
+  }
+  candidate->score = area * std::pow(solidity, 4) / (1.0 + texture);
+  candidate->contour = std::move(hull);
+  return true;
+}
+
+// Openings of one region by discs of kOpeningInradiusFractions x its inradius (distance
+// transforms: fast for any radius); returns the remaining parts large enough to be a board.
+std::vector<std::vector<cv::Point>> openRegion(const std::vector<cv::Point>& contour, cv::Size size, double min_area) {
+  std::vector<std::vector<cv::Point>> parts;
+  cv::Mat mask = cv::Mat::zeros(size, CV_8U);
+  cv::drawContours(mask, std::vector<std::vector<cv::Point>>{contour}, 0, 255, cv::FILLED);
+  cv::Mat inside, outside;
+  cv::distanceTransform(mask, inside, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  double inradius = 0;
+  cv::minMaxLoc(inside, nullptr, &inradius);
+  for (const double fraction : kOpeningInradiusFractions) {
+    const double radius = fraction * inradius;
+    if (radius < 1) continue;
+    const cv::Mat core = inside > radius;  // erosion
+    cv::distanceTransform(255 - core, outside, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+    const cv::Mat opened = outside <= radius;  // dilation of the eroded set
+    std::vector<std::vector<cv::Point>> contours;
+    cv::findContours(opened, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+    for (auto& c : contours)
+      if (cv::contourArea(c) >= min_area) parts.push_back(std::move(c));
+  }
+  return parts;
+}
+
+}  // namespace
+
+void Segmentation::add(const std::vector<cv::Point>& contour, const ImageBoardDetectorOptions& o, bool keep_rejected) {
+  ++proposals;
+  RegionCandidate c;
+  if (scoreRegion(contour, blurred, o, &c, &last_rejection))
+    candidates.push_back(std::move(c));
+  else if (keep_rejected)
+    rejected.push_back(contour);
+}
+
+void Segmentation::sort() {
+  std::sort(candidates.begin(), candidates.end(),
+            [](const RegionCandidate& a, const RegionCandidate& b) { return a.score > b.score; });
+}
+
+// Proposes board regions. Proposals come from brightness (Otsu, both polarities) and uniformity
+// (connected low-gradient areas: they separate a board from an equally bright neighbour across
+// a faint edge); convexity, uniformity and size decide.
+Segmentation segmentBoard(const cv::Mat& small, const ImageBoardDetectorOptions& o) {
+  Segmentation seg;
+  cv::Mat bright, gradient, flat;
+  cv::GaussianBlur(small, seg.blurred, cv::Size(5, 5), 0);
+  cv::threshold(seg.blurred, bright, 0, 255, cv::THRESH_BINARY | cv::THRESH_OTSU);
+  cv::morphologyEx(seg.blurred, gradient, cv::MORPH_GRADIENT, cv::Mat());
+  cv::threshold(gradient, flat, o.max_flat_gradient, 255, cv::THRESH_BINARY_INV);
+  const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5));
+  seg.min_area = o.min_board_area_fraction * small.total();
+  // Flat areas leak into the background through short stretches of low-contrast edge: a larger
+  // opening cuts those bridges (the board is far wider than them).
+  const cv::Mat wide_kernel = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(kFlatOpeningPx, kFlatOpeningPx));
+  for (const cv::Mat& proposal : {bright, cv::Mat(255 - bright), flat}) {
+    const bool is_flat = proposal.data == flat.data;
+    cv::Mat mask;
+    cv::morphologyEx(proposal, mask, cv::MORPH_OPEN, is_flat ? wide_kernel : kernel);
+    // A flat area stops where the blurred edge starts to rise: grow it back to the edge itself.
+    if (is_flat) cv::dilate(mask, mask, kernel);
+    std::vector<std::vector<cv::Point>> contours;
+    cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+    for (auto& contour : contours)
+      if (cv::contourArea(contour) >= seg.min_area) seg.add(contour, o, !is_flat);
+  }
+  seg.sort();
+  return seg;
+}
+
+// Second chance: a board merged with a neighbour of nearly its brightness (the ceiling band
+// above a board held high) makes one rejected region; openings of it cut the thinner neighbour
+// off and keep the board (corners rounded; the edges are refined at full resolution).
+void proposeOpenedRegions(cv::Size size, const ImageBoardDetectorOptions& o, Segmentation* seg) {
+  seg->candidates.clear();
+  const auto rejected = std::move(seg->rejected);
+  seg->rejected.clear();
+  for (const auto& contour : rejected)
+    for (const auto& part : openRegion(contour, size, seg->min_area)) seg->add(part, o, false);
+  seg->sort();
+}
+
+namespace {
+
+// Splits the hull of the board region into straight sides, dropping those along the image border.
+std::vector<CoarseEdge> coarseEdges(const std::vector<cv::Point>& hull, double scale, cv::Size small_size,
+                                    const ImageBoardDetectorOptions& o, Eigen::Vector2d* centroid) {
+  std::vector<cv::Point> poly;
+  cv::approxPolyDP(hull, poly, kPolygonEpsilon * cv::arcLength(hull, true), true);
+  const cv::Moments m = cv::moments(hull);
+  const Eigen::Vector2d c_small(m.m10 / m.m00, m.m01 / m.m00);
+  auto toFull = [scale](const Eigen::Vector2d& p) { return Eigen::Vector2d((p.array() + 0.5) * scale - 0.5); };
+  *centroid = toFull(c_small);
+  const double border = o.border_margin_px / scale + 1.5;  // small px; the opening erodes ~1 px
+  auto onBorder = [&](const cv::Point& p, int side) {
+    switch (side) {
+      case 0: return p.x <= border;
+      case 1: return p.x >= small_size.width - 1 - border;
+      case 2: return p.y <= border;
+      default: return p.y >= small_size.height - 1 - border;
+    }
+  };
+  std::vector<CoarseEdge> sides;
+  const size_t n = poly.size();
+  for (size_t i = 0; i < n; ++i) {
+    const cv::Point& p = poly[i];
+    const cv::Point& q = poly[(i + 1) % n];
+    bool along_border = false;
+    for (int side = 0; side < 4; ++side) along_border |= onBorder(p, side) && onBorder(q, side);
+    if (along_border) {
+      sides.push_back(CoarseEdge{});  // placeholder keeps the cyclic order; length 0 = border
+      continue;
+    }
+    CoarseEdge e;
+    e.a = toFull(Eigen::Vector2d(p.x, p.y));
+    e.b = toFull(Eigen::Vector2d(q.x, q.y));
+    e.length = (e.b - e.a).norm();
+    const Eigen::Vector3d l = lineThrough(e.a, e.b, *centroid);
+    e.angle = std::atan2(l.y(), l.x());
+    sides.push_back(e);
+  }
+  // Merge consecutive, nearly collinear sides (the polygon may split a bowed or notched edge).
+  std::vector<CoarseEdge> merged;
+  for (const auto& s : sides) {
+    if (s.length > 0 && !merged.empty() && merged.back().length > 0) {
+      double d = std::abs(std::remainder(s.angle - merged.back().angle, 2 * M_PI));
+      if (d < kMergeAngleRad) {
+        CoarseEdge& e = merged.back();
+        e.b = s.b;
+        e.length = (e.b - e.a).norm();
+        continue;
+      }
+    }
+    merged.push_back(s);
+  }
+  if (merged.size() > 1 && merged.front().length > 0 && merged.back().length > 0 &&
+      std::abs(std::remainder(merged.front().angle - merged.back().angle, 2 * M_PI)) < kMergeAngleRad) {
+    merged.back().b = merged.front().b;
+    merged.back().length = (merged.back().b - merged.back().a).norm();
+    merged.erase(merged.begin());
+  }
+  std::vector<CoarseEdge> out;
+  for (const auto& e : merged)
+    if (e.length >= o.min_edge_length_px) out.push_back(e);
+  while (out.size() > static_cast<size_t>(kNumEdges)) {
+    auto shortest = std::min_element(out.begin(), out.end(),
+                                     [](const CoarseEdge& x, const CoarseEdge& y) { return x.length < y.length; });
+    out.erase(shortest);
+  }
+  return out;
+}
+
+}  // namespace
+
+Hypothesis fromRegion(const RegionCandidate& board, double sx, cv::Size small_size, const CameraModel& camera,
+                      const ImageBoardDetectorOptions& o) {
+  Hypothesis h;
+  h.source = "region";
+  for (const auto& p : board.contour) h.outline_raw.emplace_back((p.x + 0.5) * sx - 0.5, (p.y + 0.5) * sx - 0.5);
+  Eigen::Vector2d centroid;
+  h.sides = coarseEdges(board.contour, sx, small_size, o, &centroid);
+  h.inside_u = camera.undistortPixel(centroid);
+  return h;
+}
+
+}  // namespace image_detection
+}  // namespace board_calib

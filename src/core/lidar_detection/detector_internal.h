@@ -1,0 +1,180 @@
+// Private stages of the LiDAR board detector (not installed): valid points, candidates (planar
+// voxel regions and scan-line segments), plane refinement, edges. Shared by
+// lidar_board_detector.cpp (the single-cloud detector) and lidar_board_tracker.cpp.
+#pragma once
+
+#include <board_calib/core/lidar_board_detector.h>
+
+#include "geometry_2d.h"
+#include "scan_segments.h"
+
+#include <cstdint>
+#include <cstdio>
+#include <functional>
+#include <random>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+namespace board_calib {
+namespace lidar_detail {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kRadPerDeg = kPi / 180.0;
+// Voxel indices are packed into one 64-bit key, 21 bits per axis.
+constexpr int64_t kVoxelIndexOffset = 1 << 20;
+constexpr int64_t kVoxelIndexBits = 21;
+// Covariance of a uniform segment of length a is a^2/12: sqrt(12 lambda) estimates a side.
+constexpr double kUniformSideFromVariance = 12.0;
+// A region whose covariance says it is this many times larger than the board is not scored.
+constexpr double kPrefilterExtentFactor = 2.0;
+// Weights of the candidate score (lower is better): size terms are |log(ratio)|.
+constexpr double kFillWeight = 0.5;
+constexpr double kRmsWeight = 0.2;
+constexpr double kMinFillForLog = 1e-3;
+// Support = points * exp(-kShapeErrorScale * shape error): 0.25 more shape error costs a factor e.
+constexpr double kShapeErrorScale = 4.0;
+// The plane's up direction becomes undefined when the board is (nearly) horizontal.
+constexpr double kMaxNormalUpCosine = 0.97;
+// Two candidates closer than this are parts of one board, not two boards.
+constexpr double kSameBoardDistanceM = 0.5;
+// Median absolute deviation to sigma (Gaussian), band width in sigmas, and its floor.
+constexpr double kMadToSigma = 1.4826;
+constexpr double kRobustBandSigmas = 2.5;
+constexpr double kMinRobustBandM = 0.005;
+constexpr double kAdaptiveBandSigmas = 3.0;   // plane inlier band in robust sigmas
+constexpr double kMaxAdaptiveBandFactor = 2.0;  // the band grows to at most this times the threshold
+// The plane refit after the edges keeps points this far inside the edge lines (drops the
+// mixed returns of the rim and anything touching the board from outside).
+constexpr double kRimExclusionM = 0.02;
+// Points sampled for the convex hull of a large candidate.
+constexpr size_t kMaxHullPoints = 4000;
+// Re-assignment rounds between the two edges of one side.
+constexpr int kEdgeAssignmentRounds = 3;
+
+inline std::string fmt(const char* format, double a, double b = 0, double c = 0, double d = 0) {
+  char buf[256];
+  std::snprintf(buf, sizeof(buf), format, a, b, c, d);
+  return buf;
+}
+
+inline int64_t voxelKey(int64_t ix, int64_t iy, int64_t iz) {
+  return ((ix + kVoxelIndexOffset) << (2 * kVoxelIndexBits)) | ((iy + kVoxelIndexOffset) << kVoxelIndexBits) |
+         (iz + kVoxelIndexOffset);
+}
+
+struct Voxel {
+  int ix = 0, iy = 0, iz = 0;
+  PlaneStats stats;
+  int first = 0, count = 0;  // range in the voxel-sorted point index array
+  int region = -1;
+};
+
+struct ValidPoint {
+  Eigen::Vector3d p;
+  int cloud_index = 0;
+};
+
+struct Region {
+  std::vector<int> voxels;
+  PlaneStats stats;
+  // Sparse candidates (scan-line segments): their points and sampling.
+  bool sparse = false;
+  std::vector<int> points;
+  int lines = 0;
+  double column_step_rad = 0.0, line_step_rad = 0.0;
+};
+
+struct Candidate {
+  LidarBoardCandidate info;
+  int region = -1;
+};
+
+// Azimuth difference wrapped into (-pi, pi].
+inline double wrapAngle(double a) {
+  while (a > kPi) a -= 2 * kPi;
+  while (a <= -kPi) a += 2 * kPi;
+  return a;
+}
+
+inline LidarBoardDetection failure(LidarBoardDetection d, LidarDetectionCode code, const std::string& reason) {
+  d.code = code;
+  d.features.found = false;
+  d.features.reason = reason;
+  return d;
+}
+
+struct VoxelGrid {
+  std::vector<Voxel> voxels;
+  std::unordered_map<int64_t, int> index;
+  std::vector<int> sorted_points;  // point indices grouped by voxel
+
+  int find(int ix, int iy, int iz) const {
+    const auto it = index.find(voxelKey(ix, iy, iz));
+    return it == index.end() ? -1 : it->second;
+  }
+};
+
+// In-plane basis of a plane: u "right" as seen from the sensor, v "up" (sensor +z projected).
+struct PlaneFrame {
+  Eigen::Vector3d origin, n, u, v;
+  Eigen::Vector2d project(const Eigen::Vector3d& p) const {
+    const Eigen::Vector3d d = p - origin;
+    return {d.dot(u), d.dot(v)};
+  }
+  Eigen::Vector3d lift(const Eigen::Vector2d& q) const { return origin + q.x() * u + q.y() * v; }
+};
+
+struct RefinedPlane {
+  Plane plane;
+  std::vector<int> inliers;  // indices into the valid points
+  double rms = 0.0;
+};
+
+// Fewest returns of a sparse candidate: a few on each of the lines it needs.
+constexpr int kSparsePointsPerLine = 4;
+constexpr double kSparseLineGapVoxels = 0.5;  // segments where lines are farther apart than this many voxels
+constexpr double kSparseMinWidthRatio = 0.8;  // of the widest chord a board's middle line must show
+
+// Stage 1: valid points (finite, in range, in the ROI, not background).
+std::vector<ValidPoint> validPoints(const LidarCloud& cloud, const LidarBoardDetectorOptions& o,
+                                    const BackgroundModel* background);
+// Stage 2: voxels with plane statistics, planar region growing, candidates.
+VoxelGrid buildVoxels(const std::vector<ValidPoint>& pts, double size);
+std::vector<Region> growPlanarRegions(VoxelGrid& g, const LidarBoardDetectorOptions& o);
+bool makePlaneFrame(const Eigen::Vector3d& normal, const Eigen::Vector3d& point, PlaneFrame* f);
+Candidate scoreRegion(const Region& r, int region_id, const VoxelGrid& g, const std::vector<ValidPoint>& pts,
+                      const Target& target, const LidarBoardDetectorOptions& o);
+int sparseMinPoints(const LidarBoardDetectorOptions& o);
+/// Candidates from scan-line segments where the lines are too far apart for the voxels;
+/// appended to `regions` and `candidates` unless a voxel candidate already covers them.
+void addSparseCandidates(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const VoxelGrid& grid,
+                         const Target& target, const LidarBoardDetectorOptions& options, std::vector<Region>* regions,
+                         std::vector<Candidate>* candidates);
+// Stage 3: plane refinement (RANSAC seeded from the region, least squares on the inliers).
+RefinedPlane refinePlane(const std::vector<int>& region_points, const std::vector<int>& gathered,
+                         const std::vector<ValidPoint>& pts, const LidarBoardDetectorOptions& o, std::mt19937& rng);
+/// Points of a region and of its neighbouring voxels that belong to no other large plane.
+void gatherRegionPoints(const std::vector<Region>& regions, int region_id, const VoxelGrid& grid,
+                        const LidarBoardDetectorOptions& options, std::vector<int>* region_points,
+                        std::vector<int>* gathered);
+// Stage 4: scan lines and edges.
+std::vector<int> scanLines(const LidarCloud& cloud, const std::vector<int>& board, const std::vector<ValidPoint>& pts,
+                           const LidarBoardDetectorOptions& o, std::string* source);
+void extractEdges(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const std::vector<int>& board,
+                  const Target& target, const LidarBoardDetectorOptions& o, std::mt19937& rng,
+                  LidarBoardDetection* det);
+
+// History of a stateful detector: whether a board-like candidate sits at a static place, and
+// whether two unknown places are ambiguous whatever their support.
+struct History {
+  std::function<bool(const LidarBoardCandidate&)> is_static;
+  bool strict_ambiguity = false;
+};
+
+/// The detector's stages on one cloud; `history` may be null (single-cloud rules).
+LidarBoardDetection detectImpl(const LidarCloud& cloud, const Target& target, const LidarBoardDetectorOptions& options,
+                               const BackgroundModel* background, const History* history);
+
+}  // namespace lidar_detail
+}  // namespace board_calib
