@@ -1,6 +1,6 @@
 // Rig report: every camera <- LiDAR pair judged at the graph's pose on the board poses both
 // sensors saw (the pair report's figures per pair), and the report folder written.
-#include <board_calib/core/msg_synthetic.h>
+#include "support/synthetic_rig.h"
 #include <board_calib/core/pipeline/rig_report.h>
 #include <board_calib/core/transform.h>
 
@@ -21,9 +21,9 @@ class RigReportTest : public ::testing::Test {
  protected:
   void SetUp() override {
     std::mt19937 rng(7);
-    msg::MsgSyntheticOptions options;
+    sim::RigSceneOptions options;
     options.num_poses = 12;
-    auto s = msg::generateMsgScene(msg::defaultRig(), options, rng);
+    auto s = sim::generateRigScene(sim::defaultRig(), options, rng);
     ASSERT_TRUE(s.ok()) << s.error();
     scene = *s;
     solution = msg::solveMsgGraph(scene.problem, msg::MsgGraphOptions{});
@@ -37,7 +37,7 @@ class RigReportTest : public ::testing::Test {
     }
     rig.reference = scene.sensors.front().frame;
   }
-  msg::MsgSyntheticScene scene;
+  sim::RigScene scene;
   msg::MsgSolution solution;
   ResultFile result;
   RigConfig rig;
