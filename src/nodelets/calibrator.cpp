@@ -153,8 +153,10 @@ void CalibratorNodelet::onInit() {
   diagnostics_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
   diagnostics_->setHardwareID(calibrator_status::kHardwareId);
   diagnostics_->add(calibrator_status::kStatusName, this, &CalibratorNodelet::diagnose);
+  // force_update on a wall timer: update() paces itself by ROS time, which stops at the end of a
+  // replayed bag (use_sim_time) and would freeze the status the user is reading.
   diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) {
-    diagnostics_->update();
+    diagnostics_->force_update();
     // Streams quiet: the images still waiting for frames after them (the last pose of a
     // recording, a paused bag) are judged with what there is.
     std::lock_guard<std::mutex> lock(mutex_);
