@@ -6,6 +6,7 @@ board_calib_core_module(lidar_detection
   src/core/lidar_detection/lidar_candidates.cpp
   src/core/lidar_detection/lidar_plane.cpp
   src/core/lidar_detection/lidar_edges.cpp
+  src/core/lidar_detection/lidar_rectangle_edges.cpp
   src/core/lidar_detection/background_model.cpp
   src/core/lidar_detection/geometry_2d.cpp
   src/core/lidar_detection/scan_segments.cpp)
