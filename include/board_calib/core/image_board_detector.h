@@ -97,6 +97,13 @@ struct ImageDetection {
 };
 
 /// Detector for one target; not thread-safe (holds a libapriltag detector), one per camera.
+/// Where a prior extrinsic (initial guess or an earlier solve) puts the board seen by the other
+/// sensor: its four outer corners projected into the image (undistorted px, any cyclic order).
+struct ExpectedBoard {
+  std::array<Eigen::Vector2d, kNumEdges> corners_px{};
+  double tolerance_px = 0.0;  ///< px, how far the true corners may lie from these (the prior's projection error)
+};
+
 class ImageBoardDetector {
  public:
   static Expected<ImageBoardDetector> create(const Target& target, const ImageBoardDetectorOptions& options);
@@ -108,11 +115,18 @@ class ImageBoardDetector {
   /// model; otherwise (or on any other failure) features.found is false with a reason.
   ImageDetection detect(const cv::Mat& image, const CameraModel& camera);
 
+  /// Second chance inside the projected board (issue 14, 3b): the same detector and checks, but
+  /// only hypotheses near `expected` are tried, and a board is accepted only when each of its
+  /// corners lies within expected.tolerance_px of an expected corner. Plain boards only (the
+  /// pattern boards are found alone); others give "not found" with the reason.
+  ImageDetection detectNear(const cv::Mat& image, const CameraModel& camera, const ExpectedBoard& expected);
+
   const Target& target() const;
   const ImageBoardDetectorOptions& options() const;
 
  private:
   ImageBoardDetector() = default;
+  ImageDetection run(const cv::Mat& image, const CameraModel& camera, const ExpectedBoard* expected);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

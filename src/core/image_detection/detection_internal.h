@@ -60,8 +60,13 @@ struct LineEvidence {
 
 /// Quadrilateral board hypotheses from LSD segments merged into long lines (either polarity),
 /// best first, at most options.max_line_hypotheses, every side partly inside the image.
+/// With `expected`, only quadrilaterals whose corners all lie near the expected ones compete.
 std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
-                                               const ImageBoardDetectorOptions& options, LineEvidence* evidence);
+                                               const ImageBoardDetectorOptions& options, LineEvidence* evidence,
+                                               const ExpectedBoard* expected = nullptr);
+
+/// Largest distance from a corner to its nearest expected corner (undistorted px).
+double worstCornerOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners, const ExpectedBoard& expected);
 
 /// True if an undistorted pixel lies inside the image (culled by its ray first: no fold-back).
 bool visibleUndistorted(const CameraModel& camera, const Eigen::Vector2d& u, double margin);
@@ -74,8 +79,10 @@ bool visibleSideInterval(const CameraModel& camera, const Eigen::Vector2d& p, co
 /// absolute response of the Laplacian-difference mask of Immerkaer (1996), on every other row.
 double estimateNoiseSigma(const cv::Mat& gray);
 
+/// With `expected`, a second chance inside the projected board (ImageBoardDetector::detectNear).
 void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& target,
-                 const ImageBoardDetectorOptions& options, ImageDetection* out);
+                 const ImageBoardDetectorOptions& options, ImageDetection* out,
+                 const ExpectedBoard* expected = nullptr);
 void detectCheckerboard(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                         const ImageBoardDetectorOptions& options, ImageDetection* out);
 

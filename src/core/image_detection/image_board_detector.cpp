@@ -101,6 +101,25 @@ const Target& ImageBoardDetector::target() const { return impl_->target; }
 const ImageBoardDetectorOptions& ImageBoardDetector::options() const { return impl_->options; }
 
 ImageDetection ImageBoardDetector::detect(const cv::Mat& image, const CameraModel& camera) {
+  return run(image, camera, nullptr);
+}
+
+ImageDetection ImageBoardDetector::detectNear(const cv::Mat& image, const CameraModel& camera,
+                                              const ExpectedBoard& expected) {
+  if (impl_->target.type != TargetType::kPlain || !(expected.tolerance_px > 0.0)) {
+    ImageDetection out;
+    out.features.K = camera.K();
+    out.features.image_width = image.cols;
+    out.features.image_height = image.rows;
+    out.features.reason = impl_->target.type != TargetType::kPlain
+                              ? "search near an expected board is for plain boards only"
+                              : "expected board needs a tolerance > 0 px";
+    return out;
+  }
+  return run(image, camera, &expected);
+}
+
+ImageDetection ImageBoardDetector::run(const cv::Mat& image, const CameraModel& camera, const ExpectedBoard* expected) {
   const auto t0 = std::chrono::steady_clock::now();
   ImageDetection out;
   CameraBoardFeatures& f = out.features;
@@ -123,7 +142,7 @@ ImageDetection ImageBoardDetector::detect(const cv::Mat& image, const CameraMode
       const cv::Mat gray = image_detection::toGray(image);
       switch (impl_->target.type) {
         case TargetType::kPlain:
-          image_detection::detectPlain(gray, camera, impl_->target, impl_->options, &out);
+          image_detection::detectPlain(gray, camera, impl_->target, impl_->options, &out, expected);
           break;
         case TargetType::kCheckerboard:
           image_detection::detectCheckerboard(gray, camera, impl_->target, impl_->options, &out);

@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace board_calib {
 namespace image_detection {
@@ -178,8 +179,19 @@ bool visibleSideInterval(const CameraModel& camera, const Eigen::Vector2d& p, co
   return true;
 }
 
+double worstCornerOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners, const ExpectedBoard& expected) {
+  double worst = 0;
+  for (const auto& c : corners) {
+    double nearest = std::numeric_limits<double>::infinity();
+    for (const auto& e : expected.corners_px) nearest = std::min(nearest, (c - e).norm());
+    worst = std::max(worst, nearest);
+  }
+  return worst;
+}
+
 std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
-                                               const ImageBoardDetectorOptions& o, LineEvidence* evidence) {
+                                               const ImageBoardDetectorOptions& o, LineEvidence* evidence,
+                                               const ExpectedBoard* expected) {
   std::vector<QuadHypothesis> quads;
   if (o.line_detection_width_px <= 0) return quads;
   const double scale = std::max(1.0, static_cast<double>(gray.cols) / o.line_detection_width_px);
@@ -322,6 +334,7 @@ std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const Camera
             q.support[s] = inside;
           }
           if (!ok || score <= 0) continue;
+          if (expected && worstCornerOffset(c, *expected) > expected->tolerance_px) continue;
           q.corners = c;
           q.score = score;
           q.size_px = size / 4;

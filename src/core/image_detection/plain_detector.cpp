@@ -79,10 +79,30 @@ cv::Mat downscale(const cv::Mat& gray, double width_px) {
   return small;
 }
 
+// Inside the expected board (or within its tolerance of it): a region hypothesis's centre.
+bool nearExpected(const Eigen::Vector2d& point, const ExpectedBoard& expected) {
+  std::vector<cv::Point2f> polygon;
+  for (const auto& c : expected.corners_px) polygon.emplace_back(static_cast<float>(c.x()), static_cast<float>(c.y()));
+  std::vector<cv::Point2f> hull;
+  cv::convexHull(polygon, hull);
+  return cv::pointPolygonTest(hull, cv::Point2f(static_cast<float>(point.x()), static_cast<float>(point.y())), true) >=
+         -expected.tolerance_px;
+}
+
+// A board that the prior does not put there is another rectangle.
+void checkExpected(const ExpectedBoard& expected, ImageDetection* attempt) {
+  CameraBoardFeatures& f = attempt->features;
+  const double off = worstCornerOffset(f.corners_px, expected);
+  if (off <= expected.tolerance_px) return;
+  f.found = false;
+  f.reason = cv::format("a board %.0f px from where the prior extrinsic puts it (tolerance %.0f px)", off,
+                        expected.tolerance_px);
+}
+
 }  // namespace
 
 void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& target,
-                 const ImageBoardDetectorOptions& o, ImageDetection* out) {
+                 const ImageBoardDetectorOptions& o, ImageDetection* out, const ExpectedBoard* expected) {
   const cv::Mat small = downscale(gray, o.segmentation_width_px);
   const double sx = static_cast<double>(gray.cols) / small.cols;
   // Edge pixels must stand out of this image's own noise (sensor, compression, texture).
@@ -111,7 +131,7 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     // Line evidence (the costly part) unless a region already gave a board whose four sides
     // show their edge along nearly all their visible length.
     if (i == regions && !search.cleanBoard()) {
-      quads = lineQuadHypotheses(gray, camera, o, &evidence);
+      quads = lineQuadHypotheses(gray, camera, o, &evidence, expected);
       for (const auto& q : quads) hypotheses.push_back(fromQuad(q, camera, o));
     }
     if (i >= hypotheses.size()) break;
@@ -122,9 +142,14 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     for (const auto& side : hypotheses[i].sides) bound += side.length;
     if (bound <= search.best_score) continue;
     if (i >= regions && search.duplicatesBoard(quads[i - regions].corners)) continue;
+    if (expected && i < regions && !nearExpected(hypotheses[i].inside_u, *expected)) continue;
     ImageDetection attempt = fresh;
     CandidateSupport support;
-    const bool is_board = fitCandidate(gray, camera, target, o, hypotheses[i], min_gradient, &attempt, &support);
+    bool is_board = fitCandidate(gray, camera, target, o, hypotheses[i], min_gradient, &attempt, &support);
+    if (is_board && expected) {
+      checkExpected(*expected, &attempt);
+      is_board = attempt.features.found;
+    }
     const auto corners = i >= regions ? quads[i - regions].corners : attempt.features.corners_px;
     search.record(hypotheses[i], corners, is_board, support, std::move(attempt));
   }

@@ -161,6 +161,9 @@ void gatherRegionPoints(const std::vector<Region>& regions, int region_id, const
 // Stage 4: scan lines and edges.
 std::vector<int> scanLines(const LidarCloud& cloud, const std::vector<int>& board, const std::vector<ValidPoint>& pts,
                            const LidarBoardDetectorOptions& o, std::string* source);
+/// Sparse boards: the declared rectangle fitted to the per-line extremes; false when it does not fit.
+bool extractEdgesByRectangle(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const std::vector<int>& board,
+                             const Target& target, const LidarBoardDetectorOptions& o, LidarBoardDetection* det);
 void extractEdges(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const std::vector<int>& board,
                   const Target& target, const LidarBoardDetectorOptions& o, std::mt19937& rng,
                   LidarBoardDetection* det);
