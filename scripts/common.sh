@@ -19,6 +19,9 @@ BOARD_CALIB_PACKAGES=(
   python3-diagnostic-msgs tf-tools python3-tf2-ros ros-image-view libimage-view-dev
   # The rviz panel (librviz-dev) and its headless test (xdotool clicks, std_srvs from Python).
   librviz-dev xdotool python3-std-srvs
+  # bench_pcl only (PCL's components against the detector's geometry, docs/DEVELOPING.md): the
+  # package itself does not use PCL.
+  libpcl-dev
 )
 
 # Installs whatever is missing (an installed machine skips apt entirely).
