@@ -36,7 +36,7 @@ class ImageBoardDetectorNodelet : public nodelet::Nodelet {
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     std::string target_file;
     if (!pnh.getParam("target_file", target_file)) {
-      NODELET_FATAL("~target_file is required (board description YAML, DESIGN.md 3.2)");
+      NODELET_FATAL("~target_file is required (board description YAML, see config/targets/)");
       return;
     }
     auto target = loadTarget(target_file);

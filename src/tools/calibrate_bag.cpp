@@ -1,4 +1,4 @@
-// calibrate_bag: offline LiDAR-camera calibration straight from rosbags (DESIGN.md §3.3).
+// calibrate_bag: offline LiDAR-camera calibration straight from rosbags.
 // Reads the bags with the rosbag C++ API (no master, no sim time), runs the same detectors,
 // session and solvers as the nodelets, prints the result with its quality figures, and writes
 // the result file and an optional report folder. Bad input ends with a one-line reason and a

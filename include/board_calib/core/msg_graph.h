@@ -1,4 +1,4 @@
-// MSG-Cal multi-sensor graph (DESIGN.md §2, issue 9): calibrates any number of cameras and
+// MSG-Cal multi-sensor graph: calibrates any number of cameras and
 // LiDARs jointly from board poses seen by several sensors. ROS-free.
 //
 // Nodes: every sensor's pose reference_T_sensor (one sensor fixed, the reference). Edges:
@@ -235,7 +235,7 @@ Expected<StereoConsistency> stereoConsistency(const MsgSolution& solution, int c
 std::optional<double> pairMlrePx(const MsgProblem& problem, int camera, int lidar,
                                  const Eigen::Isometry3d& camera_T_lidar);
 
-/// The result file (DESIGN.md §3.4): `sensors` (every pose in the reference frame), `pairs`
+/// The result file: `sensors` (every pose in the reference frame), `pairs`
 /// (solution.pairs in the same order, each with its 1 sigma when the covariance is available),
 /// the single-pair block from the first pair, quality figures
 /// (loop consistency, residuals) and notes.

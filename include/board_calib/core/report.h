@@ -1,4 +1,4 @@
-// Turns solver results into what users read: the result file (DESIGN.md §3.4), a summary with
+// Turns solver results into what users read: the result file, a summary with
 // the quality figures and what they mean, a side-by-side table of methods, per-view tables,
 // consistency findings (e.g. the board is larger than declared) and ready-to-paste snippets.
 #pragma once

@@ -1,4 +1,4 @@
-// LiDAR <-> camera extrinsic solvers of the reference paper (DESIGN.md §2), ROS-free:
+// LiDAR <-> camera extrinsic solvers of the reference paper, ROS-free:
 //  * PPC-Cal  (point to plane):  r = n_i . (R P_im + t) - d_i, view weight 1/p_i.
 //  * PBPC-Cal (point to back-projected plane): r = N_ij . (R Q_ijn + t), N_ij = K^T l_ij
 //    normalised so r is in metres, edge weight 1/q_ij; combined with the PPC terms.

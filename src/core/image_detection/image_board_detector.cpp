@@ -11,7 +11,7 @@
 namespace board_calib {
 
 namespace {
-// libapriltag puts pixel centres at integer + 0.5 (ENVIRONMENT.md); OpenCV and CameraModel at integers.
+// libapriltag puts pixel centres at integer + 0.5 (libapriltag convention); OpenCV and CameraModel at integers.
 constexpr double kAprilTagPixelOffset = 0.5;
 constexpr int kMaxHammingSupported = 2;  // tag36h11 with 3 bits corrected needs a huge table and gives false ids
 }  // namespace
