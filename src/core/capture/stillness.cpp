@@ -17,6 +17,44 @@ double angleRad(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
 
 }  // namespace
 
+BoardSample boardSampleOf(const LidarBoardFeatures& f) {
+  BoardSample s;
+  s.stamp = f.stamp;
+  s.found = f.found && !f.board_points.empty() && f.plane.normal.allFinite();
+  if (!s.found) return s;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : f.board_points) mean += p;
+  mean /= static_cast<double>(f.board_points.size());
+  double spread2 = 0.0;
+  for (const auto& p : f.board_points) spread2 += (p - mean).squaredNorm();
+  const double n = static_cast<double>(f.board_points.size());
+  const double spread = std::sqrt(spread2 / n);
+  s.centre = mean;
+  s.normal = f.plane.normal.normalized();
+  s.centre_sigma_m = f.plane_rms_m / std::sqrt(n);
+  s.normal_sigma_rad = spread > 0 ? f.plane_rms_m / (std::sqrt(n) * spread) : 0.0;
+  return s;
+}
+
+BoardSample boardSampleOf(const CameraBoardFeatures& f, const Target* target) {
+  constexpr double kMinPixelSigma = 0.2;  // px, a PnP is never better than this
+  constexpr double kUnknownBoardSizeM = 1.0;
+  BoardSample s;
+  s.stamp = f.stamp;
+  s.found = f.found && f.plane.normal.allFinite() && f.camera_T_board.matrix().allFinite();
+  if (!s.found) return s;
+  s.centre = target ? f.camera_T_board * target->center() : f.camera_T_board.translation();
+  s.normal = f.plane.normal.normalized();
+  const double fx = f.K(0, 0) > 0 ? f.K(0, 0) : 1.0;
+  const double pixel_rad = std::max(f.reprojection_rms_px, kMinPixelSigma) / fx;
+  const double range = s.centre.norm();
+  const double size = target ? std::min(target->width, target->height) : kUnknownBoardSizeM;
+  const double half_size = 0.5 * std::max(1e-3, size);
+  s.centre_sigma_m = pixel_rad * range * std::max(1.0, range / half_size);
+  s.normal_sigma_rad = pixel_rad * range / half_size;
+  return s;
+}
+
 std::string StillnessOptions::validate() const {
   if (!(window_s > 0.0) || !std::isfinite(window_s) || window_s > 10.0) return "still window must be in (0, 10] s";
   if (min_frames < 1 || min_frames > 1000) return "still frames must be in [1, 1000]";
@@ -71,6 +109,7 @@ StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, d
       continue;
     }
     if (interval <= o.snapshot_interval_s) all_sparse = false;
+    if (!streams[s].judged) continue;
     if (j.fastest_stream < 0 || interval < fastest_interval) {
       j.fastest_stream = static_cast<int>(s);
       fastest_interval = interval;
@@ -99,6 +138,7 @@ StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, d
   if (!ended && fast.clock->newest() < hi) return j;  // the window is not complete yet
 
   for (size_t s = 0; s < streams.size(); ++s) {
+    if (!streams[s].judged) continue;
     const auto& samples = *streams[s].samples;
     // Reference: the frame nearest the moment.
     const BoardSample* ref = nullptr;
