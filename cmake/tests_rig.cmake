@@ -35,3 +35,7 @@ if(TARGET simulate_bag AND TARGET calibrate_bag)
       --check-truth 0.2 0.01 --quiet)
   set_tests_properties(rig_e2e_calibrate_still PROPERTIES FIXTURES_REQUIRED rig_bag TIMEOUT 120)
 endif()
+# The rig run (core/pipeline/rig_calibration.h): verdict on a clean rig and the fault sweep.
+board_calib_core_gtest(test_rig_calibration
+  SOURCES test/core/test_rig_calibration.cpp
+  LIBS board_calib_core)

@@ -11,6 +11,7 @@
 #include <board_calib/conversions.h>
 #include <board_calib/core/file_io.h>
 #include <board_calib/core/msg_graph.h>
+#include <board_calib/core/pipeline/rig_calibration.h>
 #include <board_calib/core/result_io.h>
 #include <board_calib/core/rig_config.h>
 #include <board_calib/core/rig_report.h>
@@ -39,6 +40,7 @@ constexpr char kLog[] = "calibrator";
 struct RigCalibratorMode::Impl {
   ros::NodeHandle nh, pnh;
   RigConfig rig;
+  Target target;
   int reference = 0;
   std::string rig_file;
   std::mutex mutex;        // guards session, last_event, last_solution
@@ -132,12 +134,14 @@ struct RigCalibratorMode::Impl {
     session->setOptions(o);
   }
 
-  // `p` is the result-file entry of `pair` (same order in msgResultFile).
-  static CalibrationResult pairMsg(const PairEntry& p, const msg::PairEstimate& pair, const msg::MsgSolution& s) {
+  // `p` is the result-file entry of `pair` (same order in msgResultFile), with its verdict.
+  static CalibrationResult pairMsg(const PairEntry& p, const RigPairRun& pair, const msg::MsgSolution& s) {
     CalibrationResult m;
     m.header.stamp = ros::Time::now();
     m.header.frame_id = p.lidar_frame;
-    m.success = true;
+    m.success = pair.verdict.verdict != Verdict::kFailed;
+    m.verdict = p.verdict;
+    m.verdict_reason = p.verdict_reason;
     m.method = "msg";
     m.camera_frame = p.camera_frame;
     m.lidar_frame = p.lidar_frame;
@@ -149,13 +153,15 @@ struct RigCalibratorMode::Impl {
     m.covariance.fill(std::nan(""));
     m.stddev_translation_m.fill(std::nan(""));
     m.stddev_rotation_deg.fill(std::nan(""));
-    if (pair.has_covariance) {
+    // The verdict's uncertainty: grown with residuals beyond the noise model and the
+    // cross-validation's spread.
+    if (pair.verdict.covariance.diagonal().maxCoeff() > 0) {
       for (int i = 0; i < 3; ++i) {
-        m.stddev_translation_m[i] = pair.stddev.translation_m[i];
-        m.stddev_rotation_deg[i] = pair.stddev.rotation_deg[i];
+        m.stddev_translation_m[i] = pair.verdict.stddev.translation_m[i];
+        m.stddev_rotation_deg[i] = pair.verdict.stddev.rotation_deg[i];
       }
       for (int r = 0; r < 6; ++r)
-        for (int c = 0; c < 6; ++c) m.covariance[r * 6 + c] = pair.covariance(r, c);
+        for (int c = 0; c < 6; ++c) m.covariance[r * 6 + c] = pair.verdict.covariance(r, c);
     }
     m.notes = s.notes;
     return m;
@@ -196,6 +202,17 @@ struct RigCalibratorMode::Impl {
     return base + "_result.yaml";
   }
 
+  // A failed result for inspection, under a name no tool mistakes for a calibration.
+  std::string writeFailed(const ResultFile& file) {
+    if (output_dir.empty()) return "";
+    std::error_code error;
+    std::filesystem::create_directories(output_dir, error);
+    const std::string path = failedResultPath(output_dir + "/msg_rig_result.yaml");
+    const Status st = error ? Status::failure("cannot create " + output_dir) : writeResultFile(path, file);
+    if (!st) ROS_ERROR_STREAM_NAMED(kLog, "calibrator: " << st.reason);
+    return st ? path : "";
+  }
+
   bool calibrate(Calibrate::Request& req, Calibrate::Response& res) {
     std::lock_guard<std::mutex> solve_lock(solve_mutex);
     if (!req.method.empty() && req.method != "msg" && req.method != "all") {
@@ -221,19 +238,28 @@ struct RigCalibratorMode::Impl {
       for (const auto& p : problems) res.message += "; " + p;
       return true;
     }
-    // The solve runs on its own thread; feature callbacks keep flowing meanwhile.
-    auto solving = std::async(std::launch::async, [&]() { return msg::solveMsgGraph(problem, msg::MsgGraphOptions{}); });
-    const msg::MsgSolution solution = solving.get();
+    // The solve and its verdict run on their own thread; feature callbacks keep flowing meanwhile.
+    auto solving = std::async(std::launch::async, [&]() { return calibrateRig(problem, rig, target); });
+    const RigCalibration run = solving.get();
+    const msg::MsgSolution& solution = run.solution;
     if (!solution.success) {
       res.success = false;
-      res.message = "MSG graph failed: " + solution.reason;
+      res.message = "calibration failed: " + run.reason;
       ROS_WARN_STREAM_NAMED(kLog, "calibrator: " << res.message);
       return true;
     }
-    const ResultFile file = msg::msgResultFile(problem, solution);
-    res.success = true;
-    res.message = rigSolutionSummary(rig, solution, file);
+    const ResultFile& file = run.result;
+    res.message = rigSolutionSummary(rig, solution, file) + rigVerdictSummary(run);
     for (const auto& p : problems) res.message += "warning: " + p + "\n";
+    if (run.failed()) {
+      // Never broadcast, never over the good file: kept for inspection only.
+      res.success = false;
+      const std::string written = writeFailed(file);
+      if (!written.empty()) res.message += "FAILED result written for inspection to " + written + "\n";
+      ROS_ERROR_STREAM_NAMED(kLog, "calibrator: calibration failed: " << run.reason << "\n" << res.message);
+      return true;
+    }
+    res.success = true;
     res.reference_frame = solution.sensors[solution.reference_sensor].frame;
     for (const auto& s : solution.sensors) {
       SensorPose p;
@@ -248,8 +274,8 @@ struct RigCalibratorMode::Impl {
       p.poses_rejected = static_cast<uint32_t>(std::max(0, s.observations_rejected));
       res.sensors.push_back(p);
     }
-    for (size_t i = 0; i < file.pairs.size() && i < solution.pairs.size(); ++i)
-      res.all_results.push_back(pairMsg(file.pairs[i], solution.pairs[i], solution));
+    for (size_t i = 0; i < file.pairs.size() && i < run.pairs.size(); ++i)
+      res.all_results.push_back(pairMsg(file.pairs[i], run.pairs[i], solution));
     if (!res.all_results.empty()) {
       res.result = res.all_results.front();
       result_pub.publish(res.result);
@@ -381,7 +407,14 @@ std::unique_ptr<RigCalibratorMode> RigCalibratorMode::create(ros::NodeHandle nh,
   pnh.param("broadcast_tf", m.broadcast_tf, true);
   m.output_dir = outputDirParam(pnh);
 
-  m.session = std::make_unique<msg::RigSession>(rig->sensorNames(), rig->sensorSpecs(), msg::rigSessionOptionsFor(*rig));
+  auto target = loadTarget(rig->target_path);
+  if (!target) {
+    *error = "rig target: " + target.error();
+    return nullptr;
+  }
+  m.target = *target;
+  m.session = std::make_unique<msg::RigSession>(rig->sensorNames(), rig->sensorSpecs(), msg::rigSessionOptionsFor(*rig),
+                                                m.target);
   std::string session_file;
   if (pnh.getParam("session_file", session_file) && !session_file.empty()) {
     const Status st = m.session->load(session_file);

@@ -42,7 +42,7 @@ const char* kUsage =
     "         [--child-frame F] [--save-session FILE] [--load-session FILE] [--truth TRUTH.yaml]\n"
     "         [--check-truth ROT_DEG TRANS_M] [--edge-shift STEPS] [--quiet]\n"
     "       calibrate_bag --config RIG.yaml --bag FILE [--bag FILE...] --method msg [--output result.yaml]\n"
-    "         [--report DIR] [--truth TRUTH.yaml [--check-truth ROT_DEG TRANS_M]] [--capture all|still]\n"
+    "         [--report DIR] [--truth TRUTH.yaml [--check-truth ROT_DEG TRANS_M]] [--capture still|all]\n"
     "         [--quiet]   (docs/MSG.md)\n"
     "\n"
     "  --initial-guess     camera_T_lidar (p_camera = R p_lidar + t); default: closed-form initialisation\n"
@@ -56,8 +56,8 @@ const char* kUsage =
     "  --edge-shift STEPS  shift LiDAR edge points outward by STEPS horizontal steps (default 0: beam\n"
     "                      divergence cancels the extremes' inset)\n"
     "  --loss, --loss-scale  robust loss on point residuals (default tukey, 0.02 m)\n"
-    "  --capture MODE      rig: 'all' (default) makes a board pose of every stamp group; 'still' captures\n"
-    "                      one pose per still period, as the calibrator's rig mode does live\n";
+    "  --capture MODE      rig: 'still' (default) captures one pose per hold, as the calibrator's rig mode\n"
+    "                      does live; 'all' makes a board pose of every stamp group (offline only)\n";
 
 struct Args {
   std::vector<std::string> bags;
@@ -72,7 +72,7 @@ struct Args {
   std::string config;  // multi-sensor rig (MSG-Cal): everything else comes from the rig file
   double check_rot_deg = 0, check_trans_m = 0;
   double edge_shift = -1;  // horizontal steps; < 0: solver default
-  std::string capture = "all";  // rig: all | still
+  std::string capture = "still";  // rig: still | all
 };
 
 // One-line failure, as the contract asks.
@@ -262,31 +262,16 @@ int main(int argc, char** argv) {
     if (!counts) fail(counts.error());
     const size_t total = (*counts)[args.image_topic] + (*counts)[args.cloud_topic];
     size_t done = 0;
-    std::optional<CameraIntrinsics> intrinsics;
-    std::vector<ImageFrame> waiting_for_info;  // images before the first camera_info
+    bool have_intrinsics = false;
     std::map<std::string, int> bad_messages;
 
     BagTopics topics{{args.image_topic}, {args.info_topic}, {args.cloud_topic}};
-    BagCallbacks cb;
-    auto processImage = [&](const ImageFrame& f) {
-      pipeline->addImage(f.image, *intrinsics, f.frame_id, f.stamp);
+    BagFrameCallbacks cb;
+    cb.on_image = [&](const ImageFrame& f, const CameraIntrinsics& intrinsics) {
+      have_intrinsics = true;
+      pipeline->addImage(f.image, intrinsics, f.frame_id, f.stamp);
       if (camera_frame.empty()) camera_frame = f.frame_id;
       progress(args.quiet, ++done, total, pipeline->session().views().size());
-    };
-    cb.on_camera_info = [&](const std::string&, const std::string&, const CameraIntrinsics& in) {
-      intrinsics = in;
-      for (const auto& f : waiting_for_info) processImage(f);
-      waiting_for_info.clear();
-    };
-    size_t dropped_waiting = 0;  // images that found neither a camera_info nor room in the buffer
-    cb.on_image = [&](const ImageFrame& f) {
-      if (!intrinsics) {
-        constexpr size_t kMaxWaiting = 10;
-        if (waiting_for_info.size() < kMaxWaiting) waiting_for_info.push_back(f);
-        else ++dropped_waiting;
-        return;
-      }
-      processImage(f);
     };
     cb.on_cloud = [&](const std::string&, const LidarCloud& c) {
       pipeline->addCloud(c);
@@ -297,12 +282,12 @@ int main(int argc, char** argv) {
       if (bad_messages[topic + ": " + why]++ == 0 && !args.quiet)
         std::cerr << "\ncalibrate_bag: skipping a message on " << topic << ": " << why << "\n";
     };
-    const Status read = readBags(args.bags, topics, cb);
-    if (!read) fail(read.reason);
+    const auto read = readBagFrames(args.bags, topics, cb);
+    if (!read) fail(read.error());
     pipeline->finish();
-    if (!intrinsics) fail("no valid camera_info on '" + args.info_topic + "'");
-    if (dropped_waiting > 0)
-      std::cerr << "calibrate_bag: warning: " << dropped_waiting << " images arrived before the first camera_info on "
+    if (!have_intrinsics) fail("no valid camera_info on '" + args.info_topic + "'");
+    if (const auto dropped = read->images_dropped.find(args.image_topic); dropped != read->images_dropped.end())
+      std::cerr << "calibrate_bag: warning: " << dropped->second << " images arrived before the first camera_info on "
                 << args.info_topic << " and were skipped (was camera_info recorded after the images?)\n";
     session = &pipeline->session();
 
