@@ -28,14 +28,18 @@ if(TARGET simulate_bag AND TARGET calibrate_bag)
     COMMAND /usr/bin/python3 ${CMAKE_CURRENT_SOURCE_DIR}/test/check_rig_result.py
       ${_rig_dir}/result.yaml ${_rig_dir}/rig.truth.yaml 0.2 0.01)
   set_tests_properties(rig_e2e_result_file PROPERTIES FIXTURES_REQUIRED rig_bag DEPENDS rig_e2e_calibrate TIMEOUT 30)
-  # The live capture rule offline (one pose per still period, msg::RigSession): the same limits.
-  add_test(NAME rig_e2e_calibrate_still
+  # The offline-only grouping (a pose per stamp group, --capture all): the same limits.
+  add_test(NAME rig_e2e_calibrate_all
     COMMAND $<TARGET_FILE:calibrate_bag> --config ${CMAKE_CURRENT_SOURCE_DIR}/config/rigs/multi_rig_apriltag.yaml
-      --bag ${_rig_dir}/rig.bag --method msg --capture still --truth ${_rig_dir}/rig.truth.yaml
+      --bag ${_rig_dir}/rig.bag --method msg --capture all --truth ${_rig_dir}/rig.truth.yaml
       --check-truth 0.2 0.01 --quiet)
-  set_tests_properties(rig_e2e_calibrate_still PROPERTIES FIXTURES_REQUIRED rig_bag TIMEOUT 120)
+  set_tests_properties(rig_e2e_calibrate_all PROPERTIES FIXTURES_REQUIRED rig_bag TIMEOUT 120)
 endif()
 # The rig run (core/pipeline/rig_calibration.h): verdict on a clean rig and the fault sweep.
 board_calib_core_gtest(test_rig_calibration
   SOURCES test/core/test_rig_calibration.cpp
+  LIBS board_calib_core)
+# Live and offline rig entries on the same simulated frames (core/pipeline/rig_pipeline.h).
+board_calib_core_gtest(test_rig_pipeline
+  SOURCES test/core/test_rig_pipeline.cpp
   LIBS board_calib_core)
