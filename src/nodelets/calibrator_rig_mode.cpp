@@ -202,6 +202,21 @@ struct RigCalibratorMode::Impl {
     return base + "_result.yaml";
   }
 
+  // One static transform per sensor from the reference sensor's frame.
+  void broadcastPoses(const msg::MsgSolution& solution) {
+    std::vector<geometry_msgs::TransformStamped> tfs;
+    for (size_t k = 0; k < solution.sensors.size(); ++k) {
+      if (static_cast<int>(k) == solution.reference_sensor) continue;
+      geometry_msgs::TransformStamped tf;
+      tf.header.stamp = ros::Time::now();
+      tf.header.frame_id = solution.sensors[static_cast<size_t>(solution.reference_sensor)].frame;
+      tf.child_frame_id = solution.sensors[k].frame + child_frame_suffix;
+      tf.transform = toTransformMsg(solution.sensors[k].reference_T_sensor);
+      tfs.push_back(tf);
+    }
+    tf_broadcaster->sendTransform(tfs);
+  }
+
   // A failed result for inspection, under a name no tool mistakes for a calibration.
   std::string writeFailed(const ResultFile& file) {
     if (output_dir.empty()) return "";
@@ -282,19 +297,7 @@ struct RigCalibratorMode::Impl {
     }
     ROS_INFO_STREAM_NAMED(kLog, "calibrator:\n" << res.message);
 
-    if (broadcast_tf) {
-      std::vector<geometry_msgs::TransformStamped> tfs;
-      for (size_t k = 0; k < solution.sensors.size(); ++k) {
-        if (static_cast<int>(k) == solution.reference_sensor) continue;
-        geometry_msgs::TransformStamped tf;
-        tf.header.stamp = ros::Time::now();
-        tf.header.frame_id = res.reference_frame;
-        tf.child_frame_id = solution.sensors[k].frame + child_frame_suffix;
-        tf.transform = toTransformMsg(solution.sensors[k].reference_T_sensor);
-        tfs.push_back(tf);
-      }
-      tf_broadcaster->sendTransform(tfs);
-    }
+    if (broadcast_tf) broadcastPoses(solution);
     const std::string written = writeOutputs(file, solution);
     if (!written.empty()) res.message += "result written to " + written + "\n";
     std::lock_guard<std::mutex> lock(mutex);
