@@ -148,6 +148,7 @@ MsgProblem coplanar(MsgProblem p) {
 
 TEST(RigCalibration, FaultSweepNeverGivesASilentSuccess) {
   std::map<std::string, std::map<std::string, int>> counts;  // case -> verdict -> count
+  std::map<std::string, std::string> reasons;                 // case -> the last reason given
   for (unsigned seed : {3u, 11u}) {
     const Scene s = makeScene(seed, 20);
     const std::vector<std::pair<std::string, MsgProblem>> cases = {
@@ -162,6 +163,7 @@ TEST(RigCalibration, FaultSweepNeverGivesASilentSuccess) {
     for (const auto& [name, problem] : cases) {
       const RigCalibration run = calibrateRig(problem, s.rig, s.target, fastOptions());
       ++counts[name][verdictName(run.verdict)];
+      reasons[name] = run.reason + " [" + std::to_string(run.left_out.size()) + " observations left out]";
       EXPECT_FALSE(run.reason.empty()) << name;
       if (run.verdict != Verdict::kGood) continue;
       std::string worst;
@@ -173,7 +175,7 @@ TEST(RigCalibration, FaultSweepNeverGivesASilentSuccess) {
   for (const auto& [name, by_verdict] : counts) {
     std::cout << "| " << name << " |";
     for (const char* v : {"good", "doubtful", "failed"}) std::cout << " " << (by_verdict.count(v) ? by_verdict.at(v) : 0) << " |";
-    std::cout << "\n";
+    std::cout << " " << reasons[name] << " |\n";
   }
   // Too few poses to judge are never good.
   for (const char* few : {"1 pose", "2 poses", "3 poses"}) EXPECT_EQ(counts[few]["good"], 0) << few;
