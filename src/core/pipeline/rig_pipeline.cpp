@@ -7,11 +7,6 @@
 namespace board_calib {
 namespace {
 
-bool sameIntrinsics(const CameraIntrinsics& a, const CameraIntrinsics& b) {
-  return a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy && a.cx == b.cx &&
-         a.cy == b.cy && a.model == b.model && a.coeffs == b.coeffs;
-}
-
 SessionEvent rejected(const std::string& why) { return {SessionEvent::Kind::kRejected, why, -1}; }
 
 }  // namespace
@@ -90,7 +85,7 @@ SessionEvent RigPipeline::addImage(int camera, const cv::Mat& image, const Camer
   if (camera < 0 || camera >= static_cast<int>(d.cameras.size()))
     return rejected("image for camera " + std::to_string(camera) + ", which the rig does not have");
   Impl::Camera& c = d.cameras[static_cast<size_t>(camera)];
-  if (!c.intrinsics || !sameIntrinsics(*c.intrinsics, intrinsics)) {
+  if (!c.intrinsics || *c.intrinsics != intrinsics) {
     auto model = CameraModel::create(intrinsics);
     if (!model) {
       d.count(camera, frame_id, false, "bad camera_info: " + model.error());
