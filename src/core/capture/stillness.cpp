@@ -140,22 +140,23 @@ StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, d
   for (size_t s = 0; s < streams.size(); ++s) {
     if (!streams[s].judged) continue;
     const auto& samples = *streams[s].samples;
-    // Reference: the frame nearest the moment.
+    // Reference: the frame nearest the moment that sees the board.
     const BoardSample* ref = nullptr;
     for (const auto& x : samples)
-      if (x.stamp >= lo && x.stamp <= hi && (!ref || std::abs(x.stamp - stamp) < std::abs(ref->stamp - stamp)))
+      if (x.found && x.stamp >= lo && x.stamp <= hi &&
+          (!ref || std::abs(x.stamp - stamp) < std::abs(ref->stamp - stamp)))
         ref = &x;
-    int before = 0, after = 0, count = 0;
+    int before = 0, after = 0, count = 0, missing = 0;
     for (const auto& x : samples) {
       if (x.stamp < lo || x.stamp > hi) continue;
+      // A detector misses a still board now and then: such a frame is no evidence either way.
+      if (!x.found) {
+        ++missing;
+        continue;
+      }
       ++count;
       if (x.stamp < stamp) ++before;
       if (x.stamp > stamp) ++after;
-      if (!x.found) {
-        j.state = StillState::kNoBoard;
-        j.why = streams[s].name + " lost the board " + formatFixed(std::abs(x.stamp - stamp), 2) + " s from the image";
-        return j;
-      }
       const double move = (x.centre - ref->centre).norm();
       const double move_tol =
           o.max_translation_m + o.noise_factor * std::hypot(x.centre_sigma_m, ref->centre_sigma_m);
@@ -169,6 +170,13 @@ StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, d
                 formatFixed(move_tol * 100, 1) + " cm, " + formatFixed(turn_tol * kDegPerRadian, 1) + " deg)";
         return j;
       }
+    }
+    // Lost in most of the window: the board left the view (or was never there).
+    if (missing > 0 && missing >= count) {
+      j.state = StillState::kNoBoard;
+      j.why = streams[s].name + " lost the board in " + std::to_string(missing) + " of " + std::to_string(missing + count) +
+              " frames within " + formatFixed(o.window_s, 2) + " s of the image";
+      return j;
     }
     if (static_cast<int>(s) == j.fastest_stream) {
       j.fastest_frames = count;
