@@ -137,6 +137,12 @@ CASES = {
         "kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_lidar_detector --gtest_filter='*Scenario*'": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/bench_capture --scale 0.5 --poses 12 --seeds 2 --rates 1,2,5,10,30": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/test_rig_session --gtest_filter=*Sparse*": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/test_rig_calibration": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/bench_capture --scenario config/scenarios/checker_vlp16_1280.yaml --method ppc "
+    "--poses 12 --seeds 2 --rates 1,2,5,10,30": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/bench_capture --scenario config/scenarios/checker_vlp16_1280.yaml --method ppc "
+    "--poses 30 --seeds 2 --rates 1 --layouts organized": {"kind": "dev"},
     # docs/RELIABILITY.md
     "scripts/build.sh test_fuzz_inputs test_fuzz_rig && ws/ci/devel/lib/board_calib/test_fuzz_inputs": {
         "kind": "run", "expect": r"PASSED", "timeout": 900},

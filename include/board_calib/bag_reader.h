@@ -48,4 +48,26 @@ Expected<std::vector<double>> topicTimes(const std::vector<std::string>& bag_pat
 /// reason when a bag cannot be opened or a requested topic is absent from every bag.
 Status readBags(const std::vector<std::string>& bag_paths, const BagTopics& topics, const BagCallbacks& callbacks);
 
+/// Frames as the pipelines take them: each image with the newest intrinsics of its camera.
+struct BagFrameCallbacks {
+  std::function<void(const ImageFrame&, const CameraIntrinsics&)> on_image;
+  std::function<void(const std::string& topic, const LidarCloud&)> on_cloud;
+  std::function<void(const std::string& topic, const std::string& reason)> on_bad_message;
+};
+
+struct BagFrameStats {
+  std::map<std::string, size_t> images_before_info;  ///< image topic -> images held for a late first camera_info
+  std::map<std::string, size_t> images_dropped;      ///< image topic -> images that found no camera_info
+};
+
+/// Images held per camera while its first camera_info has not arrived (recorders often start
+/// the image topic first); later ones are dropped and counted.
+constexpr size_t kMaxImagesBeforeCameraInfo = 20;
+
+/// The one bag-reading loop of the tools: streams the bags as readBags does, pairing
+/// `image_topics[i]` with `camera_info_topics[i]`; images wait for their camera's first
+/// camera_info (see kMaxImagesBeforeCameraInfo).
+Expected<BagFrameStats> readBagFrames(const std::vector<std::string>& bag_paths, const BagTopics& topics,
+                                      const BagFrameCallbacks& callbacks);
+
 }  // namespace board_calib

@@ -25,6 +25,8 @@
 
 namespace board_calib {
 
+struct RigPairRun;  // core/pipeline/rig_calibration.h
+
 // Validation of incoming messages, before any pointer arithmetic: each returns an empty string
 // for a usable message, else a specific reason naming the field and value. The from*()
 // conversions below run it first, so a caller only logs the reason and goes on.
@@ -82,10 +84,10 @@ Eigen::Isometry3d fromPoseMsg(const geometry_msgs::Pose& msg);
 /// success needs the solve and a verdict other than failed.
 CalibrationResult toResultMsg(const CalibrationSolution& solution, const VerdictReport& verdict, const ResultFile& file,
                               const ros::Time& stamp);
-/// One camera <- LiDAR pair of a rig solve: `pair` is the result-file entry of `estimate`
-/// (msgResultFile keeps the solution's pair order). NaN 1 sigma without a covariance.
-CalibrationResult toPairResultMsg(const PairEntry& pair, const msg::PairEstimate& estimate,
-                                  const msg::MsgSolution& solution, const ros::Time& stamp);
+/// One camera <- LiDAR pair of a rig run: `pair` is the result-file entry of `run` (same order),
+/// with its verdict; success unless the verdict failed. NaN 1 sigma without a covariance.
+CalibrationResult toPairResultMsg(const PairEntry& pair, const RigPairRun& run, const msg::MsgSolution& solution,
+                                  const ros::Time& stamp);
 /// One sensor's pose of a rig solve.
 SensorPose toSensorPoseMsg(const msg::SensorEstimate& sensor);
 

@@ -137,6 +137,11 @@ std::string resultToYaml(const ResultFile& r) {
       emitTransform(out, p.camera_T_lidar.inverse());
       if (p.mlre_px) out << YAML::Key << "mlre_px" << YAML::Value << *p.mlre_px;
       if (p.stddev) emitStddev(out, *p.stddev);
+      if (!p.verdict.empty()) {
+        out << YAML::Key << "verdict" << YAML::Value << p.verdict;
+        out << YAML::Key << "verdict_reason" << YAML::Value << p.verdict_reason;
+        out << YAML::Key << "views_to_check" << YAML::Value << YAML::Flow << p.views_to_check;
+      }
       out << YAML::EndMap;
     }
     out << YAML::EndSeq;
@@ -196,6 +201,10 @@ Expected<ResultFile> parseResult(const std::string& text) {
         entry.camera_T_lidar = readTransform(e["camera_T_lidar"], "pairs[].camera_T_lidar");
         if (e["mlre_px"]) entry.mlre_px = e["mlre_px"].as<double>();
         if (const YAML::Node s = e["stddev"]) entry.stddev = readStddev(s, "pairs[].stddev");
+        if (e["verdict"]) entry.verdict = e["verdict"].as<std::string>();
+        if (e["verdict_reason"]) entry.verdict_reason = e["verdict_reason"].as<std::string>();
+        if (const YAML::Node v = e["views_to_check"])
+          for (const auto& id : v) entry.views_to_check.push_back(id.as<int>());
         r.pairs.push_back(entry);
       }
     }

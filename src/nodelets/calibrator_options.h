@@ -31,6 +31,7 @@
 #define BOARD_CALIB_RIG_SESSION_FIELDS(X)                       \
   X(auto_capture, auto_capture)                                 \
   X(still_frames, still_frames_required)                        \
+  X(still_window, still_window_s)                               \
   X(still_max_translation, still_max_translation_m)             \
   X(still_max_rotation_deg, still_max_rotation_deg)             \
   X(min_view_rotation_deg, min_pose_rotation_deg)               \

@@ -13,6 +13,7 @@
 #include <board_calib/core/file_io.h>
 #include <board_calib/core/msg_graph.h>
 #include <board_calib/core/pipeline/rig_report.h>
+#include <board_calib/core/pipeline/rig_calibration.h>
 #include <board_calib/core/result_io.h>
 #include <board_calib/core/rig_config.h>
 #include <board_calib/core/rig_report.h>
@@ -41,6 +42,7 @@ constexpr char kLog[] = "calibrator";
 struct RigCalibratorMode::Impl {
   ros::NodeHandle nh, pnh;
   RigConfig rig;
+  Target target;
   int reference = 0;
   std::string rig_file;
   std::mutex mutex;        // guards session, last_event, last_solution
@@ -195,6 +197,32 @@ struct RigCalibratorMode::Impl {
     return dir + "/report.md";
   }
 
+  // One static transform per sensor from the reference sensor's frame.
+  void broadcastPoses(const msg::MsgSolution& solution) {
+    std::vector<geometry_msgs::TransformStamped> tfs;
+    for (size_t k = 0; k < solution.sensors.size(); ++k) {
+      if (static_cast<int>(k) == solution.reference_sensor) continue;
+      geometry_msgs::TransformStamped tf;
+      tf.header.stamp = ros::Time::now();
+      tf.header.frame_id = solution.sensors[static_cast<size_t>(solution.reference_sensor)].frame;
+      tf.child_frame_id = solution.sensors[k].frame + child_frame_suffix;
+      tf.transform = toTransformMsg(solution.sensors[k].reference_T_sensor);
+      tfs.push_back(tf);
+    }
+    tf_broadcaster->sendTransform(tfs);
+  }
+
+  // A failed result for inspection, under a name no tool mistakes for a calibration.
+  std::string writeFailed(const ResultFile& file) {
+    if (output_dir.empty()) return "";
+    std::error_code error;
+    std::filesystem::create_directories(output_dir, error);
+    const std::string path = failedResultPath(output_dir + "/msg_rig_result.yaml");
+    const Status st = error ? Status::failure("cannot create " + output_dir) : writeResultFile(path, file);
+    if (!st) ROS_ERROR_STREAM_NAMED(kLog, "calibrator: " << st.reason);
+    return st ? path : "";
+  }
+
   bool calibrate(Calibrate::Request& req, Calibrate::Response& res) {
     std::lock_guard<std::mutex> solve_lock(solve_mutex);
     if (!req.method.empty() && req.method != "msg" && req.method != "all") {
@@ -220,45 +248,42 @@ struct RigCalibratorMode::Impl {
       for (const auto& p : problems) res.message += "; " + p;
       return true;
     }
-    // The solve runs on its own thread; feature callbacks keep flowing meanwhile.
-    auto solving = std::async(std::launch::async, [&]() { return msg::solveMsgGraph(problem, msg::MsgGraphOptions{}); });
-    const msg::MsgSolution solution = solving.get();
+    // The solve and its verdict run on their own thread; feature callbacks keep flowing meanwhile.
+    auto solving = std::async(std::launch::async, [&]() { return calibrateRig(problem, rig, target); });
+    const RigCalibration run = solving.get();
+    const msg::MsgSolution& solution = run.solution;
     if (!solution.success) {
       res.success = false;
-      res.message = "MSG graph failed: " + solution.reason;
+      res.message = "calibration failed: " + run.reason;
       ROS_WARN_STREAM_NAMED(kLog, "calibrator: " << res.message);
       return true;
     }
-    const ResultFile file = msg::msgResultFile(problem, solution);
-    res.success = true;
-    res.message = rigSolutionSummary(rig, solution, file);
+    const ResultFile& file = run.result;
+    res.message = rigSolutionSummary(rig, solution, file) + rigVerdictSummary(run);
     for (const auto& p : problems) res.message += "warning: " + p + "\n";
+    if (run.failed()) {
+      // Never broadcast, never over the good file: kept for inspection only.
+      res.success = false;
+      const std::string written = writeFailed(file);
+      if (!written.empty()) res.message += "FAILED result written for inspection to " + written + "\n";
+      ROS_ERROR_STREAM_NAMED(kLog, "calibrator: calibration failed: " << run.reason << "\n" << res.message);
+      return true;
+    }
+    res.success = true;
     res.reference_frame = solution.sensors[solution.reference_sensor].frame;
     for (const auto& s : solution.sensors) res.sensors.push_back(toSensorPoseMsg(s));
-    for (size_t i = 0; i < file.pairs.size() && i < solution.pairs.size(); ++i)
-      res.all_results.push_back(toPairResultMsg(file.pairs[i], solution.pairs[i], solution, ros::Time::now()));
+    for (size_t i = 0; i < file.pairs.size() && i < run.pairs.size(); ++i)
+      res.all_results.push_back(toPairResultMsg(file.pairs[i], run.pairs[i], solution, ros::Time::now()));
     if (!res.all_results.empty()) {
       res.result = res.all_results.front();
       result_pub.publish(res.result);
     }
     ROS_INFO_STREAM_NAMED(kLog, "calibrator:\n" << res.message);
 
-    if (broadcast_tf) {
-      std::vector<geometry_msgs::TransformStamped> tfs;
-      for (size_t k = 0; k < solution.sensors.size(); ++k) {
-        if (static_cast<int>(k) == solution.reference_sensor) continue;
-        geometry_msgs::TransformStamped tf;
-        tf.header.stamp = ros::Time::now();
-        tf.header.frame_id = res.reference_frame;
-        tf.child_frame_id = solution.sensors[k].frame + child_frame_suffix;
-        tf.transform = toTransformMsg(solution.sensors[k].reference_T_sensor);
-        tfs.push_back(tf);
-      }
-      tf_broadcaster->sendTransform(tfs);
-    }
+    if (broadcast_tf) broadcastPoses(solution);
     const std::string written = writeOutputs(file, solution);
     if (!written.empty()) res.message += "result written to " + written + "\n";
-    const std::string report = writeReport(problem, solution, file);
+    const std::string report = writeReport(run.problem, solution, file);
     if (!report.empty()) res.message += "report written to " + report + "\n";
     std::lock_guard<std::mutex> lock(mutex);
     last_solution = solution;
@@ -423,7 +448,14 @@ std::unique_ptr<RigCalibratorMode> RigCalibratorMode::create(ros::NodeHandle nh,
   m.output_dir = outputDirParam(pnh);
 
   m.last_message_wall.assign(rig->cameras.size() + rig->lidars.size(), ros::WallTime());
-  m.session = std::make_unique<msg::RigSession>(rig->sensorNames(), rig->sensorSpecs(), msg::rigSessionOptionsFor(*rig));
+  auto target = loadTarget(rig->target_path);
+  if (!target) {
+    *error = "rig target: " + target.error();
+    return nullptr;
+  }
+  m.target = *target;
+  m.session = std::make_unique<msg::RigSession>(rig->sensorNames(), rig->sensorSpecs(), msg::rigSessionOptionsFor(*rig),
+                                                m.target);
   std::string session_file;
   if (pnh.getParam("session_file", session_file) && !session_file.empty()) {
     const Status st = m.session->load(session_file);

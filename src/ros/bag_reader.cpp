@@ -154,4 +154,45 @@ Status readBags(const std::vector<std::string>& paths, const BagTopics& topics, 
   return Status::success();
 }
 
+Expected<BagFrameStats> readBagFrames(const std::vector<std::string>& paths, const BagTopics& topics,
+                                      const BagFrameCallbacks& frames) {
+  if (topics.image_topics.size() != topics.camera_info_topics.size())
+    return Expected<BagFrameStats>::failure("every image topic needs its camera_info topic");
+  std::map<std::string, std::string> info_of;  // image topic -> camera_info topic
+  for (size_t i = 0; i < topics.image_topics.size(); ++i) info_of[topics.image_topics[i]] = topics.camera_info_topics[i];
+  std::map<std::string, CameraIntrinsics> newest;  // camera_info topic -> newest intrinsics
+  std::map<std::string, std::vector<ImageFrame>> waiting;  // image topic -> images before the first camera_info
+  BagFrameStats stats;
+  BagCallbacks cb;
+  cb.on_camera_info = [&](const std::string& topic, const std::string&, const CameraIntrinsics& in) {
+    newest[topic] = in;
+    for (auto& [image_topic, images] : waiting) {
+      if (info_of[image_topic] != topic) continue;
+      for (const auto& f : images)
+        if (frames.on_image) frames.on_image(f, in);
+      images.clear();
+    }
+  };
+  cb.on_image = [&](const ImageFrame& f) {
+    const auto in = newest.find(info_of[f.topic]);
+    if (in != newest.end()) {
+      if (frames.on_image) frames.on_image(f, in->second);
+      return;
+    }
+    auto& held = waiting[f.topic];
+    if (held.size() < kMaxImagesBeforeCameraInfo) {
+      held.push_back(f);
+      ++stats.images_before_info[f.topic];
+    } else {
+      ++stats.images_dropped[f.topic];
+    }
+  };
+  cb.on_cloud = frames.on_cloud;
+  cb.on_bad_message = frames.on_bad_message;
+  const Status read = readBags(paths, topics, cb);
+  if (!read) return Expected<BagFrameStats>::failure(read.reason);
+  for (const auto& [topic, images] : waiting) stats.images_dropped[topic] += images.size();
+  return stats;
+}
+
 }  // namespace board_calib

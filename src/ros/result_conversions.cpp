@@ -1,6 +1,7 @@
 // Solve results -> CalibrationResult / SensorPose messages (declared in conversions.h). Apart
 // from conversions.cpp so the message-level fuzzer links without the solver and graph modules.
 #include <board_calib/conversions.h>
+#include <board_calib/core/pipeline/rig_calibration.h>
 
 #include <algorithm>
 #include <cmath>
@@ -46,12 +47,14 @@ CalibrationResult toResultMsg(const CalibrationSolution& s, const VerdictReport&
   return m;
 }
 
-CalibrationResult toPairResultMsg(const PairEntry& p, const msg::PairEstimate& pair, const msg::MsgSolution& s,
+CalibrationResult toPairResultMsg(const PairEntry& p, const RigPairRun& pair, const msg::MsgSolution& s,
                                   const ros::Time& stamp) {
   CalibrationResult m;
   m.header.stamp = stamp;
   m.header.frame_id = p.lidar_frame;
-  m.success = true;
+  m.success = pair.verdict.verdict != Verdict::kFailed;
+  m.verdict = p.verdict;
+  m.verdict_reason = p.verdict_reason;
   m.method = "msg";
   m.camera_frame = p.camera_frame;
   m.lidar_frame = p.lidar_frame;
@@ -63,13 +66,15 @@ CalibrationResult toPairResultMsg(const PairEntry& p, const msg::PairEstimate& p
   m.covariance.fill(std::nan(""));
   m.stddev_translation_m.fill(std::nan(""));
   m.stddev_rotation_deg.fill(std::nan(""));
-  if (pair.has_covariance) {
+  // The verdict's uncertainty: grown with residuals beyond the noise model and the
+  // cross-validation's spread.
+  if (pair.verdict.covariance.diagonal().maxCoeff() > 0) {
     for (int i = 0; i < 3; ++i) {
-      m.stddev_translation_m[i] = pair.stddev.translation_m[i];
-      m.stddev_rotation_deg[i] = pair.stddev.rotation_deg[i];
+      m.stddev_translation_m[i] = pair.verdict.stddev.translation_m[i];
+      m.stddev_rotation_deg[i] = pair.verdict.stddev.rotation_deg[i];
     }
     for (int r = 0; r < 6; ++r)
-      for (int c = 0; c < 6; ++c) m.covariance[r * 6 + c] = pair.covariance(r, c);
+      for (int c = 0; c < 6; ++c) m.covariance[r * 6 + c] = pair.verdict.covariance(r, c);
   }
   m.notes = s.notes;
   return m;

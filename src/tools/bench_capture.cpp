@@ -80,6 +80,9 @@ int main(int argc, char** argv) {
                       session.error().c_str());
           continue;
         }
+        // Why holds were missed, for the table's notes (stderr keeps stdout a table).
+        std::fprintf(stderr, "%s Hz %s seed %d: %s\n", rate.c_str(), layout.c_str(), seed,
+                     session->capture_summary.c_str());
         const PairCalibration run = calibratePair(session->views, *methods, s.scene.target, "camera", "lidar");
         const MethodRun* c = run.chosenRun();
         const auto& truth = session->truth.camera_T_lidar;

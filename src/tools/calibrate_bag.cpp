@@ -42,7 +42,7 @@ const char* kUsage =
     "         [--child-frame F] [--save-session FILE] [--load-session FILE] [--truth TRUTH.yaml]\n"
     "         [--check-truth ROT_DEG TRANS_M] [--edge-shift STEPS] [--quiet]\n"
     "       calibrate_bag --config RIG.yaml --bag FILE [--bag FILE...] --method msg [--output result.yaml]\n"
-    "         [--report DIR] [--truth TRUTH.yaml [--check-truth ROT_DEG TRANS_M]] [--capture all|still]\n"
+    "         [--report DIR] [--truth TRUTH.yaml [--check-truth ROT_DEG TRANS_M]] [--capture still|all]\n"
     "         [--quiet]   (docs/MSG.md)\n"
     "\n"
     "  --initial-guess     camera_T_lidar (p_camera = R p_lidar + t); default: closed-form initialisation\n"
@@ -56,8 +56,8 @@ const char* kUsage =
     "  --edge-shift STEPS  shift LiDAR edge points outward by STEPS horizontal steps (default 0: beam\n"
     "                      divergence cancels the extremes' inset)\n"
     "  --loss, --loss-scale  robust loss on point residuals (default tukey, 0.02 m)\n"
-    "  --capture MODE      rig: 'all' (default) makes a board pose of every stamp group; 'still' captures\n"
-    "                      one pose per still period, as the calibrator's rig mode does live\n";
+    "  --capture MODE      rig: 'still' (default) captures one pose per hold, as the calibrator's rig mode\n"
+    "                      does live; 'all' makes a board pose of every stamp group (offline only)\n";
 
 struct Args {
   std::vector<std::string> bags;
@@ -72,7 +72,7 @@ struct Args {
   std::string config;  // multi-sensor rig (MSG-Cal): everything else comes from the rig file
   double check_rot_deg = 0, check_trans_m = 0;
   double edge_shift = -1;  // horizontal steps; < 0: solver default
-  std::string capture = "all";  // rig: all | still
+  std::string capture = "still";  // rig: still | all
 };
 
 // One-line failure, as the contract asks.
@@ -199,160 +199,54 @@ void progress(bool quiet, size_t done, size_t total, size_t views) {
   if (done == total) std::cerr << "\n";
 }
 
-}  // namespace
+// Streams the bags through the pipeline (the one bag-reading loop, bag_reader.h).
+void readPairBags(const Args& args, CalibrationPipeline* pipeline, std::string* camera_frame, std::string* lidar_frame) {
+  auto counts = bagTopicCounts(args.bags);
+  if (!counts) fail(counts.error());
+  const size_t total = (*counts)[args.image_topic] + (*counts)[args.cloud_topic];
+  size_t done = 0;
+  bool have_intrinsics = false;
+  std::map<std::string, int> bad_messages;
 
-int main(int argc, char** argv) {
-  const Args args = parseArgs(argc, argv);
-  if (!args.config.empty())
-    return runRigCalibration({args.config, args.bags, args.output, args.report, args.truth, args.check_rot_deg,
-                              args.check_trans_m, args.quiet, args.capture});
-  const auto wall_start = std::chrono::steady_clock::now();
-
-  const auto parsed_methods = parseMethods(args.method);
-  if (!parsed_methods) fail(parsed_methods.error(), kExitUsage);
-  const std::vector<Method> methods = *parsed_methods;
-
-  SolverOptions solver = realLidarSolverOptions();
-  if (!args.loss.empty()) {
-    auto loss = parseRobustLoss(args.loss);
-    if (!loss) fail(loss.error(), kExitUsage);
-    solver.loss = *loss;
+  BagTopics topics{{args.image_topic}, {args.info_topic}, {args.cloud_topic}};
+  BagFrameCallbacks cb;
+  cb.on_image = [&](const ImageFrame& f, const CameraIntrinsics& intrinsics) {
+    have_intrinsics = true;
+    pipeline->addImage(f.image, intrinsics, f.frame_id, f.stamp);
+    if (camera_frame->empty()) *camera_frame = f.frame_id;
+    progress(args.quiet, ++done, total, pipeline->session().views().size());
+  };
+  cb.on_cloud = [&](const std::string&, const LidarCloud& c) {
+    pipeline->addCloud(c);
+    if (lidar_frame->empty()) *lidar_frame = c.frame_id;
+    progress(args.quiet, ++done, total, pipeline->session().views().size());
+  };
+  cb.on_bad_message = [&](const std::string& topic, const std::string& why) {
+    if (bad_messages[topic + ": " + why]++ == 0 && !args.quiet)
+      std::cerr << "\ncalibrate_bag: skipping a message on " << topic << ": " << why << "\n";
+  };
+  const auto read = readBagFrames(args.bags, topics, cb);
+  if (!read) fail(read.error());
+  pipeline->finish();
+  if (!have_intrinsics) fail("no valid camera_info on '" + args.info_topic + "'");
+  if (const auto dropped = read->images_dropped.find(args.image_topic); dropped != read->images_dropped.end())
+    std::cerr << "calibrate_bag: warning: " << dropped->second << " images arrived before the first camera_info on "
+              << args.info_topic << " and were skipped (was camera_info recorded after the images?)\n";
+  const PipelineStats& st = pipeline->stats();
+  if (!args.quiet) {
+    std::cerr << "calibrate_bag: board found in " << st.images_with_board << "/" << st.images << " images and "
+              << st.clouds_with_board << "/" << st.clouds << " clouds; " << pipeline->session().views().size() << " views kept\n"
+              << "  capture: " << pipeline->session().captureStats().summary() << "\n";
+    for (const auto& [why, n] : st.image_failures) std::cerr << "  image: " << n << " x " << why << "\n";
+    for (const auto& [why, n] : st.cloud_failures) std::cerr << "  cloud: " << n << " x " << why << "\n";
   }
-  if (args.loss_scale > 0) solver.loss_scale_m = args.loss_scale;
-  if (args.edge_shift >= 0) solver.edge_outward_shift_steps = args.edge_shift;
-  if (auto why = solver.validate(); !why.empty()) fail("solver options: " + why, kExitUsage);
+  if (st.images_with_board == 0) fail("the board was never found in the images (" + args.image_topic + ")");
+  if (st.clouds_with_board == 0) fail("the board was never found in the clouds (" + args.cloud_topic + ")");
+}
 
-  PipelineOptions options;
-  if (args.sync_tolerance > 0) options.session.sync_tolerance_s = args.sync_tolerance;
-  std::optional<Target> target;
-  if (!args.target.empty()) {
-    auto t = loadTarget(args.target);
-    if (!t) fail(t.error());
-    target = *t;
-  }
-
-  std::optional<CalibrationPipeline> pipeline;
-  CalibrationSession loaded_session(target ? *target : Target{}, options.session);
-  const CalibrationSession* session = nullptr;
-  std::string camera_frame, lidar_frame;
-
-  if (!args.load_session.empty()) {
-    const Status st = loaded_session.load(args.load_session);
-    if (!st) fail(st.reason);
-    session = &loaded_session;  // the session carries its own target
-    // A session solved against another board would pair the wrong geometry with the features.
-    if (target && targetToYaml(*target) != targetToYaml(loaded_session.target()))
-      fail("session '" + args.load_session + "' was recorded with a " + targetTypeName(loaded_session.target().type) +
-           " board of " + std::to_string(loaded_session.target().width) + " x " +
-           std::to_string(loaded_session.target().height) + " m, but --target '" + args.target + "' describes a " +
-           targetTypeName(target->type) + " board of " + std::to_string(target->width) + " x " +
-           std::to_string(target->height) + " m (drop --target to use the session's board)");
-    target = loaded_session.target();
-    if (loaded_session.views().empty()) fail("session '" + args.load_session + "' holds no views");
-  } else {
-    // Stillness is judged by the fastest stream around each image; snapshot recordings (every
-    // stream sparse) are recognised from the measured rates (core/capture/stillness.h).
-    if (args.still_frames > 0) options.session.still_frames_required = args.still_frames;
-
-    auto p = CalibrationPipeline::create(*target, options);
-    if (!p) fail(p.error());
-    pipeline.emplace(std::move(*p));
-
-    auto counts = bagTopicCounts(args.bags);
-    if (!counts) fail(counts.error());
-    const size_t total = (*counts)[args.image_topic] + (*counts)[args.cloud_topic];
-    size_t done = 0;
-    std::optional<CameraIntrinsics> intrinsics;
-    std::vector<ImageFrame> waiting_for_info;  // images before the first camera_info
-    std::map<std::string, int> bad_messages;
-
-    BagTopics topics{{args.image_topic}, {args.info_topic}, {args.cloud_topic}};
-    BagCallbacks cb;
-    auto processImage = [&](const ImageFrame& f) {
-      pipeline->addImage(f.image, *intrinsics, f.frame_id, f.stamp);
-      if (camera_frame.empty()) camera_frame = f.frame_id;
-      progress(args.quiet, ++done, total, pipeline->session().views().size());
-    };
-    cb.on_camera_info = [&](const std::string&, const std::string&, const CameraIntrinsics& in) {
-      intrinsics = in;
-      for (const auto& f : waiting_for_info) processImage(f);
-      waiting_for_info.clear();
-    };
-    size_t dropped_waiting = 0;  // images that found neither a camera_info nor room in the buffer
-    cb.on_image = [&](const ImageFrame& f) {
-      if (!intrinsics) {
-        constexpr size_t kMaxWaiting = 10;
-        if (waiting_for_info.size() < kMaxWaiting) waiting_for_info.push_back(f);
-        else ++dropped_waiting;
-        return;
-      }
-      processImage(f);
-    };
-    cb.on_cloud = [&](const std::string&, const LidarCloud& c) {
-      pipeline->addCloud(c);
-      if (lidar_frame.empty()) lidar_frame = c.frame_id;
-      progress(args.quiet, ++done, total, pipeline->session().views().size());
-    };
-    cb.on_bad_message = [&](const std::string& topic, const std::string& why) {
-      if (bad_messages[topic + ": " + why]++ == 0 && !args.quiet)
-        std::cerr << "\ncalibrate_bag: skipping a message on " << topic << ": " << why << "\n";
-    };
-    const Status read = readBags(args.bags, topics, cb);
-    if (!read) fail(read.reason);
-    pipeline->finish();
-    if (!intrinsics) fail("no valid camera_info on '" + args.info_topic + "'");
-    if (dropped_waiting > 0)
-      std::cerr << "calibrate_bag: warning: " << dropped_waiting << " images arrived before the first camera_info on "
-                << args.info_topic << " and were skipped (was camera_info recorded after the images?)\n";
-    session = &pipeline->session();
-
-    const PipelineStats& st = pipeline->stats();
-    if (!args.quiet) {
-      std::cerr << "calibrate_bag: board found in " << st.images_with_board << "/" << st.images << " images and "
-                << st.clouds_with_board << "/" << st.clouds << " clouds; " << session->views().size() << " views kept\n"
-                << "  capture: " << session->captureStats().summary() << "\n";
-      for (const auto& [why, n] : st.image_failures) std::cerr << "  image: " << n << " x " << why << "\n";
-      for (const auto& [why, n] : st.cloud_failures) std::cerr << "  cloud: " << n << " x " << why << "\n";
-    }
-    if (st.images_with_board == 0) fail("the board was never found in the images (" + args.image_topic + ")");
-    if (st.clouds_with_board == 0) fail("the board was never found in the clouds (" + args.cloud_topic + ")");
-  }
-
-  const std::vector<View> views = session->plainViews();
-  if (views.empty()) fail("no view has the board in both sensors at the same time (check --sync-tolerance)");
-  if (camera_frame.empty()) camera_frame = views.front().camera.frame_id;
-  if (lidar_frame.empty()) lidar_frame = views.front().lidar.frame_id;
-  if (!args.save_session.empty()) {
-    const Status st = session->save(args.save_session);
-    if (!st) fail(st.reason);
-  }
-
-  // Consistency, every method, the verdict and the choice: the same run as the live calibrator's.
-  PairCalibrationOptions run_options;
-  run_options.solver = solver;
-  const PairCalibration run = calibratePair(views, methods, *target, camera_frame, lidar_frame, run_options, args.guess);
-  if (run.runs.empty()) fail("calibration failed: " + run.reason);  // refused before any solve
-  std::vector<CalibrationSolution> solutions;
-  for (const auto& r : run.runs) solutions.push_back(r.solution);
-  for (const auto& r : run.runs)
-    std::cout << solutionSummary(r.solution) << "  verdict: " << verdictName(r.verdict.verdict) << " - "
-              << r.verdict.reason << "\n";
-  if (solutions.size() > 1) std::cout << "\n" << comparisonTable(solutions);
-  std::cout << "\n" << verdictSummary(run);
-  const CalibrationSolution& chosen = run.shownRun().solution;
-  const ResultFile& result = run.result;
-  for (const auto& n : result.notes)
-    if (std::find(chosen.notes.begin(), chosen.notes.end(), n) == chosen.notes.end()) std::cout << "note: " << n << "\n";
-  // A failed result is kept for inspection only, under a name no tool mistakes for a calibration.
-  const std::string output = run.failed() && !args.output.empty() ? failedResultPath(args.output) : args.output;
-  if (!output.empty()) {
-    const Status st = writeResultFile(output, result);
-    if (!st) fail(st.reason);
-    std::cout << (run.failed() ? "FAILED result written for inspection to " : "result written to ") << output << "\n";
-  }
-
-  const std::string child = args.child_frame.empty() ? camera_frame : args.child_frame;
-
+// Errors of every method against a truth file; --check-truth fails on the reported one.
+void checkTruth(const Args& args, const std::vector<CalibrationSolution>& solutions, const CalibrationSolution& chosen,
+                const std::string& camera_frame, const std::string& lidar_frame) {
   if (!args.truth.empty()) {
     auto truth = loadResultFile(args.truth);
     if (!truth) fail(truth.error());
@@ -375,25 +269,148 @@ int main(int argc, char** argv) {
   } else if (args.check_rot_deg > 0) {
     fail("--check-truth needs --truth", kExitUsage);
   }
+}
 
-  if (!args.report.empty()) {
-    PairReportInputs report;
-    report.source = "bags:";
-    for (const auto& b : args.bags) report.source += " `" + b + "`";
-    if (!args.load_session.empty()) report.source = "session `" + args.load_session + "`";
-    if (pipeline) {
-      const PipelineStats& st = pipeline->stats();
-      report.detection = "board found in " + std::to_string(st.images_with_board) + "/" + std::to_string(st.images) +
-                         " images and " + std::to_string(st.clouds_with_board) + "/" + std::to_string(st.clouds) +
-                         " clouds";
-      report.view_images = &pipeline->viewImages();
-      report.view_clouds = &pipeline->viewClouds();
-      report.camera = pipeline->cameraModel();
-    }
-    report.child_frame = child;
-    if (const Status st = writePairReport(args.report, run, *session, report); !st) fail(st.reason);
-    std::cout << "report written to " << args.report << "/report.md\n";
+SolverOptions solverOptions(const Args& args) {
+  SolverOptions solver = realLidarSolverOptions();
+  if (!args.loss.empty()) {
+    auto loss = parseRobustLoss(args.loss);
+    if (!loss) fail(loss.error(), kExitUsage);
+    solver.loss = *loss;
   }
+  if (args.loss_scale > 0) solver.loss_scale_m = args.loss_scale;
+  if (args.edge_shift >= 0) solver.edge_outward_shift_steps = args.edge_shift;
+  if (auto why = solver.validate(); !why.empty()) fail("solver options: " + why, kExitUsage);
+  return solver;
+}
+
+// report.md with the overlays of the kept frames (core/pipeline/pair_report.h).
+void writeReport(const Args& args, const PairCalibration& run, const CalibrationSession& session,
+                 const CalibrationPipeline* pipeline, const std::string& child) {
+  PairReportInputs report;
+  report.source = "bags:";
+  for (const auto& b : args.bags) report.source += " `" + b + "`";
+  if (!args.load_session.empty()) report.source = "session `" + args.load_session + "`";
+  if (pipeline) {
+    const PipelineStats& st = pipeline->stats();
+    report.detection = "board found in " + std::to_string(st.images_with_board) + "/" + std::to_string(st.images) +
+                       " images and " + std::to_string(st.clouds_with_board) + "/" + std::to_string(st.clouds) +
+                       " clouds";
+    report.view_images = &pipeline->viewImages();
+    report.view_clouds = &pipeline->viewClouds();
+    report.camera = pipeline->cameraModel();
+  }
+  report.child_frame = child;
+  if (const Status st = writePairReport(args.report, run, session, report); !st) fail(st.reason);
+  std::cout << "report written to " << args.report << "/report.md\n";
+}
+
+// A saved session (--load-session): it carries its own board, which --target must match.
+void loadSavedSession(const Args& args, std::optional<Target>* target, CalibrationSession* session) {
+  const Status st = session->load(args.load_session);
+  if (!st) fail(st.reason);
+  // A session solved against another board would pair the wrong geometry with the features.
+  if (*target && targetToYaml(**target) != targetToYaml(session->target()))
+    fail("session '" + args.load_session + "' was recorded with a " + targetTypeName(session->target().type) +
+         " board of " + std::to_string(session->target().width) + " x " +
+         std::to_string(session->target().height) + " m, but --target '" + args.target + "' describes a " +
+         targetTypeName((*target)->type) + " board of " + std::to_string((*target)->width) + " x " +
+         std::to_string((*target)->height) + " m (drop --target to use the session's board)");
+  *target = session->target();
+  if (session->views().empty()) fail("session '" + args.load_session + "' holds no views");
+}
+
+// Every method with its verdict, the side-by-side table, the verdict and the notes.
+void printRun(const PairCalibration& run) {
+  std::vector<CalibrationSolution> solutions;
+  for (const auto& r : run.runs) solutions.push_back(r.solution);
+  for (const auto& r : run.runs)
+    std::cout << solutionSummary(r.solution) << "  verdict: " << verdictName(r.verdict.verdict) << " - "
+              << r.verdict.reason << "\n";
+  if (solutions.size() > 1) std::cout << "\n" << comparisonTable(solutions);
+  std::cout << "\n" << verdictSummary(run);
+  const CalibrationSolution& chosen = run.shownRun().solution;
+  for (const auto& n : run.result.notes)
+    if (std::find(chosen.notes.begin(), chosen.notes.end(), n) == chosen.notes.end()) std::cout << "note: " << n << "\n";
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Args args = parseArgs(argc, argv);
+  if (!args.config.empty())
+    return runRigCalibration({args.config, args.bags, args.output, args.report, args.truth, args.check_rot_deg,
+                              args.check_trans_m, args.quiet, args.capture});
+  const auto wall_start = std::chrono::steady_clock::now();
+
+  const auto parsed_methods = parseMethods(args.method);
+  if (!parsed_methods) fail(parsed_methods.error(), kExitUsage);
+  const std::vector<Method> methods = *parsed_methods;
+
+  const SolverOptions solver = solverOptions(args);
+
+  PipelineOptions options;
+  if (args.sync_tolerance > 0) options.session.sync_tolerance_s = args.sync_tolerance;
+  std::optional<Target> target;
+  if (!args.target.empty()) {
+    auto t = loadTarget(args.target);
+    if (!t) fail(t.error());
+    target = *t;
+  }
+
+  std::optional<CalibrationPipeline> pipeline;
+  CalibrationSession loaded_session(target ? *target : Target{}, options.session);
+  const CalibrationSession* session = nullptr;
+  std::string camera_frame, lidar_frame;
+
+  if (!args.load_session.empty()) {
+    loadSavedSession(args, &target, &loaded_session);
+    session = &loaded_session;  // the session carries its own target
+  } else {
+    // Stillness is judged by the fastest stream around each image; snapshot recordings (every
+    // stream sparse) are recognised from the measured rates (core/capture/stillness.h).
+    if (args.still_frames > 0) options.session.still_frames_required = args.still_frames;
+
+    auto p = CalibrationPipeline::create(*target, options);
+    if (!p) fail(p.error());
+    pipeline.emplace(std::move(*p));
+
+    readPairBags(args, &*pipeline, &camera_frame, &lidar_frame);
+    session = &pipeline->session();
+  }
+
+  const std::vector<View> views = session->plainViews();
+  if (views.empty()) fail("no view has the board in both sensors at the same time (check --sync-tolerance)");
+  if (camera_frame.empty()) camera_frame = views.front().camera.frame_id;
+  if (lidar_frame.empty()) lidar_frame = views.front().lidar.frame_id;
+  if (!args.save_session.empty()) {
+    const Status st = session->save(args.save_session);
+    if (!st) fail(st.reason);
+  }
+
+  // Consistency, every method, the verdict and the choice: the same run as the live calibrator's.
+  PairCalibrationOptions run_options;
+  run_options.solver = solver;
+  const PairCalibration run = calibratePair(views, methods, *target, camera_frame, lidar_frame, run_options, args.guess);
+  if (run.runs.empty()) fail("calibration failed: " + run.reason);  // refused before any solve
+  std::vector<CalibrationSolution> solutions;
+  for (const auto& r : run.runs) solutions.push_back(r.solution);
+  printRun(run);
+  const CalibrationSolution& chosen = run.shownRun().solution;
+  const ResultFile& result = run.result;
+  // A failed result is kept for inspection only, under a name no tool mistakes for a calibration.
+  const std::string output = run.failed() && !args.output.empty() ? failedResultPath(args.output) : args.output;
+  if (!output.empty()) {
+    const Status st = writeResultFile(output, result);
+    if (!st) fail(st.reason);
+    std::cout << (run.failed() ? "FAILED result written for inspection to " : "result written to ") << output << "\n";
+  }
+
+  const std::string child = args.child_frame.empty() ? camera_frame : args.child_frame;
+
+  checkTruth(args, solutions, chosen, camera_frame, lidar_frame);
+
+  if (!args.report.empty()) writeReport(args, run, *session, pipeline ? &*pipeline : nullptr, child);
   if (run.failed()) fail("calibration failed: " + run.reason);
   if (!args.quiet)
     std::cerr << "calibrate_bag: done in "

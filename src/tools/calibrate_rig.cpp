@@ -1,30 +1,21 @@
-// MSG-Cal mode of calibrate_bag (docs/MSG.md): streams every topic of a rig from the bags, runs
-// one image detector per camera and the LiDAR detector per LiDAR, groups the features by stamp
-// into board poses, solves the multi-sensor graph and prints / writes every sensor pose, every
-// camera<->LiDAR pair with its MLRE and the consistency figures.
+// MSG-Cal mode of calibrate_bag (docs/MSG.md): argument checks and bag reading only. The frames
+// go through core/pipeline/rig_pipeline.h (detectors, capture) and the captured poses through
+// core/pipeline/rig_calibration.h (consistency, graph solve, verdict, result file): the code
+// the calibrator's rig mode runs live.
 #include "calibrate_rig.h"
 
 #include <board_calib/bag_reader.h>
 #include <board_calib/core/file_io.h>
-#include <board_calib/core/camera_model.h>
-#include <board_calib/core/image_board_detector.h>
-#include <board_calib/core/lidar_board_detector.h>
-#include <board_calib/core/msg_graph.h>
-#include <board_calib/core/msg_session.h>
+#include <board_calib/core/pipeline/rig_calibration.h>
+#include <board_calib/core/pipeline/rig_pipeline.h>
 #include <board_calib/core/result_io.h>
 #include <board_calib/core/rig_config.h>
 #include <board_calib/core/pipeline/rig_report.h>
 #include <board_calib/core/rig_report.h>
-#include <board_calib/core/rig_session.h>
-#include <board_calib/core/target.h>
 #include <board_calib/core/transform.h>
 
-#include <algorithm>
-#include <cerrno>
 #include <chrono>
-#include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <iomanip>
 #include <iostream>
 #include <map>
@@ -37,36 +28,11 @@ namespace {
 constexpr int kExitOk = 0;
 constexpr int kExitFailed = 1;
 constexpr int kExitUsage = 2;
-// Images kept per camera while its first camera_info has not arrived yet.
-constexpr size_t kMaxWaitingImages = 20;
 
 int failWith(const std::string& why, int code = kExitFailed) {
   std::cerr << "calibrate_bag: " << why << "\n";
   return code;
 }
-
-bool makeDirs(const std::string& path) {
-  std::error_code error;
-  std::filesystem::create_directories(path, error);
-  return !error;
-}
-
-struct CameraStream {
-  std::optional<ImageBoardDetector> detector;
-  std::optional<CameraModel> model;
-  std::vector<ImageFrame> waiting;  // images before the first camera_info
-  std::vector<CameraBoardFeatures> features;
-  std::string frame_id;
-  int images = 0, found = 0;
-  std::map<std::string, int> failures;
-};
-
-struct LidarStream {
-  std::vector<LidarBoardFeatures> features;
-  std::string frame_id;
-  int clouds = 0, found = 0;
-  std::map<std::string, int> failures;
-};
 
 // Ground truth a_T_b from a truth result file: a listed pair, else the two sensor poses.
 std::optional<Eigen::Isometry3d> truthPair(const ResultFile& truth, const std::string& camera,
@@ -82,14 +48,108 @@ std::optional<Eigen::Isometry3d> truthPair(const ResultFile& truth, const std::s
   return std::nullopt;
 }
 
+// The rig's topics, every one present in the bags (one reason naming all missing topics).
+Expected<BagTopics> rigTopics(const RigConfig& rig, const std::vector<std::string>& bags) {
+  auto counts = bagTopicCounts(bags);
+  if (!counts) return Expected<BagTopics>::failure(counts.error());
+  BagTopics topics;
+  for (const auto& c : rig.cameras) {
+    topics.image_topics.push_back(c.image_topic);
+    topics.camera_info_topics.push_back(c.camera_info_topic);
+  }
+  for (const auto& l : rig.lidars) topics.cloud_topics.push_back(l.cloud_topic);
+  std::string missing;
+  for (const auto* list : {&topics.image_topics, &topics.camera_info_topics, &topics.cloud_topics})
+    for (const auto& t : *list)
+      if (!counts->count(t) || counts->at(t) == 0) missing += (missing.empty() ? "" : ", ") + t;
+  if (!missing.empty()) return Expected<BagTopics>::failure("topic(s) not in the bags: " + missing);
+  return topics;
+}
+
+// Streams the bags into the pipeline; a reason when a sensor gave nothing usable.
+Status readRig(const RigArgs& args, const BagTopics& topics, RigPipeline* pipeline) {
+  const RigConfig& rig = pipeline->rig();
+  std::map<std::string, int> camera_of, lidar_of;
+  for (size_t i = 0; i < rig.cameras.size(); ++i) camera_of[rig.cameras[i].image_topic] = static_cast<int>(i);
+  for (size_t i = 0; i < rig.lidars.size(); ++i) lidar_of[rig.lidars[i].cloud_topic] = static_cast<int>(i);
+  std::map<std::string, int> bad_messages;
+  BagFrameCallbacks cb;
+  cb.on_image = [&](const ImageFrame& f, const CameraIntrinsics& in) {
+    pipeline->addImage(camera_of.at(f.topic), f.image, in, f.frame_id, f.stamp);
+  };
+  cb.on_cloud = [&](const std::string& topic, const LidarCloud& cloud) { pipeline->addCloud(lidar_of.at(topic), cloud); };
+  cb.on_bad_message = [&](const std::string& topic, const std::string& why) {
+    if (bad_messages[topic + ": " + why]++ == 0 && !args.quiet)
+      std::cerr << "calibrate_bag: skipping a message on " << topic << ": " << why << "\n";
+  };
+  const auto read = readBagFrames(args.bags, topics, cb);
+  if (!read) return Status::failure(read.error());
+  pipeline->finish();
+  for (const auto& [topic, n] : read->images_dropped)
+    if (n > 0 && !args.quiet)
+      std::cerr << "calibrate_bag: warning: " << n << " images on " << topic << " found no camera_info and were skipped\n";
+  const auto& stats = pipeline->stats();
+  for (size_t k = 0; k < stats.size(); ++k) {
+    const bool camera = k < rig.cameras.size();
+    if (!args.quiet) {
+      std::cerr << "calibrate_bag: " << (camera ? "camera " : "LiDAR ") << stats[k].name << ": board found in "
+                << stats[k].found << "/" << stats[k].frames << (camera ? " images\n" : " clouds\n");
+      for (const auto& [why, n] : stats[k].failures) std::cerr << "  " << n << " x " << why << "\n";
+    }
+    if (camera && stats[k].frames == 0)
+      return Status::failure("no image of camera '" + stats[k].name + "' could be used (no valid camera_info on '" +
+                             rig.cameras[k].camera_info_topic + "'?)");
+    if (stats[k].found == 0)
+      return Status::failure("the board was never found by " + std::string(camera ? "camera '" : "LiDAR '") +
+                             stats[k].name + "'");
+  }
+  return Status::success();
+}
+
+// Error of every pair against a truth file; `check_failed` when a pair misses the limits.
+Status truthErrors(const RigArgs& args, const ResultFile& result, std::ostream& out, bool* check_failed) {
+  auto truth = loadResultFile(args.truth);
+  if (!truth) return Status::failure("truth: " + truth.error());
+  out << "error vs truth (rotation, translation):\n" << std::fixed;
+  for (const auto& p : result.pairs) {
+    const auto T = truthPair(*truth, p.camera_frame, p.lidar_frame);
+    if (!T) return Status::failure("truth file has no pair " + p.camera_frame + " <- " + p.lidar_frame);
+    const double rot = rotationErrorDeg(p.camera_T_lidar, *T);
+    const double trans = translationErrorM(p.camera_T_lidar, *T);
+    const bool bad = (args.check_rotation_deg > 0 && rot > args.check_rotation_deg) ||
+                     (args.check_translation_m > 0 && trans > args.check_translation_m);
+    *check_failed |= bad;
+    out << "  " << p.camera_frame << " <- " << p.lidar_frame << ": " << std::setprecision(3) << rot << " deg, "
+        << std::setprecision(1) << trans * 1e3 << " mm" << (bad ? "  ** above the --check-truth limit **" : "") << "\n";
+  }
+  return Status::success();
+}
+
+Status writeReport(const RigArgs& args, const RigConfig& rig, const RigPipeline& pipeline, const RigCalibration& run,
+                   const std::string& printed) {
+  RigReportInputs inputs;
+  inputs.source = "rig `" + args.config + "`, bags:";
+  for (const auto& b : args.bags) inputs.source += " `" + b + "`";
+  for (const auto& s : pipeline.stats())
+    inputs.input_lines.push_back("`" + s.frame_id + "`: board in " + std::to_string(s.found) + "/" +
+                                 std::to_string(s.frames) + " frames");
+  inputs.input_lines.push_back(std::to_string(run.problem.poses.size()) + " board poses seen by two or more sensors (capture: " +
+                               args.capture + "; " + pipeline.session().captureStats().summary() + ")");
+  const std::string summary = rigSolutionSummary(rig, run.solution, run.result);
+  if (printed.size() > summary.size()) inputs.extra_result_text = printed.substr(summary.size());  // verdict, vs truth
+  inputs.verdict_text = rigVerdictSummary(run);
+  inputs.failed = run.failed();
+  return writeRigReport(args.report, rig, run.problem, run.solution, run.result, inputs);
+}
+
 }  // namespace
 
 int runRigCalibration(const RigArgs& args) {
   const auto wall_start = std::chrono::steady_clock::now();
   if (args.config.empty()) return failWith("--config is required", kExitUsage);
   if (args.bags.empty()) return failWith("--bag is required with --config", kExitUsage);
-  if (args.capture != "all" && args.capture != "still")
-    return failWith("--capture must be 'all' or 'still', not '" + args.capture + "'", kExitUsage);
+  const auto capture = parseRigCapture(args.capture);
+  if (!capture) return failWith("--" + capture.error(), kExitUsage);
   if ((args.check_rotation_deg > 0 || args.check_translation_m > 0) && args.truth.empty())
     return failWith("--check-truth needs --truth", kExitUsage);
 
@@ -97,223 +157,46 @@ int runRigCalibration(const RigArgs& args) {
   if (!rig) return failWith(rig.error());
   auto target = loadTarget(rig->target_path);
   if (!target) return failWith("rig target: " + target.error());
+  auto topics = rigTopics(*rig, args.bags);
+  if (!topics) return failWith(topics.error());
+  RigPipelineOptions options = rigPipelineOptionsFor(*rig);
+  options.capture = *capture;
+  auto pipeline = RigPipeline::create(*rig, *target, options);
+  if (!pipeline) return failWith(pipeline.error());
+  if (const Status read = readRig(args, *topics, &*pipeline); !read) return failWith(read.reason);
+  auto problem = pipeline->problem();
+  if (!problem) return failWith(problem.error());
+  if (!args.quiet)
+    std::cerr << "calibrate_bag: " << problem->poses.size() << " board poses (capture " << args.capture << ": "
+              << pipeline->session().captureStats().summary() << ")\n";
+  for (const auto& p : pipeline->session().problems())
+    if (!args.quiet) std::cerr << "  warning: " << p << "\n";
+  if (problem->poses.empty())
+    return failWith("no board pose was seen still by two sensors at once (" +
+                    pipeline->session().captureStats().summary() + "; check stamp_tolerance_s)");
 
-  // Check every topic up front: one reason naming all missing topics beats a late failure.
-  auto counts = bagTopicCounts(args.bags);
-  if (!counts) return failWith(counts.error());
-  std::vector<std::string> missing;
-  BagTopics topics;
-  for (const auto& c : rig->cameras) {
-    topics.image_topics.push_back(c.image_topic);
-    topics.camera_info_topics.push_back(c.camera_info_topic);
-  }
-  for (const auto& l : rig->lidars) topics.cloud_topics.push_back(l.cloud_topic);
-  for (const auto* list : {&topics.image_topics, &topics.camera_info_topics, &topics.cloud_topics})
-    for (const auto& t : *list)
-      if (!counts->count(t) || counts->at(t) == 0) missing.push_back(t);
-  if (!missing.empty()) {
-    std::string all;
-    for (const auto& t : missing) all += (all.empty() ? "" : ", ") + t;
-    return failWith("topic(s) not in the bags: " + all);
-  }
-
-  const size_t num_cameras = rig->cameras.size();
-  std::vector<CameraStream> cameras(num_cameras);
-  std::vector<LidarStream> lidars(rig->lidars.size());
-  std::map<std::string, size_t> image_index, info_index, cloud_index;
-  for (size_t i = 0; i < num_cameras; ++i) {
-    auto det = ImageBoardDetector::create(*target, ImageBoardDetectorOptions{});
-    if (!det) return failWith("image detector: " + det.error());
-    cameras[i].detector.emplace(std::move(*det));
-    image_index[rig->cameras[i].image_topic] = i;
-    info_index[rig->cameras[i].camera_info_topic] = i;
-  }
-  for (size_t i = 0; i < rig->lidars.size(); ++i) cloud_index[rig->lidars[i].cloud_topic] = i;
-
-  std::string stream_error;
-  auto detectImage = [&](CameraStream& cs, const ImageFrame& f) {
-    ImageDetection d = cs.detector->detect(f.image, *cs.model);
-    d.features.stamp = f.stamp;
-    if (d.features.frame_id.empty()) d.features.frame_id = f.frame_id;
-    ++cs.images;
-    if (d.features.found) {
-      ++cs.found;
-      cs.features.push_back(std::move(d.features));
-    } else {
-      ++cs.failures[d.features.reason];
-    }
-  };
-  std::map<std::string, int> bad_messages;
-  BagCallbacks cb;
-  cb.on_camera_info = [&](const std::string& topic, const std::string&, const CameraIntrinsics& in) {
-    CameraStream& cs = cameras[info_index.at(topic)];
-    if (cs.model) return;  // intrinsics are fixed for the run
-    auto model = CameraModel::create(in);
-    if (!model) {
-      if (stream_error.empty()) stream_error = "camera_info on '" + topic + "': " + model.error();
-      return;
-    }
-    cs.model.emplace(std::move(*model));
-    for (const auto& f : cs.waiting) detectImage(cs, f);
-    cs.waiting.clear();
-  };
-  cb.on_image = [&](const ImageFrame& f) {
-    CameraStream& cs = cameras[image_index.at(f.topic)];
-    if (cs.frame_id.empty()) cs.frame_id = f.frame_id;
-    if (!cs.model) {
-      if (cs.waiting.size() < kMaxWaitingImages) cs.waiting.push_back(f);
-      return;
-    }
-    detectImage(cs, f);
-  };
-  cb.on_cloud = [&](const std::string& topic, const LidarCloud& cloud) {
-    LidarStream& ls = lidars[cloud_index.at(topic)];
-    if (ls.frame_id.empty()) ls.frame_id = cloud.frame_id;
-    LidarBoardDetection d = detectLidarBoard(cloud, *target);
-    if (d.features.frame_id.empty()) d.features.frame_id = cloud.frame_id;
-    ++ls.clouds;
-    if (d.features.found) {
-      ++ls.found;
-      ls.features.push_back(std::move(d.features));
-    } else {
-      ++ls.failures[d.features.reason];
-    }
-  };
-  cb.on_bad_message = [&](const std::string& topic, const std::string& why) {
-    if (bad_messages[topic + ": " + why]++ == 0 && !args.quiet)
-      std::cerr << "calibrate_bag: skipping a message on " << topic << ": " << why << "\n";
-  };
-  const Status read = readBags(args.bags, topics, cb);
-  if (!read) return failWith(read.reason);
-  if (!stream_error.empty()) return failWith(stream_error);
-  const double detect_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
-
-  // Sensors are named by their bag frame_id (what TF and the truth file use).
-  std::vector<msg::SensorSpec> specs = rig->sensorSpecs();
-  std::map<int, std::vector<CameraBoardFeatures>> camera_streams;
-  std::map<int, std::vector<LidarBoardFeatures>> lidar_streams;
-  for (size_t i = 0; i < num_cameras; ++i) {
-    const auto& cs = cameras[i];
-    if (!cs.model) return failWith("no valid camera_info on '" + rig->cameras[i].camera_info_topic + "'");
-    if (!cs.frame_id.empty()) specs[i].frame = cs.frame_id;
-    if (!args.quiet) {
-      std::cerr << "calibrate_bag: camera " << rig->cameras[i].name << ": board found in " << cs.found << "/"
-                << cs.images << " images\n";
-      for (const auto& [why, n] : cs.failures) std::cerr << "  " << n << " x " << why << "\n";
-    }
-    if (cs.found == 0) return failWith("the board was never found by camera '" + rig->cameras[i].name + "'");
-    camera_streams[static_cast<int>(i)] = cs.features;
-  }
-  for (size_t i = 0; i < lidars.size(); ++i) {
-    const auto& ls = lidars[i];
-    const int k = static_cast<int>(num_cameras + i);
-    if (!ls.frame_id.empty()) specs[k].frame = ls.frame_id;
-    if (!args.quiet) {
-      std::cerr << "calibrate_bag: LiDAR " << rig->lidars[i].name << ": board found in " << ls.found << "/"
-                << ls.clouds << " clouds\n";
-      for (const auto& [why, n] : ls.failures) std::cerr << "  " << n << " x " << why << "\n";
-    }
-    if (ls.found == 0) return failWith("the board was never found by LiDAR '" + rig->lidars[i].name + "'");
-    lidar_streams[k] = ls.features;
-  }
-
-  std::vector<msg::BoardPoseObservation> poses;
-  if (args.capture == "still") {
-    // The live rule (msg::RigSession): the features in stamp order, one pose per still period.
-    struct Item {
-      double stamp;
-      int sensor;
-      const CameraBoardFeatures* camera;
-      const LidarBoardFeatures* lidar;
-    };
-    std::vector<Item> items;
-    for (const auto& [k, fs] : camera_streams)
-      for (const auto& f : fs) items.push_back({f.stamp, k, &f, nullptr});
-    for (const auto& [k, fs] : lidar_streams)
-      for (const auto& f : fs) items.push_back({f.stamp, k, nullptr, &f});
-    std::stable_sort(items.begin(), items.end(), [](const Item& a, const Item& b) { return a.stamp < b.stamp; });
-    msg::RigSession session(rig->sensorNames(), specs, msg::rigSessionOptionsFor(*rig));
-    for (const auto& it : items) {
-      if (it.camera) session.addCamera(it.sensor, *it.camera);
-      else session.addLidar(it.sensor, *it.lidar);
-    }
-    session.flush();
-    for (const auto& p : session.poses()) poses.push_back(p.observation);
-    if (!args.quiet) {
-      std::cerr << "calibrate_bag: " << poses.size() << " board poses captured (one per still period)\n";
-      for (const auto& p : session.problems()) std::cerr << "  warning: " << p << "\n";
-    }
-  } else {
-    msg::GroupingOptions grouping;
-    grouping.stamp_tolerance_s = rig->stamp_tolerance_s;
-    auto grouped = msg::groupByStamp(specs, camera_streams, lidar_streams, grouping);
-    if (!grouped) return failWith("grouping: " + grouped.error());
-    if (!args.quiet)
-      std::cerr << "calibrate_bag: " << grouped->poses.size() << " board poses (" << grouped->features_used << "/"
-                << grouped->features_in << " features used, " << grouped->groups_dropped
-                << " stamp groups with fewer than " << grouping.min_sensors << " sensors dropped)\n";
-    poses = grouped->poses;
-  }
-  if (poses.empty()) return failWith("no board pose was seen by two sensors at once (check stamp_tolerance_s)");
-
-  msg::MsgProblem problem;
-  problem.sensors = specs;
-  problem.reference_sensor = rig->sensorIndex(rig->reference);
-  problem.poses = poses;
-  const msg::MsgSolution solution = msg::solveMsgGraph(problem, msg::MsgGraphOptions{});
-  if (!solution.success) return failWith("MSG graph failed: " + solution.reason);
-
-  const ResultFile result = msg::msgResultFile(problem, solution);
+  const RigCalibration run = calibrateRig(*problem, *rig, *target);
+  if (!run.solution.success) return failWith("calibration failed: " + run.reason);
   std::ostringstream out;
-  out << rigSolutionSummary(*rig, solution, result) << std::fixed;
-
+  out << rigSolutionSummary(*rig, run.solution, run.result) << "\n" << rigVerdictSummary(run);
   bool check_failed = false;
-  if (!args.truth.empty()) {
-    auto truth = loadResultFile(args.truth);
-    if (!truth) return failWith("truth: " + truth.error());
-    out << "error vs truth (rotation, translation):\n";
-    for (const auto& p : result.pairs) {
-      const auto T = truthPair(*truth, p.camera_frame, p.lidar_frame);
-      if (!T) return failWith("truth file has no pair " + p.camera_frame + " <- " + p.lidar_frame);
-      const double rot = rotationErrorDeg(p.camera_T_lidar, *T);
-      const double trans = translationErrorM(p.camera_T_lidar, *T);
-      const bool bad = (args.check_rotation_deg > 0 && rot > args.check_rotation_deg) ||
-                       (args.check_translation_m > 0 && trans > args.check_translation_m);
-      check_failed |= bad;
-      out << "  " << p.camera_frame << " <- " << p.lidar_frame << ": " << std::setprecision(3) << rot << " deg, "
-          << std::setprecision(1) << trans * 1e3 << " mm" << (bad ? "  ** above the --check-truth limit **" : "")
-          << "\n";
-    }
-  }
+  if (!args.truth.empty())
+    if (const Status st = truthErrors(args, run.result, out, &check_failed); !st) return failWith(st.reason);
   std::cout << out.str();
-
+  // A failed result is kept for inspection only, under a name no tool mistakes for a calibration.
   if (!args.output.empty()) {
-    const Status st = writeResultFile(args.output, result);
-    if (!st) return failWith(st.reason);
-    std::cout << "result written to " << args.output << "\n";
+    const std::string output = run.failed() ? failedResultPath(args.output) : args.output;
+    if (const Status st = writeResultFile(output, run.result); !st) return failWith(st.reason);
+    std::cout << (run.failed() ? "FAILED result written for inspection to " : "result written to ") << output << "\n";
   }
   if (!args.report.empty()) {
-    if (!makeDirs(args.report)) return failWith("cannot create report folder '" + args.report + "'");
-    RigReportInputs inputs;
-    inputs.source = "rig `" + args.config + "`, bags:";
-    for (const auto& b : args.bags) inputs.source += " `" + b + "`";
-    for (size_t i = 0; i < num_cameras; ++i)
-      inputs.input_lines.push_back("camera `" + specs[i].frame + "`: board in " + std::to_string(cameras[i].found) +
-                                   "/" + std::to_string(cameras[i].images) + " images");
-    for (size_t i = 0; i < lidars.size(); ++i)
-      inputs.input_lines.push_back("LiDAR `" + specs[num_cameras + i].frame + "`: board in " +
-                                   std::to_string(lidars[i].found) + "/" + std::to_string(lidars[i].clouds) + " clouds");
-    inputs.input_lines.push_back("capture: " + args.capture);
-    const std::string printed = out.str(), summary = rigSolutionSummary(*rig, solution, result);
-    if (printed.size() > summary.size()) inputs.extra_result_text = printed.substr(summary.size());  // vs truth
-    const Status st = writeRigReport(args.report, *rig, problem, solution, result, inputs);
-    if (!st) return failWith(st.reason);
+    if (const Status st = writeReport(args, *rig, *pipeline, run, out.str()); !st) return failWith(st.reason);
     std::cout << "report written to " << args.report << "/report.md\n";
   }
   if (!args.quiet)
     std::cerr << "calibrate_bag: done in "
-              << std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count()
-              << " s (reading + detection " << detect_s << " s)\n";
+              << std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count() << " s\n";
+  if (run.failed()) return failWith("calibration failed: " + run.reason);
   if (check_failed) return failWith("a pair is outside the --check-truth limits");
   return kExitOk;
 }

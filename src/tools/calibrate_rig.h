@@ -15,7 +15,7 @@ struct RigArgs {
   double check_rotation_deg = 0.0;  ///< deg, > 0 with `truth`: fail when a pair's rotation error exceeds it
   double check_translation_m = 0.0; ///< m, > 0 with `truth`: fail when a pair's translation error exceeds it
   bool quiet = false;
-  std::string capture = "all";      ///< "all": a board pose per stamp group; "still": one per still period (live rule)
+  std::string capture = "still";    ///< "still": one pose per hold (the live rule); "all": a pose per stamp group
 };
 
 /// Runs the whole rig calibration; returns the process exit code (0 ok, 1 failed, 2 usage).

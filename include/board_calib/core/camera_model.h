@@ -27,6 +27,13 @@ struct CameraIntrinsics {
   std::vector<double> coeffs;
 };
 
+/// Same calibration (a camera model built for one serves the other).
+inline bool operator==(const CameraIntrinsics& a, const CameraIntrinsics& b) {
+  return a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy && a.cx == b.cx &&
+         a.cy == b.cy && a.model == b.model && a.coeffs == b.coeffs;
+}
+inline bool operator!=(const CameraIntrinsics& a, const CameraIntrinsics& b) { return !(a == b); }
+
 class CameraModel {
  public:
   CameraModel() = default;

@@ -28,6 +28,9 @@ struct PairEntry {
   Eigen::Isometry3d camera_T_lidar = Eigen::Isometry3d::Identity();
   std::optional<double> mlre_px;
   std::optional<PoseStddev> stddev;  ///< 1 sigma of camera_T_lidar, as the single-pair `stddev`
+  std::string verdict;               ///< good | doubtful | failed (empty: not judged)
+  std::string verdict_reason;        ///< one line
+  std::vector<int> views_to_check;   ///< board pose ids
 };
 
 struct ResultFile {

@@ -1,18 +1,24 @@
 // Live multi-sensor session for MSG-Cal: takes the board features of N cameras and M LiDARs as
-// they arrive, captures one board pose per still period (the board held still and in a new
-// place), assembles every sensor's feature of that moment into a BoardPoseObservation, and keeps
-// the captured poses so they can be saved, reloaded, dropped and solved again. ROS-free.
+// they arrive, captures one board pose per hold (the board held still in a new place),
+// assembles every sensor's feature of that moment into a BoardPoseObservation, and keeps the
+// captured poses so they can be saved, reloaded, dropped and solved again. ROS-free.
 //
-// Capture rule: a sensor that sees the board still for `still_frames_required` consecutive
-// frames triggers a capture at its stamp, unless that sensor already saw a captured pose within
-// `min_pose_rotation_deg` and `min_pose_translation_m`. The pose is assembled once every stream
-// has moved past the trigger stamp plus the tolerance (late scans still make it in), or at once
-// on captureNow() / flush().
+// Capture rule: the same stillness judge as the pair session (capture/stillness.h). Every
+// found frame of any sensor is a candidate moment, judged once
+// every active stream has passed the still window around it: the streams that see the board
+// there must agree it is still, the fastest of them counted on both sides of the moment;
+// snapshot recordings (every stream sparse) make every moment a candidate. A still moment seen
+// by `min_sensors` sensors within `stamp_tolerance_s` becomes a pose, unless a sensor already
+// saw a captured pose there (`min_pose_*`); later frames of the same hold replace it when they
+// are better (more sensors, closer stamps). Why candidates were skipped is counted in words.
 #pragma once
 
 #include <board_calib/core/msg_graph.h>
 #include <board_calib/core/rig_config.h>
+#include <board_calib/core/capture/stillness.h>
 #include <board_calib/core/session.h>
+
+#include <deque>
 
 #include <functional>
 #include <limits>
@@ -24,18 +30,21 @@ namespace board_calib {
 namespace msg {
 
 struct RigSessionOptions {
-  double stamp_tolerance_s = 0.05;      ///< s, a sensor's feature belongs to a pose within this of its trigger stamp
+  double stamp_tolerance_s = 0.05;      ///< s, a sensor's feature belongs to a pose within this of its moment
   bool auto_capture = true;             ///< capture on stillness; false: only captureNow()
-  int still_frames_required = 2;        ///< consecutive frames one sensor must see the board still
-  double still_max_translation_m = 0.03;  ///< m, board centre motion allowed between those frames
-  double still_max_rotation_deg = 1.5;    ///< deg, board normal change allowed between those frames
-  double still_max_gap_s = 1.0;         ///< s, frames further apart than this do not count as consecutive
+  int still_frames_required = 2;        ///< frames of the fastest stream seeing the board in the still window,
+                                        ///< on both sides of the moment (1 = no stillness check)
+  double still_window_s = 0.25;         ///< s, the board must be still this long before and after the moment
+  double still_max_translation_m = 0.03;  ///< m, board centre motion allowed inside the window (beyond noise)
+  double still_max_rotation_deg = 1.5;    ///< deg, board normal change allowed inside the window (beyond noise)
+  double snapshot_interval_s = 0.5;     ///< s, every stream sparser than this: one frame per pose
   double min_pose_rotation_deg = 5.0;   ///< deg, a new pose's normal must differ this much ...
-  double min_pose_translation_m = 0.20; ///< m, ... or its centre move this much (in the triggering sensor)
+  double min_pose_translation_m = 0.20; ///< m, ... or its centre move this much (in every sensor that saw both)
   int min_sensors = 2;                  ///< sensors that must see the board for a pose to be kept
   int max_poses = 300;                  ///< poses kept at most
-  double history_s = 3.0;               ///< s, features kept per stream for assembly
+  double history_s = 3.0;               ///< s, features kept per stream for assembly and judgement
   std::string validate() const;         ///< empty when usable
+  StillnessOptions stillness() const;
 };
 
 /// Defaults with the rig file's stamp tolerance (and a history long enough for it).
@@ -67,8 +76,10 @@ struct RigSensorHealth {
 
 class RigSession {
  public:
-  /// `names` are the rig's sensor names, `sensors` the specs in the same (MsgProblem) order.
-  RigSession(std::vector<std::string> names, std::vector<SensorSpec> sensors, RigSessionOptions options);
+  /// `names` are the rig's sensor names, `sensors` the specs in the same (MsgProblem) order;
+  /// `target` (when known) sizes the cameras' stillness noise.
+  RigSession(std::vector<std::string> names, std::vector<SensorSpec> sensors, RigSessionOptions options,
+             std::optional<Target> target = std::nullopt);
 
   /// Feed one camera / LiDAR feature of sensor `sensor` (its index in the specs). Features of
   /// the wrong kind or index give a kRejected event naming the problem.
@@ -77,8 +88,11 @@ class RigSession {
   /// Captures the current moment now (the newest found feature's stamp), stillness and novelty
   /// not required; still needs `min_sensors` sensors.
   SessionEvent captureNow();
-  /// Assembles a pending capture now (before solving or saving: the last pose of a bag).
+  /// Judges every candidate still waiting for later frames with what is there (end of a bag,
+  /// before solving or saving). Returns the most significant event.
   SessionEvent flush();
+  /// Why candidates were captured or skipped, counted by kind.
+  const CaptureStats& captureStats() const { return stats_; }
 
   const std::vector<RigSessionPose>& poses() const { return poses_; }
   /// The problem to solve: sensors (frames from the features seen) and every captured pose.
@@ -113,23 +127,25 @@ class RigSession {
   struct Stream {
     std::vector<CameraBoardFeatures> cameras;  // found features, stamp order
     std::vector<LidarBoardFeatures> lidars;
-    std::optional<Summary> last;  // newest found feature
-    double last_stamp = 0.0;
-    int still_count = 0;
-    bool triggered_this_still = false;
+    std::deque<BoardSample> samples;           // every frame (found or not), for the stillness judge
+    StreamClock clock;
   };
-  struct Pending {
+  struct Candidate {
     int sensor = -1;
     double stamp = 0.0;
-    std::string why;
   };
 
-  SessionEvent add(int sensor, double stamp, const std::optional<Summary>& summary,
-                   const std::string& frame, const std::string& reason, const std::function<void(Stream&)>& keep);
-  SessionEvent assemble(const Pending& pending);
+  SessionEvent add(int sensor, double stamp, const BoardSample& sample, const std::string& frame,
+                   const std::string& reason, const std::function<void(Stream&)>& keep);
+  SessionEvent decideCandidates(bool ended);
+  SessionEvent decide(const Candidate& c);
+  SessionEvent skip(const std::string& kind, const std::string& why);
+  SessionEvent keepPose(BoardPoseObservation o, const std::string& why, bool snapshot);
+  BoardPoseObservation observationAt(double stamp, std::string* seen_by) const;
+  bool readyToJudge(const Candidate& c) const;
+  bool seenBefore(const BoardPoseObservation& o, int* pose_id) const;
+  bool sameHold(const BoardPoseObservation& o) const;
   void prune();
-  bool readyToAssemble(const Pending& pending) const;
-  bool seenBefore(int sensor, const Summary& s, int* pose_id) const;
   std::string whyNoPose(size_t sensor) const;  // empty unless a specific reason is known
   std::optional<Summary> summaryOf(int sensor, const BoardPoseObservation& o) const;
   static std::optional<Summary> summarize(const CameraBoardFeatures& f);  // nullopt unless found
@@ -138,10 +154,13 @@ class RigSession {
   std::vector<std::string> names_;
   std::vector<SensorSpec> sensors_;
   RigSessionOptions options_;
+  std::optional<Target> target_;
   std::vector<Stream> streams_;
   std::vector<RigSensorCounts> counts_;
   std::vector<RigSessionPose> poses_;
-  std::optional<Pending> pending_;
+  std::deque<Candidate> candidates_;  // stamp order, awaiting their judgement
+  int hold_pose_id_ = -1;             // pose taken in the current hold, -1 when none
+  CaptureStats stats_;
   int next_id_ = 0;
 };
 

@@ -17,6 +17,44 @@ double angleRad(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
 
 }  // namespace
 
+BoardSample boardSampleOf(const LidarBoardFeatures& f) {
+  BoardSample s;
+  s.stamp = f.stamp;
+  s.found = f.found && !f.board_points.empty() && f.plane.normal.allFinite();
+  if (!s.found) return s;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : f.board_points) mean += p;
+  mean /= static_cast<double>(f.board_points.size());
+  double spread2 = 0.0;
+  for (const auto& p : f.board_points) spread2 += (p - mean).squaredNorm();
+  const double n = static_cast<double>(f.board_points.size());
+  const double spread = std::sqrt(spread2 / n);
+  s.centre = mean;
+  s.normal = f.plane.normal.normalized();
+  s.centre_sigma_m = f.plane_rms_m / std::sqrt(n);
+  s.normal_sigma_rad = spread > 0 ? f.plane_rms_m / (std::sqrt(n) * spread) : 0.0;
+  return s;
+}
+
+BoardSample boardSampleOf(const CameraBoardFeatures& f, const Target* target) {
+  constexpr double kMinPixelSigma = 0.2;  // px, a PnP is never better than this
+  constexpr double kUnknownBoardSizeM = 1.0;
+  BoardSample s;
+  s.stamp = f.stamp;
+  s.found = f.found && f.plane.normal.allFinite() && f.camera_T_board.matrix().allFinite();
+  if (!s.found) return s;
+  s.centre = target ? f.camera_T_board * target->center() : f.camera_T_board.translation();
+  s.normal = f.plane.normal.normalized();
+  const double fx = f.K(0, 0) > 0 ? f.K(0, 0) : 1.0;
+  const double pixel_rad = std::max(f.reprojection_rms_px, kMinPixelSigma) / fx;
+  const double range = s.centre.norm();
+  const double size = target ? std::min(target->width, target->height) : kUnknownBoardSizeM;
+  const double half_size = 0.5 * std::max(1e-3, size);
+  s.centre_sigma_m = pixel_rad * range * std::max(1.0, range / half_size);
+  s.normal_sigma_rad = pixel_rad * range / half_size;
+  return s;
+}
+
 std::string StillnessOptions::validate() const {
   if (!(window_s > 0.0) || !std::isfinite(window_s) || window_s > 10.0) return "still window must be in (0, 10] s";
   if (min_frames < 1 || min_frames > 1000) return "still frames must be in [1, 1000]";
@@ -71,6 +109,7 @@ StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, d
       continue;
     }
     if (interval <= o.snapshot_interval_s) all_sparse = false;
+    if (!streams[s].judged) continue;
     if (j.fastest_stream < 0 || interval < fastest_interval) {
       j.fastest_stream = static_cast<int>(s);
       fastest_interval = interval;
@@ -99,23 +138,25 @@ StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, d
   if (!ended && fast.clock->newest() < hi) return j;  // the window is not complete yet
 
   for (size_t s = 0; s < streams.size(); ++s) {
+    if (!streams[s].judged) continue;
     const auto& samples = *streams[s].samples;
-    // Reference: the frame nearest the moment.
+    // Reference: the frame nearest the moment that sees the board.
     const BoardSample* ref = nullptr;
     for (const auto& x : samples)
-      if (x.stamp >= lo && x.stamp <= hi && (!ref || std::abs(x.stamp - stamp) < std::abs(ref->stamp - stamp)))
+      if (x.found && x.stamp >= lo && x.stamp <= hi &&
+          (!ref || std::abs(x.stamp - stamp) < std::abs(ref->stamp - stamp)))
         ref = &x;
-    int before = 0, after = 0, count = 0;
+    int before = 0, after = 0, count = 0, missing = 0;
     for (const auto& x : samples) {
       if (x.stamp < lo || x.stamp > hi) continue;
+      // A detector misses a still board now and then: such a frame is no evidence either way.
+      if (!x.found) {
+        ++missing;
+        continue;
+      }
       ++count;
       if (x.stamp < stamp) ++before;
       if (x.stamp > stamp) ++after;
-      if (!x.found) {
-        j.state = StillState::kNoBoard;
-        j.why = streams[s].name + " lost the board " + formatFixed(std::abs(x.stamp - stamp), 2) + " s from the image";
-        return j;
-      }
       const double move = (x.centre - ref->centre).norm();
       const double move_tol =
           o.max_translation_m + o.noise_factor * std::hypot(x.centre_sigma_m, ref->centre_sigma_m);
@@ -129,6 +170,13 @@ StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, d
                 formatFixed(move_tol * 100, 1) + " cm, " + formatFixed(turn_tol * kDegPerRadian, 1) + " deg)";
         return j;
       }
+    }
+    // Lost in most of the window: the board left the view (or was never there).
+    if (missing > 0 && missing >= count) {
+      j.state = StillState::kNoBoard;
+      j.why = streams[s].name + " lost the board in " + std::to_string(missing) + " of " + std::to_string(missing + count) +
+              " frames within " + formatFixed(o.window_s, 2) + " s of the image";
+      return j;
     }
     if (static_cast<int>(s) == j.fastest_stream) {
       j.fastest_frames = count;

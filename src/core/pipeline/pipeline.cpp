@@ -13,11 +13,6 @@ double elapsedMs(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - since).count();
 }
 
-bool sameIntrinsics(const CameraIntrinsics& a, const CameraIntrinsics& b) {
-  return a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy && a.cx == b.cx &&
-         a.cy == b.cy && a.model == b.model && a.coeffs == b.coeffs;
-}
-
 }  // namespace
 
 std::string PipelineOptions::validate() const {
@@ -98,7 +93,7 @@ FrameOutcome CalibrationPipeline::addImage(const cv::Mat& image, const CameraInt
   Impl& d = *impl_;
   FrameOutcome out;
   ++d.stats.images;
-  if (!d.intrinsics || !sameIntrinsics(*d.intrinsics, intrinsics)) {
+  if (!d.intrinsics || *d.intrinsics != intrinsics) {
     auto model = CameraModel::create(intrinsics);
     if (!model) {
       ++d.stats.bad_camera_info;

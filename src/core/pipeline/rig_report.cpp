@@ -186,7 +186,9 @@ Status writeRigReport(const std::string& dir, const RigConfig& rig, const msg::M
     if (const Status st = writePairPage(dir + "/" + p.folder, p, inputs.plots); !st) return st;
 
   std::ostringstream md;
-  md << "# board_calib MSG-Cal report\n\n" << inputs.source << "\n\n## Input\n\n";
+  md << "# board_calib MSG-Cal report\n\n" << inputs.source << "\n\n";
+  if (!inputs.verdict_text.empty()) md << "## Verdict\n\n```\n" << inputs.verdict_text << "```\n\n";
+  md << "## Input\n\n";
   for (const auto& line : inputs.input_lines) md << "* " << line << "\n";
   md << "* " << problem.poses.size() << " board poses seen by two or more sensors\n\n";
   md << "## Result\n\n```\n" << rigSolutionSummary(rig, solution, result) << inputs.extra_result_text << "```\n\n";
@@ -196,7 +198,7 @@ Status writeRigReport(const std::string& dir, const RigConfig& rig, const msg::M
      << pairTable(pairs);
   md << graphDetails(solution);
   if (const Status st = writeFileAtomic(dir + "/report.md", md.str()); !st) return st;
-  return writeResultFile(dir + "/result.yaml", result);
+  return writeResultFile(dir + (inputs.failed ? "/result.failed.yaml" : "/result.yaml"), result);
 }
 
 }  // namespace board_calib

@@ -16,6 +16,8 @@ constexpr double kDegPerRad = 180.0 / M_PI;
 // A stamp this far behind the newest one means the source restarted (a bag looped).
 constexpr double kTimeJumpBackS = 2.0;
 constexpr size_t kMaxFeaturesPerStream = 100;
+// Stillness samples per stream: history_s of a 20 Hz LiDAR with room to spare.
+constexpr size_t kMaxSamplesPerStream = 400;
 
 double angleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * kDegPerRad;
@@ -55,16 +57,24 @@ const F* closestWithin(const std::vector<F>& features, double stamp, double tole
 }  // namespace
 
 std::string RigSessionOptions::validate() const {
-  if (!(stamp_tolerance_s > 0.0)) return "stamp_tolerance_s must be > 0";
-  if (still_frames_required < 1) return "still_frames_required must be >= 1";
-  if (!(still_max_translation_m > 0.0) || !(still_max_rotation_deg > 0.0))
-    return "still_max_translation_m and still_max_rotation_deg must be > 0";
-  if (!(still_max_gap_s > 0.0)) return "still_max_gap_s must be > 0";
-  if (min_pose_rotation_deg < 0.0 || min_pose_translation_m < 0.0) return "min_pose_* must be >= 0";
+  if (!(stamp_tolerance_s > 0.0) || !std::isfinite(stamp_tolerance_s)) return "stamp_tolerance_s must be finite and > 0";
+  if (auto why = stillness().validate(); !why.empty()) return why;
+  if (!(min_pose_rotation_deg >= 0.0) || !(min_pose_translation_m >= 0.0)) return "min_pose_* must be >= 0";
   if (min_sensors < 2) return "min_sensors must be >= 2 (a pose links sensors)";
   if (max_poses < 1) return "max_poses must be >= 1";
-  if (history_s < 2.0 * stamp_tolerance_s) return "history_s must be at least twice stamp_tolerance_s";
+  if (!(history_s >= 2.0 * std::max(stamp_tolerance_s, still_window_s)) || !std::isfinite(history_s))
+    return "history_s must be at least twice stamp_tolerance_s and still_window_s";
   return "";
+}
+
+StillnessOptions RigSessionOptions::stillness() const {
+  StillnessOptions o;
+  o.window_s = still_window_s;
+  o.min_frames = still_frames_required;
+  o.max_translation_m = still_max_translation_m;
+  o.max_rotation_deg = still_max_rotation_deg;
+  o.snapshot_interval_s = snapshot_interval_s;
+  return o;
 }
 
 RigSessionOptions rigSessionOptionsFor(const RigConfig& rig) {
@@ -74,8 +84,9 @@ RigSessionOptions rigSessionOptionsFor(const RigConfig& rig) {
   return o;
 }
 
-RigSession::RigSession(std::vector<std::string> names, std::vector<SensorSpec> sensors, RigSessionOptions options)
-    : names_(std::move(names)), sensors_(std::move(sensors)), options_(options) {
+RigSession::RigSession(std::vector<std::string> names, std::vector<SensorSpec> sensors, RigSessionOptions options,
+                       std::optional<Target> target)
+    : names_(std::move(names)), sensors_(std::move(sensors)), options_(options), target_(std::move(target)) {
   names_.resize(sensors_.size());
   for (size_t i = 0; i < names_.size(); ++i)
     if (names_[i].empty()) names_[i] = sensors_[i].frame;
@@ -87,7 +98,9 @@ SessionEvent RigSession::addCamera(int sensor, const CameraBoardFeatures& f) {
   if (sensor < 0 || sensor >= static_cast<int>(sensors_.size()) || sensors_[sensor].kind != SensorKind::kCamera)
     return event(SessionEvent::Kind::kRejected, "camera features given for sensor " + std::to_string(sensor) +
                                                     ", which is not a camera of this rig");
-  return add(sensor, f.stamp, summarize(f), f.frame_id, f.reason, [&](Stream& st) {
+  BoardSample sample = boardSampleOf(f, target_ ? &*target_ : nullptr);
+  sample.found = sample.found && summarize(f).has_value();
+  return add(sensor, f.stamp, sample, f.frame_id, f.reason, [&](Stream& st) {
     if (st.cameras.empty() || f.stamp >= st.cameras.back().stamp) st.cameras.push_back(f);
   });
 }
@@ -96,17 +109,17 @@ SessionEvent RigSession::addLidar(int sensor, const LidarBoardFeatures& f) {
   if (sensor < 0 || sensor >= static_cast<int>(sensors_.size()) || sensors_[sensor].kind != SensorKind::kLidar)
     return event(SessionEvent::Kind::kRejected, "LiDAR features given for sensor " + std::to_string(sensor) +
                                                     ", which is not a LiDAR of this rig");
-  return add(sensor, f.stamp, summarize(f), f.frame_id, f.reason, [&](Stream& st) {
+  BoardSample sample = boardSampleOf(f);
+  sample.found = sample.found && summarize(f).has_value();
+  return add(sensor, f.stamp, sample, f.frame_id, f.reason, [&](Stream& st) {
     if (st.lidars.empty() || f.stamp >= st.lidars.back().stamp) st.lidars.push_back(f);
   });
 }
 
-SessionEvent RigSession::add(int sensor, double stamp, const std::optional<Summary>& summary,
-                             const std::string& frame, const std::string& reason,
-                             const std::function<void(Stream&)>& keep) {
-  const bool found = summary.has_value();  // the board seen, with a usable summary
-  SessionEvent result = event(SessionEvent::Kind::kWaiting, "waiting for the board to be held still");
+SessionEvent RigSession::add(int sensor, double stamp, const BoardSample& sample, const std::string& frame,
+                             const std::string& reason, const std::function<void(Stream&)>& keep) {
   if (!std::isfinite(stamp)) return event(SessionEvent::Kind::kRejected, names_[sensor] + ": non-finite stamp");
+  SessionEvent result = event(SessionEvent::Kind::kWaiting, "waiting for the board to be held still");
   RigSensorCounts& count = counts_[sensor];
   if (count.messages > 0 && stamp < count.newest_stamp - kTimeJumpBackS) {
     // This sensor's time went back: the source restarted (a bag looped). Keep the poses, forget
@@ -115,83 +128,186 @@ SessionEvent RigSession::add(int sensor, double stamp, const std::optional<Summa
     result = stronger(result, flush());
     for (auto& st : streams_) st = Stream{};
     for (auto& c : counts_) c.newest_stamp = -std::numeric_limits<double>::infinity();
+    hold_pose_id_ = -1;
   }
   ++count.messages;
-  count.board_now = found;
-  if (!found) count.last_reason = reason;
+  count.board_now = sample.found;
   count.newest_stamp = std::max(count.newest_stamp, stamp);
   Stream& st = streams_[sensor];
-  if (found) keep(st);
-  if (pending_ && readyToAssemble(*pending_)) {
-    const Pending p = *pending_;
-    pending_.reset();
-    result = stronger(result, assemble(p));
-  }
-
-  if (!found) {
-    st.still_count = 0;
-    st.triggered_this_still = false;
-    st.last.reset();
-    prune();
-    return result;
-  }
-  ++count.found;
-  if (!frame.empty()) sensors_[sensor].frame = frame;
-
-  const bool consecutive = st.last && stamp - st.last_stamp <= options_.still_max_gap_s && stamp >= st.last_stamp;
-  const bool still = consecutive && (summary->centre - st.last->centre).norm() <= options_.still_max_translation_m &&
-                     angleDeg(summary->normal, st.last->normal) <= options_.still_max_rotation_deg;
-  st.still_count = still ? st.still_count + 1 : 1;
-  if (!still) st.triggered_this_still = false;
-  st.last = summary;
-  st.last_stamp = stamp;
-
-  if (options_.auto_capture && !pending_ && !st.triggered_this_still &&
-      st.still_count >= options_.still_frames_required) {
-    st.triggered_this_still = true;
-    int seen_pose = -1;
-    if (seenBefore(sensor, *summary, &seen_pose)) {
-      result = stronger(result, event(SessionEvent::Kind::kWaiting,
-                                      names_[sensor] + " already saw this board pose (pose " +
-                                          std::to_string(seen_pose) + "): move or tilt the board"));
-    } else {
-      pending_ = Pending{sensor, stamp,
-                         "auto: " + names_[sensor] + " saw the board still for " + std::to_string(st.still_count) +
-                             " frames"};
-      if (readyToAssemble(*pending_)) {
-        const Pending p = *pending_;
-        pending_.reset();
-        result = stronger(result, assemble(p));
-      }
+  if (!st.samples.empty() && stamp < st.samples.back().stamp) return result;  // out of order: not judged
+  st.samples.push_back(sample);
+  st.clock.add(stamp);
+  if (!sample.found) {
+    count.last_reason = reason;
+  } else {
+    ++count.found;
+    if (!frame.empty()) sensors_[sensor].frame = frame;
+    keep(st);
+    // Every found frame is a candidate moment; the best moment of a hold (most sensors,
+    // closest stamps) ends up as its pose.
+    if (options_.auto_capture) {
+      auto at = std::upper_bound(candidates_.begin(), candidates_.end(), stamp,
+                                 [](double t, const Candidate& c) { return t < c.stamp; });
+      candidates_.insert(at, Candidate{sensor, stamp});
     }
   }
+  result = stronger(result, decideCandidates(false));
   prune();
   return result;
 }
 
-bool RigSession::readyToAssemble(const Pending& p) const {
-  // Every stream that can still contribute has moved past the window. A stream far from the
-  // trigger stamp (silent for a while, or offset clock) cannot and is not waited for; the
-  // trigger's own stream moving on by history_s ends any wait.
-  if (counts_[p.sensor].newest_stamp > p.stamp + options_.history_s) return true;
+bool RigSession::readyToJudge(const Candidate& c) const {
+  // Every stream that can still contribute has passed the still window (and the stamp
+  // tolerance). A stream far from the moment (silent for a while, or an offset clock) cannot
+  // and is not waited for; the candidate's own stream moving on by history_s ends any wait.
+  const double reach = std::max(options_.still_window_s, options_.stamp_tolerance_s);
+  if (counts_[c.sensor].newest_stamp > c.stamp + options_.history_s) return true;
   for (size_t k = 0; k < counts_.size(); ++k) {
     const double newest = counts_[k].newest_stamp;
-    if (counts_[k].messages == 0 || !std::isfinite(newest) || std::abs(newest - p.stamp) > options_.history_s) continue;
-    if (newest <= p.stamp + options_.stamp_tolerance_s) return false;
+    if (counts_[k].messages == 0 || !std::isfinite(newest) || std::abs(newest - c.stamp) > options_.history_s) continue;
+    if (newest < c.stamp + reach) return false;
   }
   return true;
 }
 
-bool RigSession::seenBefore(int sensor, const Summary& s, int* pose_id) const {
-  for (const auto& p : poses_) {
-    const auto seen = summaryOf(sensor, p.observation);
-    if (!seen) continue;
-    if (angleDeg(seen->normal, s.normal) < options_.min_pose_rotation_deg &&
-        (seen->centre - s.centre).norm() < options_.min_pose_translation_m) {
-      *pose_id = p.observation.id;
-      return true;
-    }
+SessionEvent RigSession::decideCandidates(bool ended) {
+  SessionEvent result = event(SessionEvent::Kind::kWaiting, candidates_.empty() ? "waiting for a board to capture"
+                                                                                 : "waiting for the still window");
+  while (!candidates_.empty() && (ended || readyToJudge(candidates_.front()))) {
+    const Candidate c = candidates_.front();
+    candidates_.pop_front();
+    result = stronger(result, decide(c));
   }
+  return result;
+}
+
+SessionEvent RigSession::skip(const std::string& kind, const std::string& why) {
+  stats_.skipped[kind]++;
+  return event(SessionEvent::Kind::kRejected, why);
+}
+
+SessionEvent RigSession::decide(const Candidate& c) {
+  // The streams that see the board around the moment are judged; the others count only for
+  // the snapshot rule (a sensor the board is outside of says nothing about its motion).
+  std::vector<StillnessStream> streams;
+  for (size_t k = 0; k < streams_.size(); ++k) {
+    const Stream& st = streams_[k];
+    const BoardSample* nearest = nullptr;
+    for (const auto& x : st.samples)
+      if (std::abs(x.stamp - c.stamp) <= options_.still_window_s &&
+          (!nearest || std::abs(x.stamp - c.stamp) < std::abs(nearest->stamp - c.stamp)))
+        nearest = &x;
+    streams.push_back({&st.samples, &st.clock, names_[k], nearest && nearest->found});
+  }
+  const StillnessJudgement judged = judgeStillness(streams, c.stamp, options_.stillness(), true);
+  ++stats_.candidates;
+  stats_.last_stillness = judged.why;
+  if (judged.state == StillState::kMoving || judged.state == StillState::kNoBoard) hold_pose_id_ = -1;
+  if (judged.state == StillState::kMoving) return skip("board moving", judged.why);
+  if (judged.state == StillState::kNoBoard) return skip("board lost around the moment", judged.why);
+  if (judged.state == StillState::kTooFewFrames || judged.state == StillState::kPending)
+    return skip("too few frames to judge stillness", judged.why);
+
+  std::string seen_by;
+  BoardPoseObservation o = observationAt(c.stamp, &seen_by);
+  const int sensors_seen = static_cast<int>(o.cameras.size() + o.lidars.size());
+  if (sensors_seen < options_.min_sensors)
+    return skip("seen by too few sensors",
+                "board pose at t=" + fixed(c.stamp, 2) + " s seen by " + std::to_string(sensors_seen) + " sensor(s) (" +
+                    (seen_by.empty() ? "none" : seen_by) + "); a pose needs " + std::to_string(options_.min_sensors) +
+                    " (check the other detectors and stamp_tolerance)");
+  return keepPose(std::move(o), "auto: " + judged.why + "; seen by " + seen_by,
+                  judged.state == StillState::kSnapshot);
+}
+
+BoardPoseObservation RigSession::observationAt(double stamp, std::string* seen_by) const {
+  BoardPoseObservation o;
+  for (size_t k = 0; k < sensors_.size(); ++k) {
+    const Stream& st = streams_[k];
+    const int key = static_cast<int>(k);
+    bool has = false;
+    if (sensors_[k].kind == SensorKind::kCamera) {
+      if (const auto* f = closestWithin(st.cameras, stamp, options_.stamp_tolerance_s)) {
+        o.cameras[key] = *f;
+        has = true;
+      }
+    } else if (const auto* f = closestWithin(st.lidars, stamp, options_.stamp_tolerance_s)) {
+      o.lidars[key] = *f;
+      has = true;
+    }
+    if (has) *seen_by += (seen_by->empty() ? "" : ", ") + names_[k];
+  }
+  return o;
+}
+
+SessionEvent RigSession::keepPose(BoardPoseObservation o, const std::string& why, bool snapshot) {
+  // One pose per hold: a later moment of the same hold replaces it when it is better.
+  auto held = std::find_if(poses_.begin(), poses_.end(),
+                           [&](const RigSessionPose& p) { return p.observation.id == hold_pose_id_; });
+  if (!snapshot && held != poses_.end() && sameHold(o)) {
+    auto score = [](const BoardPoseObservation& x) {
+      double lo = 1e300, hi = -1e300;
+      for (const auto& [k, f] : x.cameras) lo = std::min(lo, f.stamp), hi = std::max(hi, f.stamp);
+      for (const auto& [k, f] : x.lidars) lo = std::min(lo, f.stamp), hi = std::max(hi, f.stamp);
+      return std::make_pair(static_cast<int>(x.cameras.size() + x.lidars.size()), -(hi - lo));
+    };
+    if (score(o) <= score(held->observation))
+      return skip("pose already taken", "pose " + std::to_string(hold_pose_id_) + " already holds this board pose");
+    o.id = held->observation.id;
+    held->observation = std::move(o);
+    held->why = why + " (a better moment of the same hold)";
+    ++stats_.captured;
+    return event(SessionEvent::Kind::kAccepted, "pose " + std::to_string(hold_pose_id_) + " replaced by a better moment of the same hold",
+                 hold_pose_id_);
+  }
+  int seen_pose = -1;
+  if (seenBefore(o, &seen_pose)) {
+    stats_.skipped["pose already taken"]++;
+    return event(SessionEvent::Kind::kWaiting, "a sensor already saw this board pose (pose " + std::to_string(seen_pose) +
+                                                   "): move or tilt the board");
+  }
+  if (static_cast<int>(poses_.size()) >= options_.max_poses)
+    return skip("session full", "already " + std::to_string(poses_.size()) + " poses (max_poses): solve, or drop poses first");
+  o.id = next_id_++;
+  RigSessionPose p;
+  p.observation = std::move(o);
+  p.why = why;
+  poses_.push_back(p);
+  hold_pose_id_ = p.observation.id;
+  ++stats_.captured;
+  return event(SessionEvent::Kind::kAccepted, "pose " + std::to_string(p.observation.id) + " (" + p.why + ")",
+               p.observation.id);
+}
+
+bool RigSession::sameHold(const BoardPoseObservation& o) const {
+  // Every sensor that saw both moments saw the board in the same place (within the still
+  // tolerances), and at least one saw both.
+  const auto held = std::find_if(poses_.begin(), poses_.end(),
+                                 [&](const RigSessionPose& p) { return p.observation.id == hold_pose_id_; });
+  if (held == poses_.end()) return false;
+  int shared = 0;
+  for (size_t k = 0; k < sensors_.size(); ++k) {
+    const auto a = summaryOf(static_cast<int>(k), o), b = summaryOf(static_cast<int>(k), held->observation);
+    if (!a || !b) continue;
+    ++shared;
+    if ((a->centre - b->centre).norm() > options_.still_max_translation_m ||
+        angleDeg(a->normal, b->normal) > options_.still_max_rotation_deg)
+      return false;
+  }
+  return shared > 0;
+}
+
+bool RigSession::seenBefore(const BoardPoseObservation& o, int* pose_id) const {
+  for (const auto& p : poses_)
+    for (size_t k = 0; k < sensors_.size(); ++k) {
+      const auto seen = summaryOf(static_cast<int>(k), p.observation), now = summaryOf(static_cast<int>(k), o);
+      if (!seen || !now) continue;
+      if (angleDeg(seen->normal, now->normal) < options_.min_pose_rotation_deg &&
+          (seen->centre - now->centre).norm() < options_.min_pose_translation_m) {
+        *pose_id = p.observation.id;
+        return true;
+      }
+    }
   return false;
 }
 
@@ -213,69 +329,33 @@ std::optional<RigSession::Summary> RigSession::summaryOf(int sensor, const Board
   return std::nullopt;
 }
 
-SessionEvent RigSession::assemble(const Pending& pending) {
-  BoardPoseObservation o;
-  std::string seen_by;
-  for (size_t k = 0; k < sensors_.size(); ++k) {
-    const Stream& st = streams_[k];
-    const int key = static_cast<int>(k);
-    bool has = false;
-    if (sensors_[k].kind == SensorKind::kCamera) {
-      if (const auto* f = closestWithin(st.cameras, pending.stamp, options_.stamp_tolerance_s)) {
-        o.cameras[key] = *f;
-        has = true;
-      }
-    } else if (const auto* f = closestWithin(st.lidars, pending.stamp, options_.stamp_tolerance_s)) {
-      o.lidars[key] = *f;
-      has = true;
-    }
-    if (has) seen_by += (seen_by.empty() ? "" : ", ") + names_[k];
-  }
-  const int sensors_seen = static_cast<int>(o.cameras.size() + o.lidars.size());
-  if (sensors_seen < options_.min_sensors)
-    return event(SessionEvent::Kind::kRejected,
-                 "board pose at t=" + fixed(pending.stamp, 2) + " s seen by " + std::to_string(sensors_seen) +
-                     " sensor(s) (" + (seen_by.empty() ? "none" : seen_by) + "); a pose needs " +
-                     std::to_string(options_.min_sensors) + " (check the other detectors and stamp_tolerance)");
-  if (static_cast<int>(poses_.size()) >= options_.max_poses)
-    return event(SessionEvent::Kind::kRejected,
-                 "already " + std::to_string(poses_.size()) + " poses (max_poses): solve, or drop poses first");
-  o.id = next_id_++;
-  RigSessionPose p;
-  p.observation = std::move(o);
-  p.why = pending.why + "; seen by " + seen_by;
-  poses_.push_back(p);
-  return event(SessionEvent::Kind::kAccepted, "pose " + std::to_string(p.observation.id) + " (" + p.why + ")",
-               p.observation.id);
-}
-
 void RigSession::prune() {
   // Per stream, relative to its own newest stamp (clocks of different sensors may be offset);
-  // whatever a pending capture may still take is kept.
+  // whatever a waiting candidate may still use is kept.
   for (size_t k = 0; k < streams_.size(); ++k) {
     Stream& st = streams_[k];
     double keep_from = counts_[k].newest_stamp - options_.history_s;
-    if (pending_) keep_from = std::min(keep_from, pending_->stamp - options_.stamp_tolerance_s);
+    // A stream far from the candidate (an offset clock) keeps only its own history: its frames
+    // near the candidate's stamp were taken at another time.
+    if (!candidates_.empty() && std::abs(counts_[k].newest_stamp - candidates_.front().stamp) <= options_.history_s)
+      keep_from = std::min(keep_from, candidates_.front().stamp - std::max(options_.still_window_s, options_.stamp_tolerance_s));
     auto old_camera = [&](const CameraBoardFeatures& f) { return f.stamp < keep_from; };
     auto old_lidar = [&](const LidarBoardFeatures& f) { return f.stamp < keep_from; };
     st.cameras.erase(std::remove_if(st.cameras.begin(), st.cameras.end(), old_camera), st.cameras.end());
     st.lidars.erase(std::remove_if(st.lidars.begin(), st.lidars.end(), old_lidar), st.lidars.end());
+    while (!st.samples.empty() && st.samples.front().stamp < keep_from) st.samples.pop_front();
     if (st.cameras.size() > kMaxFeaturesPerStream)
       st.cameras.erase(st.cameras.begin(), st.cameras.end() - kMaxFeaturesPerStream);
     if (st.lidars.size() > kMaxFeaturesPerStream)
       st.lidars.erase(st.lidars.begin(), st.lidars.end() - kMaxFeaturesPerStream);
+    while (st.samples.size() > kMaxSamplesPerStream) st.samples.pop_front();
   }
+  while (candidates_.size() > kMaxSamplesPerStream) candidates_.pop_front();
 }
 
-SessionEvent RigSession::flush() {
-  if (!pending_) return event(SessionEvent::Kind::kWaiting, "no capture pending");
-  const Pending p = *pending_;
-  pending_.reset();
-  return assemble(p);
-}
+SessionEvent RigSession::flush() { return decideCandidates(true); }
 
 SessionEvent RigSession::captureNow() {
-  if (pending_) return flush();
   int sensor = -1;
   double stamp = -1e300;
   for (size_t k = 0; k < streams_.size(); ++k) {
@@ -289,7 +369,19 @@ SessionEvent RigSession::captureNow() {
   }
   if (sensor < 0)
     return event(SessionEvent::Kind::kRejected, "no sensor has seen the board recently: nothing to capture");
-  return assemble(Pending{sensor, stamp, "manual capture at " + names_[sensor] + "'s newest board"});
+  std::string seen_by;
+  BoardPoseObservation o = observationAt(stamp, &seen_by);
+  const int sensors_seen = static_cast<int>(o.cameras.size() + o.lidars.size());
+  if (sensors_seen < options_.min_sensors)
+    return event(SessionEvent::Kind::kRejected,
+                 "board pose at t=" + fixed(stamp, 2) + " s seen by " + std::to_string(sensors_seen) + " sensor(s) (" +
+                     (seen_by.empty() ? "none" : seen_by) + "); a pose needs " + std::to_string(options_.min_sensors));
+  if (static_cast<int>(poses_.size()) >= options_.max_poses)
+    return event(SessionEvent::Kind::kRejected, "already " + std::to_string(poses_.size()) + " poses (max_poses)");
+  o.id = next_id_++;
+  poses_.push_back({std::move(o), "manual capture at " + names_[sensor] + "'s newest board; seen by " + seen_by});
+  return event(SessionEvent::Kind::kAccepted, "pose " + std::to_string(poses_.back().observation.id) + " (" +
+                                                  poses_.back().why + ")", poses_.back().observation.id);
 }
 
 std::vector<int> RigSession::posesPerSensor() const {
@@ -373,7 +465,9 @@ Status RigSession::dropPose(int id) {
 void RigSession::reset() {
   poses_.clear();
   for (auto& st : streams_) st = Stream{};
-  pending_.reset();
+  candidates_.clear();
+  hold_pose_id_ = -1;
+  stats_ = CaptureStats{};
   for (auto& c : counts_) c.newest_stamp = -std::numeric_limits<double>::infinity();
   next_id_ = 0;
 }

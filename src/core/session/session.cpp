@@ -74,49 +74,11 @@ namespace {
 
 constexpr double kPruneMarginS = 1.0;  // s, kept beyond what the still window and sync tolerance reach
 
-// Stillness cues with their own noise: a LiDAR board's centroid and plane fit.
-BoardSample lidarSample(const LidarBoardFeatures& f) {
-  BoardSample s;
-  s.stamp = f.stamp;
-  s.found = f.found && !f.board_points.empty() && f.plane.normal.allFinite();
-  if (!s.found) return s;
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (const auto& p : f.board_points) mean += p;
-  mean /= static_cast<double>(f.board_points.size());
-  double spread2 = 0.0;
-  for (const auto& p : f.board_points) spread2 += (p - mean).squaredNorm();
-  const double n = static_cast<double>(f.board_points.size());
-  const double spread = std::sqrt(spread2 / n);
-  s.centre = mean;
-  s.normal = f.plane.normal.normalized();
-  s.centre_sigma_m = f.plane_rms_m / std::sqrt(n);
-  s.normal_sigma_rad = spread > 0 ? f.plane_rms_m / (std::sqrt(n) * spread) : 0.0;
-  return s;
-}
-
-// The camera's board pose: its error grows with distance (lateral ~ D, depth ~ D^2 / size).
-BoardSample cameraSample(const CameraBoardFeatures& f, const Target& target) {
-  constexpr double kMinPixelSigma = 0.2;  // px, a PnP is never better than this
-  BoardSample s;
-  s.stamp = f.stamp;
-  s.found = f.found && f.plane.normal.allFinite() && f.camera_T_board.matrix().allFinite();
-  if (!s.found) return s;
-  s.centre = cameraBoardCentre(f, target);
-  s.normal = f.plane.normal.normalized();
-  const double fx = f.K(0, 0) > 0 ? f.K(0, 0) : 1.0;
-  const double pixel_rad = std::max(f.reprojection_rms_px, kMinPixelSigma) / fx;
-  const double range = s.centre.norm();
-  const double half_size = 0.5 * std::max(1e-3, std::min(target.width, target.height));
-  s.centre_sigma_m = pixel_rad * range * std::max(1.0, range / half_size);
-  s.normal_sigma_rad = pixel_rad * range / half_size;
-  return s;
-}
-
 }  // namespace
 
 SessionEvent CalibrationSession::addLidar(const LidarBoardFeatures& f) {
   lidar_.push_back(f);
-  lidar_samples_.push_back(lidarSample(f));
+  lidar_samples_.push_back(boardSampleOf(f));
   lidar_clock_.add(f.stamp);
   prune();
   updateLastPair();
@@ -125,7 +87,7 @@ SessionEvent CalibrationSession::addLidar(const LidarBoardFeatures& f) {
 
 SessionEvent CalibrationSession::addCamera(const CameraBoardFeatures& f) {
   camera_.push_back(f);
-  camera_samples_.push_back(cameraSample(f, target_));
+  camera_samples_.push_back(boardSampleOf(f, &target_));
   camera_clock_.add(f.stamp);
   updateLastPair();
   if (f.found) pending_.push_back(f);
@@ -233,7 +195,7 @@ SessionEvent CalibrationSession::decide(const CameraBoardFeatures& camera, bool 
     return gated;
   }
   // One view per hold: a later frame of the same still pose replaces it when it is better.
-  const BoardSample here = cameraSample(camera, target_);
+  const BoardSample here = boardSampleOf(camera, &target_);
   const bool snapshot = judged.state == StillState::kSnapshot;
   const bool same_hold =
       !snapshot && hold_view_id_ >= 0 && (here.centre - hold_reference_.centre).norm() <= still.max_translation_m +

@@ -10,6 +10,9 @@
 // candidate and the consistency checks before solving must catch a moving board.
 #pragma once
 
+#include <board_calib/core/features.h>
+#include <board_calib/core/target.h>
+
 #include <Eigen/Core>
 
 #include <deque>
@@ -27,6 +30,13 @@ struct BoardSample {
   double centre_sigma_m = 0.0;   ///< 1 sigma of the centre from the detector's own noise
   double normal_sigma_rad = 0.0; ///< 1 sigma of the normal
 };
+
+/// A LiDAR board as a stillness cue: centroid and plane normal, with the plane fit's noise.
+BoardSample boardSampleOf(const LidarBoardFeatures& features);
+/// A camera board pose as a stillness cue: its error grows with distance (lateral ~ D, depth
+/// ~ D^2 / size). Without a target the board origin stands for the centre and the size is
+/// taken as 1 m.
+BoardSample boardSampleOf(const CameraBoardFeatures& features, const Target* target);
 
 struct StillnessOptions {
   double window_s = 0.25;        ///< s, half-width of the window around a moment that must be still
@@ -76,6 +86,10 @@ struct StillnessStream {
   const std::deque<BoardSample>* samples = nullptr;
   const StreamClock* clock = nullptr;
   std::string name;              ///< "LiDAR", "camera", a sensor name
+  /// false: the stream does not see the board around this moment (a rig sensor the board is
+  /// outside of); only its rate counts, for the snapshot rule. The fastest *judged* stream
+  /// counts the frames.
+  bool judged = true;
 };
 
 /// Judges the moment `stamp`. `ended`: no more frames will come (end of a bag), so a window the

@@ -34,10 +34,12 @@ struct RigReportInputs {
   std::string source;                  ///< "rig `FILE`, bags ..." or "live session"
   std::vector<std::string> input_lines;  ///< detection counts, capture rule (Markdown list items)
   std::string extra_result_text;       ///< appended to the printed result (e.g. errors vs truth)
+  std::string verdict_text;            ///< the rig verdict in words (rigVerdictSummary), first section
+  bool failed = false;                 ///< failed verdict: the result is written as result.failed.yaml
   PlotOptions plots;
 };
 
-/// Writes `dir`/report.md, `dir`/result.yaml and `dir`/CAMERA__LIDAR/{report.md, edge_errors.png,
+/// Writes `dir`/report.md, `dir`/result.yaml (result.failed.yaml when failed) and `dir`/CAMERA__LIDAR/{report.md, edge_errors.png,
 /// pose_coverage.png} for every pair. Fails only when a file cannot be written.
 Status writeRigReport(const std::string& dir, const RigConfig& rig, const msg::MsgProblem& problem,
                       const msg::MsgSolution& solution, const ResultFile& result, const RigReportInputs& inputs);

@@ -1,0 +1,160 @@
+// Rig front end (see rig_pipeline.h).
+#include <board_calib/core/msg_session.h>
+#include <board_calib/core/pipeline/rig_pipeline.h>
+
+#include <optional>
+
+namespace board_calib {
+namespace {
+
+SessionEvent rejected(const std::string& why) { return {SessionEvent::Kind::kRejected, why, -1}; }
+
+}  // namespace
+
+const char* rigCaptureName(RigCapture capture) { return capture == RigCapture::kAll ? "all" : "still"; }
+
+Expected<RigCapture> parseRigCapture(const std::string& name) {
+  if (name == "still") return RigCapture::kStill;
+  if (name == "all") return RigCapture::kAll;
+  return Expected<RigCapture>::failure("capture must be 'still' or 'all', not '" + name + "'");
+}
+
+std::string RigPipelineOptions::validate() const {
+  if (auto why = image.validate(); !why.empty()) return "image detector: " + why;
+  if (auto why = lidar.validate(); !why.empty()) return "lidar detector: " + why;
+  if (auto why = session.validate(); !why.empty()) return "rig session: " + why;
+  return {};
+}
+
+RigPipelineOptions rigPipelineOptionsFor(const RigConfig& rig) {
+  RigPipelineOptions o;
+  o.session = msg::rigSessionOptionsFor(rig);
+  return o;
+}
+
+struct RigPipeline::Impl {
+  struct Camera {
+    ImageBoardDetector detector;
+    std::optional<CameraIntrinsics> intrinsics;
+    std::optional<CameraModel> model;
+  };
+  Impl(const RigConfig& r, const Target& t, const RigPipelineOptions& o)
+      : rig(r), target(t), options(o), session(r.sensorNames(), r.sensorSpecs(), o.session, t) {}
+
+  RigConfig rig;
+  Target target;
+  RigPipelineOptions options;
+  msg::RigSession session;
+  std::vector<Camera> cameras;
+  std::vector<RigSensorStats> stats;
+  // Every found feature, for the offline "all" capture.
+  std::map<int, std::vector<CameraBoardFeatures>> camera_features;
+  std::map<int, std::vector<LidarBoardFeatures>> lidar_features;
+
+  void count(int sensor, const std::string& frame_id, bool found, const std::string& reason) {
+    RigSensorStats& s = stats[static_cast<size_t>(sensor)];
+    if (s.frame_id == s.name && !frame_id.empty()) s.frame_id = frame_id;
+    ++s.frames;
+    if (found) ++s.found;
+    else s.failures[reason.empty() ? "board not found" : reason]++;
+  }
+};
+
+Expected<RigPipeline> RigPipeline::create(const RigConfig& rig, const Target& target, const RigPipelineOptions& options) {
+  if (auto why = rig.validate(); !why.empty()) return Expected<RigPipeline>::failure("rig: " + why);
+  if (auto why = target.validate(); !why.empty()) return Expected<RigPipeline>::failure("target: " + why);
+  if (auto why = options.validate(); !why.empty()) return Expected<RigPipeline>::failure(why);
+  RigPipeline p;
+  p.impl_ = std::make_unique<Impl>(rig, target, options);
+  for (size_t i = 0; i < rig.cameras.size(); ++i) {
+    auto detector = ImageBoardDetector::create(target, options.image);
+    if (!detector) return Expected<RigPipeline>::failure("image detector: " + detector.error());
+    p.impl_->cameras.push_back({std::move(*detector), std::nullopt, std::nullopt});
+  }
+  for (const auto& name : rig.sensorNames()) p.impl_->stats.push_back({name, name, 0, 0, {}});
+  return p;
+}
+
+RigPipeline::RigPipeline(RigPipeline&&) noexcept = default;
+RigPipeline& RigPipeline::operator=(RigPipeline&&) noexcept = default;
+RigPipeline::~RigPipeline() = default;
+
+SessionEvent RigPipeline::addImage(int camera, const cv::Mat& image, const CameraIntrinsics& intrinsics,
+                                   const std::string& frame_id, double stamp) {
+  Impl& d = *impl_;
+  if (camera < 0 || camera >= static_cast<int>(d.cameras.size()))
+    return rejected("image for camera " + std::to_string(camera) + ", which the rig does not have");
+  Impl::Camera& c = d.cameras[static_cast<size_t>(camera)];
+  if (!c.intrinsics || *c.intrinsics != intrinsics) {
+    auto model = CameraModel::create(intrinsics);
+    if (!model) {
+      d.count(camera, frame_id, false, "bad camera_info: " + model.error());
+      return rejected("bad camera_info: " + model.error());
+    }
+    c.intrinsics = intrinsics;
+    c.model.emplace(std::move(*model));
+  }
+  ImageDetection det = c.detector.detect(image, *c.model);
+  det.features.stamp = stamp;
+  if (det.features.frame_id.empty()) det.features.frame_id = frame_id;
+  return addCameraFeatures(camera, det.features);
+}
+
+SessionEvent RigPipeline::addCloud(int lidar, const LidarCloud& cloud) {
+  Impl& d = *impl_;
+  if (lidar < 0 || lidar >= static_cast<int>(d.rig.lidars.size()))
+    return rejected("cloud for LiDAR " + std::to_string(lidar) + ", which the rig does not have");
+  LidarBoardDetection det = detectLidarBoard(cloud, d.target, d.options.lidar);
+  det.features.stamp = cloud.stamp;
+  if (det.features.frame_id.empty()) det.features.frame_id = cloud.frame_id;
+  if (!det.features.found && det.features.reason.empty()) det.features.reason = lidarDetectionCodeName(det.code);
+  return addLidarFeatures(static_cast<int>(d.rig.cameras.size()) + lidar, det.features);
+}
+
+SessionEvent RigPipeline::addCameraFeatures(int sensor, const CameraBoardFeatures& f) {
+  Impl& d = *impl_;
+  if (sensor < 0 || sensor >= static_cast<int>(d.stats.size())) return d.session.addCamera(sensor, f);
+  d.count(sensor, f.frame_id, f.found, f.reason);
+  if (d.options.capture == RigCapture::kAll) {
+    if (f.found) d.camera_features[sensor].push_back(f);
+    return {SessionEvent::Kind::kWaiting, "capture all: grouped by stamp at the end", -1};
+  }
+  return d.session.addCamera(sensor, f);
+}
+
+SessionEvent RigPipeline::addLidarFeatures(int sensor, const LidarBoardFeatures& f) {
+  Impl& d = *impl_;
+  if (sensor < 0 || sensor >= static_cast<int>(d.stats.size())) return d.session.addLidar(sensor, f);
+  d.count(sensor, f.frame_id, f.found, f.reason);
+  if (d.options.capture == RigCapture::kAll) {
+    if (f.found) d.lidar_features[sensor].push_back(f);
+    return {SessionEvent::Kind::kWaiting, "capture all: grouped by stamp at the end", -1};
+  }
+  return d.session.addLidar(sensor, f);
+}
+
+SessionEvent RigPipeline::finish() { return impl_->session.flush(); }
+
+Expected<msg::MsgProblem> RigPipeline::problem() const {
+  const Impl& d = *impl_;
+  const int reference = d.rig.sensorIndex(d.rig.reference);
+  if (d.options.capture == RigCapture::kStill) return d.session.problem(reference);
+  msg::MsgProblem p;
+  p.sensors = d.session.sensors();
+  for (size_t k = 0; k < p.sensors.size(); ++k) p.sensors[k].frame = d.stats[k].frame_id;
+  p.reference_sensor = reference;
+  msg::GroupingOptions grouping;
+  grouping.stamp_tolerance_s = d.options.session.stamp_tolerance_s;
+  auto grouped = msg::groupByStamp(p.sensors, d.camera_features, d.lidar_features, grouping);
+  if (!grouped) return Expected<msg::MsgProblem>::failure("grouping: " + grouped.error());
+  p.poses = grouped->poses;
+  return p;
+}
+
+const msg::RigSession& RigPipeline::session() const { return impl_->session; }
+msg::RigSession& RigPipeline::session() { return impl_->session; }
+const std::vector<RigSensorStats>& RigPipeline::stats() const { return impl_->stats; }
+const RigConfig& RigPipeline::rig() const { return impl_->rig; }
+const Target& RigPipeline::target() const { return impl_->target; }
+
+}  // namespace board_calib

@@ -1,0 +1,201 @@
+// The rig run (core/pipeline/rig_calibration.h): a clean synthetic rig is judged good with
+// every pair at the truth, and a fault sweep (too few poses, coplanar poses, a LiDAR that sees
+// another object in 30 % of the poses, swapped cameras, a sensor whose stamps pair it with the
+// wrong poses) never gives a silent success: each case is failed or doubtful with a reason, or
+// every pair lies within 3 sigma of its own reported uncertainty.
+#include "support/synthetic_rig.h"
+#include <board_calib/core/pipeline/rig_calibration.h>
+#include <board_calib/core/transform.h>
+
+#include <gtest/gtest.h>
+
+#include <iostream>
+#include <map>
+#include <random>
+
+namespace board_calib {
+namespace {
+
+using msg::MsgProblem;
+
+struct Scene {
+  sim::RigScene scene;
+  RigConfig rig;
+  Target target;
+};
+
+Scene makeScene(unsigned seed, int poses) {
+  std::mt19937 rng(seed);
+  sim::RigSceneOptions so;
+  so.num_poses = poses;
+  auto s = sim::generateRigScene(sim::defaultRig(), so, rng);
+  EXPECT_TRUE(s.ok()) << s.error();
+  Scene out;
+  out.scene = *s;
+  out.target = so.target;
+  // The rig file's view of the sensors, with the factory stereo calibration as known extrinsic.
+  for (const auto& sensor : out.scene.sensors) {
+    if (sensor.kind == msg::SensorKind::kCamera) out.rig.cameras.push_back({sensor.frame, "", "", "", 0, 0, 0});
+    else out.rig.lidars.push_back({sensor.frame, "", "", 0, 0, 0});
+  }
+  out.rig.reference = out.scene.sensors[0].frame;
+  KnownExtrinsic stereo;
+  stereo.a = out.scene.sensors[0].frame;
+  stereo.b = out.scene.sensors[1].frame;
+  stereo.a_T_b = out.scene.sensors[0].reference_T_sensor.inverse() * out.scene.sensors[1].reference_T_sensor;
+  out.rig.known_extrinsics.push_back(stereo);
+  return out;
+}
+
+Eigen::Isometry3d truthPair(const Scene& s, int camera, int lidar) {
+  return s.scene.sensors[static_cast<size_t>(camera)].reference_T_sensor.inverse() *
+         s.scene.sensors[static_cast<size_t>(lidar)].reference_T_sensor;
+}
+
+// Every pair within 3 sigma of its reported uncertainty (the norm of the per-axis sigmas).
+bool withinReportedSigma(const RigCalibration& run, const Scene& s, std::string* worst) {
+  bool ok = true;
+  for (const auto& p : run.pairs) {
+    const Eigen::Isometry3d truth = truthPair(s, p.camera, p.lidar);
+    const double rot = rotationErrorDeg(p.solution.camera_T_lidar, truth);
+    const double trans = translationErrorM(p.solution.camera_T_lidar, truth);
+    const double rot_sigma = p.verdict.stddev.rotation_deg.norm(), trans_sigma = p.verdict.stddev.translation_m.norm();
+    if (rot > 3.0 * rot_sigma || trans > 3.0 * trans_sigma) {
+      ok = false;
+      *worst += p.camera_frame + " <- " + p.lidar_frame + ": " + std::to_string(rot) + " deg / " +
+                std::to_string(trans * 1e3) + " mm against 1 sigma " + std::to_string(rot_sigma) + " deg / " +
+                std::to_string(trans_sigma * 1e3) + " mm; ";
+    }
+  }
+  return ok;
+}
+
+RigCalibrationOptions fastOptions() {
+  RigCalibrationOptions o;
+  o.verdict.max_leave_one_out_views = 8;  // 8 folds keep the sweep within the test budget
+  return o;
+}
+
+TEST(RigCalibration, CleanRigIsGoodWithEveryPairAtTheTruth) {
+  const Scene s = makeScene(7, 20);
+  const RigCalibration run = calibrateRig(s.scene.problem, s.rig, s.target, fastOptions());
+  ASSERT_TRUE(run.solution.success) << run.reason;
+  EXPECT_EQ(run.verdict, Verdict::kGood) << rigVerdictSummary(run);
+  ASSERT_EQ(run.pairs.size(), 4u);
+  for (const auto& p : run.pairs) {
+    const Eigen::Isometry3d truth = truthPair(s, p.camera, p.lidar);
+    // The graph's target on this rig (test_msg_graph): 0.2 deg / 1 cm per pair.
+    EXPECT_LT(rotationErrorDeg(p.solution.camera_T_lidar, truth), 0.2) << p.camera_frame << " <- " << p.lidar_frame;
+    EXPECT_LT(translationErrorM(p.solution.camera_T_lidar, truth), 0.01) << p.camera_frame << " <- " << p.lidar_frame;
+    EXPECT_TRUE(p.verdict.cross_validation.ran);
+  }
+  // The result file carries the verdict overall and per pair, and round-trips.
+  const auto parsed = parseResult(resultToYaml(run.result));
+  ASSERT_TRUE(parsed.ok()) << parsed.error();
+  EXPECT_EQ(parsed->verdict, "good");
+  ASSERT_EQ(parsed->pairs.size(), 4u);
+  for (const auto& p : parsed->pairs) {
+    EXPECT_EQ(p.verdict, "good") << p.verdict_reason;
+    EXPECT_FALSE(p.verdict_reason.empty());
+    ASSERT_TRUE(p.stddev.has_value());
+  }
+}
+
+// ---- the fault sweep ----
+
+MsgProblem firstPoses(MsgProblem p, size_t n) {
+  p.poses.resize(std::min(n, p.poses.size()));
+  return p;
+}
+
+// A LiDAR that sees another object: in every `every`-th pose its board is another pose's board.
+MsgProblem lidarSeesAnotherObject(MsgProblem p, int lidar, int every) {
+  const MsgProblem original = p;
+  for (size_t i = 0; i < p.poses.size(); i += static_cast<size_t>(every)) {
+    const auto& other = original.poses[(i + p.poses.size() / 2) % p.poses.size()];
+    if (p.poses[i].lidars.count(lidar) && other.lidars.count(lidar))
+      p.poses[i].lidars[lidar] = other.lidars.at(lidar);
+  }
+  return p;
+}
+
+MsgProblem swappedCameras(MsgProblem p) {
+  for (auto& pose : p.poses)
+    if (pose.cameras.count(0) && pose.cameras.count(1)) std::swap(pose.cameras[0], pose.cameras[1]);
+  return p;
+}
+
+// Stamps offset by one hold: the sensor's features join the next pose.
+MsgProblem stampsOffset(MsgProblem p, int lidar) {
+  const MsgProblem original = p;
+  for (size_t i = 0; i < p.poses.size(); ++i) {
+    const auto& next = original.poses[(i + 1) % p.poses.size()];
+    if (next.lidars.count(lidar)) p.poses[i].lidars[lidar] = next.lidars.at(lidar);
+  }
+  return p;
+}
+
+// Coplanar: every pose's board turned back to the first pose's orientation is not possible on
+// features; the same board pose repeated (moved along its own plane is invisible to planes).
+MsgProblem coplanar(MsgProblem p) {
+  for (size_t i = 1; i < p.poses.size(); ++i) {
+    const int id = p.poses[i].id;
+    p.poses[i] = p.poses[0];
+    p.poses[i].id = id;
+  }
+  return p;
+}
+
+TEST(RigCalibration, FaultSweepNeverGivesASilentSuccess) {
+  std::map<std::string, std::map<std::string, int>> counts;  // case -> verdict -> count
+  std::map<std::string, std::string> reasons;                 // case -> the last reason given
+  for (unsigned seed : {3u, 11u}) {
+    const Scene s = makeScene(seed, 20);
+    const std::vector<std::pair<std::string, MsgProblem>> cases = {
+        {"1 pose", firstPoses(s.scene.problem, 1)},
+        {"2 poses", firstPoses(s.scene.problem, 2)},
+        {"3 poses", firstPoses(s.scene.problem, 3)},
+        {"coplanar poses", coplanar(s.scene.problem)},
+        {"LiDAR sees another object in 30 % of poses", lidarSeesAnotherObject(s.scene.problem, 3, 3)},
+        {"swapped cameras", swappedCameras(s.scene.problem)},
+        {"LiDAR stamps offset by one hold", stampsOffset(s.scene.problem, 2)},
+    };
+    for (const auto& [name, problem] : cases) {
+      const RigCalibration run = calibrateRig(problem, s.rig, s.target, fastOptions());
+      ++counts[name][verdictName(run.verdict)];
+      reasons[name] = run.reason + " [" + std::to_string(run.left_out.size()) + " observations left out]";
+      EXPECT_FALSE(run.reason.empty()) << name;
+      if (run.verdict != Verdict::kGood) continue;
+      std::string worst;
+      EXPECT_TRUE(withinReportedSigma(run, s, &worst))
+          << name << " (seed " << seed << "): a good verdict off the truth: " << worst << "\n" << rigVerdictSummary(run);
+    }
+  }
+  // The counts for docs/BENCHMARKS.md.
+  for (const auto& [name, by_verdict] : counts) {
+    std::cout << "| " << name << " |";
+    for (const char* v : {"good", "doubtful", "failed"}) std::cout << " " << (by_verdict.count(v) ? by_verdict.at(v) : 0) << " |";
+    std::cout << " " << reasons[name] << " |\n";
+  }
+  // Too few poses to judge are never good.
+  for (const char* few : {"1 pose", "2 poses", "3 poses"}) EXPECT_EQ(counts[few]["good"], 0) << few;
+  EXPECT_EQ(counts["coplanar poses"]["good"], 0);
+  EXPECT_EQ(counts["swapped cameras"]["good"], 0) << "the known stereo extrinsic must catch it";
+}
+
+TEST(RigCalibration, EmptyProblemAndBadOptionsFailWithAReason) {
+  const Scene s = makeScene(5, 6);
+  MsgProblem empty = s.scene.problem;
+  empty.poses.clear();
+  const RigCalibration none = calibrateRig(empty, s.rig, s.target);
+  EXPECT_TRUE(none.failed());
+  EXPECT_NE(none.reason.find("no board poses"), std::string::npos) << none.reason;
+  RigCalibrationOptions bad;
+  bad.loop_sigmas = -1;
+  const RigCalibration refused = calibrateRig(s.scene.problem, s.rig, s.target, bad);
+  EXPECT_TRUE(refused.failed());
+  EXPECT_NE(refused.reason.find("invalid options"), std::string::npos) << refused.reason;
+}
+
+}  // namespace
+}  // namespace board_calib
