@@ -3,7 +3,7 @@
 #pragma once
 
 #include <board_calib/core/camera_model.h>
-#include <board_calib/core/lidar_cloud.h>
+#include <board_calib/core/lidar_detection/lidar_cloud.h>
 
 #include <opencv2/core.hpp>
 

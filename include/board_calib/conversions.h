@@ -4,11 +4,11 @@
 
 #include <board_calib/core/camera_model.h>
 #include <board_calib/core/features.h>
-#include <board_calib/core/lidar_cloud.h>
-#include <board_calib/core/msg_graph.h>
-#include <board_calib/core/projection.h>
+#include <board_calib/core/lidar_detection/lidar_cloud.h>
+#include <board_calib/core/msg_graph/msg_graph.h>
+#include <board_calib/core/projection/projection.h>
 #include <board_calib/core/result_io.h>
-#include <board_calib/core/solvers.h>
+#include <board_calib/core/solvers/solvers.h>
 #include <board_calib/core/verdict/verdict.h>
 
 #include <board_calib/CalibrationResult.h>
@@ -86,9 +86,9 @@ CalibrationResult toResultMsg(const CalibrationSolution& solution, const Verdict
                               const ros::Time& stamp);
 /// One camera <- LiDAR pair of a rig run: `pair` is the result-file entry of `run` (same order),
 /// with its verdict; success unless the verdict failed. NaN 1 sigma without a covariance.
-CalibrationResult toPairResultMsg(const PairEntry& pair, const RigPairRun& run, const msg::MsgSolution& solution,
+CalibrationResult toPairResultMsg(const PairEntry& pair, const RigPairRun& run, const multi_sensor::MsgSolution& solution,
                                   const ros::Time& stamp);
 /// One sensor's pose of a rig solve.
-SensorPose toSensorPoseMsg(const msg::SensorEstimate& sensor);
+SensorPose toSensorPoseMsg(const multi_sensor::SensorEstimate& sensor);
 
 }  // namespace board_calib

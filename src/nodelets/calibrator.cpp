@@ -1,4 +1,4 @@
-// Calibrator nodelet: collects LiDAR and camera board features into a CalibrationSession (core),
+// Calibrator nodelet: collects LiDAR and camera board features into a PairSession (core),
 // solves on ~calibrate off the callback thread, publishes the latched result, broadcasts the
 // static TF and writes the result file with launch/URDF snippets. With ~rig_file it runs the
 // multi-sensor rig mode instead (calibrator_rig_mode.h). Thin wiring only.
@@ -15,8 +15,8 @@
 #include <board_calib/core/file_io.h>
 #include <board_calib/core/pipeline/pair_calibration.h>
 #include <board_calib/core/pipeline/pair_report.h>
-#include <board_calib/core/report.h>
-#include <board_calib/core/session.h>
+#include <board_calib/core/report/report.h>
+#include <board_calib/core/session/session.h>
 #include <board_calib/core/transform.h>
 
 #include <diagnostic_updater/diagnostic_updater.h>
@@ -63,7 +63,7 @@ class CalibratorNodelet : public nodelet::Nodelet {
   std::string writeReport(const PairCalibration& run);
 
   std::mutex mutex_;  // guards session_, last_event_, last_solution_
-  std::unique_ptr<CalibrationSession> session_;
+  std::unique_ptr<PairSession> session_;
   std::string default_method_ = "pbpc";
   std::string child_frame_;
   std::string output_dir_;
@@ -113,7 +113,7 @@ void CalibratorNodelet::onInit() {
   pnh.param("child_frame", child_frame_, std::string());
   pnh.param("broadcast_tf", broadcast_tf_, true);
   output_dir_ = outputDirParam(pnh);
-  session_ = std::make_unique<CalibrationSession>(*target, SessionOptions{});
+  session_ = std::make_unique<PairSession>(*target, SessionOptions{});
   std::string session_file;
   if (pnh.getParam("session_file", session_file) && !session_file.empty()) {
     const Status st = session_->load(session_file);
@@ -214,7 +214,7 @@ void CalibratorNodelet::resumeAutosave(bool resume) {
   }
   const auto previous_run = readTextFile(run_id_path, "autosave run id");
   const bool respawned = previous_run && !run_id.empty() && *previous_run == run_id;
-  CalibrationSession found(session_->target(), session_->options());
+  PairSession found(session_->target(), session_->options());
   const Status st = found.load(autosave_path_);
   std::string not_resumed;
   if (!st) not_resumed = st.reason;
@@ -451,7 +451,7 @@ bool CalibratorNodelet::saveSession(SessionFile::Request& req, SessionFile::Resp
 bool CalibratorNodelet::loadSession(SessionFile::Request& req, SessionFile::Response& res) {
   std::lock_guard<std::mutex> lock(mutex_);
   // A session of another board would switch the board type and drop the current views.
-  CalibrationSession candidate(session_->target(), session_->options());
+  PairSession candidate(session_->target(), session_->options());
   Status st = candidate.load(req.path);
   if (st && targetToYaml(candidate.target()) != targetToYaml(session_->target()))
     st = Status::failure("'" + req.path + "' was recorded with a " + targetTypeName(candidate.target().type) +

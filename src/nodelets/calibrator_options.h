@@ -1,12 +1,12 @@
 // Calibrator settings shared by its pair and rig modes: dynamic_reconfigure config -> session
-// options (pair mode: SessionOptions, rig mode: msg::RigSessionOptions; the test
+// options (pair mode: SessionOptions, rig mode: multi_sensor::RigSessionOptions; the test
 // test/ros/test_config_defaults.cpp keeps the .cfg defaults equal to the core defaults), and
 // the ~output_dir parameter.
 #pragma once
 
 #include <board_calib/CalibratorConfig.h>
-#include <board_calib/core/rig_session.h>
-#include <board_calib/core/session.h>
+#include <board_calib/core/rig/rig_session.h>
+#include <board_calib/core/session/session.h>
 
 #include <ros/node_handle.h>
 
@@ -26,7 +26,7 @@
   X(max_plane_angle_deg, max_plane_angle_deg)                   \
   X(max_plane_offset, max_plane_offset_m)
 
-// (cfg parameter, msg::RigSessionOptions member): rig mode. sync_tolerance is not among them:
+// (cfg parameter, multi_sensor::RigSessionOptions member): rig mode. sync_tolerance is not among them:
 // the rig file's stamp_tolerance_s applies.
 #define BOARD_CALIB_RIG_SESSION_FIELDS(X)                       \
   X(auto_capture, auto_capture)                                 \
@@ -47,7 +47,7 @@ inline SessionOptions sessionOptionsFromConfig(const CalibratorConfig& c, Sessio
   return base;
 }
 
-inline msg::RigSessionOptions rigSessionOptionsFromConfig(const CalibratorConfig& c, msg::RigSessionOptions base = {}) {
+inline multi_sensor::RigSessionOptions rigSessionOptionsFromConfig(const CalibratorConfig& c, multi_sensor::RigSessionOptions base = {}) {
 #define BOARD_CALIB_ASSIGN(cfg, member) base.member = c.cfg;
   BOARD_CALIB_RIG_SESSION_FIELDS(BOARD_CALIB_ASSIGN)
 #undef BOARD_CALIB_ASSIGN

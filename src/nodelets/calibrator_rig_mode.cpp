@@ -11,13 +11,13 @@
 #include <board_calib/calibrator_status.h>
 #include <board_calib/conversions.h>
 #include <board_calib/core/file_io.h>
-#include <board_calib/core/msg_graph.h>
+#include <board_calib/core/msg_graph/msg_graph.h>
 #include <board_calib/core/pipeline/rig_report.h>
 #include <board_calib/core/pipeline/rig_calibration.h>
 #include <board_calib/core/result_io.h>
-#include <board_calib/core/rig_config.h>
-#include <board_calib/core/rig_report.h>
-#include <board_calib/core/rig_session.h>
+#include <board_calib/core/rig/rig_config.h>
+#include <board_calib/core/rig/rig_summary.h>
+#include <board_calib/core/rig/rig_session.h>
 
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <dynamic_reconfigure/server.h>
@@ -47,9 +47,9 @@ struct RigCalibratorMode::Impl {
   std::string rig_file;
   std::mutex mutex;        // guards session, last_event, last_solution
   std::mutex solve_mutex;  // one solve at a time
-  std::unique_ptr<msg::RigSession> session;
+  std::unique_ptr<multi_sensor::RigSession> session;
   std::string last_event = "waiting for features";
-  std::optional<msg::MsgSolution> last_solution;
+  std::optional<multi_sensor::MsgSolution> last_solution;
   std::string child_frame_suffix;
   std::string output_dir;
   bool broadcast_tf = true;
@@ -132,7 +132,7 @@ struct RigCalibratorMode::Impl {
   void reconfigure(CalibratorConfig& c, uint32_t) {
     // The rig file's stamp_tolerance_s stays in force: sync_tolerance is a pair-mode setting.
     std::lock_guard<std::mutex> lock(mutex);
-    const msg::RigSessionOptions o = rigSessionOptionsFromConfig(c, session->options());
+    const multi_sensor::RigSessionOptions o = rigSessionOptionsFromConfig(c, session->options());
     if (const std::string why = o.validate(); !why.empty()) {
       ROS_WARN_STREAM_NAMED(kLog, "calibrator: rejected reconfiguration: " << why);
       return;
@@ -140,7 +140,7 @@ struct RigCalibratorMode::Impl {
     session->setOptions(o);
   }
 
-  std::string writeOutputs(const ResultFile& file, const msg::MsgSolution& s) {
+  std::string writeOutputs(const ResultFile& file, const multi_sensor::MsgSolution& s) {
     if (output_dir.empty()) return "";
     std::error_code error;
     std::filesystem::create_directories(output_dir, error);
@@ -177,7 +177,7 @@ struct RigCalibratorMode::Impl {
 
   // The same report folder as calibrate_bag --config --report, in ~output_dir/report (figures per
   // pair from the captured features; the projections draw the live overlays).
-  std::string writeReport(const msg::MsgProblem& problem, const msg::MsgSolution& solution, const ResultFile& file) {
+  std::string writeReport(const multi_sensor::MsgProblem& problem, const multi_sensor::MsgSolution& solution, const ResultFile& file) {
     if (output_dir.empty()) return "";
     RigReportInputs inputs;
     inputs.source = "live session, rig `" + rig_file + "`";
@@ -198,7 +198,7 @@ struct RigCalibratorMode::Impl {
   }
 
   // One static transform per sensor from the reference sensor's frame.
-  void broadcastPoses(const msg::MsgSolution& solution) {
+  void broadcastPoses(const multi_sensor::MsgSolution& solution) {
     std::vector<geometry_msgs::TransformStamped> tfs;
     for (size_t k = 0; k < solution.sensors.size(); ++k) {
       if (static_cast<int>(k) == solution.reference_sensor) continue;
@@ -233,7 +233,7 @@ struct RigCalibratorMode::Impl {
     }
     if (req.use_initial_guess)
       ROS_WARN_STREAM_NAMED(kLog, "calibrator: rig mode initialises from the pairwise solutions; the guess is ignored");
-    msg::MsgProblem problem;
+    multi_sensor::MsgProblem problem;
     std::vector<std::string> problems;  // sensors that take part in no pose, and why
     {
       std::lock_guard<std::mutex> lock(mutex);
@@ -251,7 +251,7 @@ struct RigCalibratorMode::Impl {
     // The solve and its verdict run on their own thread; feature callbacks keep flowing meanwhile.
     auto solving = std::async(std::launch::async, [&]() { return calibrateRig(problem, rig, target); });
     const RigCalibration run = solving.get();
-    const msg::MsgSolution& solution = run.solution;
+    const multi_sensor::MsgSolution& solution = run.solution;
     if (!solution.success) {
       res.success = false;
       res.message = "calibration failed: " + run.reason;
@@ -360,7 +360,7 @@ struct RigCalibratorMode::Impl {
   }
 
   // One sensor in words: does it see the board now, which poses it joined, or why none.
-  std::string sensorLine(const msg::RigSensorHealth& h, double silent_s) const {
+  std::string sensorLine(const multi_sensor::RigSensorHealth& h, double silent_s) const {
     std::ostringstream v;
     if (h.counts.messages == 0) v << "no features yet";
     else if (silent_s > kSilentS) v << "silent for " << std::fixed << std::setprecision(0) << silent_s << " s";
@@ -383,7 +383,7 @@ struct RigCalibratorMode::Impl {
     std::lock_guard<std::mutex> lock(mutex);
     using diagnostic_msgs::DiagnosticStatus;
     const std::vector<std::string> problems = session->problems();
-    const std::vector<msg::RigSensorHealth> health = session->health();
+    const std::vector<multi_sensor::RigSensorHealth> health = session->health();
     const size_t poses = session->poses().size();
     if (!problems.empty()) stat.summary(DiagnosticStatus::WARN, problems.front());
     else if (poses < 3) stat.summary(DiagnosticStatus::WARN, "collecting board poses (" + std::to_string(poses) + ")");
@@ -401,7 +401,7 @@ struct RigCalibratorMode::Impl {
       const double silent_s = last_message_wall[k].isZero() ? 0.0 : (now - last_message_wall[k]).toSec();
       const bool now_seen = h.counts.board_now && silent_s <= kSilentS;
       if (now_seen) seen_now += (seen_now.empty() ? "" : ", ") + h.name;
-      const bool camera = session->sensors()[k].kind == msg::SensorKind::kCamera;
+      const bool camera = session->sensors()[k].kind == multi_sensor::SensorKind::kCamera;
       std::string& row = camera ? cameras : lidars;
       row += (row.empty() ? "" : "; ") + h.name + ": " +
              (now_seen ? "found" : h.counts.messages == 0 ? "no message" : "not found");
@@ -454,7 +454,7 @@ std::unique_ptr<RigCalibratorMode> RigCalibratorMode::create(ros::NodeHandle nh,
     return nullptr;
   }
   m.target = *target;
-  m.session = std::make_unique<msg::RigSession>(rig->sensorNames(), rig->sensorSpecs(), msg::rigSessionOptionsFor(*rig),
+  m.session = std::make_unique<multi_sensor::RigSession>(rig->sensorNames(), rig->sensorSpecs(), multi_sensor::rigSessionOptionsFor(*rig),
                                                 m.target);
   std::string session_file;
   if (pnh.getParam("session_file", session_file) && !session_file.empty()) {

@@ -1,5 +1,5 @@
 // Rig mode of the calibrator nodelet (~rig_file set): N camera and M LiDAR feature streams from
-// a rig YAML (docs/MSG.md), board poses captured by a msg::RigSession, ~calibrate solves the
+// a rig YAML (docs/MSG.md), board poses captured by a multi_sensor::RigSession, ~calibrate solves the
 // MSG-Cal graph and broadcasts every sensor's pose from the reference frame. Thin wiring only.
 #pragma once
 

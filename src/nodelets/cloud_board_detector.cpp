@@ -5,7 +5,7 @@
 #include "cloud_detector_options.h"
 
 #include <board_calib/conversions.h>
-#include <board_calib/core/lidar_board_detector.h>
+#include <board_calib/core/lidar_detection/lidar_board_detector.h>
 
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <dynamic_reconfigure/server.h>

@@ -4,7 +4,7 @@
 #pragma once
 
 #include <board_calib/CloudBoardDetectorConfig.h>
-#include <board_calib/core/lidar_board_detector.h>
+#include <board_calib/core/lidar_detection/lidar_board_detector.h>
 
 // Scalars of cfg/CloudBoardDetector.cfg (the ROI box corners are mapped separately).
 #define BOARD_CALIB_CLOUD_DETECTOR_FIELDS(X)                          \

@@ -5,7 +5,7 @@
 #include "image_detector_options.h"
 
 #include <board_calib/conversions.h>
-#include <board_calib/core/image_board_detector.h>
+#include <board_calib/core/image_detection/image_board_detector.h>
 
 #include <cv_bridge/cv_bridge.h>
 #include <diagnostic_updater/diagnostic_updater.h>

@@ -4,7 +4,7 @@
 #pragma once
 
 #include <board_calib/ImageBoardDetectorConfig.h>
-#include <board_calib/core/image_board_detector.h>
+#include <board_calib/core/image_detection/image_board_detector.h>
 
 // Every parameter of cfg/ImageBoardDetector.cfg.
 #define BOARD_CALIB_IMAGE_DETECTOR_FIELDS(X)                          \

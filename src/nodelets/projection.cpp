@@ -1,10 +1,10 @@
 // board_calib/projection: draws the LiDAR cloud onto the camera image with the current
 // extrinsic (TF or the latched calibration result) and colours the cloud from the image.
 // Lazy: inputs are subscribed only while someone listens to an output. Thin wiring around
-// core/projection.h; see docs/nodes/projection.md for the node API.
+// core/projection/projection.h; see docs/nodes/projection.md for the node API.
 #include <board_calib/ProjectionConfig.h>
 #include <board_calib/conversions.h>
-#include <board_calib/core/projection.h>
+#include <board_calib/core/projection/projection.h>
 
 #include <dynamic_reconfigure/server.h>
 #include <image_transport/image_transport.h>

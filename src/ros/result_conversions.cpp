@@ -47,7 +47,7 @@ CalibrationResult toResultMsg(const CalibrationSolution& s, const VerdictReport&
   return m;
 }
 
-CalibrationResult toPairResultMsg(const PairEntry& p, const RigPairRun& pair, const msg::MsgSolution& s,
+CalibrationResult toPairResultMsg(const PairEntry& p, const RigPairRun& pair, const multi_sensor::MsgSolution& s,
                                   const ros::Time& stamp) {
   CalibrationResult m;
   m.header.stamp = stamp;
@@ -80,10 +80,10 @@ CalibrationResult toPairResultMsg(const PairEntry& p, const RigPairRun& pair, co
   return m;
 }
 
-SensorPose toSensorPoseMsg(const msg::SensorEstimate& s) {
+SensorPose toSensorPoseMsg(const multi_sensor::SensorEstimate& s) {
   SensorPose p;
   p.frame = s.frame;
-  p.kind = msg::sensorKindName(s.kind);
+  p.kind = multi_sensor::sensorKindName(s.kind);
   p.reference_T_sensor = toTransformMsg(s.reference_T_sensor);
   for (int i = 0; i < 3; ++i) {
     p.stddev_translation_m[i] = s.stddev.translation_m[i];

@@ -3,7 +3,7 @@
 // Usage (from the package root): bench_image_detector [--frames N] [--targets DIR (default config/targets)]
 //   [--board plain|checkerboard|apriltag_grid (default all)] [--tag-decimate X] [--tag-sigma PX] [--tag-refine 0|1]
 //   [--per-frame]
-#include <board_calib/core/image_board_detector.h>
+#include <board_calib/core/image_detection/image_board_detector.h>
 #include <board_calib/core/sim/simulator.h>
 #include <board_calib/core/transform.h>
 

@@ -5,7 +5,7 @@
 // DIR defaults to ../shared/data, relative to the working directory (run it from the package
 // root); it holds basler_os1_plain/, left_vlp32_checker/ and rs16_plain/.
 #include <board_calib/bag_reader.h>
-#include <board_calib/core/lidar_board_detector.h>
+#include <board_calib/core/lidar_detection/lidar_board_detector.h>
 #include <board_calib/core/sim/scenario.h>
 
 #include <algorithm>

@@ -6,9 +6,9 @@
 //   bench_msg_graph --scenario RIG_SCENARIO.yaml [--scenes N] [--seed S]: the graph pairs against
 //     PBPC on features the detectors find in simulated frames (one still frame per sensor and
 //     hold), e.g. test/data/msg_rig_checker_scenario.yaml
-#include <board_calib/core/image_board_detector.h>
-#include <board_calib/core/lidar_board_detector.h>
-#include <board_calib/core/msg_graph.h>
+#include <board_calib/core/image_detection/image_board_detector.h>
+#include <board_calib/core/lidar_detection/lidar_board_detector.h>
+#include <board_calib/core/msg_graph/msg_graph.h>
 #include <board_calib/core/sim/scenario.h>
 #include "support/synthetic_rig.h"
 #include <board_calib/core/transform.h>

@@ -10,7 +10,7 @@
 // Usage (from the package root): bench_pcl [--scenario FILE]... [--data DIR] [--frames N]
 // Prints medians per data set: times (ms, single thread) and errors against the truth.
 #include <board_calib/bag_reader.h>
-#include <board_calib/core/lidar_board_detector.h>
+#include <board_calib/core/lidar_detection/lidar_board_detector.h>
 #include <board_calib/core/sim/scenario.h>
 
 #include "lidar_detection/geometry_2d.h"

@@ -6,7 +6,7 @@
 //   bench_projection [--bag FILE] [--extrinsic FILE] [--iterations N] [--save DIR]
 // (defaults expect the repository root as the working directory, ../shared beside it)
 #include <board_calib/bag_reader.h>
-#include <board_calib/core/projection.h>
+#include <board_calib/core/projection/projection.h>
 #include <board_calib/core/transform.h>
 
 #include <opencv2/imgcodecs.hpp>

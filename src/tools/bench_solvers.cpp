@@ -3,7 +3,7 @@
 // (PBPC schedule, edge outward shift, plane offset factor).
 //
 //   bench_solvers [--seeds N] [--trials N]
-#include <board_calib/core/solvers.h>
+#include <board_calib/core/solvers/solvers.h>
 #include "support/synthetic_views.h"
 #include <board_calib/core/transform.h>
 

@@ -7,12 +7,12 @@
 
 #include <board_calib/bag_reader.h>
 #include <board_calib/core/file_io.h>
-#include <board_calib/core/pipeline.h>
+#include <board_calib/core/pipeline/pipeline.h>
 #include <board_calib/core/pipeline/pair_calibration.h>
 #include <board_calib/core/pipeline/pair_report.h>
-#include <board_calib/core/projection.h>
-#include <board_calib/core/report.h>
-#include <board_calib/core/report_plots.h>
+#include <board_calib/core/projection/projection.h>
+#include <board_calib/core/report/report.h>
+#include <board_calib/core/report/report_plots.h>
 #include <board_calib/core/transform.h>
 
 #include <unistd.h>
@@ -285,7 +285,7 @@ SolverOptions solverOptions(const Args& args) {
 }
 
 // report.md with the overlays of the kept frames (core/pipeline/pair_report.h).
-void writeReport(const Args& args, const PairCalibration& run, const CalibrationSession& session,
+void writeReport(const Args& args, const PairCalibration& run, const PairSession& session,
                  const CalibrationPipeline* pipeline, const std::string& child) {
   PairReportInputs report;
   report.source = "bags:";
@@ -306,7 +306,7 @@ void writeReport(const Args& args, const PairCalibration& run, const Calibration
 }
 
 // A saved session (--load-session): it carries its own board, which --target must match.
-void loadSavedSession(const Args& args, std::optional<Target>* target, CalibrationSession* session) {
+void loadSavedSession(const Args& args, std::optional<Target>* target, PairSession* session) {
   const Status st = session->load(args.load_session);
   if (!st) fail(st.reason);
   // A session solved against another board would pair the wrong geometry with the features.
@@ -359,8 +359,8 @@ int main(int argc, char** argv) {
   }
 
   std::optional<CalibrationPipeline> pipeline;
-  CalibrationSession loaded_session(target ? *target : Target{}, options.session);
-  const CalibrationSession* session = nullptr;
+  PairSession loaded_session(target ? *target : Target{}, options.session);
+  const PairSession* session = nullptr;
   std::string camera_frame, lidar_frame;
 
   if (!args.load_session.empty()) {

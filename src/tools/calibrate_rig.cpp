@@ -9,9 +9,9 @@
 #include <board_calib/core/pipeline/rig_calibration.h>
 #include <board_calib/core/pipeline/rig_pipeline.h>
 #include <board_calib/core/result_io.h>
-#include <board_calib/core/rig_config.h>
+#include <board_calib/core/rig/rig_config.h>
 #include <board_calib/core/pipeline/rig_report.h>
-#include <board_calib/core/rig_report.h>
+#include <board_calib/core/rig/rig_summary.h>
 #include <board_calib/core/transform.h>
 
 #include <chrono>

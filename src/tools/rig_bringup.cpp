@@ -6,7 +6,7 @@
 // It stays up to reload its nodelets when the (respawned) manager lost them, and unloads them
 // when it stops. launch/rig_calibration.launch starts it.
 //   rosrun board_calib rig_bringup _rig_file:=my_rig.yaml _manager:=board_calib_manager
-#include <board_calib/core/rig_config.h>
+#include <board_calib/core/rig/rig_config.h>
 
 #include <nodelet/NodeletList.h>
 #include <nodelet/NodeletLoad.h>

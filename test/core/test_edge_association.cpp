@@ -2,8 +2,8 @@
 // the projected-edges overlay pair LiDAR edges with image lines the same way, so the overlay
 // shows the MLRE the solver reports, also when the detectors name the edges differently.
 #include <board_calib/core/common/edge_association.h>
-#include <board_calib/core/projection.h>
-#include <board_calib/core/solvers.h>
+#include <board_calib/core/projection/projection.h>
+#include <board_calib/core/solvers/solvers.h>
 #include "support/synthetic_views.h"
 #include <board_calib/core/transform.h>
 

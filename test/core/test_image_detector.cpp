@@ -1,7 +1,7 @@
 // Image board detector against the simulator's ground truth: plain board (edges, corners),
 // checkerboard and AprilTag grid from 1.5 to 6 m on a distorted 1920x1200 camera, plus the
 // failure reasons.
-#include <board_calib/core/image_board_detector.h>
+#include <board_calib/core/image_detection/image_board_detector.h>
 #include <board_calib/core/sim/simulator.h>
 #include <board_calib/core/transform.h>
 

@@ -1,6 +1,6 @@
 // LiDAR board detector: bad input gives a specific reason and no crash; options validation;
 // the 2D helpers the edge fits rely on.
-#include <board_calib/core/lidar_board_detector.h>
+#include <board_calib/core/lidar_detection/lidar_board_detector.h>
 
 #include "../../src/core/lidar_detection/geometry_2d.h"
 

@@ -1,7 +1,7 @@
 // LiDAR board detector against the simulator's ground truth: VLP-16, VLP-32C and OS1-64,
 // organized with ring and unorganized without ring, in a room with a person behind the board;
 // plus no board, two boards and the background model.
-#include <board_calib/core/lidar_board_detector.h>
+#include <board_calib/core/lidar_detection/lidar_board_detector.h>
 #include <board_calib/core/sim/scenario.h>
 #include <board_calib/core/sim/simulator.h>
 #include <board_calib/core/transform.h>

@@ -1,6 +1,6 @@
 // MSG graph on simulated rigs at known ground truth: a stereo pair, a VLP-32C-like and an
 // OS1-64-like LiDAR, 40 board poses of a 1 m AprilTag grid (issue 9 targets).
-#include <board_calib/core/msg_graph.h>
+#include <board_calib/core/msg_graph/msg_graph.h>
 #include "support/synthetic_rig.h"
 #include <board_calib/core/transform.h>
 
@@ -14,7 +14,7 @@
 #include <vector>
 
 namespace board_calib {
-namespace msg {
+namespace multi_sensor {
 namespace {
 
 // Issue 9 targets: every pair within 0.2 deg and 1 cm; with a 3x-noise sensor in the graph the
@@ -525,5 +525,5 @@ TEST(MsgGraph, ResultFileListsEverySensorAndPair) {
 }
 
 }  // namespace
-}  // namespace msg
+}  // namespace multi_sensor
 }  // namespace board_calib

@@ -1,6 +1,6 @@
 // Projection maths against CameraModel::project, culling, z-buffer, drawing and the
 // projected-edges check on exact synthetic geometry.
-#include <board_calib/core/projection.h>
+#include <board_calib/core/projection/projection.h>
 #include <board_calib/core/target.h>
 #include <board_calib/core/transform.h>
 

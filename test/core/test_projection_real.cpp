@@ -3,7 +3,7 @@
 // scored with the source authors' extrinsic must reproduce the numbers of shared/tools/mlre
 // (Python/numpy): MLRE 6.086 px (mean over frames of the mean over lines), 1551 points with a
 // pooled mean of 6.191 px.
-#include <board_calib/core/projection.h>
+#include <board_calib/core/projection/projection.h>
 #include <board_calib/core/transform.h>
 
 #include <gtest/gtest.h>

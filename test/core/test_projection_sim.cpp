@@ -7,7 +7,7 @@
 // extreme is refined with the LiDAR's true geometry instead: its beam is bisected in azimuth
 // between the last column on the board and the first one off it, giving the point where the
 // scan line really crosses the board edge.
-#include <board_calib/core/projection.h>
+#include <board_calib/core/projection/projection.h>
 #include <board_calib/core/sim/simulator.h>
 #include <board_calib/core/transform.h>
 

@@ -1,6 +1,6 @@
 // consistencyNotes: board size compared side by side (rectangular boards too), and a plane scale
 // that the solve compensated is reported with the compensated figures.
-#include <board_calib/core/report.h>
+#include <board_calib/core/report/report.h>
 #include "support/synthetic_views.h"
 
 #include <gtest/gtest.h>

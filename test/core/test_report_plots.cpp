@@ -1,6 +1,6 @@
 // Report figures: PNGs written at the requested size, an edge with a wrong image line flagged
 // and drawn as an outlier, the Markdown section links figures and overlays.
-#include <board_calib/core/report_plots.h>
+#include <board_calib/core/report/report_plots.h>
 #include "support/synthetic_views.h"
 
 #include <gtest/gtest.h>

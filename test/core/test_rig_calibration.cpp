@@ -16,7 +16,7 @@
 namespace board_calib {
 namespace {
 
-using msg::MsgProblem;
+using multi_sensor::MsgProblem;
 
 struct Scene {
   sim::RigScene scene;
@@ -35,7 +35,7 @@ Scene makeScene(unsigned seed, int poses) {
   out.target = so.target;
   // The rig file's view of the sensors, with the factory stereo calibration as known extrinsic.
   for (const auto& sensor : out.scene.sensors) {
-    if (sensor.kind == msg::SensorKind::kCamera) out.rig.cameras.push_back({sensor.frame, "", "", "", 0, 0, 0});
+    if (sensor.kind == multi_sensor::SensorKind::kCamera) out.rig.cameras.push_back({sensor.frame, "", "", "", 0, 0, 0});
     else out.rig.lidars.push_back({sensor.frame, "", "", 0, 0, 0});
   }
   out.rig.reference = out.scene.sensors[0].frame;

@@ -1,5 +1,5 @@
 // Rig YAML loader: the shipped rig file, and specific reasons naming the key for bad input.
-#include <board_calib/core/rig_config.h>
+#include <board_calib/core/rig/rig_config.h>
 #include <board_calib/core/transform.h>
 
 #include <gtest/gtest.h>
@@ -62,7 +62,7 @@ TEST(RigConfig, ParsesEveryField) {
   EXPECT_EQ(rig->sensorNames(), (std::vector<std::string>{"left", "right", "vlp"}));
   const auto specs = rig->sensorSpecs();
   ASSERT_EQ(specs.size(), 3u);
-  EXPECT_EQ(specs[2].kind, msg::SensorKind::kLidar);
+  EXPECT_EQ(specs[2].kind, multi_sensor::SensorKind::kLidar);
   EXPECT_DOUBLE_EQ(specs[2].normal_sigma_deg, 0.4);
   ASSERT_EQ(rig->known_extrinsics.size(), 1u);
   // 1 deg about z, 12 cm along x (the quaternion above).

@@ -26,19 +26,19 @@ class RigReportTest : public ::testing::Test {
     auto s = sim::generateRigScene(sim::defaultRig(), options, rng);
     ASSERT_TRUE(s.ok()) << s.error();
     scene = *s;
-    solution = msg::solveMsgGraph(scene.problem, msg::MsgGraphOptions{});
+    solution = multi_sensor::solveMsgGraph(scene.problem, multi_sensor::MsgGraphOptions{});
     ASSERT_TRUE(solution.success) << solution.reason;
-    result = msg::msgResultFile(scene.problem, solution);
+    result = multi_sensor::msgResultFile(scene.problem, solution);
     rig.target_path = "board.yaml";
     for (const auto& sensor : scene.sensors) {
-      if (sensor.kind == msg::SensorKind::kCamera) rig.cameras.push_back({sensor.frame, "/i" + sensor.frame,
+      if (sensor.kind == multi_sensor::SensorKind::kCamera) rig.cameras.push_back({sensor.frame, "/i" + sensor.frame,
                                                                           "/c" + sensor.frame, "/f" + sensor.frame});
       else rig.lidars.push_back({sensor.frame, "/p" + sensor.frame, "/f" + sensor.frame});
     }
     rig.reference = scene.sensors.front().frame;
   }
   sim::RigScene scene;
-  msg::MsgSolution solution;
+  multi_sensor::MsgSolution solution;
   ResultFile result;
   RigConfig rig;
 };

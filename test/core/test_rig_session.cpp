@@ -2,7 +2,7 @@
 // as a person waving the board produces them), solved against the ground truth, saved and
 // reloaded; bad input gives specific events.
 #include "support/synthetic_rig.h"
-#include <board_calib/core/rig_session.h>
+#include <board_calib/core/rig/rig_session.h>
 #include <board_calib/core/transform.h>
 
 #include <gtest/gtest.h>
@@ -16,7 +16,7 @@
 #include <set>
 
 namespace board_calib {
-namespace msg {
+namespace multi_sensor {
 namespace {
 
 constexpr double kFramePeriodS = 0.1;
@@ -368,5 +368,5 @@ TEST_F(RigSessionTest, SparseCamerasAndFastLidarsCaptureEveryHoldAndNoMovingFram
 }
 
 }  // namespace
-}  // namespace msg
+}  // namespace multi_sensor
 }  // namespace board_calib

@@ -1,4 +1,4 @@
-#include <board_calib/core/session.h>
+#include <board_calib/core/session/session.h>
 #include <board_calib/core/transform.h>
 
 #include <gtest/gtest.h>
@@ -58,7 +58,7 @@ Eigen::Isometry3d boardPose(double x, double z, double yaw_deg, double pitch_deg
   return makeTransform(R, Eigen::Vector3d(x - 0.5, -0.5, z));
 }
 
-void feed(CalibrationSession& s, const View& v, SessionEvent* last) {
+void feed(PairSession& s, const View& v, SessionEvent* last) {
   s.addCamera(v.camera);
   *last = s.addLidar(v.lidar);
 }
@@ -66,7 +66,7 @@ void feed(CalibrationSession& s, const View& v, SessionEvent* last) {
 }  // namespace
 
 // LiDAR and camera at their own rates: the board moves in [0, 0.5) s and is held still from 0.5 s.
-void feedStreams(CalibrationSession& s, const Target& target, double lidar_hz, double camera_hz, double t_end,
+void feedStreams(PairSession& s, const Target& target, double lidar_hz, double camera_hz, double t_end,
                  const std::function<Eigen::Isometry3d(double)>& pose_at, std::vector<SessionEvent>* events) {
   double next_lidar = 0.0, next_camera = 0.004;
   while (std::min(next_lidar, next_camera) < t_end) {
@@ -88,7 +88,7 @@ int countKind(const std::vector<SessionEvent>& events, SessionEvent::Kind kind) 
 
 TEST(Session, AcceptsOnlyAfterTheBoardIsStill) {
   const Target target = plainTarget();
-  CalibrationSession s(target, SessionOptions{});
+  PairSession s(target, SessionOptions{});
   std::vector<SessionEvent> events;
   // Moves 0.6 m/s until 0.5 s, then still until 2 s: one view, of the still board.
   feedStreams(s, target, 10.0, 10.0, 2.0, [](double t) { return boardPose(0.6 * std::min(t, 0.5), 3, 10, 0); }, &events);
@@ -101,7 +101,7 @@ TEST(Session, AcceptsOnlyAfterTheBoardIsStill) {
 
 TEST(Session, SlowCameraIsJudgedByTheLidarAroundEachImage) {
   const Target target = plainTarget();
-  CalibrationSession s(target, SessionOptions{});
+  PairSession s(target, SessionOptions{});
   std::vector<SessionEvent> events;
   // Camera at 2 Hz, LiDAR at 10 Hz. Holds of 1.5 s with 1 s moves; images land in holds and moves.
   auto pose_at = [](double t) {
@@ -126,7 +126,7 @@ TEST(Session, SlowCameraIsJudgedByTheLidarAroundEachImage) {
 
 TEST(Session, SnapshotRecordingsMakeEveryPairACandidate) {
   const Target target = plainTarget();
-  CalibrationSession s(target, SessionOptions{});
+  PairSession s(target, SessionOptions{});
   SessionEvent e;
   for (int k = 0; k < 6; ++k) feed(s, makeView(boardPose(0.3 * k - 0.8, 2.5 + 0.3 * k, 20.0 * (k % 3) - 20, 15.0 * (k % 2)), 2.0 * k, target), &e);
   s.finish();
@@ -138,7 +138,7 @@ TEST(Session, RejectsUnsynchronisedAndDuplicatePoses) {
   const Target target = plainTarget();
   SessionOptions opt;
   opt.still_frames_required = 1;
-  CalibrationSession s(target, opt);
+  PairSession s(target, opt);
   View far = makeView(boardPose(0, 3, 0, 20), 0.0, target);
   far.lidar.stamp = 0.5;  // 500 ms apart
   s.addCamera(far.camera);
@@ -159,7 +159,7 @@ TEST(Session, SanityGates) {
   const Target target = plainTarget();
   SessionOptions opt;
   opt.still_frames_required = 1;
-  CalibrationSession s(target, opt);
+  PairSession s(target, opt);
   SessionEvent e;
   feed(s, makeView(boardPose(0, 3, 0, 20), 0.0, target, 1.5), &e);  // 1.5 m board: not ours
   EXPECT_EQ(e.kind, SessionEvent::Kind::kRejected);
@@ -184,7 +184,7 @@ TEST(Session, SanityGates) {
 
 TEST(Session, ManualCaptureSkipsStillnessButNotSanity) {
   const Target target = plainTarget();
-  CalibrationSession s(target, SessionOptions{});
+  PairSession s(target, SessionOptions{});
   s.setAutoCapture(false);
   EXPECT_EQ(s.captureNow().kind, SessionEvent::Kind::kRejected);
   SessionEvent e;
@@ -199,7 +199,7 @@ TEST(Session, SaveLoadDropAndCoverage) {
   const Target target = plainTarget();
   SessionOptions opt;
   opt.still_frames_required = 1;
-  CalibrationSession s(target, opt);
+  PairSession s(target, opt);
   SessionEvent e;
   int t = 0;
   for (double yaw : {-30.0, 0.0, 30.0})
@@ -211,7 +211,7 @@ TEST(Session, SaveLoadDropAndCoverage) {
 
   const std::string path = ::testing::TempDir() + "/board_calib_session.yaml";
   ASSERT_TRUE(s.save(path).ok);
-  CalibrationSession loaded(plainTarget(), opt);
+  PairSession loaded(plainTarget(), opt);
   const Status st = loaded.load(path);
   ASSERT_TRUE(st.ok) << st.reason;
   ASSERT_EQ(loaded.views().size(), 6u);
@@ -244,7 +244,7 @@ TEST(Session, SaveLoadDropAndCoverage) {
 TEST(Session, HostileSessionFilesAreRefused) {
   const Target target = plainTarget();
   SessionOptions opt;
-  CalibrationSession s(target, opt);
+  PairSession s(target, opt);
   for (int i = 0; i < 2; ++i)
     s.addView(makeView(makeTransform(Eigen::Vector3d(0.1 * i, 0, 2.5), Eigen::Vector4d(0.2 * i, 0, 0, 1)), i, target),
               "test", false);
@@ -259,7 +259,7 @@ TEST(Session, HostileSessionFilesAreRefused) {
     const std::string bad = std::regex_replace(good, what, with, std::regex_constants::format_first_only);
     ASSERT_NE(bad, good) << "the mutation did not apply";
     std::ofstream(path) << bad;
-    CalibrationSession loaded(target, opt);
+    PairSession loaded(target, opt);
     const Status st = loaded.load(path);
     ASSERT_FALSE(st.ok) << "accepted: " << fragment;
     EXPECT_NE(st.reason.find(fragment), std::string::npos) << st.reason;

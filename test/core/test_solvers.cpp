@@ -1,5 +1,5 @@
 // Solvers on synthetic features at known ground truth (issue 3 targets).
-#include <board_calib/core/solvers.h>
+#include <board_calib/core/solvers/solvers.h>
 #include "support/synthetic_views.h"
 #include <board_calib/core/transform.h>
 

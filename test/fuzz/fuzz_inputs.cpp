@@ -7,7 +7,7 @@
 #include <board_calib/core/file_io.h>
 #include <board_calib/core/result_io.h>
 #include "fuzz_text.h"
-#include <board_calib/core/session.h>
+#include <board_calib/core/session/session.h>
 #include <board_calib/core/target.h>
 #include <board_calib/core/transform.h>
 
@@ -174,7 +174,7 @@ std::string sessionText(const std::string& dir) {
   Target target;
   target.type = TargetType::kPlain;
   target.width = target.height = 1.0;
-  CalibrationSession session(target, SessionOptions{});
+  PairSession session(target, SessionOptions{});
   for (int i = 0; i < 3; ++i) {
     View v;
     v.camera.found = v.lidar.found = true;
@@ -312,7 +312,7 @@ TEST_F(FuzzInputs, SessionYaml) {
   int accepted = 0;
   for (int i = 0; i < kYamlIterations; ++i) {
     std::ofstream(path) << mutateText(rng, seed);
-    CalibrationSession session(target, SessionOptions{});
+    PairSession session(target, SessionOptions{});
     const Status st = session.load(path);
     if (!st) {
       EXPECT_FALSE(st.reason.empty());
@@ -353,10 +353,10 @@ TEST_F(FuzzInputs, NonFiles) {
   for (const std::string& path : {d, d + "/empty.yaml", std::string("/dev/null"), d + "/missing.yaml"}) {
     EXPECT_FALSE(loadTarget(path).ok()) << path;
     EXPECT_FALSE(loadResultFile(path).ok()) << path;
-    CalibrationSession session(Target{}, SessionOptions{});
+    PairSession session(Target{}, SessionOptions{});
     const Status st = session.load(path);
     EXPECT_FALSE(st.ok) << path;
   }
-  CalibrationSession session(Target{}, SessionOptions{});
+  PairSession session(Target{}, SessionOptions{});
   EXPECT_NE(session.load(d).reason.find("directory"), std::string::npos) << session.load(d).reason;
 }

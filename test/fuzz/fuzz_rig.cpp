@@ -1,6 +1,6 @@
 // Deterministic fuzzer over the rig YAML reader (see fuzz_inputs.cpp): mutations of the shipped
 // rig file must end in a reason or a valid rig, never a crash or a sanitizer report.
-#include <board_calib/core/rig_config.h>
+#include <board_calib/core/rig/rig_config.h>
 
 #include "fuzz_text.h"
 

@@ -36,8 +36,8 @@ TEST(ConfigDefaults, CalibratorCfgMatchesTheSessions) {
   EXPECT_EQ(pair.member, pair_core.member) << "cfg/Calibrator.cfg default of '" #cfg "'";
   BOARD_CALIB_SESSION_FIELDS(BOARD_CALIB_EXPECT_SAME)
 #undef BOARD_CALIB_EXPECT_SAME
-  const msg::RigSessionOptions rig = rigSessionOptionsFromConfig(defaults);
-  const msg::RigSessionOptions rig_core;
+  const multi_sensor::RigSessionOptions rig = rigSessionOptionsFromConfig(defaults);
+  const multi_sensor::RigSessionOptions rig_core;
 #define BOARD_CALIB_EXPECT_SAME(cfg, member) \
   EXPECT_EQ(rig.member, rig_core.member) << "cfg/Calibrator.cfg default of '" #cfg "' (rig mode)";
   BOARD_CALIB_RIG_SESSION_FIELDS(BOARD_CALIB_EXPECT_SAME)

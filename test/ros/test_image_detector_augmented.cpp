@@ -9,7 +9,7 @@
 // exist; its README measured them straight to 0.2-0.4 px).
 // Set BOARD_CALIB_DEBUG_DIR to write the debug images there.
 #include <board_calib/bag_reader.h>
-#include <board_calib/core/image_board_detector.h>
+#include <board_calib/core/image_detection/image_board_detector.h>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>

@@ -5,7 +5,7 @@
 //  * left_vlp32_checker: 9x6 checkerboard, every frame (issue target RMS < 0.3 px: see the test).
 // Set BOARD_CALIB_DEBUG_DIR to write the debug images there.
 #include <board_calib/bag_reader.h>
-#include <board_calib/core/image_board_detector.h>
+#include <board_calib/core/image_detection/image_board_detector.h>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>

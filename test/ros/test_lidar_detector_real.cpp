@@ -2,7 +2,7 @@
 // absent), plus the conversion-level bad input (missing x/y/z fields).
 #include <board_calib/bag_reader.h>
 #include <board_calib/conversions.h>
-#include <board_calib/core/lidar_board_detector.h>
+#include <board_calib/core/lidar_detection/lidar_board_detector.h>
 
 #include <gtest/gtest.h>
 #include <sys/stat.h>

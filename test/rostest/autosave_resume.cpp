@@ -4,7 +4,7 @@
 #include <board_calib/LidarBoard.h>
 #include <board_calib/SessionFile.h>
 #include <board_calib/conversions.h>
-#include <board_calib/core/session.h>
+#include <board_calib/core/session/session.h>
 #include <board_calib/core/transform.h>
 
 #include <gtest/gtest.h>
@@ -127,7 +127,7 @@ TEST(AutosaveResume, KilledManagerLosesNoView) {
   ASSERT_NE(new_pid, pid) << "the calibrator was not respawned";
   ASSERT_EQ(viewsHeld(nh, check_file), kViews) << "views lost across the restart";
 
-  board_calib::CalibrationSession resumed(board_calib::Target{}, board_calib::SessionOptions{});
+  board_calib::PairSession resumed(board_calib::Target{}, board_calib::SessionOptions{});
   ASSERT_TRUE(resumed.load(check_file).ok);
   for (int v = 0; v < kViews; ++v) EXPECT_EQ(resumed.views()[v].view.id, v);
 
@@ -135,7 +135,7 @@ TEST(AutosaveResume, KilledManagerLosesNoView) {
   ros::ServiceClient reset = nh.serviceClient<std_srvs::Trigger>("calibrator/reset");
   std_srvs::Trigger trigger;
   ASSERT_TRUE(reset.call(trigger));
-  board_calib::CalibrationSession after_reset(board_calib::Target{}, board_calib::SessionOptions{});
+  board_calib::PairSession after_reset(board_calib::Target{}, board_calib::SessionOptions{});
   ASSERT_TRUE(after_reset.load(output_dir + "/autosave_session.yaml").ok);
   EXPECT_TRUE(after_reset.views().empty());
 }

@@ -4,7 +4,7 @@
 // pose each belongs to).
 #pragma once
 
-#include <board_calib/core/pipeline.h>
+#include <board_calib/core/pipeline/pipeline.h>
 #include <board_calib/core/sim/scenario.h>
 
 #include <string>

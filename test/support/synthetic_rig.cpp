@@ -260,7 +260,7 @@ std::vector<RigSensor> defaultRig() {
   std::vector<RigSensor> rig;
   RigSensor left;
   left.frame = "camera_left";
-  left.kind = msg::SensorKind::kCamera;
+  left.kind = multi_sensor::SensorKind::kCamera;
   rig.push_back(left);
   RigSensor right = left;
   right.frame = "camera_right";
@@ -269,7 +269,7 @@ std::vector<RigSensor> defaultRig() {
   rig.push_back(right);
   RigSensor vlp;
   vlp.frame = "vlp32c";
-  vlp.kind = msg::SensorKind::kLidar;
+  vlp.kind = multi_sensor::SensorKind::kLidar;
   vlp.reference_T_sensor = lidarPose(Eigen::Vector3d(0.06, -0.18, -0.05), Eigen::Vector3d(1.5, -2.0, 3.0));
   vlp.rings = 32;
   vlp.min_elevation_deg = -25.0;
@@ -292,7 +292,7 @@ std::vector<RigSensor> defaultRig() {
 RigSensor extraLidar16(const std::string& frame, double noise_scale) {
   RigSensor s;
   s.frame = frame;
-  s.kind = msg::SensorKind::kLidar;
+  s.kind = multi_sensor::SensorKind::kLidar;
   s.reference_T_sensor = lidarPose(Eigen::Vector3d(-0.35, -0.10, 0.10), Eigen::Vector3d(0.5, 1.0, 6.0));
   s.rings = 16;
   s.min_elevation_deg = -15.0;
@@ -333,12 +333,12 @@ Expected<RigScene> generateRigScene(const std::vector<RigSensor>& sensors, const
   if (!invalid.empty()) return Expected<RigScene>::failure("invalid synthetic options: " + invalid);
   if (sensors.size() < 2) return Expected<RigScene>::failure("a rig needs >= 2 sensors");
   for (const auto& s : sensors)
-    if (s.kind == msg::SensorKind::kLidar && (s.rings < 1 || !(s.horizontal_resolution_deg > 0)))
+    if (s.kind == multi_sensor::SensorKind::kLidar && (s.rings < 1 || !(s.horizontal_resolution_deg > 0)))
       return Expected<RigScene>::failure("LiDAR '" + s.frame + "' needs >= 1 ring and a resolution > 0");
   RigScene scene;
   scene.sensors = sensors;
   for (const auto& s : sensors) {
-    msg::SensorSpec spec;
+    multi_sensor::SensorSpec spec;
     spec.frame = s.frame;
     spec.kind = s.kind;
     scene.problem.sensors.push_back(spec);
@@ -347,7 +347,7 @@ Expected<RigScene> generateRigScene(const std::vector<RigSensor>& sensors, const
   std::vector<std::vector<double>> ring_bias(sensors.size());
   for (size_t i = 0; i < sensors.size(); ++i) {
     std::normal_distribution<double> bias(0.0, sensors[i].ring_bias_m * sensors[i].noise_scale);
-    if (sensors[i].kind == msg::SensorKind::kLidar)
+    if (sensors[i].kind == multi_sensor::SensorKind::kLidar)
       for (int r = 0; r < sensors[i].rings; ++r) ring_bias[i].push_back(bias(rng));
   }
   // Board poses are drawn around the reference sensor's (sensor 0) optical axis.
@@ -359,12 +359,12 @@ Expected<RigScene> generateRigScene(const std::vector<RigSensor>& sensors, const
           "only " + std::to_string(scene.problem.poses.size()) + " of " + std::to_string(options.num_poses) +
           " board poses fit every sensor's field of view after " + std::to_string(options.max_attempts) + " draws");
     const Eigen::Isometry3d ref_T_board = ref_T_s0 * drawBoardPose(options, rng);
-    msg::BoardPoseObservation obs;
+    multi_sensor::BoardPoseObservation obs;
     obs.id = static_cast<int>(scene.problem.poses.size());
     bool all = true;
     for (size_t i = 0; i < sensors.size() && all; ++i) {
       const Eigen::Isometry3d s_T_board = sensors[i].reference_T_sensor.inverse() * ref_T_board;
-      if (sensors[i].kind == msg::SensorKind::kCamera) {
+      if (sensors[i].kind == multi_sensor::SensorKind::kCamera) {
         auto f = observeCamera(sensors[i], options.target, s_T_board, rng);
         if (f) obs.cameras[static_cast<int>(i)] = std::move(*f);
         else all = false;

@@ -8,7 +8,7 @@
 // Edges are named by the physical board edge (outer corner k to k+1) for every sensor.
 #pragma once
 
-#include <board_calib/core/msg_graph.h>
+#include <board_calib/core/msg_graph/msg_graph.h>
 #include <board_calib/core/target.h>
 
 #include <random>
@@ -18,7 +18,7 @@ namespace sim {
 
 struct RigSensor {
   std::string frame;
-  msg::SensorKind kind = msg::SensorKind::kCamera;
+  multi_sensor::SensorKind kind = multi_sensor::SensorKind::kCamera;
   Eigen::Isometry3d reference_T_sensor = Eigen::Isometry3d::Identity();  ///< ground truth
   // Camera (pinhole, undistorted pixels).
   int image_width = 1280, image_height = 960;  ///< px
@@ -60,7 +60,7 @@ struct RigSceneOptions {
 };
 
 struct RigScene {
-  msg::MsgProblem problem;  ///< reference sensor 0, sigmas left at the defaults (<= 0)
+  multi_sensor::MsgProblem problem;  ///< reference sensor 0, sigmas left at the defaults (<= 0)
   std::vector<RigSensor> sensors;
   std::vector<Eigen::Isometry3d> reference_T_board;  ///< per board pose
 };

@@ -1,7 +1,7 @@
 // Private helpers shared by the three board detectors (not installed, not public API).
 #pragma once
 
-#include <board_calib/core/image_board_detector.h>
+#include <board_calib/core/image_detection/image_board_detector.h>
 
 #include <opencv2/core.hpp>
 

@@ -1,4 +1,4 @@
-#include <board_calib/core/lidar_board_detector.h>
+#include <board_calib/core/lidar_detection/lidar_board_detector.h>
 
 #include <cmath>
 #include <limits>

@@ -3,7 +3,7 @@
 // lidar_board_detector.cpp (the single-cloud detector) and lidar_board_tracker.cpp.
 #pragma once
 
-#include <board_calib/core/lidar_board_detector.h>
+#include <board_calib/core/lidar_detection/lidar_board_detector.h>
 
 #include "geometry_2d.h"
 #include "scan_segments.h"

@@ -4,7 +4,7 @@
 // Also the sampling-aware board checks and the rectangle fit of the per-line extremes.
 #pragma once
 
-#include <board_calib/core/lidar_cloud.h>
+#include <board_calib/core/lidar_detection/lidar_cloud.h>
 
 #include "geometry_2d.h"
 

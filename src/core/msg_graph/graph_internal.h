@@ -5,7 +5,7 @@
 
 #include "msg_costs.h"
 
-#include <board_calib/core/msg_graph.h>
+#include <board_calib/core/msg_graph/msg_graph.h>
 #include <board_calib/core/transform.h>
 
 #include <ceres/product_manifold.h>
@@ -17,7 +17,7 @@
 #include <vector>
 
 namespace board_calib {
-namespace msg {
+namespace multi_sensor {
 namespace graph_detail {
 
 constexpr double kUnitTolerance = 1e-3;   // |n| - 1 accepted for a plane normal
@@ -176,5 +176,5 @@ void finalNotes(const MsgProblem& problem, const MsgGraphOptions& options, const
 Matrix6d relativeCovarianceOf(const MsgSolution& sol, int a, int b);
 
 }  // namespace graph_detail
-}  // namespace msg
+}  // namespace multi_sensor
 }  // namespace board_calib

@@ -12,7 +12,7 @@
 #include <limits>
 
 namespace board_calib {
-namespace msg {
+namespace multi_sensor {
 namespace graph_detail {
 
 double msSince(Clock::time_point start) {
@@ -259,5 +259,5 @@ void Graph::addLineTerms(size_t p, ceres::Problem* problem, RobustLoss loss, dou
 }
 
 }  // namespace graph_detail
-}  // namespace msg
+}  // namespace multi_sensor
 }  // namespace board_calib

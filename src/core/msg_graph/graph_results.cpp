@@ -10,7 +10,7 @@
 #include <limits>
 
 namespace board_calib {
-namespace msg {
+namespace multi_sensor {
 namespace graph_detail {
 
 // Covariance of a_T_b = reference_T_a^-1 * reference_T_b from the joint pose covariance (both
@@ -266,5 +266,5 @@ ResultFile msgResultFile(const MsgProblem& problem, const MsgSolution& solution)
   return r;
 }
 
-}  // namespace msg
+}  // namespace multi_sensor
 }  // namespace board_calib

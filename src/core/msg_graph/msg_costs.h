@@ -9,7 +9,7 @@
 #include <Eigen/Geometry>
 
 namespace board_calib {
-namespace msg {
+namespace multi_sensor {
 namespace detail {
 
 template <typename T>
@@ -124,5 +124,5 @@ class LineCost {
 };
 
 }  // namespace detail
-}  // namespace msg
+}  // namespace multi_sensor
 }  // namespace board_calib

@@ -6,7 +6,7 @@
 #include <cmath>
 
 namespace board_calib {
-namespace msg {
+namespace multi_sensor {
 
 using namespace graph_detail;
 
@@ -124,5 +124,5 @@ MsgSolution solveMsgGraph(const MsgProblem& problem, const MsgGraphOptions& opti
   return sol;
 }
 
-}  // namespace msg
+}  // namespace multi_sensor
 }  // namespace board_calib

@@ -12,7 +12,7 @@
 #include <cmath>
 
 namespace board_calib {
-namespace msg {
+namespace multi_sensor {
 namespace graph_detail {
 
 namespace {
@@ -292,5 +292,5 @@ void loopErrors(int n, MsgSolution* sol) {
 }
 
 }  // namespace graph_detail
-}  // namespace msg
+}  // namespace multi_sensor
 }  // namespace board_calib

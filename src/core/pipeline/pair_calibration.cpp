@@ -1,5 +1,5 @@
 #include <board_calib/core/pipeline/pair_calibration.h>
-#include <board_calib/core/report.h>
+#include <board_calib/core/report/report.h>
 
 #include <algorithm>
 #include <sstream>

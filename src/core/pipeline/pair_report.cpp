@@ -1,8 +1,8 @@
 #include <board_calib/core/file_io.h>
 #include <board_calib/core/pipeline/pair_report.h>
-#include <board_calib/core/projection.h>
-#include <board_calib/core/report.h>
-#include <board_calib/core/report_plots.h>
+#include <board_calib/core/projection/projection.h>
+#include <board_calib/core/report/report.h>
+#include <board_calib/core/report/report_plots.h>
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -14,7 +14,7 @@ namespace {
 
 constexpr int kOverlayJpegQuality = 85;
 
-std::string reportMarkdown(const PairCalibration& run, const CalibrationSession& session, const PairReportInputs& in,
+std::string reportMarkdown(const PairCalibration& run, const PairSession& session, const PairReportInputs& in,
                            const std::vector<CalibrationSolution>& solutions) {
   const ResultFile& result = run.result;
   std::ostringstream md;
@@ -44,7 +44,7 @@ std::string reportMarkdown(const PairCalibration& run, const CalibrationSession&
 
 }  // namespace
 
-Status writePairReport(const std::string& dir, const PairCalibration& run, const CalibrationSession& session,
+Status writePairReport(const std::string& dir, const PairCalibration& run, const PairSession& session,
                        const PairReportInputs& in) {
   if (run.runs.empty()) return Status::failure("nothing to report: no method was run (" + run.reason + ")");
   std::error_code error;

@@ -1,4 +1,4 @@
-#include <board_calib/core/pipeline.h>
+#include <board_calib/core/pipeline/pipeline.h>
 
 #include <chrono>
 #include <deque>
@@ -34,7 +34,7 @@ struct CalibrationPipeline::Impl {
   PipelineOptions options;
   ImageBoardDetector image_detector;
   std::optional<LidarBoardTracker> tracker;  // session memory of board-like places (issue 14)
-  CalibrationSession session;
+  PairSession session;
   std::optional<CameraIntrinsics> intrinsics;
   std::optional<CameraModel> camera;
   PipelineStats stats;
@@ -152,8 +152,8 @@ SessionEvent CalibrationPipeline::finish() {
   return event;
 }
 
-CalibrationSession& CalibrationPipeline::session() { return impl_->session; }
-const CalibrationSession& CalibrationPipeline::session() const { return impl_->session; }
+PairSession& CalibrationPipeline::session() { return impl_->session; }
+const PairSession& CalibrationPipeline::session() const { return impl_->session; }
 const PipelineStats& CalibrationPipeline::stats() const { return impl_->stats; }
 const Target& CalibrationPipeline::target() const { return impl_->target; }
 const std::map<int, cv::Mat>& CalibrationPipeline::viewImages() const { return impl_->view_images; }

@@ -12,9 +12,9 @@
 namespace board_calib {
 namespace {
 
-using msg::BoardPoseObservation;
-using msg::MsgProblem;
-using msg::MsgSolution;
+using multi_sensor::BoardPoseObservation;
+using multi_sensor::MsgProblem;
+using multi_sensor::MsgSolution;
 
 int rank(Verdict v) { return v == Verdict::kFailed ? 2 : v == Verdict::kDoubtful ? 1 : 0; }
 
@@ -38,7 +38,7 @@ std::vector<std::pair<int, int>> cameraLidarPairs(const MsgProblem& problem) {
   std::vector<std::pair<int, int>> pairs;
   for (size_t c = 0; c < problem.sensors.size(); ++c)
     for (size_t l = 0; l < problem.sensors.size(); ++l)
-      if (problem.sensors[c].kind == msg::SensorKind::kCamera && problem.sensors[l].kind == msg::SensorKind::kLidar)
+      if (problem.sensors[c].kind == multi_sensor::SensorKind::kCamera && problem.sensors[l].kind == multi_sensor::SensorKind::kLidar)
         pairs.emplace_back(static_cast<int>(c), static_cast<int>(l));
   return pairs;
 }
@@ -109,7 +109,7 @@ CalibrationSolution pairSolution(const std::vector<View>& views, const Eigen::Is
 // The graph solved without some poses, once per set left out (pairs sharing poses share solves).
 class FoldSolver {
  public:
-  FoldSolver(const MsgProblem& problem, const msg::MsgGraphOptions& options) : problem_(problem), options_(options) {
+  FoldSolver(const MsgProblem& problem, const multi_sensor::MsgGraphOptions& options) : problem_(problem), options_(options) {
     options_.compute_covariance = false;
   }
   CalibrationSolution pair(const std::vector<View>& train, const std::vector<View>& all, int camera, int lidar) {
@@ -124,11 +124,11 @@ class FoldSolver {
       fold.poses.erase(std::remove_if(fold.poses.begin(), fold.poses.end(),
                                       [&](const BoardPoseObservation& p) { return left.count(p.id) > 0; }),
                        fold.poses.end());
-      it = cache_.emplace(left, msg::solveMsgGraph(fold, options_)).first;
+      it = cache_.emplace(left, multi_sensor::solveMsgGraph(fold, options_)).first;
     }
     CalibrationSolution s;
     s.method = Method::kMsgPair;
-    const auto T = it->second.success ? msg::sensorTSensor(it->second, camera, lidar)
+    const auto T = it->second.success ? multi_sensor::sensorTSensor(it->second, camera, lidar)
                                       : Expected<Eigen::Isometry3d>::failure(it->second.reason);
     s.success = static_cast<bool>(T);
     if (T) s.camera_T_lidar = *T;
@@ -138,7 +138,7 @@ class FoldSolver {
 
  private:
   const MsgProblem& problem_;
-  msg::MsgGraphOptions options_;
+  multi_sensor::MsgGraphOptions options_;
   std::map<std::set<int>, MsgSolution> cache_;
 };
 
@@ -163,9 +163,9 @@ Verdict judgeRigChecks(const MsgSolution& sol, const RigConfig& rig, const std::
   for (const auto& known : rig.known_extrinsics) {
     const int a = rig.sensorIndex(known.a), b = rig.sensorIndex(known.b);
     if (a < 0 || b < 0 || a >= static_cast<int>(sol.sensors.size()) || b >= static_cast<int>(sol.sensors.size())) continue;
-    const auto consistency = msg::stereoConsistency(sol, a, b, known.a_T_b);
+    const auto consistency = multi_sensor::stereoConsistency(sol, a, b, known.a_T_b);
     if (!consistency) continue;
-    const auto cov = msg::relativeCovariance(sol, a, b);
+    const auto cov = multi_sensor::relativeCovariance(sol, a, b);
     const PoseStddev sd = cov ? stddevFromCovariance(*cov) : PoseStddev{};
     const double rot_tol = o.known_floor_rotation_deg + o.known_sigmas * sd.rotation_deg.norm();
     const double trans_tol = o.known_floor_translation_m + o.known_sigmas * sd.translation_m.norm();
@@ -224,9 +224,9 @@ RigCalibration calibrateRig(const MsgProblem& problem, const RigConfig& rig, con
   if (auto why = options.validate(); !why.empty()) return fail("invalid options: " + why);
   if (problem.poses.empty()) return fail("no board poses: hold the board still where at least two sensors see it");
   run.problem = withoutInconsistent(problem, target, options.consistency, &run.left_out);
-  run.solution = msg::solveMsgGraph(run.problem, options.graph);
+  run.solution = multi_sensor::solveMsgGraph(run.problem, options.graph);
   if (!run.solution.success) return fail("MSG graph failed: " + run.solution.reason);
-  run.result = msg::msgResultFile(run.problem, run.solution);
+  run.result = multi_sensor::msgResultFile(run.problem, run.solution);
 
   FoldSolver folds(run.problem, options.graph);
   std::set<int> to_check;

@@ -1,5 +1,5 @@
 // Rig front end (see rig_pipeline.h).
-#include <board_calib/core/msg_session.h>
+#include <board_calib/core/msg_graph/pose_grouping.h>
 #include <board_calib/core/pipeline/rig_pipeline.h>
 
 #include <optional>
@@ -28,7 +28,7 @@ std::string RigPipelineOptions::validate() const {
 
 RigPipelineOptions rigPipelineOptionsFor(const RigConfig& rig) {
   RigPipelineOptions o;
-  o.session = msg::rigSessionOptionsFor(rig);
+  o.session = multi_sensor::rigSessionOptionsFor(rig);
   return o;
 }
 
@@ -44,7 +44,7 @@ struct RigPipeline::Impl {
   RigConfig rig;
   Target target;
   RigPipelineOptions options;
-  msg::RigSession session;
+  multi_sensor::RigSession session;
   std::vector<Camera> cameras;
   std::vector<RigSensorStats> stats;
   // Every found feature, for the offline "all" capture.
@@ -135,24 +135,24 @@ SessionEvent RigPipeline::addLidarFeatures(int sensor, const LidarBoardFeatures&
 
 SessionEvent RigPipeline::finish() { return impl_->session.flush(); }
 
-Expected<msg::MsgProblem> RigPipeline::problem() const {
+Expected<multi_sensor::MsgProblem> RigPipeline::problem() const {
   const Impl& d = *impl_;
   const int reference = d.rig.sensorIndex(d.rig.reference);
   if (d.options.capture == RigCapture::kStill) return d.session.problem(reference);
-  msg::MsgProblem p;
+  multi_sensor::MsgProblem p;
   p.sensors = d.session.sensors();
   for (size_t k = 0; k < p.sensors.size(); ++k) p.sensors[k].frame = d.stats[k].frame_id;
   p.reference_sensor = reference;
-  msg::GroupingOptions grouping;
+  multi_sensor::GroupingOptions grouping;
   grouping.stamp_tolerance_s = d.options.session.stamp_tolerance_s;
-  auto grouped = msg::groupByStamp(p.sensors, d.camera_features, d.lidar_features, grouping);
-  if (!grouped) return Expected<msg::MsgProblem>::failure("grouping: " + grouped.error());
+  auto grouped = multi_sensor::groupByStamp(p.sensors, d.camera_features, d.lidar_features, grouping);
+  if (!grouped) return Expected<multi_sensor::MsgProblem>::failure("grouping: " + grouped.error());
   p.poses = grouped->poses;
   return p;
 }
 
-const msg::RigSession& RigPipeline::session() const { return impl_->session; }
-msg::RigSession& RigPipeline::session() { return impl_->session; }
+const multi_sensor::RigSession& RigPipeline::session() const { return impl_->session; }
+multi_sensor::RigSession& RigPipeline::session() { return impl_->session; }
 const std::vector<RigSensorStats>& RigPipeline::stats() const { return impl_->stats; }
 const RigConfig& RigPipeline::rig() const { return impl_->rig; }
 const Target& RigPipeline::target() const { return impl_->target; }

@@ -2,8 +2,8 @@
 #include <board_calib/core/pipeline/rig_report.h>
 
 #include <board_calib/core/file_io.h>
-#include <board_calib/core/report.h>
-#include <board_calib/core/rig_report.h>
+#include <board_calib/core/report/report.h>
+#include <board_calib/core/rig/rig_summary.h>
 
 #include <cmath>
 #include <filesystem>
@@ -13,7 +13,7 @@
 namespace board_calib {
 namespace {
 
-int sensorIndexOfFrame(const msg::MsgSolution& s, const std::string& frame) {
+int sensorIndexOfFrame(const multi_sensor::MsgSolution& s, const std::string& frame) {
   for (size_t k = 0; k < s.sensors.size(); ++k)
     if (s.sensors[k].frame == frame) return static_cast<int>(k);
   return -1;
@@ -47,8 +47,8 @@ ViewResidual viewResidual(const View& v, const Eigen::Isometry3d& T) {
   return vr;
 }
 
-CalibrationSolution evaluatePair(const std::vector<View>& views, const PairEntry& pair, const msg::PairEstimate* est,
-                                 const msg::MsgSolution& s) {
+CalibrationSolution evaluatePair(const std::vector<View>& views, const PairEntry& pair, const multi_sensor::PairEstimate* est,
+                                 const multi_sensor::MsgSolution& s) {
   CalibrationSolution e;
   e.method = Method::kMsgPair;
   e.camera_T_lidar = pair.camera_T_lidar;
@@ -87,7 +87,7 @@ std::string pairTable(const std::vector<RigPairEvaluation>& pairs) {
   return md.str();
 }
 
-std::string graphDetails(const msg::MsgSolution& s) {
+std::string graphDetails(const multi_sensor::MsgSolution& s) {
   std::ostringstream md;
   md << std::fixed;
   if (!s.rejected.empty()) {
@@ -150,7 +150,7 @@ Status writePairPage(const std::string& dir, const RigPairEvaluation& p, const P
 
 }  // namespace
 
-std::vector<RigPairEvaluation> evaluateRigPairs(const msg::MsgProblem& problem, const msg::MsgSolution& solution,
+std::vector<RigPairEvaluation> evaluateRigPairs(const multi_sensor::MsgProblem& problem, const multi_sensor::MsgSolution& solution,
                                                 const ResultFile& result) {
   std::vector<RigPairEvaluation> out;
   for (size_t i = 0; i < result.pairs.size(); ++i) {
@@ -168,15 +168,15 @@ std::vector<RigPairEvaluation> evaluateRigPairs(const msg::MsgProblem& problem, 
       p.views.push_back(View{pose.id, lid->second, cam->second});
     }
     // msgResultFile keeps the solution's pair order.
-    const msg::PairEstimate* est = i < solution.pairs.size() ? &solution.pairs[i] : nullptr;
+    const multi_sensor::PairEstimate* est = i < solution.pairs.size() ? &solution.pairs[i] : nullptr;
     p.evaluation = evaluatePair(p.views, pair, est, solution);
     out.push_back(std::move(p));
   }
   return out;
 }
 
-Status writeRigReport(const std::string& dir, const RigConfig& rig, const msg::MsgProblem& problem,
-                      const msg::MsgSolution& solution, const ResultFile& result, const RigReportInputs& inputs) {
+Status writeRigReport(const std::string& dir, const RigConfig& rig, const multi_sensor::MsgProblem& problem,
+                      const multi_sensor::MsgSolution& solution, const ResultFile& result, const RigReportInputs& inputs) {
   if (const std::string why = inputs.plots.validate(); !why.empty()) return Status::failure(why);
   std::error_code error;
   std::filesystem::create_directories(dir, error);

@@ -1,7 +1,7 @@
 // The reference paper's "projected edges" check: LiDAR edge points projected with an
 // extrinsic, scored by their perpendicular distance to the image edge lines (MLRE).
 #include <board_calib/core/common/edge_association.h>
-#include <board_calib/core/projection.h>
+#include <board_calib/core/projection/projection.h>
 
 #include <opencv2/imgproc.hpp>
 

@@ -1,4 +1,4 @@
-#include <board_calib/core/projection.h>
+#include <board_calib/core/projection/projection.h>
 
 #include <opencv2/imgproc.hpp>
 

@@ -1,4 +1,4 @@
-#include <board_calib/core/report_plots.h>
+#include <board_calib/core/report/report_plots.h>
 #include <board_calib/core/transform.h>
 
 #include <opencv2/imgcodecs.hpp>

@@ -1,4 +1,4 @@
-#include <board_calib/core/report.h>
+#include <board_calib/core/report/report.h>
 #include <board_calib/core/transform.h>
 
 #include <algorithm>

@@ -1,4 +1,4 @@
-#include <board_calib/core/rig_config.h>
+#include <board_calib/core/rig/rig_config.h>
 #include <board_calib/core/file_io.h>
 
 #include <yaml-cpp/yaml.h>
@@ -192,21 +192,21 @@ int RigConfig::sensorIndex(const std::string& name) const {
   return -1;
 }
 
-std::vector<msg::SensorSpec> RigConfig::sensorSpecs() const {
-  std::vector<msg::SensorSpec> out;
+std::vector<multi_sensor::SensorSpec> RigConfig::sensorSpecs() const {
+  std::vector<multi_sensor::SensorSpec> out;
   for (const auto& c : cameras) {
-    msg::SensorSpec s;
+    multi_sensor::SensorSpec s;
     s.frame = c.name;
-    s.kind = msg::SensorKind::kCamera;
+    s.kind = multi_sensor::SensorKind::kCamera;
     s.pixel_sigma_px = c.pixel_sigma_px;
     s.normal_sigma_deg = c.normal_sigma_deg;
     s.offset_sigma_m = c.offset_sigma_m;
     out.push_back(s);
   }
   for (const auto& l : lidars) {
-    msg::SensorSpec s;
+    multi_sensor::SensorSpec s;
     s.frame = l.name;
-    s.kind = msg::SensorKind::kLidar;
+    s.kind = multi_sensor::SensorKind::kLidar;
     s.normal_sigma_deg = l.normal_sigma_deg;
     s.offset_sigma_m = l.offset_sigma_m;
     s.edge_sigma_m = l.edge_sigma_m;

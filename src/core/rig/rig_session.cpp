@@ -1,5 +1,5 @@
 // Live multi-sensor session (see rig_session.h).
-#include <board_calib/core/rig_session.h>
+#include <board_calib/core/rig/rig_session.h>
 
 #include <algorithm>
 #include <cmath>
@@ -9,7 +9,7 @@
 #include <sstream>
 
 namespace board_calib {
-namespace msg {
+namespace multi_sensor {
 namespace {
 
 constexpr double kDegPerRad = 180.0 / M_PI;
@@ -472,5 +472,5 @@ void RigSession::reset() {
   next_id_ = 0;
 }
 
-}  // namespace msg
+}  // namespace multi_sensor
 }  // namespace board_calib

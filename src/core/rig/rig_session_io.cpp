@@ -1,5 +1,5 @@
 // Rig session file: the rig's sensors (name, kind, frame) and every captured pose's features.
-#include <board_calib/core/rig_session.h>
+#include <board_calib/core/rig/rig_session.h>
 
 #include "../session/feature_yaml.h"
 
@@ -12,7 +12,7 @@
 #include <set>
 
 namespace board_calib {
-namespace msg {
+namespace multi_sensor {
 namespace {
 
 constexpr int kRigSessionFormatVersion = 1;
@@ -126,5 +126,5 @@ Status RigSession::load(const std::string& path) {
   }
 }
 
-}  // namespace msg
+}  // namespace multi_sensor
 }  // namespace board_calib

@@ -1,5 +1,5 @@
 #include <board_calib/core/common/format.h>
-#include <board_calib/core/session.h>
+#include <board_calib/core/session/session.h>
 #include <board_calib/core/transform.h>
 
 #include <algorithm>
@@ -67,7 +67,7 @@ std::string CaptureStats::summary() const {
   return s.str();
 }
 
-CalibrationSession::CalibrationSession(const Target& target, const SessionOptions& options)
+PairSession::PairSession(const Target& target, const SessionOptions& options)
     : target_(target), options_(options) {}
 
 namespace {
@@ -76,7 +76,7 @@ constexpr double kPruneMarginS = 1.0;  // s, kept beyond what the still window a
 
 }  // namespace
 
-SessionEvent CalibrationSession::addLidar(const LidarBoardFeatures& f) {
+SessionEvent PairSession::addLidar(const LidarBoardFeatures& f) {
   lidar_.push_back(f);
   lidar_samples_.push_back(boardSampleOf(f));
   lidar_clock_.add(f.stamp);
@@ -85,7 +85,7 @@ SessionEvent CalibrationSession::addLidar(const LidarBoardFeatures& f) {
   return decidePending(false);
 }
 
-SessionEvent CalibrationSession::addCamera(const CameraBoardFeatures& f) {
+SessionEvent PairSession::addCamera(const CameraBoardFeatures& f) {
   camera_.push_back(f);
   camera_samples_.push_back(boardSampleOf(f, &target_));
   camera_clock_.add(f.stamp);
@@ -95,7 +95,7 @@ SessionEvent CalibrationSession::addCamera(const CameraBoardFeatures& f) {
   return decidePending(false);
 }
 
-void CalibrationSession::updateLastPair() {
+void PairSession::updateLastPair() {
   if (camera_.empty()) return;
   double gap = 0.0;
   if (auto lidar = nearestLidar(camera_.back().stamp, &gap); lidar && gap <= options_.sync_tolerance_s) {
@@ -106,7 +106,7 @@ void CalibrationSession::updateLastPair() {
   }
 }
 
-void CalibrationSession::prune() {
+void PairSession::prune() {
   // Keep what the still window and the sync tolerance can still reach, plus a margin.
   // Images still waiting for their judgement keep what lies around them (snapshot recordings
   // learn their rates only from later frames).
@@ -126,7 +126,7 @@ void CalibrationSession::prune() {
   while (static_cast<int>(pending_.size()) > options_.history) pending_.pop_front();
 }
 
-std::optional<LidarBoardFeatures> CalibrationSession::nearestLidar(double stamp, double* gap) const {
+std::optional<LidarBoardFeatures> PairSession::nearestLidar(double stamp, double* gap) const {
   std::optional<LidarBoardFeatures> best;
   *gap = std::numeric_limits<double>::infinity();
   for (const auto& l : lidar_)
@@ -137,15 +137,15 @@ std::optional<LidarBoardFeatures> CalibrationSession::nearestLidar(double stamp,
   return best;
 }
 
-SessionEvent CalibrationSession::skip(const std::string& kind, const std::string& why) {
+SessionEvent PairSession::skip(const std::string& kind, const std::string& why) {
   stats_.skipped[kind]++;
   return {SessionEvent::Kind::kRejected, why, -1};
 }
 
-SessionEvent CalibrationSession::finish() { return decidePending(true); }
+SessionEvent PairSession::finish() { return decidePending(true); }
 
 // Accepted beats rejected beats waiting: the caller logs the most significant outcome.
-SessionEvent CalibrationSession::decidePending(bool ended) {
+SessionEvent PairSession::decidePending(bool ended) {
   SessionEvent result{SessionEvent::Kind::kWaiting,
                       pending_.empty() ? "waiting for an image that sees the board" : "waiting for the still window",
                       -1};
@@ -161,7 +161,7 @@ SessionEvent CalibrationSession::decidePending(bool ended) {
   return result;
 }
 
-SessionEvent CalibrationSession::decide(const CameraBoardFeatures& camera, bool ended, bool* decided) {
+SessionEvent PairSession::decide(const CameraBoardFeatures& camera, bool ended, bool* decided) {
   *decided = false;
   double gap = 0.0;
   const auto lidar = nearestLidar(camera.stamp, &gap);
@@ -229,14 +229,14 @@ SessionEvent CalibrationSession::decide(const CameraBoardFeatures& camera, bool 
   return added;
 }
 
-SessionEvent CalibrationSession::captureNow() {
+SessionEvent PairSession::captureNow() {
   if (!last_pair_) return {SessionEvent::Kind::kRejected, "no synchronised LiDAR/camera pair seen yet", -1};
   const SessionEvent gated = gate(*last_pair_, true);
   if (gated.kind == SessionEvent::Kind::kRejected) return gated;
   return addView(*last_pair_, "manual capture", false);
 }
 
-SessionEvent CalibrationSession::gate(const View& v, bool /*forced*/) const {
+SessionEvent PairSession::gate(const View& v, bool /*forced*/) const {
   const auto reject = [](const std::string& why) { return SessionEvent{SessionEvent::Kind::kRejected, why, -1}; };
   if (!v.lidar.found) return reject("LiDAR: no board (" + v.lidar.reason + ")");
   if (!v.camera.found) return reject("camera: no board (" + v.camera.reason + ")");
@@ -269,7 +269,7 @@ SessionEvent CalibrationSession::gate(const View& v, bool /*forced*/) const {
   return {SessionEvent::Kind::kWaiting, "passes the sanity gates", -1};
 }
 
-SessionEvent CalibrationSession::addView(const View& view, const std::string& why, bool check_diversity) {
+SessionEvent PairSession::addView(const View& view, const std::string& why, bool check_diversity) {
   if (check_diversity) {
     for (const auto& kept : views_) {
       const double turn = angleDeg(kept.view.camera.plane.normal, view.camera.plane.normal);
@@ -291,21 +291,21 @@ SessionEvent CalibrationSession::addView(const View& view, const std::string& wh
   return {SessionEvent::Kind::kAccepted, "view " + std::to_string(sv.view.id) + " accepted (" + why + ")", sv.view.id};
 }
 
-std::vector<View> CalibrationSession::plainViews() const {
+std::vector<View> PairSession::plainViews() const {
   std::vector<View> out;
   out.reserve(views_.size());
   for (const auto& v : views_) out.push_back(v.view);
   return out;
 }
 
-Status CalibrationSession::dropView(int view_id) {
+Status PairSession::dropView(int view_id) {
   const auto it = std::find_if(views_.begin(), views_.end(), [&](const SessionView& v) { return v.view.id == view_id; });
   if (it == views_.end()) return Status::failure("no view with id " + std::to_string(view_id));
   views_.erase(it);
   return Status::success();
 }
 
-void CalibrationSession::reset() {
+void PairSession::reset() {
   views_.clear();
   lidar_.clear();
   camera_.clear();
@@ -321,7 +321,7 @@ void CalibrationSession::reset() {
   next_id_ = 0;
 }
 
-CoverageReport CalibrationSession::coverage() const {
+CoverageReport PairSession::coverage() const {
   CoverageReport r;
   r.views = static_cast<int>(views_.size());
   if (views_.empty()) {

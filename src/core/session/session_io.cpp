@@ -1,6 +1,6 @@
 // Session file: YAML with the target, the gating options and every kept view's features.
 // Features (not images) are stored, so a session is small and a solve is reproducible.
-#include <board_calib/core/session.h>
+#include <board_calib/core/session/session.h>
 #include <board_calib/core/file_io.h>
 #include <board_calib/core/transform.h>
 
@@ -23,7 +23,7 @@ using feature_yaml::emitLidar;
 using feature_yaml::readCamera;
 using feature_yaml::readLidar;
 
-Status CalibrationSession::save(const std::string& path) const {
+Status PairSession::save(const std::string& path) const {
   YAML::Emitter out;
   out.SetDoublePrecision(12);  // sub-micrometre round trip
   out << YAML::BeginMap;
@@ -46,7 +46,7 @@ Status CalibrationSession::save(const std::string& path) const {
   return written;
 }
 
-Status CalibrationSession::load(const std::string& path) {
+Status PairSession::load(const std::string& path) {
   try {
     const auto text = readTextFile(path, "session file");
     if (!text) return Status::failure(text.error());

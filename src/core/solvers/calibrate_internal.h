@@ -3,7 +3,7 @@
 // orchestration (calibrate.cpp).
 #pragma once
 
-#include <board_calib/core/solvers.h>
+#include <board_calib/core/solvers/solvers.h>
 #include <board_calib/core/transform.h>
 
 #include <cmath>

@@ -3,7 +3,7 @@
 #pragma once
 
 #include <board_calib/core/common/ceres_helpers.h>
-#include <board_calib/core/solvers.h>
+#include <board_calib/core/solvers/solvers.h>
 
 #include <ceres/ceres.h>
 

@@ -2,7 +2,7 @@
 #pragma once
 
 #include <board_calib/core/common/board_geometry.h>
-#include <board_calib/core/solvers.h>
+#include <board_calib/core/solvers/solvers.h>
 
 #include <string>
 #include <vector>

@@ -1,6 +1,6 @@
 // Quality figures that need no solver: MLRE and plane RMS for a given extrinsic.
 #include <board_calib/core/common/edge_association.h>
-#include <board_calib/core/solvers.h>
+#include <board_calib/core/solvers/solvers.h>
 
 #include <cmath>
 

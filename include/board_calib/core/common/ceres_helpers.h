@@ -4,7 +4,7 @@
 
 #include <ceres/ceres.h>
 
-#include <board_calib/core/solvers.h>
+#include <board_calib/core/solvers/solvers.h>
 
 #include <mutex>
 
@@ -31,7 +31,7 @@ inline ceres::LossFunction* makeLoss(RobustLoss loss, double scale) {
 }
 
 /// Iteration, tolerance and thread settings of an options struct (SolverOptions,
-/// msg::MsgGraphOptions) applied to a silent Ceres solve.
+/// multi_sensor::MsgGraphOptions) applied to a silent Ceres solve.
 template <typename Options>
 void applyStopCriteria(const Options& options, ceres::Solver::Options* so) {
   so->max_num_iterations = options.max_iterations;

@@ -6,7 +6,7 @@
 #pragma once
 
 #include <board_calib/core/result_io.h>
-#include <board_calib/core/solvers.h>
+#include <board_calib/core/solvers/solvers.h>
 #include <board_calib/core/target.h>
 #include <board_calib/core/verdict/consistency.h>
 #include <board_calib/core/verdict/verdict.h>

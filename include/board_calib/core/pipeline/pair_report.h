@@ -7,9 +7,9 @@
 #pragma once
 
 #include <board_calib/core/camera_model.h>
-#include <board_calib/core/lidar_cloud.h>
+#include <board_calib/core/lidar_detection/lidar_cloud.h>
 #include <board_calib/core/pipeline/pair_calibration.h>
-#include <board_calib/core/session.h>
+#include <board_calib/core/session/session.h>
 
 #include <opencv2/core.hpp>
 
@@ -29,7 +29,7 @@ struct PairReportInputs {
 
 /// Writes the report folder `dir` (created when missing). Fails with the first file that could
 /// not be written; every file is written atomically.
-Status writePairReport(const std::string& dir, const PairCalibration& run, const CalibrationSession& session,
+Status writePairReport(const std::string& dir, const PairCalibration& run, const PairSession& session,
                        const PairReportInputs& inputs);
 
 }  // namespace board_calib

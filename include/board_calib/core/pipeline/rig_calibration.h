@@ -8,9 +8,9 @@
 // the calibrator's rig mode both call it, so live and offline rigs are the same code.
 #pragma once
 
-#include <board_calib/core/msg_graph.h>
+#include <board_calib/core/msg_graph/msg_graph.h>
 #include <board_calib/core/result_io.h>
-#include <board_calib/core/rig_config.h>
+#include <board_calib/core/rig/rig_config.h>
 #include <board_calib/core/target.h>
 #include <board_calib/core/verdict/consistency.h>
 #include <board_calib/core/verdict/verdict.h>
@@ -21,7 +21,7 @@
 namespace board_calib {
 
 struct RigCalibrationOptions {
-  msg::MsgGraphOptions graph;
+  multi_sensor::MsgGraphOptions graph;
   ConsistencyOptions consistency;
   VerdictOptions verdict;
   bool cross_validate = true;             ///< false: no left-out solves (faster, doubtful at best)
@@ -50,8 +50,8 @@ struct RigPairRun {
 };
 
 struct RigCalibration {
-  msg::MsgProblem problem;             ///< as solved: inconsistent observations removed
-  msg::MsgSolution solution;
+  multi_sensor::MsgProblem problem;             ///< as solved: inconsistent observations removed
+  multi_sensor::MsgSolution solution;
   std::vector<RigPairRun> pairs;       ///< solution.pairs' order
   std::vector<std::string> left_out;   ///< observations removed before solving, with the reason
   std::vector<std::string> rig_findings;  ///< loop and known-extrinsic checks, in words
@@ -65,7 +65,7 @@ struct RigCalibration {
 
 /// Runs the whole rig calibration on `problem` (the rig's sensors and captured poses). `rig`
 /// supplies the known extrinsics (may be empty); `target` the board for the noise model.
-RigCalibration calibrateRig(const msg::MsgProblem& problem, const RigConfig& rig, const Target& target,
+RigCalibration calibrateRig(const multi_sensor::MsgProblem& problem, const RigConfig& rig, const Target& target,
                             const RigCalibrationOptions& options = {});
 
 /// The verdict in a few lines for a terminal or a log: VERDICT, reason, each pair, poses to check.

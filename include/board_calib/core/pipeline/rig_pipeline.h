@@ -1,14 +1,14 @@
 // Rig front end: raw images and clouds of every camera and LiDAR of a rig (offline), or their
 // board features (live, from the detector nodelets), into captured board poses. The same
-// detectors as the nodelets, and the same msg::RigSession as the calibrator's rig mode, so
+// detectors as the nodelets, and the same multi_sensor::RigSession as the calibrator's rig mode, so
 // `calibrate_bag --config` and the live calibrator capture the same poses from the same frames;
 // core/pipeline/rig_calibration.h then judges and writes the result.
 #pragma once
 
-#include <board_calib/core/image_board_detector.h>
-#include <board_calib/core/lidar_board_detector.h>
-#include <board_calib/core/rig_config.h>
-#include <board_calib/core/rig_session.h>
+#include <board_calib/core/image_detection/image_board_detector.h>
+#include <board_calib/core/lidar_detection/lidar_board_detector.h>
+#include <board_calib/core/rig/rig_config.h>
+#include <board_calib/core/rig/rig_session.h>
 
 #include <map>
 #include <memory>
@@ -18,7 +18,7 @@
 namespace board_calib {
 
 enum class RigCapture {
-  kStill,  ///< one pose per hold (the live rule, msg::RigSession)
+  kStill,  ///< one pose per hold (the live rule, multi_sensor::RigSession)
   kAll,    ///< offline only: a pose of every stamp group (a hold of N frames gives N poses)
 };
 /// "still", "all".
@@ -28,7 +28,7 @@ Expected<RigCapture> parseRigCapture(const std::string& name);
 struct RigPipelineOptions {
   ImageBoardDetectorOptions image;
   LidarBoardDetectorOptions lidar;
-  msg::RigSessionOptions session;  ///< stamp_tolerance_s comes from the rig file (rigPipelineOptionsFor)
+  multi_sensor::RigSessionOptions session;  ///< stamp_tolerance_s comes from the rig file (rigPipelineOptionsFor)
   RigCapture capture = RigCapture::kStill;
   std::string validate() const;
 };
@@ -64,9 +64,9 @@ class RigPipeline {
   SessionEvent finish();
 
   /// The problem to solve: the rig's sensors (frames as seen) and the captured poses.
-  Expected<msg::MsgProblem> problem() const;
-  const msg::RigSession& session() const;
-  msg::RigSession& session();
+  Expected<multi_sensor::MsgProblem> problem() const;
+  const multi_sensor::RigSession& session() const;
+  multi_sensor::RigSession& session();
   const std::vector<RigSensorStats>& stats() const;  ///< MsgProblem order
   const RigConfig& rig() const;
   const Target& target() const;

@@ -5,11 +5,11 @@
 // table, judged at the graph's camera_T_lidar. ROS-free.
 #pragma once
 
-#include <board_calib/core/msg_graph.h>
-#include <board_calib/core/report_plots.h>
+#include <board_calib/core/msg_graph/msg_graph.h>
+#include <board_calib/core/report/report_plots.h>
 #include <board_calib/core/result_io.h>
-#include <board_calib/core/rig_config.h>
-#include <board_calib/core/solvers.h>
+#include <board_calib/core/rig/rig_config.h>
+#include <board_calib/core/solvers/solvers.h>
 
 #include <string>
 #include <vector>
@@ -27,7 +27,7 @@ struct RigPairEvaluation {
 /// Every camera <- LiDAR pair of `result` (msgResultFile of `problem` and `solution`): its
 /// views and, per view and edge, the residuals at the graph's pose (MLRE, plane distances), with
 /// the graph's 1 sigma. A pair without a shared pose has no views and success = false.
-std::vector<RigPairEvaluation> evaluateRigPairs(const msg::MsgProblem& problem, const msg::MsgSolution& solution,
+std::vector<RigPairEvaluation> evaluateRigPairs(const multi_sensor::MsgProblem& problem, const multi_sensor::MsgSolution& solution,
                                                 const ResultFile& result);
 
 struct RigReportInputs {
@@ -41,7 +41,7 @@ struct RigReportInputs {
 
 /// Writes `dir`/report.md, `dir`/result.yaml (result.failed.yaml when failed) and `dir`/CAMERA__LIDAR/{report.md, edge_errors.png,
 /// pose_coverage.png} for every pair. Fails only when a file cannot be written.
-Status writeRigReport(const std::string& dir, const RigConfig& rig, const msg::MsgProblem& problem,
-                      const msg::MsgSolution& solution, const ResultFile& result, const RigReportInputs& inputs);
+Status writeRigReport(const std::string& dir, const RigConfig& rig, const multi_sensor::MsgProblem& problem,
+                      const multi_sensor::MsgSolution& solution, const ResultFile& result, const RigReportInputs& inputs);
 
 }  // namespace board_calib

@@ -12,7 +12,7 @@
 //  * agreement between methods, where several ran, measured in their combined sigmas.
 #pragma once
 
-#include <board_calib/core/solvers.h>
+#include <board_calib/core/solvers/solvers.h>
 #include <board_calib/core/target.h>
 #include <board_calib/core/verdict/consistency.h>
 

@@ -3,13 +3,13 @@
 // the calibrator's N-camera / M-LiDAR mode. ROS-free.
 #pragma once
 
-#include <board_calib/core/msg_graph.h>
+#include <board_calib/core/msg_graph/msg_graph.h>
 
 #include <map>
 #include <vector>
 
 namespace board_calib {
-namespace msg {
+namespace multi_sensor {
 
 struct GroupingOptions {
   double stamp_tolerance_s = 0.05;  ///< s, features of one board pose lie within this of its first stamp
@@ -34,5 +34,5 @@ Expected<GroupingReport> groupByStamp(const std::vector<SensorSpec>& sensors,
                                       const std::map<int, std::vector<LidarBoardFeatures>>& lidars,
                                       const GroupingOptions& options);
 
-}  // namespace msg
+}  // namespace multi_sensor
 }  // namespace board_calib

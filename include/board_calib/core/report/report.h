@@ -4,7 +4,7 @@
 #pragma once
 
 #include <board_calib/core/result_io.h>
-#include <board_calib/core/solvers.h>
+#include <board_calib/core/solvers/solvers.h>
 #include <board_calib/core/target.h>
 
 #include <string>

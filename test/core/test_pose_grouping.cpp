@@ -1,12 +1,12 @@
 // Grouping per-sensor streams by stamp into board poses, then solving the graph from them.
-#include <board_calib/core/msg_session.h>
+#include <board_calib/core/msg_graph/pose_grouping.h>
 #include "support/synthetic_rig.h"
 #include <board_calib/core/transform.h>
 
 #include <gtest/gtest.h>
 
 namespace board_calib {
-namespace msg {
+namespace multi_sensor {
 namespace {
 
 // Splits a synthetic scene into per-sensor streams with stamp jitter, as detectors emit them.
@@ -93,5 +93,5 @@ TEST(MsgSession, BadInputGivesReasons) {
 }
 
 }  // namespace
-}  // namespace msg
+}  // namespace multi_sensor
 }  // namespace board_calib

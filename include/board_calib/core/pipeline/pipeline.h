@@ -1,11 +1,11 @@
 // Offline calibration pipeline: raw images and clouds in, board features out, paired into a
-// CalibrationSession. The same detectors and session the nodelets use, without ROS, so the
+// PairSession. The same detectors and session the nodelets use, without ROS, so the
 // offline tool and the tests exercise exactly the live code path.
 #pragma once
 
-#include <board_calib/core/image_board_detector.h>
-#include <board_calib/core/lidar_board_detector.h>
-#include <board_calib/core/session.h>
+#include <board_calib/core/image_detection/image_board_detector.h>
+#include <board_calib/core/lidar_detection/lidar_board_detector.h>
+#include <board_calib/core/session/session.h>
 
 #include <map>
 #include <memory>
@@ -53,8 +53,8 @@ class CalibrationPipeline {
   /// No more frames: judges the images still waiting for their still window.
   SessionEvent finish();
 
-  CalibrationSession& session();
-  const CalibrationSession& session() const;
+  PairSession& session();
+  const PairSession& session() const;
   const PipelineStats& stats() const;
   const Target& target() const;
   /// Frames of accepted views (when keep_view_frames): view id -> raw image / cloud.

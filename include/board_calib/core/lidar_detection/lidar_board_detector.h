@@ -10,7 +10,7 @@
 #pragma once
 
 #include <board_calib/core/features.h>
-#include <board_calib/core/lidar_cloud.h>
+#include <board_calib/core/lidar_detection/lidar_cloud.h>
 #include <board_calib/core/target.h>
 
 #include <cstdint>

@@ -3,7 +3,7 @@
 // calibration, used as an independent check). ROS-free; the loader returns reasons naming the key.
 #pragma once
 
-#include <board_calib/core/msg_graph.h>
+#include <board_calib/core/msg_graph/msg_graph.h>
 #include <board_calib/core/types.h>
 
 #include <Eigen/Geometry>
@@ -51,7 +51,7 @@ struct RigConfig {
   /// Sensor index in the order cameras then LiDARs (the MsgProblem order); -1 when unknown.
   int sensorIndex(const std::string& name) const;
   /// Sensors in MsgProblem order (frames are the sensor names until the bag tells the frame_id).
-  std::vector<msg::SensorSpec> sensorSpecs() const;
+  std::vector<multi_sensor::SensorSpec> sensorSpecs() const;
   /// Sensor names in the same order.
   std::vector<std::string> sensorNames() const;
 };

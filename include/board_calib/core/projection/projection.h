@@ -7,7 +7,7 @@
 
 #include <board_calib/core/camera_model.h>
 #include <board_calib/core/features.h>
-#include <board_calib/core/lidar_cloud.h>
+#include <board_calib/core/lidar_detection/lidar_cloud.h>
 
 #include <opencv2/core.hpp>
 

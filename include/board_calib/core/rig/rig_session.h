@@ -13,10 +13,10 @@
 // are better (more sensors, closer stamps). Why candidates were skipped is counted in words.
 #pragma once
 
-#include <board_calib/core/msg_graph.h>
-#include <board_calib/core/rig_config.h>
+#include <board_calib/core/msg_graph/msg_graph.h>
+#include <board_calib/core/rig/rig_config.h>
 #include <board_calib/core/capture/stillness.h>
-#include <board_calib/core/session.h>
+#include <board_calib/core/session/session.h>
 
 #include <deque>
 
@@ -27,7 +27,7 @@
 #include <vector>
 
 namespace board_calib {
-namespace msg {
+namespace multi_sensor {
 
 struct RigSessionOptions {
   double stamp_tolerance_s = 0.05;      ///< s, a sensor's feature belongs to a pose within this of its moment
@@ -164,5 +164,5 @@ class RigSession {
   int next_id_ = 0;
 };
 
-}  // namespace msg
+}  // namespace multi_sensor
 }  // namespace board_calib

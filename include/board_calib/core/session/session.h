@@ -75,9 +75,9 @@ struct CaptureStats {
   std::string summary() const;         ///< one line, most frequent reasons first
 };
 
-class CalibrationSession {
+class PairSession {
  public:
-  CalibrationSession(const Target& target, const SessionOptions& options);
+  PairSession(const Target& target, const SessionOptions& options);
 
   const Target& target() const { return target_; }
   const SessionOptions& options() const { return options_; }

@@ -5,7 +5,7 @@
 #pragma once
 
 #include <board_calib/core/features.h>
-#include <board_calib/core/solvers.h>
+#include <board_calib/core/solvers/solvers.h>
 
 #include <opencv2/core.hpp>
 

@@ -1,5 +1,5 @@
 // Text summary of a rig solve (see rig_report.h).
-#include <board_calib/core/rig_report.h>
+#include <board_calib/core/rig/rig_summary.h>
 #include <board_calib/core/transform.h>
 
 #include <iomanip>
@@ -17,7 +17,7 @@ std::string poseLine(const Eigen::Isometry3d& T) {
   return os.str();
 }
 
-std::string rigSolutionSummary(const RigConfig& rig, const msg::MsgSolution& solution, const ResultFile& result) {
+std::string rigSolutionSummary(const RigConfig& rig, const multi_sensor::MsgSolution& solution, const ResultFile& result) {
   std::ostringstream out;
   out << std::fixed;
   out << "MSG-Cal: " << solution.sensors.size() << " sensors, " << solution.poses_used << " board poses, reference "
@@ -26,7 +26,7 @@ std::string rigSolutionSummary(const RigConfig& rig, const msg::MsgSolution& sol
   out << "sensors (reference_T_sensor, 1-sigma max rotation / translation):\n";
   for (const auto& s : solution.sensors) {
     out << "  " << std::left << std::setw(16) << s.frame << std::right << " " << std::setw(6)
-        << msg::sensorKindName(s.kind) << "  " << poseLine(s.reference_T_sensor);
+        << multi_sensor::sensorKindName(s.kind) << "  " << poseLine(s.reference_T_sensor);
     if (&s != &solution.sensors[solution.reference_sensor])
       out << "  +-" << std::setprecision(3) << s.stddev.rotation_deg.maxCoeff() << " deg / " << std::setprecision(1)
           << 1000.0 * s.stddev.translation_m.maxCoeff() << " mm";
@@ -57,17 +57,17 @@ std::string rigSolutionSummary(const RigConfig& rig, const msg::MsgSolution& sol
       out << "known-extrinsic consistency " << k.a << " <- " << k.b << ": n/a (not sensors of this solve)\n";
       continue;
     }
-    const bool both_cameras = solution.sensors[a].kind == msg::SensorKind::kCamera &&
-                              solution.sensors[b].kind == msg::SensorKind::kCamera;
-    std::optional<msg::StereoConsistency> c;
+    const bool both_cameras = solution.sensors[a].kind == multi_sensor::SensorKind::kCamera &&
+                              solution.sensors[b].kind == multi_sensor::SensorKind::kCamera;
+    std::optional<multi_sensor::StereoConsistency> c;
     std::string why;
     if (both_cameras) {
-      auto s = msg::stereoConsistency(solution, a, b, k.a_T_b);
+      auto s = multi_sensor::stereoConsistency(solution, a, b, k.a_T_b);
       if (s) c = *s;
       else why = s.error();
     } else {
-      auto T = msg::sensorTSensor(solution, a, b);
-      if (T) c = msg::StereoConsistency{rotationErrorDeg(*T, k.a_T_b), 1000.0 * translationErrorM(*T, k.a_T_b)};
+      auto T = multi_sensor::sensorTSensor(solution, a, b);
+      if (T) c = multi_sensor::StereoConsistency{rotationErrorDeg(*T, k.a_T_b), 1000.0 * translationErrorM(*T, k.a_T_b)};
       else why = T.error();
     }
     out << (both_cameras ? "stereo consistency " : "known-extrinsic consistency ") << k.a << " <- " << k.b

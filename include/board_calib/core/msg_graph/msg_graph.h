@@ -30,7 +30,7 @@
 
 #include <board_calib/core/features.h>
 #include <board_calib/core/result_io.h>
-#include <board_calib/core/solvers.h>
+#include <board_calib/core/solvers/solvers.h>
 #include <board_calib/core/types.h>
 
 #include <map>
@@ -39,7 +39,7 @@
 #include <vector>
 
 namespace board_calib {
-namespace msg {
+namespace multi_sensor {
 
 enum class SensorKind { kCamera, kLidar };
 const char* sensorKindName(SensorKind kind);  // "camera", "lidar"
@@ -241,5 +241,5 @@ std::optional<double> pairMlrePx(const MsgProblem& problem, int camera, int lida
 /// (loop consistency, residuals) and notes.
 ResultFile msgResultFile(const MsgProblem& problem, const MsgSolution& solution);
 
-}  // namespace msg
+}  // namespace multi_sensor
 }  // namespace board_calib

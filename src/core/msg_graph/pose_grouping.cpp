@@ -1,11 +1,11 @@
-// Groups per-sensor feature streams by stamp into board poses (see msg_session.h).
-#include <board_calib/core/msg_session.h>
+// Groups per-sensor feature streams by stamp into board poses (see pose_grouping.h).
+#include <board_calib/core/msg_graph/pose_grouping.h>
 
 #include <algorithm>
 #include <cmath>
 
 namespace board_calib {
-namespace msg {
+namespace multi_sensor {
 
 namespace {
 
@@ -84,5 +84,5 @@ Expected<GroupingReport> groupByStamp(const std::vector<SensorSpec>& sensors,
   return report;
 }
 
-}  // namespace msg
+}  // namespace multi_sensor
 }  // namespace board_calib
