@@ -25,7 +25,9 @@ struct BagCallbacks {
   /// Called for every image on a requested image topic, in bag order.
   std::function<void(const ImageFrame&)> on_image;
   /// Called for every CameraInfo on a requested camera_info topic.
-  std::function<void(const std::string& topic, const std::string& frame_id, const CameraIntrinsics&)> on_camera_info;
+  std::function<void(const std::string& topic, const std::string& frame_id,
+                     const CameraIntrinsics&)>
+      on_camera_info;
   /// Called for every cloud on a requested cloud topic.
   std::function<void(const std::string& topic, const LidarCloud&)> on_cloud;
   /// Called for a message that could not be converted (bad encoding, missing fields...).
@@ -42,11 +44,13 @@ struct BagTopics {
 Expected<std::map<std::string, size_t>> bagTopicCounts(const std::vector<std::string>& bag_paths);
 
 /// Receive times (s, bag time, no deserialisation) of every message on `topic`.
-Expected<std::vector<double>> topicTimes(const std::vector<std::string>& bag_paths, const std::string& topic);
+Expected<std::vector<double>> topicTimes(const std::vector<std::string>& bag_paths,
+                                         const std::string& topic);
 
 /// Streams the requested topics of one or more bags, in time order. Fails with a one-line
 /// reason when a bag cannot be opened or a requested topic is absent from every bag.
-Status readBags(const std::vector<std::string>& bag_paths, const BagTopics& topics, const BagCallbacks& callbacks);
+Status readBags(const std::vector<std::string>& bag_paths, const BagTopics& topics,
+                const BagCallbacks& callbacks);
 
 /// Frames as the pipelines take them: each image with the newest intrinsics of its camera.
 struct BagFrameCallbacks {
@@ -56,8 +60,10 @@ struct BagFrameCallbacks {
 };
 
 struct BagFrameStats {
-  std::map<std::string, size_t> images_before_info;  ///< image topic -> images held for a late first camera_info
-  std::map<std::string, size_t> images_dropped;      ///< image topic -> images that found no camera_info
+  std::map<std::string, size_t>
+      images_before_info;  ///< image topic -> images held for a late first camera_info
+  std::map<std::string, size_t>
+      images_dropped;  ///< image topic -> images that found no camera_info
 };
 
 /// Images held per camera while its first camera_info has not arrived (recorders often start
@@ -67,7 +73,7 @@ constexpr size_t kMaxImagesBeforeCameraInfo = 20;
 /// The one bag-reading loop of the tools: streams the bags as readBags does, pairing
 /// `image_topics[i]` with `camera_info_topics[i]`; images wait for their camera's first
 /// camera_info (see kMaxImagesBeforeCameraInfo).
-Expected<BagFrameStats> readBagFrames(const std::vector<std::string>& bag_paths, const BagTopics& topics,
-                                      const BagFrameCallbacks& callbacks);
+Expected<BagFrameStats> readBagFrames(const std::vector<std::string>& bag_paths,
+                                      const BagTopics& topics, const BagFrameCallbacks& callbacks);
 
 }  // namespace board_calib

@@ -17,11 +17,11 @@
 #include <board_calib/SensorPose.h>
 #include <geometry_msgs/Point.h>
 #include <geometry_msgs/Pose.h>
-#include <opencv2/core.hpp>
 #include <geometry_msgs/Transform.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/PointCloud2.h>
+#include <opencv2/core.hpp>
 
 namespace board_calib {
 
@@ -82,11 +82,12 @@ Eigen::Isometry3d fromPoseMsg(const geometry_msgs::Pose& msg);
 /// One pair method's solution -> CalibrationResult (stamped `stamp`, frames from `file`). The
 /// uncertainty is the verdict's (never below the cross-validation's spread) once judged;
 /// success needs the solve and a verdict other than failed.
-CalibrationResult toResultMsg(const CalibrationSolution& solution, const VerdictReport& verdict, const ResultFile& file,
-                              const ros::Time& stamp);
+CalibrationResult toResultMsg(const CalibrationSolution& solution, const VerdictReport& verdict,
+                              const ResultFile& file, const ros::Time& stamp);
 /// One camera <- LiDAR pair of a rig run: `pair` is the result-file entry of `run` (same order),
 /// with its verdict; success unless the verdict failed. NaN 1 sigma without a covariance.
-CalibrationResult toPairResultMsg(const PairEntry& pair, const RigPairRun& run, const multi_sensor::MsgSolution& solution,
+CalibrationResult toPairResultMsg(const PairEntry& pair, const RigPairRun& run,
+                                  const multi_sensor::MsgSolution& solution,
                                   const ros::Time& stamp);
 /// One sensor's pose of a rig solve.
 SensorPose toSensorPoseMsg(const multi_sensor::SensorEstimate& sensor);

@@ -20,8 +20,9 @@ Expected<DistortionModel> parseDistortionModel(const std::string& name) {
   if (name == "plumb_bob") return DistortionModel::kPlumbBob;
   if (name == "rational_polynomial") return DistortionModel::kRationalPolynomial;
   if (name == "equidistant" || name == "fisheye") return DistortionModel::kEquidistant;
-  return Expected<DistortionModel>::failure("unknown distortion model '" + name +
-                                            "' (supported: plumb_bob, rational_polynomial, equidistant)");
+  return Expected<DistortionModel>::failure(
+      "unknown distortion model '" + name +
+      "' (supported: plumb_bob, rational_polynomial, equidistant)");
 }
 
 Expected<CameraModel> CameraModel::create(const CameraIntrinsics& in) {
@@ -29,7 +30,8 @@ Expected<CameraModel> CameraModel::create(const CameraIntrinsics& in) {
   if (in.width <= 0 || in.height <= 0) {
     why << "image size " << in.width << "x" << in.height << " is not positive";
   } else if (!(in.fx > 0) || !(in.fy > 0) || !std::isfinite(in.fx) || !std::isfinite(in.fy)) {
-    why << "focal lengths fx=" << in.fx << " fy=" << in.fy << " are not positive (uncalibrated camera?)";
+    why << "focal lengths fx=" << in.fx << " fy=" << in.fy
+        << " are not positive (uncalibrated camera?)";
   } else if (!std::isfinite(in.cx) || !std::isfinite(in.cy)) {
     why << "principal point is not finite";
   } else {
@@ -41,12 +43,13 @@ Expected<CameraModel> CameraModel::create(const CameraIntrinsics& in) {
       case DistortionModel::kEquidistant: max_coeffs = 4; break;
     }
     if (in.coeffs.size() > max_coeffs) {
-      why << distortionModelName(in.model) << " takes at most " << max_coeffs << " coefficients, got "
-          << in.coeffs.size();
+      why << distortionModelName(in.model) << " takes at most " << max_coeffs
+          << " coefficients, got " << in.coeffs.size();
     } else if (in.model == DistortionModel::kNone &&
                std::any_of(in.coeffs.begin(), in.coeffs.end(), [](double c) { return c != 0.0; })) {
       why << "distortion coefficients given without a distortion model";
-    } else if (std::any_of(in.coeffs.begin(), in.coeffs.end(), [](double c) { return !std::isfinite(c); })) {
+    } else if (std::any_of(in.coeffs.begin(), in.coeffs.end(),
+                           [](double c) { return !std::isfinite(c); })) {
       why << "distortion coefficients are not finite";
     }
   }
@@ -62,8 +65,10 @@ CameraModel::CameraModel(const CameraIntrinsics& in) : in_(in) {
   constexpr int kSamples = 32;
   for (int i = 0; i <= kSamples; ++i) {
     const double s = static_cast<double>(i) / kSamples;
-    const Eigen::Vector2d border[4] = {{s * in_.width, 0.0}, {s * in_.width, double(in_.height)},
-                                       {0.0, s * in_.height}, {double(in_.width), s * in_.height}};
+    const Eigen::Vector2d border[4] = {{s * in_.width, 0.0},
+                                       {s * in_.width, double(in_.height)},
+                                       {0.0, s * in_.height},
+                                       {double(in_.width), s * in_.height}};
     for (const auto& b : border) {
       const Eigen::Vector2d u = undistortPixel(b);
       ubox_[0] = std::min(ubox_[0], u.x());
@@ -134,8 +139,8 @@ Eigen::Vector3d CameraModel::unprojectRay(const Eigen::Vector2d& raw) const {
 bool CameraModel::isVisible(const Eigen::Vector3d& p, double margin_px) const {
   Eigen::Vector2d u;
   if (!projectUndistorted(p, &u)) return false;
-  if (u.x() < ubox_[0] - margin_px || u.x() > ubox_[2] + margin_px || u.y() < ubox_[1] - margin_px ||
-      u.y() > ubox_[3] + margin_px)
+  if (u.x() < ubox_[0] - margin_px || u.x() > ubox_[2] + margin_px ||
+      u.y() < ubox_[1] - margin_px || u.y() > ubox_[3] + margin_px)
     return false;
   Eigen::Vector2d raw = Eigen::Vector2d::Zero();
   project(p, &raw);

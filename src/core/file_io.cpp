@@ -40,12 +40,15 @@ Status writeAll(int fd, const std::string& text) {
 }  // namespace
 
 Status writeFileAtomic(const std::string& path, const std::string& text) {
-  const auto fail = [&](const std::string& why) { return Status::failure("cannot write '" + path + "': " + why); };
+  const auto fail = [&](const std::string& why) {
+    return Status::failure("cannot write '" + path + "': " + why);
+  };
   if (path.empty()) return Status::failure("cannot write a file with an empty path");
   const auto [folder, name] = splitPath(path);
   if (name.empty()) return fail("the path names a folder");
   struct stat target_stat {};
-  if (::stat(path.c_str(), &target_stat) == 0 && S_ISDIR(target_stat.st_mode)) return fail("it is a directory");
+  if (::stat(path.c_str(), &target_stat) == 0 && S_ISDIR(target_stat.st_mode))
+    return fail("it is a directory");
 
   // A unique hidden name in the same folder, so the rename stays on one file system.
   static std::atomic<unsigned> counter{0};
@@ -53,7 +56,8 @@ Status writeFileAtomic(const std::string& path, const std::string& text) {
   int fd = -1;
   constexpr int kNameAttempts = 100;
   for (int attempt = 0; attempt < kNameAttempts && fd < 0; ++attempt) {
-    temp = folder + "/." + name + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(counter++);
+    temp = folder + "/." + name + ".tmp." + std::to_string(::getpid()) + "." +
+           std::to_string(counter++);
     fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);  // umask applies
     if (fd < 0 && errno != EEXIST) return fail(errnoText(errno));
   }
@@ -61,12 +65,14 @@ Status writeFileAtomic(const std::string& path, const std::string& text) {
   Status written = writeAll(fd, text);
   if (written && ::fsync(fd) != 0) written = Status::failure(errnoText(errno));
   if (::close(fd) != 0 && written) written = Status::failure(errnoText(errno));
-  if (written && ::rename(temp.c_str(), path.c_str()) != 0) written = Status::failure(errnoText(errno));
+  if (written && ::rename(temp.c_str(), path.c_str()) != 0)
+    written = Status::failure(errnoText(errno));
   if (!written) {
     ::unlink(temp.c_str());
     return fail(written.reason);
   }
-  // The rename itself is durable once the folder is synced; failing that loses nothing already there.
+  // The rename itself is durable once the folder is synced; failing that loses nothing already
+  // there.
   const int dir_fd = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (dir_fd >= 0) {
     ::fsync(dir_fd);
@@ -75,7 +81,8 @@ Status writeFileAtomic(const std::string& path, const std::string& text) {
   return Status::success();
 }
 
-Expected<std::string> readTextFile(const std::string& path, const std::string& what, size_t max_bytes) {
+Expected<std::string> readTextFile(const std::string& path, const std::string& what,
+                                   size_t max_bytes) {
   using Result = Expected<std::string>;
   const std::string prefix = "cannot read " + what + " '" + path + "': ";
   struct stat st {};

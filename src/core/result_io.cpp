@@ -1,5 +1,5 @@
-#include <board_calib/core/result_io.h>
 #include <board_calib/core/file_io.h>
+#include <board_calib/core/result_io.h>
 #include <board_calib/core/transform.h>
 
 #include <yaml-cpp/yaml.h>
@@ -47,8 +47,10 @@ Eigen::Isometry3d readTransform(const YAML::Node& node, const std::string& key) 
   if (node["translation"] && node["rotation_xyzw"]) {
     const auto t = readNumbers(node["translation"], key + ".translation", 3);
     const auto q = readNumbers(node["rotation_xyzw"], key + ".rotation_xyzw", 4);
-    for (double v : t) if (!std::isfinite(v)) throw ParseError{"'" + key + ".translation' is not finite"};
-    for (double v : q) if (!std::isfinite(v)) throw ParseError{"'" + key + ".rotation_xyzw' is not finite"};
+    for (double v : t)
+      if (!std::isfinite(v)) throw ParseError{"'" + key + ".translation' is not finite"};
+    for (double v : q)
+      if (!std::isfinite(v)) throw ParseError{"'" + key + ".rotation_xyzw' is not finite"};
     const Eigen::Vector4d qv(q[0], q[1], q[2], q[3]);
     if (!(qv.norm() > 1e-9)) throw ParseError{"'" + key + ".rotation_xyzw' is not a rotation"};
     return makeTransform(Eigen::Vector3d(t[0], t[1], t[2]), qv);
@@ -120,8 +122,8 @@ std::string resultToYaml(const ResultFile& r) {
     out << YAML::Key << "reference_frame" << YAML::Value << r.reference_frame;
     out << YAML::Key << "sensors" << YAML::Value << YAML::BeginSeq;
     for (const auto& s : r.sensors) {
-      out << YAML::BeginMap << YAML::Key << "frame" << YAML::Value << s.frame << YAML::Key << "kind" << YAML::Value
-          << s.kind << YAML::Key << "reference_T_sensor" << YAML::Value;
+      out << YAML::BeginMap << YAML::Key << "frame" << YAML::Value << s.frame << YAML::Key << "kind"
+          << YAML::Value << s.kind << YAML::Key << "reference_T_sensor" << YAML::Value;
       emitTransform(out, s.reference_T_sensor);
       out << YAML::EndMap;
     }
@@ -130,8 +132,9 @@ std::string resultToYaml(const ResultFile& r) {
   if (!r.pairs.empty()) {
     out << YAML::Key << "pairs" << YAML::Value << YAML::BeginSeq;
     for (const auto& p : r.pairs) {
-      out << YAML::BeginMap << YAML::Key << "camera_frame" << YAML::Value << p.camera_frame << YAML::Key
-          << "lidar_frame" << YAML::Value << p.lidar_frame << YAML::Key << "camera_T_lidar" << YAML::Value;
+      out << YAML::BeginMap << YAML::Key << "camera_frame" << YAML::Value << p.camera_frame
+          << YAML::Key << "lidar_frame" << YAML::Value << p.lidar_frame << YAML::Key
+          << "camera_T_lidar" << YAML::Value;
       emitTransform(out, p.camera_T_lidar);
       out << YAML::Key << "lidar_T_camera" << YAML::Value;
       emitTransform(out, p.camera_T_lidar.inverse());
@@ -189,7 +192,8 @@ Expected<ResultFile> parseResult(const std::string& text) {
         SensorPoseEntry entry;
         entry.frame = readString(e, "frame");
         if (e["kind"]) entry.kind = e["kind"].as<std::string>();
-        entry.reference_T_sensor = readTransform(e["reference_T_sensor"], "sensors[].reference_T_sensor");
+        entry.reference_T_sensor =
+            readTransform(e["reference_T_sensor"], "sensors[].reference_T_sensor");
         r.sensors.push_back(entry);
       }
     }

@@ -1,5 +1,5 @@
-#include <board_calib/core/target.h>
 #include <board_calib/core/file_io.h>
+#include <board_calib/core/target.h>
 
 #include <yaml-cpp/yaml.h>
 
@@ -52,22 +52,26 @@ T readScalar(const YAML::Node& node, const std::string& key, const std::string& 
 
 double readFinite(const YAML::Node& node, const std::string& key, const std::string& where) {
   const double v = readScalar<double>(node, key, where, "number");
-  if (!std::isfinite(v)) throw TargetError{"key '" + where + key + "' must be finite, got " + node[key].Scalar()};
+  if (!std::isfinite(v))
+    throw TargetError{"key '" + where + key + "' must be finite, got " + node[key].Scalar()};
   return v;
 }
 
 double readPositive(const YAML::Node& node, const std::string& key, const std::string& where) {
   const double v = readFinite(node, key, where);
-  if (!(v > 0.0)) throw TargetError{"key '" + where + key + "' must be > 0, got " + std::to_string(v)};
+  if (!(v > 0.0))
+    throw TargetError{"key '" + where + key + "' must be > 0, got " + std::to_string(v)};
   if (v > kMaxBoardSideM)
-    throw TargetError{"key '" + where + key + "' = " + std::to_string(v) + " m is larger than any board (" +
-                      std::to_string(kMaxBoardSideM) + " m)"};
+    throw TargetError{"key '" + where + key + "' = " + std::to_string(v) +
+                      " m is larger than any board (" + std::to_string(kMaxBoardSideM) + " m)"};
   return v;
 }
 
 int readPositiveInt(const YAML::Node& node, const std::string& key, const std::string& where) {
   const int v = readScalar<int>(node, key, where, "integer");
-  if (v <= 0) throw TargetError{"key '" + where + key + "' must be a positive integer, got " + std::to_string(v)};
+  if (v <= 0)
+    throw TargetError{"key '" + where + key + "' must be a positive integer, got " +
+                      std::to_string(v)};
   return v;
 }
 
@@ -90,10 +94,15 @@ Target parseNode(const YAML::Node& root) {
   rejectUnknownKeys(root, {"type", "width", "height", "checkerboard", "apriltag_grid"}, "");
   Target t;
   const std::string type = readScalar<std::string>(root, "type", "", "string");
-  if (type == "plain") t.type = TargetType::kPlain;
-  else if (type == "checkerboard") t.type = TargetType::kCheckerboard;
-  else if (type == "apriltag_grid") t.type = TargetType::kAprilTagGrid;
-  else throw TargetError{"key 'type' must be plain, checkerboard or apriltag_grid, got '" + type + "'"};
+  if (type == "plain")
+    t.type = TargetType::kPlain;
+  else if (type == "checkerboard")
+    t.type = TargetType::kCheckerboard;
+  else if (type == "apriltag_grid")
+    t.type = TargetType::kAprilTagGrid;
+  else
+    throw TargetError{"key 'type' must be plain, checkerboard or apriltag_grid, got '" + type +
+                      "'"};
   t.width = readPositive(root, "width", "");
   t.height = readPositive(root, "height", "");
 
@@ -114,7 +123,8 @@ Target parseNode(const YAML::Node& root) {
     if (!ag) throw TargetError{"missing key 'apriltag_grid' (required for type apriltag_grid)"};
     if (!ag.IsMap()) throw TargetError{"key 'apriltag_grid' must be a mapping"};
     const std::string w = "apriltag_grid.";
-    rejectUnknownKeys(ag, {"family", "cols", "rows", "tag_size", "spacing", "first_id", "origin"}, w);
+    rejectUnknownKeys(ag, {"family", "cols", "rows", "tag_size", "spacing", "first_id", "origin"},
+                      w);
     t.apriltag_grid.family = readScalar<std::string>(ag, "family", w, "string");
     t.apriltag_grid.cols = readPositiveInt(ag, "cols", w);
     t.apriltag_grid.rows = readPositiveInt(ag, "rows", w);
@@ -122,7 +132,8 @@ Target parseNode(const YAML::Node& root) {
     t.apriltag_grid.spacing = readFinite(ag, "spacing", w);
     if (t.apriltag_grid.spacing < 0) throw TargetError{"key 'apriltag_grid.spacing' must be >= 0"};
     t.apriltag_grid.first_id = readScalar<int>(ag, "first_id", w, "integer");
-    if (t.apriltag_grid.first_id < 0) throw TargetError{"key 'apriltag_grid.first_id' must be >= 0"};
+    if (t.apriltag_grid.first_id < 0)
+      throw TargetError{"key 'apriltag_grid.first_id' must be >= 0"};
     t.apriltag_grid.origin = readVec2(ag, "origin", w);
   }
   const std::string why = t.validate();
@@ -186,20 +197,23 @@ std::string Target::validate() const {
   if (!(width > 0) || !(height > 0)) return "board width and height must be > 0";
   if (type == TargetType::kCheckerboard) {
     const auto& cb = checkerboard;
-    if (cb.cols < 2 || cb.rows < 2) return "checkerboard.cols and checkerboard.rows must be >= 2 (inner corners)";
+    if (cb.cols < 2 || cb.rows < 2)
+      return "checkerboard.cols and checkerboard.rows must be >= 2 (inner corners)";
     if (int64_t(cb.cols) * cb.rows > kMaxPatternCorners)
-      return "checkerboard has " + std::to_string(int64_t(cb.cols) * cb.rows) + " inner corners (at most " +
-             std::to_string(kMaxPatternCorners) + ")";
+      return "checkerboard has " + std::to_string(int64_t(cb.cols) * cb.rows) +
+             " inner corners (at most " + std::to_string(kMaxPatternCorners) + ")";
     if (cb.cols == cb.rows)
-      return "checkerboard.cols equals checkerboard.rows: a square pattern is ambiguous under 90° rotation";
+      return "checkerboard.cols equals checkerboard.rows: a square pattern is ambiguous under 90° "
+             "rotation";
     // The printed squares extend one square beyond the outermost inner corners.
     const double x_min = cb.origin.x() - cb.square, y_min = cb.origin.y() - cb.square;
     const double x_max = cb.origin.x() + cb.cols * cb.square;
     const double y_max = cb.origin.y() + cb.rows * cb.square;
-    if (x_min < -kTolerance || y_min < -kTolerance || x_max > width + kTolerance || y_max > height + kTolerance) {
+    if (x_min < -kTolerance || y_min < -kTolerance || x_max > width + kTolerance ||
+        y_max > height + kTolerance) {
       std::ostringstream s;
-      s << "checkerboard pattern (" << (cb.cols + 1) * cb.square << " x " << (cb.rows + 1) * cb.square
-        << " m at origin " << cb.origin.x() << ", " << cb.origin.y()
+      s << "checkerboard pattern (" << (cb.cols + 1) * cb.square << " x "
+        << (cb.rows + 1) * cb.square << " m at origin " << cb.origin.x() << ", " << cb.origin.y()
         << ") does not fit on the board (" << width << " x " << height << " m)";
       return s.str();
     }
@@ -219,9 +233,10 @@ std::string Target::validate() const {
     }
     constexpr int kTag36h11Count = 587;
     // 64-bit: rows * cols of a hostile file overflows int (65536 x 65536 used to end in bad_alloc).
-    if (g.rows <= 0 || g.cols <= 0 || g.first_id < 0 || int64_t(g.first_id) + int64_t(g.rows) * g.cols > kTag36h11Count)
-      return "apriltag_grid ids " + std::to_string(g.first_id) + " + " + std::to_string(g.rows) + " x " +
-             std::to_string(g.cols) + " exceed the tag36h11 family (587 tags)";
+    if (g.rows <= 0 || g.cols <= 0 || g.first_id < 0 ||
+        int64_t(g.first_id) + int64_t(g.rows) * g.cols > kTag36h11Count)
+      return "apriltag_grid ids " + std::to_string(g.first_id) + " + " + std::to_string(g.rows) +
+             " x " + std::to_string(g.cols) + " exceed the tag36h11 family (587 tags)";
   }
   return {};
 }
@@ -249,7 +264,8 @@ Expected<Target> loadTarget(const std::string& path) {
 std::string targetToYaml(const Target& t) {
   std::ostringstream s;
   s.precision(10);
-  s << "type: " << targetTypeName(t.type) << "\nwidth: " << t.width << "\nheight: " << t.height << "\n";
+  s << "type: " << targetTypeName(t.type) << "\nwidth: " << t.width << "\nheight: " << t.height
+    << "\n";
   if (t.type == TargetType::kCheckerboard) {
     const auto& cb = t.checkerboard;
     s << "checkerboard: {cols: " << cb.cols << ", rows: " << cb.rows << ", square: " << cb.square

@@ -37,8 +37,8 @@ std::array<double, 16> rowMajor(const Eigen::Isometry3d& T) {
 
 Expected<Eigen::Isometry3d> fromRowMajor(const std::vector<double>& v) {
   if (v.size() != 12 && v.size() != 16)
-    return Expected<Eigen::Isometry3d>::failure("a transform matrix needs 12 (3x4) or 16 (4x4) numbers, got " +
-                                                std::to_string(v.size()));
+    return Expected<Eigen::Isometry3d>::failure(
+        "a transform matrix needs 12 (3x4) or 16 (4x4) numbers, got " + std::to_string(v.size()));
   Eigen::Matrix3d R;
   Eigen::Vector3d t;
   for (int r = 0; r < 3; ++r) {
@@ -46,9 +46,11 @@ Expected<Eigen::Isometry3d> fromRowMajor(const std::vector<double>& v) {
     t[r] = v[r * 4 + 3];
   }
   constexpr double kOrthonormalTolerance = 1e-4;
-  if (!R.allFinite() || !t.allFinite() || (R * R.transpose() - Eigen::Matrix3d::Identity()).norm() > kOrthonormalTolerance ||
+  if (!R.allFinite() || !t.allFinite() ||
+      (R * R.transpose() - Eigen::Matrix3d::Identity()).norm() > kOrthonormalTolerance ||
       R.determinant() < 0)
-    return Expected<Eigen::Isometry3d>::failure("the rotation part of the matrix is not a rotation");
+    return Expected<Eigen::Isometry3d>::failure(
+        "the rotation part of the matrix is not a rotation");
   // Re-orthonormalise so round-tripped text keeps an exact rotation.
   Eigen::JacobiSVD<Eigen::Matrix3d> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
   return makeTransform(Eigen::Matrix3d(svd.matrixU() * svd.matrixV().transpose()), t);
@@ -71,7 +73,8 @@ Eigen::Vector3d rollPitchYaw(const Eigen::Matrix3d& R) {
 }
 
 Eigen::Matrix3d fromRollPitchYaw(const Eigen::Vector3d& rpy) {
-  return (Eigen::AngleAxisd(rpy[2], Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(rpy[1], Eigen::Vector3d::UnitY()) *
+  return (Eigen::AngleAxisd(rpy[2], Eigen::Vector3d::UnitZ()) *
+          Eigen::AngleAxisd(rpy[1], Eigen::Vector3d::UnitY()) *
           Eigen::AngleAxisd(rpy[0], Eigen::Vector3d::UnitX()))
       .toRotationMatrix();
 }
@@ -87,7 +90,8 @@ Eigen::Vector3d logSO3(const Eigen::Matrix3d& R) {
   return aa.axis() * aa.angle();
 }
 
-Eigen::Isometry3d perturb(const Eigen::Isometry3d& T, double sigma_rot, double sigma_trans, std::mt19937& rng) {
+Eigen::Isometry3d perturb(const Eigen::Isometry3d& T, double sigma_rot, double sigma_trans,
+                          std::mt19937& rng) {
   std::normal_distribution<double> nr(0.0, sigma_rot), nt(0.0, sigma_trans);
   const Eigen::Vector3d w(nr(rng), nr(rng), nr(rng));
   const Eigen::Vector3d dt(nt(rng), nt(rng), nt(rng));

@@ -5,8 +5,8 @@
 #include "calibrator_options.h"
 #include "calibrator_rig_mode.h"
 
-#include <board_calib/CalibrationResult.h>
 #include <board_calib/Calibrate.h>
+#include <board_calib/CalibrationResult.h>
 #include <board_calib/CalibratorConfig.h>
 #include <board_calib/DropView.h>
 #include <board_calib/SessionFile.h>
@@ -22,11 +22,11 @@
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <dynamic_reconfigure/server.h>
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
 #include <std_srvs/Trigger.h>
 #include <tf2_ros/static_transform_broadcaster.h>
 #include <visualization_msgs/MarkerArray.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -56,7 +56,8 @@ class CalibratorNodelet : public nodelet::Nodelet {
   bool saveSession(SessionFile::Request& req, SessionFile::Response& res);
   bool loadSession(SessionFile::Request& req, SessionFile::Response& res);
   bool dropView(DropView::Request& req, DropView::Response& res);
-  void publishMarkers(const std::vector<View>& views, const std::optional<CalibrationSolution>& solution);
+  void publishMarkers(const std::vector<View>& views,
+                      const std::optional<CalibrationSolution>& solution);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
   std::string writeOutputs(const ResultFile& file);
   std::string writeFailedResult(const ResultFile& file);
@@ -72,9 +73,10 @@ class CalibratorNodelet : public nodelet::Nodelet {
   std::optional<CalibrationSolution> last_solution_;
   std::string camera_frame_, lidar_frame_;
   int lidar_msgs_ = 0, camera_msgs_ = 0;
-  std::string lidar_board_state_ = "no message", camera_board_state_ = "no message";  // for /diagnostics
-  std::mutex solve_mutex_;  // one solve at a time
-  std::string autosave_path_;  // empty: autosave off
+  std::string lidar_board_state_ = "no message",
+              camera_board_state_ = "no message";  // for /diagnostics
+  std::mutex solve_mutex_;                         // one solve at a time
+  std::string autosave_path_;                      // empty: autosave off
 
   ros::Subscriber lidar_sub_, camera_sub_;
   ros::Publisher result_pub_, markers_pub_;
@@ -101,7 +103,8 @@ void CalibratorNodelet::onInit() {
   }
   std::string target_file;
   if (!pnh.getParam("target_file", target_file)) {
-    NODELET_FATAL("calibrator: private parameter ~target_file (the board description YAML) is required");
+    NODELET_FATAL(
+        "calibrator: private parameter ~target_file (the board description YAML) is required");
     return;
   }
   auto target = loadTarget(target_file);
@@ -117,8 +120,11 @@ void CalibratorNodelet::onInit() {
   std::string session_file;
   if (pnh.getParam("session_file", session_file) && !session_file.empty()) {
     const Status st = session_->load(session_file);
-    if (st) NODELET_INFO_STREAM("calibrator: loaded " << session_->views().size() << " views from " << session_file);
-    else NODELET_ERROR_STREAM("calibrator: " << st.reason);
+    if (st)
+      NODELET_INFO_STREAM("calibrator: loaded " << session_->views().size() << " views from "
+                                                << session_file);
+    else
+      NODELET_ERROR_STREAM("calibrator: " << st.reason);
   }
   // Autosave: every captured or dropped view is saved, so a crashed manager loses nothing.
   bool autosave_enabled = true, resume = false;
@@ -143,7 +149,8 @@ void CalibratorNodelet::onInit() {
   reconfigure_server_->setCallback(
       [this](CalibratorConfig& config, uint32_t level) { reconfigure(config, level); });
 
-  services_.push_back(pnh.advertiseService("calibrate", &CalibratorNodelet::calibrateChecked, this));
+  services_.push_back(
+      pnh.advertiseService("calibrate", &CalibratorNodelet::calibrateChecked, this));
   services_.push_back(pnh.advertiseService("capture", &CalibratorNodelet::capture, this));
   services_.push_back(pnh.advertiseService("reset", &CalibratorNodelet::reset, this));
   services_.push_back(pnh.advertiseService("save_session", &CalibratorNodelet::saveSession, this));
@@ -155,7 +162,8 @@ void CalibratorNodelet::onInit() {
   diagnostics_->add(calibrator_status::kStatusName, this, &CalibratorNodelet::diagnose);
   // force_update on a wall timer: update() paces itself by ROS time, which stops at the end of a
   // replayed bag (use_sim_time) and would freeze the status the user is reading.
-  diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) {
+  diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(1.0), [this](
+                                                                      const ros::WallTimerEvent&) {
     diagnostics_->force_update();
     // Streams quiet: the images still waiting for frames after them (the last pose of a
     // recording, a paused bag) are judged with what there is.
@@ -169,9 +177,10 @@ void CalibratorNodelet::onInit() {
   // The calibrator subscribes eagerly: it must see every feature to collect views.
   lidar_sub_ = nh.subscribe("lidar_board", 10, &CalibratorNodelet::onLidar, this);
   camera_sub_ = nh.subscribe("camera_board", 10, &CalibratorNodelet::onCamera, this);
-  NODELET_INFO_STREAM("calibrator: target " << targetTypeName(target->type) << " " << target->width << " x "
-                                            << target->height << " m; waiting for " << nh.resolveName("lidar_board")
-                                            << " and " << nh.resolveName("camera_board"));
+  NODELET_INFO_STREAM("calibrator: target " << targetTypeName(target->type) << " " << target->width
+                                            << " x " << target->height << " m; waiting for "
+                                            << nh.resolveName("lidar_board") << " and "
+                                            << nh.resolveName("camera_board"));
 }
 
 void CalibratorNodelet::reconfigure(CalibratorConfig& c, uint32_t) {
@@ -190,8 +199,9 @@ void CalibratorNodelet::report(const SessionEvent& e, const char* source) {
   last_event_ = std::string(source) + ": " + e.message;
   if (e.kind == SessionEvent::Kind::kAccepted) {
     const CoverageReport cov = session_->coverage();
-    NODELET_INFO_STREAM("calibrator: " << e.message << "; " << cov.views << " views"
-                                       << (cov.advice.empty() ? "" : "; next: " + cov.advice.front()));
+    NODELET_INFO_STREAM("calibrator: "
+                        << e.message << "; " << cov.views << " views"
+                        << (cov.advice.empty() ? "" : "; next: " + cov.advice.front()));
     publishMarkers(session_->plainViews(), last_solution_);
     autosave();
   } else if (e.kind == SessionEvent::Kind::kRejected) {
@@ -217,25 +227,29 @@ void CalibratorNodelet::resumeAutosave(bool resume) {
   PairSession found(session_->target(), session_->options());
   const Status st = found.load(autosave_path_);
   std::string not_resumed;
-  if (!st) not_resumed = st.reason;
+  if (!st)
+    not_resumed = st.reason;
   else if (targetToYaml(found.target()) != targetToYaml(session_->target()))
-    not_resumed = std::string("it was recorded with another board (") + targetTypeName(found.target().type) + ")";
-  else if (!resume && !respawned) not_resumed = "it is from an earlier run (set ~resume true to resume it)";
+    not_resumed = std::string("it was recorded with another board (") +
+                  targetTypeName(found.target().type) + ")";
+  else if (!resume && !respawned)
+    not_resumed = "it is from an earlier run (set ~resume true to resume it)";
   (void)writeFileAtomic(run_id_path, run_id);
   if (not_resumed.empty() && session_->load(autosave_path_)) {
-    NODELET_INFO_STREAM("calibrator: found an autosaved session in " << autosave_path_ << ": resumed "
-                                                                      << session_->views().size()
-                                                                      << " views"
-                                                                      << (respawned ? " after a restart" : "")
-                                                                      << " (~reset drops them)");
+    NODELET_INFO_STREAM("calibrator: found an autosaved session in "
+                        << autosave_path_ << ": resumed " << session_->views().size() << " views"
+                        << (respawned ? " after a restart" : "") << " (~reset drops them)");
     return;
   }
-  const std::string aside = autosave_path_ + "." + std::to_string(static_cast<long long>(ros::WallTime::now().sec));
+  const std::string aside =
+      autosave_path_ + "." + std::to_string(static_cast<long long>(ros::WallTime::now().sec));
   std::filesystem::rename(autosave_path_, aside, error);
   NODELET_WARN_STREAM("calibrator: found an autosaved session in "
-                      << autosave_path_ << " with " << found.views().size() << " views, not resumed: " << not_resumed
-                      << "; " << (error ? "could not move it aside (" + error.message() + "), autosave is off"
-                                        : "kept as " + aside));
+                      << autosave_path_ << " with " << found.views().size()
+                      << " views, not resumed: " << not_resumed << "; "
+                      << (error
+                              ? "could not move it aside (" + error.message() + "), autosave is off"
+                              : "kept as " + aside));
   if (error) autosave_path_.clear();
 }
 
@@ -243,7 +257,9 @@ void CalibratorNodelet::resumeAutosave(bool resume) {
 void CalibratorNodelet::autosave() {
   if (autosave_path_.empty()) return;
   const Status st = session_->save(autosave_path_);
-  if (!st) NODELET_WARN_STREAM_THROTTLE(kAutosaveWarnPeriodS, "calibrator: autosave failed: " << st.reason);
+  if (!st)
+    NODELET_WARN_STREAM_THROTTLE(kAutosaveWarnPeriodS,
+                                 "calibrator: autosave failed: " << st.reason);
 }
 
 // Service arguments are checked before the solve: a zero or non-unit quaternion was taken as
@@ -265,7 +281,8 @@ void CalibratorNodelet::onLidar(const LidarBoardConstPtr& msg) {
   ++lidar_msgs_;
   last_feature_wall_ = ros::WallTime::now();
   lidar_frame_ = msg->header.frame_id;
-  if (!msg->found) NODELET_DEBUG_STREAM_THROTTLE(5.0, "calibrator: LiDAR sees no board: " << msg->reason);
+  if (!msg->found)
+    NODELET_DEBUG_STREAM_THROTTLE(5.0, "calibrator: LiDAR sees no board: " << msg->reason);
   lidar_board_state_ = msg->found ? "found" : "not found: " + msg->reason;
   report(session_->addLidar(fromMsg(*msg)), "lidar");
 }
@@ -275,7 +292,8 @@ void CalibratorNodelet::onCamera(const CameraBoardConstPtr& msg) {
   ++camera_msgs_;
   last_feature_wall_ = ros::WallTime::now();
   camera_frame_ = msg->header.frame_id;
-  if (!msg->found) NODELET_DEBUG_STREAM_THROTTLE(5.0, "calibrator: camera sees no board: " << msg->reason);
+  if (!msg->found)
+    NODELET_DEBUG_STREAM_THROTTLE(5.0, "calibrator: camera sees no board: " << msg->reason);
   camera_board_state_ = msg->found ? "found" : "not found: " + msg->reason;
   report(session_->addCamera(fromMsg(*msg)), "camera");
 }
@@ -324,9 +342,12 @@ std::string CalibratorNodelet::writeOutputs(const ResultFile& file) {
     NODELET_ERROR_STREAM("calibrator: " << st.reason);
     return "";
   }
-  for (const auto& [path, text] : {std::make_pair(base + "_static_transform.launch", staticTransformLaunchSnippet(file, child)),
-                                   std::make_pair(base + "_urdf_joint.xml", urdfJointSnippet(file, child))})
-    if (const Status written = writeFileAtomic(path, text); !written) NODELET_ERROR_STREAM("calibrator: " << written.reason);
+  for (const auto& [path, text] :
+       {std::make_pair(base + "_static_transform.launch",
+                       staticTransformLaunchSnippet(file, child)),
+        std::make_pair(base + "_urdf_joint.xml", urdfJointSnippet(file, child))})
+    if (const Status written = writeFileAtomic(path, text); !written)
+      NODELET_ERROR_STREAM("calibrator: " << written.reason);
   return base + "_result.yaml";
 }
 
@@ -341,8 +362,10 @@ bool CalibratorNodelet::calibrate(Calibrate::Request& req, Calibrate::Response& 
     views = session_->plainViews();
     target = session_->target();
     method_name = req.method.empty() ? default_method_ : req.method;
-    camera_frame = camera_frame_.empty() && !views.empty() ? views.front().camera.frame_id : camera_frame_;
-    lidar_frame = lidar_frame_.empty() && !views.empty() ? views.front().lidar.frame_id : lidar_frame_;
+    camera_frame =
+        camera_frame_.empty() && !views.empty() ? views.front().camera.frame_id : camera_frame_;
+    lidar_frame =
+        lidar_frame_.empty() && !views.empty() ? views.front().lidar.frame_id : lidar_frame_;
   }
   const auto methods = parseMethods(method_name);
   if (!methods) {
@@ -361,7 +384,8 @@ bool CalibratorNodelet::calibrate(Calibrate::Request& req, Calibrate::Response& 
   if (req.use_initial_guess) guess = fromTransformMsg(req.initial_guess);
   // The solve runs on its own thread; feature callbacks keep flowing meanwhile.
   auto solving = std::async(std::launch::async, [&]() {
-    return calibratePair(views, *methods, target, camera_frame, lidar_frame, PairCalibrationOptions{}, guess);
+    return calibratePair(views, *methods, target, camera_frame, lidar_frame,
+                         PairCalibrationOptions{}, guess);
   });
   const PairCalibration run = solving.get();
   if (run.runs.empty()) {  // refused before any solve (options, guess, views)
@@ -386,15 +410,18 @@ bool CalibratorNodelet::calibrate(Calibrate::Request& req, Calibrate::Response& 
     if (res.result.reason.empty()) res.result.reason = run.reason;
     const std::string kept = writeFailedResult(run.result);
     if (!kept.empty()) res.message += "failed result kept for inspection in " + kept + "\n";
-    if (const std::string report = writeReport(run); !report.empty()) res.message += "report written to " + report + "\n";
+    if (const std::string report = writeReport(run); !report.empty())
+      res.message += "report written to " + report + "\n";
     NODELET_WARN_STREAM("calibrator: calibration FAILED: " << run.reason);
     result_pub_.publish(res.result);
     return true;
   }
   res.success = true;
   const CalibrationSolution& chosen = shown.solution;
-  if (run.verdict == Verdict::kDoubtful) NODELET_WARN_STREAM("calibrator: calibration DOUBTFUL:\n" << res.message);
-  else NODELET_INFO_STREAM("calibrator:\n" << solutionSummary(chosen) << res.message);
+  if (run.verdict == Verdict::kDoubtful)
+    NODELET_WARN_STREAM("calibrator: calibration DOUBTFUL:\n" << res.message);
+  else
+    NODELET_INFO_STREAM("calibrator:\n" << solutionSummary(chosen) << res.message);
 
   result_pub_.publish(res.result);
   if (broadcast_tf_) {
@@ -407,7 +434,8 @@ bool CalibratorNodelet::calibrate(Calibrate::Request& req, Calibrate::Response& 
   }
   const std::string written = writeOutputs(run.result);
   if (!written.empty()) res.message += "result written to " + written + "\n";
-  if (const std::string report = writeReport(run); !report.empty()) res.message += "report written to " + report + "\n";
+  if (const std::string report = writeReport(run); !report.empty())
+    res.message += "report written to " + report + "\n";
   {
     std::lock_guard<std::mutex> lock(mutex_);
     session_->setEstimate(chosen.camera_T_lidar);
@@ -454,12 +482,14 @@ bool CalibratorNodelet::loadSession(SessionFile::Request& req, SessionFile::Resp
   PairSession candidate(session_->target(), session_->options());
   Status st = candidate.load(req.path);
   if (st && targetToYaml(candidate.target()) != targetToYaml(session_->target()))
-    st = Status::failure("'" + req.path + "' was recorded with a " + targetTypeName(candidate.target().type) +
+    st = Status::failure("'" + req.path + "' was recorded with a " +
+                         targetTypeName(candidate.target().type) +
                          " board that differs from this calibrator's target; current views kept");
   if (st) st = session_->load(req.path);
   res.success = st.ok;
   res.views = static_cast<uint32_t>(session_->views().size());
-  res.message = st.ok ? "loaded " + std::to_string(res.views) + " views from " + req.path : st.reason;
+  res.message =
+      st.ok ? "loaded " + std::to_string(res.views) + " views from " + req.path : st.reason;
   if (st.ok) {
     publishMarkers(session_->plainViews(), std::nullopt);
     autosave();
@@ -515,8 +545,10 @@ void CalibratorNodelet::publishMarkers(const std::vector<View>& views,
       for (const auto& vr : solution->views)
         if (vr.view_id == v.id && vr.used) {
           const double x =
-              median_rms > 0 ? std::clamp((vr.plane.rms_m / median_rms - 1.0) / (kRedAtMedianFactor - 1.0), 0.0, 1.0)
-                             : 0.0;
+              median_rms > 0
+                  ? std::clamp((vr.plane.rms_m / median_rms - 1.0) / (kRedAtMedianFactor - 1.0),
+                               0.0, 1.0)
+                  : 0.0;
           m.color.r = static_cast<float>(x);
           m.color.g = static_cast<float>(1.0 - x);
           m.color.b = 0.0f;
@@ -548,13 +580,15 @@ void CalibratorNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& st
   stat.add(calibrator_status::kServices, getPrivateNodeHandle().getNamespace());
   stat.add(calibrator_status::kViews, cov.views);
   std::string ids;
-  for (const auto& v : session_->views()) ids += (ids.empty() ? "" : " ") + std::to_string(v.view.id);
+  for (const auto& v : session_->views())
+    ids += (ids.empty() ? "" : " ") + std::to_string(v.view.id);
   stat.add(calibrator_status::kViewIds, ids);
   stat.add(calibrator_status::kLidarBoard, lidar_board_state_);
   stat.add(calibrator_status::kCameraBoard, camera_board_state_);
   // The last image's stillness judgement, in words ("board still for ...", "board moving: ...").
   const std::string& stillness = session_->captureStats().last_stillness;
-  stat.add(calibrator_status::kBoardMotion, stillness.empty() ? std::string("no image judged yet") : stillness);
+  stat.add(calibrator_status::kBoardMotion,
+           stillness.empty() ? std::string("no image judged yet") : stillness);
   stat.add("lidar feature messages", lidar_msgs_);
   stat.add("camera feature messages", camera_msgs_);
   stat.add(calibrator_status::kLastEvent, last_event_);

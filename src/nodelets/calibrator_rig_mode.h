@@ -1,6 +1,6 @@
 // Rig mode of the calibrator nodelet (~rig_file set): N camera and M LiDAR feature streams from
-// a rig YAML (docs/MSG.md), board poses captured by a multi_sensor::RigSession, ~calibrate solves the
-// MSG-Cal graph and broadcasts every sensor's pose from the reference frame. Thin wiring only.
+// a rig YAML (docs/MSG.md), board poses captured by a multi_sensor::RigSession, ~calibrate solves
+// the MSG-Cal graph and broadcasts every sensor's pose from the reference frame. Thin wiring only.
 #pragma once
 
 #include <ros/ros.h>

@@ -10,11 +10,11 @@
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <dynamic_reconfigure/server.h>
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <std_srvs/Trigger.h>
 #include <visualization_msgs/MarkerArray.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include <deque>
 #include <memory>
@@ -24,7 +24,7 @@ namespace board_calib {
 namespace {
 
 constexpr double kDiagnosticsPeriodS = 1.0;
-constexpr double kStatsWindowS = 10.0;      // input rate and detection ratio over this window
+constexpr double kStatsWindowS = 10.0;  // input rate and detection ratio over this window
 constexpr double kWarnThrottleS = 10.0;
 constexpr double kMarkerLineWidthM = 0.01;
 constexpr double kCornerMarkerSizeM = 0.04;
@@ -48,7 +48,8 @@ LidarCloud pointsCloud(const std_msgs::Header& header, const Points3& points, fl
   return c;
 }
 
-visualization_msgs::MarkerArray makeMarkers(const std_msgs::Header& header, const LidarBoardFeatures& f) {
+visualization_msgs::MarkerArray makeMarkers(const std_msgs::Header& header,
+                                            const LidarBoardFeatures& f) {
   visualization_msgs::MarkerArray out;
   visualization_msgs::Marker clear;
   clear.header = header;
@@ -103,7 +104,8 @@ visualization_msgs::MarkerArray makeMarkers(const std_msgs::Header& header, cons
   corners.scale.x = corners.scale.y = corners.scale.z = kCornerMarkerSizeM;
   corners.color.g = 1.0;
   for (int j = 0; j < kNumEdges; ++j)
-    if (f.edge_valid[j] && f.edge_valid[(j + 1) % kNumEdges]) corners.points.push_back(toPointMsg(f.corners[j]));
+    if (f.edge_valid[j] && f.edge_valid[(j + 1) % kNumEdges])
+      corners.points.push_back(toPointMsg(f.corners[j]));
   if (!corners.points.empty()) out.markers.push_back(corners);
   if (!f.reason.empty()) {
     auto text = base(3, visualization_msgs::Marker::TEXT_VIEW_FACING, "reason");
@@ -125,7 +127,9 @@ class CloudBoardDetectorNodelet : public nodelet::Nodelet {
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     std::string target_file;
     if (!pnh.getParam("target_file", target_file) || target_file.empty()) {
-      NODELET_FATAL("cloud_board_detector: private parameter ~target_file (board description YAML) is required");
+      NODELET_FATAL(
+          "cloud_board_detector: private parameter ~target_file (board description YAML) is "
+          "required");
       return;
     }
     auto target = loadTarget(target_file);
@@ -152,30 +156,38 @@ class CloudBoardDetectorNodelet : public nodelet::Nodelet {
       edges_pub_ = nh.advertise<sensor_msgs::PointCloud2>("edge_points", 1, connect, connect);
       markers_pub_ = nh.advertise<visualization_msgs::MarkerArray>("markers", 1, connect, connect);
     }
-    capture_srv_ = pnh.advertiseService("capture_background", &CloudBoardDetectorNodelet::onCapture, this);
-    clear_srv_ = pnh.advertiseService("clear_background", &CloudBoardDetectorNodelet::onClear, this);
+    capture_srv_ =
+        pnh.advertiseService("capture_background", &CloudBoardDetectorNodelet::onCapture, this);
+    clear_srv_ =
+        pnh.advertiseService("clear_background", &CloudBoardDetectorNodelet::onClear, this);
 
-    reconfigure_ = std::make_unique<dynamic_reconfigure::Server<CloudBoardDetectorConfig>>(reconfigure_mutex_, pnh);
+    reconfigure_ = std::make_unique<dynamic_reconfigure::Server<CloudBoardDetectorConfig>>(
+        reconfigure_mutex_, pnh);
     reconfigure_->setCallback([this](CloudBoardDetectorConfig& config, uint32_t) {
       const LidarBoardDetectorOptions o = optionsFromConfig(config);
       const std::string bad = o.validate();
       std::lock_guard<std::mutex> lock(mutex_);
       if (!bad.empty()) {
-        NODELET_WARN("cloud_board_detector: rejected reconfiguration (%s); keeping the previous options", bad.c_str());
+        NODELET_WARN(
+            "cloud_board_detector: rejected reconfiguration (%s); keeping the previous options",
+            bad.c_str());
         return;
       }
       options_ = o;
       use_background_ = config.use_background;
     });
 
-    diagnostics_.setHardwareID("lidar board detector (" + std::string(targetTypeName(target_.type)) + " " +
-                               std::to_string(target_.width) + " x " + std::to_string(target_.height) + " m)");
+    diagnostics_.setHardwareID(
+        "lidar board detector (" + std::string(targetTypeName(target_.type)) + " " +
+        std::to_string(target_.width) + " x " + std::to_string(target_.height) + " m)");
     diagnostics_.add("cloud_board_detector", this, &CloudBoardDetectorNodelet::diagnose);
-    // The timer also re-checks the lazy subscription: a safety net should a connect callback be missed.
-    diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(kDiagnosticsPeriodS), [this](const ros::WallTimerEvent&) {
-      updateSubscription();
-      diagnostics_.update();
-    });
+    // The timer also re-checks the lazy subscription: a safety net should a connect callback be
+    // missed.
+    diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(kDiagnosticsPeriodS),
+                                            [this](const ros::WallTimerEvent&) {
+                                              updateSubscription();
+                                              diagnostics_.update();
+                                            });
     NODELET_INFO("cloud_board_detector: target %s %.3f x %.3f m from %s; waiting for subscribers",
                  targetTypeName(target_.type), target_.width, target_.height, target_file.c_str());
   }
@@ -183,10 +195,11 @@ class CloudBoardDetectorNodelet : public nodelet::Nodelet {
   void updateSubscription() {
     std::lock_guard<std::mutex> lock(subscription_mutex_);
     const bool wanted = board_pub_.getNumSubscribers() > 0 || points_pub_.getNumSubscribers() > 0 ||
-                        edges_pub_.getNumSubscribers() > 0 || markers_pub_.getNumSubscribers() > 0 ||
-                        capturing_left_ > 0;
+                        edges_pub_.getNumSubscribers() > 0 ||
+                        markers_pub_.getNumSubscribers() > 0 || capturing_left_ > 0;
     if (wanted && !cloud_sub_) {
-      cloud_sub_ = getNodeHandle().subscribe("points", 2, &CloudBoardDetectorNodelet::onCloud, this);
+      cloud_sub_ =
+          getNodeHandle().subscribe("points", 2, &CloudBoardDetectorNodelet::onCloud, this);
     } else if (!wanted && cloud_sub_) {
       cloud_sub_.shutdown();
     }
@@ -201,7 +214,8 @@ class CloudBoardDetectorNodelet : public nodelet::Nodelet {
     updateSubscription();
     res.success = true;
     res.message = "capturing the background from the next " + std::to_string(background_frames_) +
-                  " clouds on " + getNodeHandle().resolveName("points") + "; keep the board out of view";
+                  " clouds on " + getNodeHandle().resolveName("points") +
+                  "; keep the board out of view";
     NODELET_INFO("cloud_board_detector: %s", res.message.c_str());
     return true;
   }
@@ -223,7 +237,8 @@ class CloudBoardDetectorNodelet : public nodelet::Nodelet {
     const ros::WallTime now = ros::WallTime::now();
     auto cloud = fromPointCloud2(*msg);
     if (!cloud) {
-      NODELET_WARN_THROTTLE(kWarnThrottleS, "cloud_board_detector: cloud on %s (frame '%s') rejected: %s",
+      NODELET_WARN_THROTTLE(kWarnThrottleS,
+                            "cloud_board_detector: cloud on %s (frame '%s') rejected: %s",
                             topic.c_str(), msg->header.frame_id.c_str(), cloud.error().c_str());
       record(now, false, cloud.error());
       return;
@@ -235,11 +250,13 @@ class CloudBoardDetectorNodelet : public nodelet::Nodelet {
       if (capturing_left_ > 0) {
         const Status st = background_.addFrame(*cloud);
         if (!st) {
-          NODELET_WARN_THROTTLE(kWarnThrottleS, "cloud_board_detector: background frame from %s (frame '%s'): %s",
+          NODELET_WARN_THROTTLE(kWarnThrottleS,
+                                "cloud_board_detector: background frame from %s (frame '%s'): %s",
                                 topic.c_str(), msg->header.frame_id.c_str(), st.reason.c_str());
         } else if (--capturing_left_ == 0) {
           finished_capture = true;
-          NODELET_INFO("cloud_board_detector: background model captured (%d clouds)", background_.numFrames());
+          NODELET_INFO("cloud_board_detector: background model captured (%d clouds)",
+                       background_.numFrames());
         }
       }
       options = options_;
@@ -250,9 +267,8 @@ class CloudBoardDetectorNodelet : public nodelet::Nodelet {
       // The background model is read while detecting; captures do not run concurrently
       // because the subscription has a single callback queue per nodelet.
       std::lock_guard<std::mutex> lock(mutex_);
-      const BackgroundModel* background = use_background_ && !background_.empty() && capturing_left_ == 0
-                                              ? &background_
-                                              : nullptr;
+      const BackgroundModel* background =
+          use_background_ && !background_.empty() && capturing_left_ == 0 ? &background_ : nullptr;
       if (session_memory_) {
         tracker_->setDetectorOptions(options);
         det = tracker_->detect(*cloud, background);
@@ -260,9 +276,11 @@ class CloudBoardDetectorNodelet : public nodelet::Nodelet {
         det = detectLidarBoard(*cloud, target_, options, background);
       }
     }
-    if (det.code == LidarDetectionCode::kEmptyCloud || det.code == LidarDetectionCode::kNoValidPoints ||
+    if (det.code == LidarDetectionCode::kEmptyCloud ||
+        det.code == LidarDetectionCode::kNoValidPoints ||
         det.code == LidarDetectionCode::kInvalidOptions) {
-      NODELET_WARN_THROTTLE(kWarnThrottleS, "cloud_board_detector: cloud on %s (frame '%s', %zu points): %s",
+      NODELET_WARN_THROTTLE(kWarnThrottleS,
+                            "cloud_board_detector: cloud on %s (frame '%s', %zu points): %s",
                             topic.c_str(), msg->header.frame_id.c_str(), cloud->points.size(),
                             det.features.reason.c_str());
     }
@@ -280,7 +298,8 @@ class CloudBoardDetectorNodelet : public nodelet::Nodelet {
       // Intensity carries the edge index (0 UL, 1 UR, 2 LR, 3 LL).
       LidarCloud all = pointsCloud(msg->header, {}, 0.0f);
       for (int j = 0; j < kNumEdges; ++j) {
-        const LidarCloud e = pointsCloud(msg->header, det.features.edge_points[j], static_cast<float>(j));
+        const LidarCloud e =
+            pointsCloud(msg->header, det.features.edge_points[j], static_cast<float>(j));
         all.points.insert(all.points.end(), e.points.begin(), e.points.end());
       }
       all.width = static_cast<int>(all.points.size());
@@ -288,13 +307,15 @@ class CloudBoardDetectorNodelet : public nodelet::Nodelet {
       pc.header = msg->header;
       edges_pub_.publish(pc);
     }
-    if (markers_pub_.getNumSubscribers() > 0) markers_pub_.publish(makeMarkers(msg->header, det.features));
+    if (markers_pub_.getNumSubscribers() > 0)
+      markers_pub_.publish(makeMarkers(msg->header, det.features));
   }
 
   void record(const ros::WallTime& now, bool found, const std::string& reason) {
     std::lock_guard<std::mutex> lock(stats_mutex_);
     history_.push_back({now.toSec(), found});
-    while (!history_.empty() && history_.front().first < now.toSec() - kStatsWindowS) history_.pop_front();
+    while (!history_.empty() && history_.front().first < now.toSec() - kStatsWindowS)
+      history_.pop_front();
     last_reason_ = reason;
   }
 
@@ -328,13 +349,14 @@ class CloudBoardDetectorNodelet : public nodelet::Nodelet {
     if (!subscribed) {
       stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "idle (no subscribers)");
     } else if (history_.empty()) {
-      stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "no clouds received on " +
-                                                                getNodeHandle().resolveName("points"));
+      stat.summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                   "no clouds received on " + getNodeHandle().resolveName("points"));
     } else if (found == 0) {
       stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "no board found: " + last_reason_);
     } else {
-      stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "board found in " + std::to_string(found) + " of " +
-                                                              std::to_string(history_.size()) + " clouds");
+      stat.summary(diagnostic_msgs::DiagnosticStatus::OK,
+                   "board found in " + std::to_string(found) + " of " +
+                       std::to_string(history_.size()) + " clouds");
     }
   }
 
@@ -343,7 +365,8 @@ class CloudBoardDetectorNodelet : public nodelet::Nodelet {
   bool use_background_ = true;
   BackgroundModel background_;
   bool session_memory_ = StaticMemoryOptions().enabled;
-  std::unique_ptr<LidarBoardTracker> tracker_;  // one detector state per LiDAR (this nodelet's cloud)
+  std::unique_ptr<LidarBoardTracker>
+      tracker_;  // one detector state per LiDAR (this nodelet's cloud)
   int background_frames_ = 5;
   int capturing_left_ = 0;
   std::mutex mutex_;               // options, background model, capture state

@@ -12,8 +12,8 @@
 #include <dynamic_reconfigure/server.h>
 #include <image_transport/image_transport.h>
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include <deque>
 #include <memory>
@@ -55,34 +55,42 @@ class ImageBoardDetectorNodelet : public nodelet::Nodelet {
 
     it_ = std::make_unique<image_transport::ImageTransport>(nh);
     std::lock_guard<std::mutex> lock(connect_mutex_);
-    board_pub_ = nh.advertise<CameraBoard>("camera_board", 10, boost::bind(&ImageBoardDetectorNodelet::connectCb, this),
-                                           boost::bind(&ImageBoardDetectorNodelet::connectCb, this));
-    debug_pub_ = it_->advertise("debug_image", 1, boost::bind(&ImageBoardDetectorNodelet::connectCb, this),
-                                boost::bind(&ImageBoardDetectorNodelet::connectCb, this));
+    board_pub_ = nh.advertise<CameraBoard>(
+        "camera_board", 10, boost::bind(&ImageBoardDetectorNodelet::connectCb, this),
+        boost::bind(&ImageBoardDetectorNodelet::connectCb, this));
+    debug_pub_ =
+        it_->advertise("debug_image", 1, boost::bind(&ImageBoardDetectorNodelet::connectCb, this),
+                       boost::bind(&ImageBoardDetectorNodelet::connectCb, this));
 
-    reconfigure_ = std::make_unique<dynamic_reconfigure::Server<ImageBoardDetectorConfig>>(reconfigure_mutex_, pnh);
-    reconfigure_->setCallback(
-        [this](const ImageBoardDetectorConfig& config, uint32_t level) { reconfigure(config, level); });
+    reconfigure_ = std::make_unique<dynamic_reconfigure::Server<ImageBoardDetectorConfig>>(
+        reconfigure_mutex_, pnh);
+    reconfigure_->setCallback([this](const ImageBoardDetectorConfig& config, uint32_t level) {
+      reconfigure(config, level);
+    });
 
     diagnostics_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
     diagnostics_->setHardwareID("camera (" + std::string(targetTypeName(target_.type)) + " board)");
     diagnostics_->add("image board detection", this, &ImageBoardDetectorNodelet::diagnose);
-    // The timer also re-checks the lazy subscription: a safety net should a connect callback be missed.
-    diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(kDiagnosticsPeriodS), [this](const ros::WallTimerEvent&) {
-      connectCb();
-      diagnostics_->update();
-    });
-    NODELET_INFO_STREAM("image_board_detector: " << targetTypeName(target_.type) << " board from " << target_file
-                                                 << ", transport '" << transport_ << "'");
+    // The timer also re-checks the lazy subscription: a safety net should a connect callback be
+    // missed.
+    diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(kDiagnosticsPeriodS),
+                                            [this](const ros::WallTimerEvent&) {
+                                              connectCb();
+                                              diagnostics_->update();
+                                            });
+    NODELET_INFO_STREAM("image_board_detector: " << targetTypeName(target_.type) << " board from "
+                                                 << target_file << ", transport '" << transport_
+                                                 << "'");
   }
 
   void connectCb() {
     std::lock_guard<std::mutex> lock(connect_mutex_);
     const bool wanted = board_pub_.getNumSubscribers() > 0 || debug_pub_.getNumSubscribers() > 0;
     if (wanted && !camera_sub_) {
-      camera_sub_ = it_->subscribeCamera("image_raw", 1, &ImageBoardDetectorNodelet::imageCb, this,
-                                         image_transport::TransportHints(transport_, ros::TransportHints(),
-                                                                         getPrivateNodeHandle()));
+      camera_sub_ =
+          it_->subscribeCamera("image_raw", 1, &ImageBoardDetectorNodelet::imageCb, this,
+                               image_transport::TransportHints(transport_, ros::TransportHints(),
+                                                               getPrivateNodeHandle()));
     } else if (!wanted && camera_sub_) {
       camera_sub_.shutdown();
     }
@@ -91,7 +99,8 @@ class ImageBoardDetectorNodelet : public nodelet::Nodelet {
   void reconfigure(const ImageBoardDetectorConfig& config, uint32_t /*level*/) {
     const ImageBoardDetectorOptions options = optionsFromConfig(config);
     if (const std::string why = options.validate(); !why.empty()) {
-      NODELET_WARN_STREAM("dynamic_reconfigure rejected: " << why << " (keeping the previous options)");
+      NODELET_WARN_STREAM("dynamic_reconfigure rejected: " << why
+                                                           << " (keeping the previous options)");
       return;
     }
     auto detector = ImageBoardDetector::create(target_, options);
@@ -104,28 +113,31 @@ class ImageBoardDetectorNodelet : public nodelet::Nodelet {
   }
 
   // Camera model from CameraInfo, re-created only when the calibration changes.
-  const CameraModel* cameraModel(const sensor_msgs::CameraInfo& info, const sensor_msgs::Image& image) {
+  const CameraModel* cameraModel(const sensor_msgs::CameraInfo& info,
+                                 const sensor_msgs::Image& image) {
     if (info.K[0] == 0.0 || info.K[4] == 0.0) {
-      NODELET_WARN_THROTTLE(kWarnThrottleS, "camera_info (frame '%s') has a zero K: the camera is not calibrated",
+      NODELET_WARN_THROTTLE(kWarnThrottleS,
+                            "camera_info (frame '%s') has a zero K: the camera is not calibrated",
                             info.header.frame_id.c_str());
       return nullptr;
     }
     if (info.width != image.width || info.height != image.height) {
-      NODELET_WARN_THROTTLE(kWarnThrottleS, "camera_info is %ux%u but the image is %ux%u (frame '%s'): skipping",
-                            info.width, info.height, image.width, image.height, image.header.frame_id.c_str());
+      NODELET_WARN_THROTTLE(
+          kWarnThrottleS, "camera_info is %ux%u but the image is %ux%u (frame '%s'): skipping",
+          info.width, info.height, image.width, image.height, image.header.frame_id.c_str());
       return nullptr;
     }
     if (camera_ && sameCameraInfo(info, last_info_)) return &*camera_;
     auto intrinsics = fromCameraInfo(info);
     if (!intrinsics) {
-      NODELET_WARN_THROTTLE(kWarnThrottleS, "camera_info (frame '%s'): %s", info.header.frame_id.c_str(),
-                            intrinsics.error().c_str());
+      NODELET_WARN_THROTTLE(kWarnThrottleS, "camera_info (frame '%s'): %s",
+                            info.header.frame_id.c_str(), intrinsics.error().c_str());
       return nullptr;
     }
     auto camera = CameraModel::create(*intrinsics);
     if (!camera) {
-      NODELET_WARN_THROTTLE(kWarnThrottleS, "camera_info (frame '%s'): %s", info.header.frame_id.c_str(),
-                            camera.error().c_str());
+      NODELET_WARN_THROTTLE(kWarnThrottleS, "camera_info (frame '%s'): %s",
+                            info.header.frame_id.c_str(), camera.error().c_str());
       return nullptr;
     }
     camera_ = *camera;
@@ -133,14 +145,16 @@ class ImageBoardDetectorNodelet : public nodelet::Nodelet {
     return &*camera_;
   }
 
-  void imageCb(const sensor_msgs::ImageConstPtr& image_msg, const sensor_msgs::CameraInfoConstPtr& info_msg) {
+  void imageCb(const sensor_msgs::ImageConstPtr& image_msg,
+               const sensor_msgs::CameraInfoConstPtr& info_msg) {
     const ros::WallTime now = ros::WallTime::now();
     const CameraModel* camera = cameraModel(*info_msg, *image_msg);
     if (!camera) return record(now, false, "bad camera_info");
     auto image = imageFromMsg(*image_msg);
     if (!image) {
-      NODELET_WARN_THROTTLE(kWarnThrottleS, "image (frame '%s', encoding '%s'): %s", image_msg->header.frame_id.c_str(),
-                            image_msg->encoding.c_str(), image.error().c_str());
+      NODELET_WARN_THROTTLE(kWarnThrottleS, "image (frame '%s', encoding '%s'): %s",
+                            image_msg->header.frame_id.c_str(), image_msg->encoding.c_str(),
+                            image.error().c_str());
       return record(now, false, "bad image: " + image.error());
     }
     ImageDetection detection;
@@ -157,15 +171,18 @@ class ImageBoardDetectorNodelet : public nodelet::Nodelet {
       board_pub_.publish(msg);
     }
     if (debug_pub_.getNumSubscribers() > 0)
-      debug_pub_.publish(
-          cv_bridge::CvImage(image_msg->header, "bgr8", drawImageDetection(*image, *camera, detection)).toImageMsg());
+      debug_pub_.publish(cv_bridge::CvImage(image_msg->header, "bgr8",
+                                            drawImageDetection(*image, *camera, detection))
+                             .toImageMsg());
     record(now, f.found, f.found ? "" : f.reason, detection.details.time_ms);
   }
 
-  void record(const ros::WallTime& now, bool found, const std::string& reason, double time_ms = 0.0) {
+  void record(const ros::WallTime& now, bool found, const std::string& reason,
+              double time_ms = 0.0) {
     std::lock_guard<std::mutex> lock(stats_mutex_);
     history_.push_back({now, found});
-    while (!history_.empty() && (now - history_.front().first).toSec() > kStatsWindowS) history_.pop_front();
+    while (!history_.empty() && (now - history_.front().first).toSec() > kStatsWindowS)
+      history_.pop_front();
     last_reason_ = reason;
     last_time_ms_ = time_ms;
   }
@@ -173,7 +190,8 @@ class ImageBoardDetectorNodelet : public nodelet::Nodelet {
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
     std::lock_guard<std::mutex> lock(stats_mutex_);
     const ros::WallTime now = ros::WallTime::now();
-    while (!history_.empty() && (now - history_.front().first).toSec() > kStatsWindowS) history_.pop_front();
+    while (!history_.empty() && (now - history_.front().first).toSec() > kStatsWindowS)
+      history_.pop_front();
     int found = 0;
     for (const auto& h : history_) found += h.second;
     const double rate = history_.size() / kStatsWindowS;

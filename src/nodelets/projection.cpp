@@ -13,10 +13,10 @@
 #include <message_filters/sync_policies/approximate_time.h>
 #include <message_filters/synchronizer.h>
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
 #include <visualization_msgs/Marker.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include <atomic>
 #include <cmath>
@@ -27,7 +27,7 @@ namespace board_calib {
 
 namespace {
 
-constexpr double kWarnPeriodS = 10.0;   // throttle of repeated warnings
+constexpr double kWarnPeriodS = 10.0;  // throttle of repeated warnings
 constexpr double kInputCheckPeriodS = 5.0;
 constexpr double kMinDepthSpanM = 0.01;  // keeps max_depth > min_depth whatever the sliders say
 
@@ -41,8 +41,9 @@ class ProjectionNodelet : public nodelet::Nodelet {
   }
 
  private:
-  using SyncPolicy = message_filters::sync_policies::ApproximateTime<sensor_msgs::Image, sensor_msgs::CameraInfo,
-                                                                     sensor_msgs::PointCloud2>;
+  using SyncPolicy =
+      message_filters::sync_policies::ApproximateTime<sensor_msgs::Image, sensor_msgs::CameraInfo,
+                                                      sensor_msgs::PointCloud2>;
 
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
@@ -58,31 +59,36 @@ class ProjectionNodelet : public nodelet::Nodelet {
     tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, nh);
     it_ = std::make_unique<image_transport::ImageTransport>(nh);
 
-    sync_ = std::make_unique<message_filters::Synchronizer<SyncPolicy>>(SyncPolicy(queue_size_), image_sub_,
-                                                                         info_sub_, cloud_sub_);
+    sync_ = std::make_unique<message_filters::Synchronizer<SyncPolicy>>(
+        SyncPolicy(queue_size_), image_sub_, info_sub_, cloud_sub_);
     sync_->setMaxIntervalDuration(ros::Duration(max_interval_s_));
     sync_->registerCallback(&ProjectionNodelet::onFrame, this);
     // Arrival counters: tell the user which input is missing when nothing synchronises.
     image_sub_.registerCallback([this](const sensor_msgs::ImageConstPtr&) { ++images_seen_; });
     info_sub_.registerCallback([this](const sensor_msgs::CameraInfoConstPtr&) { ++infos_seen_; });
-    cloud_sub_.registerCallback([this](const sensor_msgs::PointCloud2ConstPtr&) { ++clouds_seen_; });
+    cloud_sub_.registerCallback(
+        [this](const sensor_msgs::PointCloud2ConstPtr&) { ++clouds_seen_; });
 
-    reconfigure_ = std::make_unique<dynamic_reconfigure::Server<ProjectionConfig>>(reconfigure_mutex_, pnh);
-    reconfigure_->setCallback([this](ProjectionConfig& config, uint32_t) { onReconfigure(config); });
+    reconfigure_ =
+        std::make_unique<dynamic_reconfigure::Server<ProjectionConfig>>(reconfigure_mutex_, pnh);
+    reconfigure_->setCallback(
+        [this](ProjectionConfig& config, uint32_t) { onReconfigure(config); });
 
     // The result is latched and tiny: always listen, so the extrinsic is ready when an output
     // gets its first subscriber.
     result_sub_ = nh.subscribe("calibration_result", 1, &ProjectionNodelet::onResult, this);
 
     std::lock_guard<std::mutex> lock(connect_mutex_);
-    image_transport::SubscriberStatusCallback image_cb = [this](const image_transport::SingleSubscriberPublisher&) {
+    image_transport::SubscriberStatusCallback image_cb =
+        [this](const image_transport::SingleSubscriberPublisher&) { onConnect(); };
+    ros::SubscriberStatusCallback cloud_cb = [this](const ros::SingleSubscriberPublisher&) {
       onConnect();
     };
-    ros::SubscriberStatusCallback cloud_cb = [this](const ros::SingleSubscriberPublisher&) { onConnect(); };
     overlay_pub_ = it_->advertise("overlay", 1, image_cb, image_cb);
     cloud_pub_ = nh.advertise<sensor_msgs::PointCloud2>("colored_cloud", 1, cloud_cb, cloud_cb);
     frustum_pub_ = nh.advertise<visualization_msgs::Marker>("camera_frustum", 1, true);
-    check_timer_ = nh.createWallTimer(ros::WallDuration(kInputCheckPeriodS), &ProjectionNodelet::checkInputs, this);
+    check_timer_ = nh.createWallTimer(ros::WallDuration(kInputCheckPeriodS),
+                                      &ProjectionNodelet::checkInputs, this);
   }
 
   void onReconfigure(const ProjectionConfig& config) {
@@ -90,7 +96,8 @@ class ProjectionNodelet : public nodelet::Nodelet {
     {
       std::lock_guard<std::mutex> lock(options_mutex_);
       projection_options_.min_depth_m = config.min_depth;
-      projection_options_.max_depth_m = std::max(config.max_depth, config.min_depth + kMinDepthSpanM);
+      projection_options_.max_depth_m =
+          std::max(config.max_depth, config.min_depth + kMinDepthSpanM);
       projection_options_.zbuffer_cell_px = config.occlusion_cell;
       projection_options_.occlusion_tolerance_m = config.occlusion_tolerance;
       overlay_options_.color_mode = static_cast<ColorMode>(config.color_mode);
@@ -118,7 +125,8 @@ class ProjectionNodelet : public nodelet::Nodelet {
     }
     ros::NodeHandle& nh = getNodeHandle();
     if (!subscribed_) {
-      image_transport::TransportHints hints(image_transport_, ros::TransportHints(), getPrivateNodeHandle());
+      image_transport::TransportHints hints(image_transport_, ros::TransportHints(),
+                                            getPrivateNodeHandle());
       image_sub_.subscribe(*it_, "image", queue_size_, hints);
       info_sub_.subscribe(nh, "camera_info", queue_size_);
       cloud_sub_.subscribe(nh, "points", queue_size_);
@@ -152,13 +160,17 @@ class ProjectionNodelet : public nodelet::Nodelet {
   void onResult(const CalibrationResultConstPtr& msg) {
     std::lock_guard<std::mutex> lock(extrinsic_mutex_);
     if (!msg->success) {
-      NODELET_WARN_THROTTLE(kWarnPeriodS, "calibration_result reports a failed solve (%s); keeping the previous extrinsic",
-                            msg->reason.c_str());
+      NODELET_WARN_THROTTLE(
+          kWarnPeriodS,
+          "calibration_result reports a failed solve (%s); keeping the previous extrinsic",
+          msg->reason.c_str());
       return;
     }
     if (const std::string why = validateTransform(msg->camera_T_lidar); !why.empty()) {
-      NODELET_WARN_THROTTLE(kWarnPeriodS, "calibration_result: camera_T_lidar refused (%s); keeping the previous extrinsic",
-                            why.c_str());
+      NODELET_WARN_THROTTLE(
+          kWarnPeriodS,
+          "calibration_result: camera_T_lidar refused (%s); keeping the previous extrinsic",
+          why.c_str());
       return;
     }
     result_ = msg;
@@ -175,7 +187,8 @@ class ProjectionNodelet : public nodelet::Nodelet {
   }
 
   // camera_T_lidar from TF, else from the latched calibration result.
-  bool extrinsic(const std::string& camera_frame, const std::string& lidar_frame, Eigen::Isometry3d* camera_T_lidar) {
+  bool extrinsic(const std::string& camera_frame, const std::string& lidar_frame,
+                 Eigen::Isometry3d* camera_T_lidar) {
     std::string tf_error = "use_tf is false";
     if (use_tf_) {
       try {
@@ -192,24 +205,26 @@ class ProjectionNodelet : public nodelet::Nodelet {
     }
     std::lock_guard<std::mutex> lock(extrinsic_mutex_);
     if (!result_) {
-      NODELET_WARN_THROTTLE(kWarnPeriodS,
-                            "no extrinsic yet: TF %s <- %s unavailable (%s) and nothing received on %s",
-                            camera_frame.c_str(), lidar_frame.c_str(), tf_error.c_str(),
-                            result_sub_.getTopic().c_str());
+      NODELET_WARN_THROTTLE(
+          kWarnPeriodS, "no extrinsic yet: TF %s <- %s unavailable (%s) and nothing received on %s",
+          camera_frame.c_str(), lidar_frame.c_str(), tf_error.c_str(),
+          result_sub_.getTopic().c_str());
       return false;
     }
     if ((!result_->lidar_frame.empty() && result_->lidar_frame != lidar_frame) ||
         (!result_->camera_frame.empty() && result_->camera_frame != camera_frame)) {
-      NODELET_WARN_THROTTLE(kWarnPeriodS,
-                            "calibration_result is for %s <- %s but the inputs are %s <- %s; using it anyway",
-                            result_->camera_frame.c_str(), result_->lidar_frame.c_str(), camera_frame.c_str(),
-                            lidar_frame.c_str());
+      NODELET_WARN_THROTTLE(
+          kWarnPeriodS,
+          "calibration_result is for %s <- %s but the inputs are %s <- %s; using it anyway",
+          result_->camera_frame.c_str(), result_->lidar_frame.c_str(), camera_frame.c_str(),
+          lidar_frame.c_str());
     }
     *camera_T_lidar = fromTransformMsg(result_->camera_T_lidar);
     return true;
   }
 
-  void onFrame(const sensor_msgs::ImageConstPtr& image_msg, const sensor_msgs::CameraInfoConstPtr& info_msg,
+  void onFrame(const sensor_msgs::ImageConstPtr& image_msg,
+               const sensor_msgs::CameraInfoConstPtr& info_msg,
                const sensor_msgs::PointCloud2ConstPtr& cloud_msg) {
     ++frames_synced_;
     const bool want_overlay = overlay_pub_.getNumSubscribers() > 0;
@@ -218,33 +233,39 @@ class ProjectionNodelet : public nodelet::Nodelet {
 
     if (!camera_ || !sameCameraInfo(*info_msg, last_info_)) {
       const auto intrinsics = fromCameraInfo(*info_msg);
-      auto camera = intrinsics ? CameraModel::create(*intrinsics) : Expected<CameraModel>::failure(intrinsics.error());
+      auto camera = intrinsics ? CameraModel::create(*intrinsics)
+                               : Expected<CameraModel>::failure(intrinsics.error());
       if (!camera) {
-        NODELET_WARN_THROTTLE(kWarnPeriodS, "unusable camera_info on %s: %s", info_sub_.getTopic().c_str(),
-                              camera.error().c_str());
+        NODELET_WARN_THROTTLE(kWarnPeriodS, "unusable camera_info on %s: %s",
+                              info_sub_.getTopic().c_str(), camera.error().c_str());
         return;
       }
       camera_ = std::make_unique<CameraModel>(*camera);
       last_info_ = *info_msg;
     }
     // Size check on the header first: the conversion then only sees plausible images.
-    if (image_msg->width != uint32_t(camera_->width()) || image_msg->height != uint32_t(camera_->height())) {
-      NODELET_WARN_THROTTLE(kWarnPeriodS, "image on %s is %ux%u but camera_info says %dx%d (binning/ROI unsupported)",
-                            image_sub_.getTopic().c_str(), image_msg->width, image_msg->height, camera_->width(),
-                            camera_->height());
+    if (image_msg->width != uint32_t(camera_->width()) ||
+        image_msg->height != uint32_t(camera_->height())) {
+      NODELET_WARN_THROTTLE(
+          kWarnPeriodS, "image on %s is %ux%u but camera_info says %dx%d (binning/ROI unsupported)",
+          image_sub_.getTopic().c_str(), image_msg->width, image_msg->height, camera_->width(),
+          camera_->height());
       return;
     }
     auto image = imageFromMsg(*image_msg);
     if (!image) {
-      NODELET_WARN_THROTTLE(kWarnPeriodS, "image on %s: %s", image_sub_.getTopic().c_str(), image.error().c_str());
+      NODELET_WARN_THROTTLE(kWarnPeriodS, "image on %s: %s", image_sub_.getTopic().c_str(),
+                            image.error().c_str());
       return;
     }
     const auto cloud = fromPointCloud2(*cloud_msg);
     if (!cloud) {
-      NODELET_WARN_THROTTLE(kWarnPeriodS, "cloud on %s: %s", cloud_sub_.getTopic().c_str(), cloud.error().c_str());
+      NODELET_WARN_THROTTLE(kWarnPeriodS, "cloud on %s: %s", cloud_sub_.getTopic().c_str(),
+                            cloud.error().c_str());
       return;
     }
-    const std::string camera_frame = camera_frame_override_.empty() ? image_msg->header.frame_id : camera_frame_override_;
+    const std::string camera_frame =
+        camera_frame_override_.empty() ? image_msg->header.frame_id : camera_frame_override_;
     if (frustum_pub_.getNumSubscribers() > 0) publishFrustum(camera_frame, image_msg->header.stamp);
     Eigen::Isometry3d camera_T_lidar;
     if (!extrinsic(camera_frame, cloud_msg->header.frame_id, &camera_T_lidar)) return;
@@ -275,7 +296,8 @@ class ProjectionNodelet : public nodelet::Nodelet {
         out.header = cloud_msg->header;
         cloud_pub_.publish(out);
       } else {
-        NODELET_WARN_THROTTLE(kWarnPeriodS, "colouring the cloud failed: %s", colored.error().c_str());
+        NODELET_WARN_THROTTLE(kWarnPeriodS, "colouring the cloud failed: %s",
+                              colored.error().c_str());
       }
     }
     if (!want_overlay) return;
@@ -286,8 +308,9 @@ class ProjectionNodelet : public nodelet::Nodelet {
       NODELET_WARN_THROTTLE(kWarnPeriodS, "drawing the overlay failed: %s", drawn.reason.c_str());
       return;
     }
-    if (edge_check) drawEdges(image_msg->header.stamp, cloud_msg->header.stamp, camera_T_lidar, edge_options,
-                              edge_max_age_s, &overlay);
+    if (edge_check)
+      drawEdges(image_msg->header.stamp, cloud_msg->header.stamp, camera_T_lidar, edge_options,
+                edge_max_age_s, &overlay);
     const auto out = imageToMsg(overlay, image_msg->header);
     if (out) overlay_pub_.publish(*out);
   }
@@ -324,8 +347,9 @@ class ProjectionNodelet : public nodelet::Nodelet {
   }
 
   // The projected-edges check on the latest board detections close enough to this frame.
-  void drawEdges(const ros::Time& image_stamp, const ros::Time& cloud_stamp, const Eigen::Isometry3d& camera_T_lidar,
-                 const EdgeCheckOptions& options, double max_age_s, cv::Mat* overlay) {
+  void drawEdges(const ros::Time& image_stamp, const ros::Time& cloud_stamp,
+                 const Eigen::Isometry3d& camera_T_lidar, const EdgeCheckOptions& options,
+                 double max_age_s, cv::Mat* overlay) {
     CameraBoardConstPtr camera_board;
     LidarBoardConstPtr lidar_board;
     {
@@ -335,7 +359,8 @@ class ProjectionNodelet : public nodelet::Nodelet {
     }
     if (!camera_board || !lidar_board) {
       NODELET_WARN_THROTTLE(kWarnPeriodS, "edge_check: waiting for %s and %s",
-                            camera_board_sub_.getTopic().c_str(), lidar_board_sub_.getTopic().c_str());
+                            camera_board_sub_.getTopic().c_str(),
+                            lidar_board_sub_.getTopic().c_str());
       return;
     }
     if (std::abs((camera_board->header.stamp - image_stamp).toSec()) > max_age_s ||
@@ -343,13 +368,15 @@ class ProjectionNodelet : public nodelet::Nodelet {
       return;  // stale detections would be drawn on the wrong board pose
     const CameraBoardFeatures image_features = fromMsg(*camera_board);
     const LidarBoardFeatures lidar_features = fromMsg(*lidar_board);
-    const auto check = checkProjectedEdges(lidar_features, image_features, *camera_, camera_T_lidar, options);
+    const auto check =
+        checkProjectedEdges(lidar_features, image_features, *camera_, camera_T_lidar, options);
     if (!check) {
       NODELET_DEBUG_THROTTLE(kWarnPeriodS, "edge_check: %s", check.error().c_str());
       return;
     }
     const Status drawn = drawEdgeCheck(image_features, *check, *camera_, options, overlay);
-    if (!drawn) NODELET_WARN_THROTTLE(kWarnPeriodS, "edge_check drawing failed: %s", drawn.reason.c_str());
+    if (!drawn)
+      NODELET_WARN_THROTTLE(kWarnPeriodS, "edge_check drawing failed: %s", drawn.reason.c_str());
   }
 
   // Names the missing input when subscribed but nothing synchronises.
@@ -359,8 +386,8 @@ class ProjectionNodelet : public nodelet::Nodelet {
       std::lock_guard<std::mutex> lock(connect_mutex_);
       subscribed = subscribed_;
     }
-    const int images = images_seen_.exchange(0), infos = infos_seen_.exchange(0), clouds = clouds_seen_.exchange(0),
-              frames = frames_synced_.exchange(0);
+    const int images = images_seen_.exchange(0), infos = infos_seen_.exchange(0),
+              clouds = clouds_seen_.exchange(0), frames = frames_synced_.exchange(0);
     if (!subscribed || frames > 0) return;
     if (images > 0 && infos == 0)
       NODELET_WARN("images arrive on %s but no camera_info on %s", image_sub_.getTopic().c_str(),
@@ -370,8 +397,10 @@ class ProjectionNodelet : public nodelet::Nodelet {
     else if (images == 0 && clouds > 0)
       NODELET_WARN("clouds arrive but no image on %s", image_sub_.getTopic().c_str());
     else if (images > 0 && infos > 0 && clouds > 0)
-      NODELET_WARN("image, camera_info and cloud arrive but their stamps never lie within %.3f s of each other",
-                   max_interval_s_);
+      NODELET_WARN(
+          "image, camera_info and cloud arrive but their stamps never lie within %.3f s of each "
+          "other",
+          max_interval_s_);
   }
 
   // Startup parameters.

@@ -17,7 +17,8 @@ struct OpenBags {
 
 // A bag cut off while recording (no index at the end) is the usual cause of read errors.
 std::string reindexHint(const std::string& path) {
-  return " (a truncated or unindexed bag: run `rosbag reindex " + path + "` and retry with the reindexed file)";
+  return " (a truncated or unindexed bag: run `rosbag reindex " + path +
+         "` and retry with the reindexed file)";
 }
 
 std::string reindexHintAll(const std::vector<std::string>& paths) {
@@ -54,13 +55,14 @@ Expected<std::map<std::string, size_t>> bagTopicCounts(const std::vector<std::st
       for (const auto& m : view) counts[m.getTopic()]++;
     }
   } catch (const std::exception& e) {
-    return Expected<std::map<std::string, size_t>>::failure(std::string("error reading bag: ") + e.what() +
-                                                             reindexHintAll(paths));
+    return Expected<std::map<std::string, size_t>>::failure(std::string("error reading bag: ") +
+                                                            e.what() + reindexHintAll(paths));
   }
   return counts;
 }
 
-Expected<std::vector<double>> topicTimes(const std::vector<std::string>& paths, const std::string& topic) {
+Expected<std::vector<double>> topicTimes(const std::vector<std::string>& paths,
+                                         const std::string& topic) {
   OpenBags open;
   const Status s = openAll(paths, &open);
   if (!s) return Expected<std::vector<double>>::failure(s.reason);
@@ -78,15 +80,18 @@ Expected<std::vector<double>> topicTimes(const std::vector<std::string>& paths, 
   return times;
 }
 
-Status readBags(const std::vector<std::string>& paths, const BagTopics& topics, const BagCallbacks& cb) {
+Status readBags(const std::vector<std::string>& paths, const BagTopics& topics,
+                const BagCallbacks& cb) {
   OpenBags open;
   const Status s = openAll(paths, &open);
   if (!s) return s;
   std::set<std::string> image_topics(topics.image_topics.begin(), topics.image_topics.end());
-  std::set<std::string> info_topics(topics.camera_info_topics.begin(), topics.camera_info_topics.end());
+  std::set<std::string> info_topics(topics.camera_info_topics.begin(),
+                                    topics.camera_info_topics.end());
   std::set<std::string> cloud_topics(topics.cloud_topics.begin(), topics.cloud_topics.end());
   std::vector<std::string> wanted;
-  for (const auto* set : {&image_topics, &info_topics, &cloud_topics}) wanted.insert(wanted.end(), set->begin(), set->end());
+  for (const auto* set : {&image_topics, &info_topics, &cloud_topics})
+    wanted.insert(wanted.end(), set->begin(), set->end());
 
   try {
     rosbag::View view;
@@ -109,7 +114,8 @@ Status readBags(const std::vector<std::string>& paths, const BagTopics& topics, 
       if (image_topics.count(topic)) {
         const auto msg = m.instantiate<sensor_msgs::Image>();
         if (!msg) {
-          if (cb.on_bad_message) cb.on_bad_message(topic, "not a sensor_msgs/Image (" + m.getDataType() + ")");
+          if (cb.on_bad_message)
+            cb.on_bad_message(topic, "not a sensor_msgs/Image (" + m.getDataType() + ")");
           continue;
         }
         auto image = imageFromMsg(*msg);
@@ -117,11 +123,13 @@ Status readBags(const std::vector<std::string>& paths, const BagTopics& topics, 
           if (cb.on_bad_message) cb.on_bad_message(topic, image.error());
           continue;
         }
-        if (cb.on_image) cb.on_image({topic, msg->header.frame_id, msg->header.stamp.toSec(), *image});
+        if (cb.on_image)
+          cb.on_image({topic, msg->header.frame_id, msg->header.stamp.toSec(), *image});
       } else if (info_topics.count(topic)) {
         const auto msg = m.instantiate<sensor_msgs::CameraInfo>();
         if (!msg) {
-          if (cb.on_bad_message) cb.on_bad_message(topic, "not a sensor_msgs/CameraInfo (" + m.getDataType() + ")");
+          if (cb.on_bad_message)
+            cb.on_bad_message(topic, "not a sensor_msgs/CameraInfo (" + m.getDataType() + ")");
           continue;
         }
         auto in = fromCameraInfo(*msg);
@@ -133,7 +141,8 @@ Status readBags(const std::vector<std::string>& paths, const BagTopics& topics, 
       } else if (cloud_topics.count(topic)) {
         const auto msg = m.instantiate<sensor_msgs::PointCloud2>();
         if (!msg) {
-          if (cb.on_bad_message) cb.on_bad_message(topic, "not a sensor_msgs/PointCloud2 (" + m.getDataType() + ")");
+          if (cb.on_bad_message)
+            cb.on_bad_message(topic, "not a sensor_msgs/PointCloud2 (" + m.getDataType() + ")");
           continue;
         }
         auto cloud = fromPointCloud2(*msg);
@@ -147,24 +156,28 @@ Status readBags(const std::vector<std::string>& paths, const BagTopics& topics, 
   } catch (const rosbag::BagException& e) {
     return Status::failure(std::string("error reading bag: ") + e.what() + reindexHintAll(paths));
   } catch (const ros::Exception& e) {  // a corrupt message (serialization overrun)
-    return Status::failure(std::string("corrupt message in bag: ") + e.what() + reindexHintAll(paths));
+    return Status::failure(std::string("corrupt message in bag: ") + e.what() +
+                           reindexHintAll(paths));
   } catch (const std::exception& e) {
     return Status::failure(std::string("error reading bag: ") + e.what() + reindexHintAll(paths));
   }
   return Status::success();
 }
 
-Expected<BagFrameStats> readBagFrames(const std::vector<std::string>& paths, const BagTopics& topics,
-                                      const BagFrameCallbacks& frames) {
+Expected<BagFrameStats> readBagFrames(const std::vector<std::string>& paths,
+                                      const BagTopics& topics, const BagFrameCallbacks& frames) {
   if (topics.image_topics.size() != topics.camera_info_topics.size())
     return Expected<BagFrameStats>::failure("every image topic needs its camera_info topic");
   std::map<std::string, std::string> info_of;  // image topic -> camera_info topic
-  for (size_t i = 0; i < topics.image_topics.size(); ++i) info_of[topics.image_topics[i]] = topics.camera_info_topics[i];
+  for (size_t i = 0; i < topics.image_topics.size(); ++i)
+    info_of[topics.image_topics[i]] = topics.camera_info_topics[i];
   std::map<std::string, CameraIntrinsics> newest;  // camera_info topic -> newest intrinsics
-  std::map<std::string, std::vector<ImageFrame>> waiting;  // image topic -> images before the first camera_info
+  std::map<std::string, std::vector<ImageFrame>>
+      waiting;  // image topic -> images before the first camera_info
   BagFrameStats stats;
   BagCallbacks cb;
-  cb.on_camera_info = [&](const std::string& topic, const std::string&, const CameraIntrinsics& in) {
+  cb.on_camera_info = [&](const std::string& topic, const std::string&,
+                          const CameraIntrinsics& in) {
     newest[topic] = in;
     for (auto& [image_topic, images] : waiting) {
       if (info_of[image_topic] != topic) continue;

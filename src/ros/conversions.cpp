@@ -1,9 +1,9 @@
 #include <board_calib/conversions.h>
 
 #include <cv_bridge/cv_bridge.h>
-#include <opencv2/imgproc.hpp>
 #include <sensor_msgs/image_encodings.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
+#include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -13,13 +13,17 @@ namespace board_calib {
 namespace {
 
 // Limits far above any real sensor; they keep every later int index and allocation sane.
-constexpr uint64_t kMaxCloudPoints = uint64_t(1) << 24;  ///< 16.7 M points (a 128-beam LiDAR sends ~0.3 M)
-constexpr double kMaxRingIndex = 65535;                  ///< ring fields are at most uint16 in practice
-constexpr uint64_t kMaxImageSidePx = uint64_t(1) << 16;  ///< px per side; OpenCV and the detectors use int
-constexpr uint64_t kMaxImageBytes = (uint64_t(1) << 31) - 1;  ///< cv_bridge/OpenCV size their buffers with int
-constexpr size_t kMaxDistortionCoeffs = 14;              ///< OpenCV's largest model
+constexpr uint64_t kMaxCloudPoints = uint64_t(1)
+                                     << 24;  ///< 16.7 M points (a 128-beam LiDAR sends ~0.3 M)
+constexpr double kMaxRingIndex = 65535;      ///< ring fields are at most uint16 in practice
+constexpr uint64_t kMaxImageSidePx = uint64_t(1)
+                                     << 16;  ///< px per side; OpenCV and the detectors use int
+constexpr uint64_t kMaxImageBytes =
+    (uint64_t(1) << 31) - 1;                 ///< cv_bridge/OpenCV size their buffers with int
+constexpr size_t kMaxDistortionCoeffs = 14;  ///< OpenCV's largest model
 
-const sensor_msgs::PointField* findField(const sensor_msgs::PointCloud2& msg, const std::string& name) {
+const sensor_msgs::PointField* findField(const sensor_msgs::PointCloud2& msg,
+                                         const std::string& name) {
   for (const auto& f : msg.fields)
     if (f.name == name) return &f;
   return nullptr;
@@ -27,9 +31,12 @@ const sensor_msgs::PointField* findField(const sensor_msgs::PointCloud2& msg, co
 
 size_t fieldSize(uint8_t datatype) {
   switch (datatype) {
-    case sensor_msgs::PointField::INT8: case sensor_msgs::PointField::UINT8: return 1;
-    case sensor_msgs::PointField::INT16: case sensor_msgs::PointField::UINT16: return 2;
-    case sensor_msgs::PointField::INT32: case sensor_msgs::PointField::UINT32:
+    case sensor_msgs::PointField::INT8:
+    case sensor_msgs::PointField::UINT8: return 1;
+    case sensor_msgs::PointField::INT16:
+    case sensor_msgs::PointField::UINT16: return 2;
+    case sensor_msgs::PointField::INT32:
+    case sensor_msgs::PointField::UINT32:
     case sensor_msgs::PointField::FLOAT32: return 4;
     case sensor_msgs::PointField::FLOAT64: return 8;
   }
@@ -51,14 +58,42 @@ double readAs(const uint8_t* p, uint8_t datatype, bool swap) {
   std::memcpy(bytes, p, n);
   if (swap) std::reverse(bytes, bytes + n);
   switch (datatype) {
-    case sensor_msgs::PointField::INT8: { int8_t v; std::memcpy(&v, bytes, 1); return v; }
+    case sensor_msgs::PointField::INT8: {
+      int8_t v;
+      std::memcpy(&v, bytes, 1);
+      return v;
+    }
     case sensor_msgs::PointField::UINT8: return bytes[0];
-    case sensor_msgs::PointField::INT16: { int16_t v; std::memcpy(&v, bytes, 2); return v; }
-    case sensor_msgs::PointField::UINT16: { uint16_t v; std::memcpy(&v, bytes, 2); return v; }
-    case sensor_msgs::PointField::INT32: { int32_t v; std::memcpy(&v, bytes, 4); return v; }
-    case sensor_msgs::PointField::UINT32: { uint32_t v; std::memcpy(&v, bytes, 4); return v; }
-    case sensor_msgs::PointField::FLOAT32: { float v; std::memcpy(&v, bytes, 4); return v; }
-    case sensor_msgs::PointField::FLOAT64: { double v; std::memcpy(&v, bytes, 8); return v; }
+    case sensor_msgs::PointField::INT16: {
+      int16_t v;
+      std::memcpy(&v, bytes, 2);
+      return v;
+    }
+    case sensor_msgs::PointField::UINT16: {
+      uint16_t v;
+      std::memcpy(&v, bytes, 2);
+      return v;
+    }
+    case sensor_msgs::PointField::INT32: {
+      int32_t v;
+      std::memcpy(&v, bytes, 4);
+      return v;
+    }
+    case sensor_msgs::PointField::UINT32: {
+      uint32_t v;
+      std::memcpy(&v, bytes, 4);
+      return v;
+    }
+    case sensor_msgs::PointField::FLOAT32: {
+      float v;
+      std::memcpy(&v, bytes, 4);
+      return v;
+    }
+    case sensor_msgs::PointField::FLOAT64: {
+      double v;
+      std::memcpy(&v, bytes, 8);
+      return v;
+    }
   }
   return 0.0;
 }
@@ -105,17 +140,16 @@ bool sameCameraInfo(const sensor_msgs::CameraInfo& a, const sensor_msgs::CameraI
          a.distortion_model == b.distortion_model;
 }
 
-
 std::string validateCameraInfo(const sensor_msgs::CameraInfo& info) {
   const uint64_t width = info.width, height = info.height;
   if (width == 0 || height == 0 || width > kMaxImageSidePx || height > kMaxImageSidePx)
-    return "camera_info size " + std::to_string(width) + " x " + std::to_string(height) + " is not in 1.." +
-           std::to_string(kMaxImageSidePx) + " px";
+    return "camera_info size " + std::to_string(width) + " x " + std::to_string(height) +
+           " is not in 1.." + std::to_string(kMaxImageSidePx) + " px";
   for (size_t i = 0; i < info.K.size(); ++i)
     if (!std::isfinite(info.K[i])) return "camera_info K[" + std::to_string(i) + "] is not finite";
   if (!(info.K[0] > 0) || !(info.K[4] > 0))
-    return "camera_info focal lengths K[0]=" + std::to_string(info.K[0]) + " K[4]=" + std::to_string(info.K[4]) +
-           " are not positive (uncalibrated camera?)";
+    return "camera_info focal lengths K[0]=" + std::to_string(info.K[0]) +
+           " K[4]=" + std::to_string(info.K[4]) + " are not positive (uncalibrated camera?)";
   if (info.D.size() > kMaxDistortionCoeffs)
     return "camera_info D has " + std::to_string(info.D.size()) + " coefficients (at most " +
            std::to_string(kMaxDistortionCoeffs) + ")";
@@ -125,7 +159,8 @@ std::string validateCameraInfo(const sensor_msgs::CameraInfo& info) {
 }
 
 Expected<CameraIntrinsics> fromCameraInfo(const sensor_msgs::CameraInfo& info) {
-  if (const std::string why = validateCameraInfo(info); !why.empty()) return Expected<CameraIntrinsics>::failure(why);
+  if (const std::string why = validateCameraInfo(info); !why.empty())
+    return Expected<CameraIntrinsics>::failure(why);
   CameraIntrinsics in;
   in.width = static_cast<int>(info.width);
   in.height = static_cast<int>(info.height);
@@ -141,8 +176,9 @@ Expected<CameraIntrinsics> fromCameraInfo(const sensor_msgs::CameraInfo& info) {
   in.model = *model;
   in.coeffs = info.D;
   // Trailing zeros beyond the model's count are harmless (some drivers pad D).
-  const size_t max_coeffs = in.model == DistortionModel::kPlumbBob ? 5
-                            : in.model == DistortionModel::kEquidistant ? 4 : 8;
+  const size_t max_coeffs = in.model == DistortionModel::kPlumbBob      ? 5
+                            : in.model == DistortionModel::kEquidistant ? 4
+                                                                        : 8;
   while (in.coeffs.size() > max_coeffs && in.coeffs.back() == 0.0) in.coeffs.pop_back();
   return in;
 }
@@ -151,7 +187,8 @@ sensor_msgs::CameraInfo toCameraInfo(const CameraIntrinsics& in) {
   sensor_msgs::CameraInfo info;
   info.width = static_cast<uint32_t>(in.width);
   info.height = static_cast<uint32_t>(in.height);
-  info.distortion_model = in.model == DistortionModel::kNone ? "plumb_bob" : distortionModelName(in.model);
+  info.distortion_model =
+      in.model == DistortionModel::kNone ? "plumb_bob" : distortionModelName(in.model);
   info.D = in.coeffs;
   if (in.model == DistortionModel::kNone) info.D.assign(5, 0.0);
   info.K = {in.fx, 0, in.cx, 0, in.fy, in.cy, 0, 0, 1};
@@ -166,10 +203,13 @@ std::string validatePointCloud2(const sensor_msgs::PointCloud2& msg) {
   const auto* fz = findField(msg, "z");
   if (!fx || !fy || !fz) return "cloud has no x/y/z fields";
   for (const auto* f : {fx, fy, fz})
-    if (f->datatype != sensor_msgs::PointField::FLOAT32 && f->datatype != sensor_msgs::PointField::FLOAT64)
-      return "cloud field '" + f->name + "' is not float32/float64 (datatype " + std::to_string(f->datatype) + ")";
+    if (f->datatype != sensor_msgs::PointField::FLOAT32 &&
+        f->datatype != sensor_msgs::PointField::FLOAT64)
+      return "cloud field '" + f->name + "' is not float32/float64 (datatype " +
+             std::to_string(f->datatype) + ")";
   // 64-bit arithmetic throughout: every product of two uint32 fits.
-  const uint64_t width = msg.width, height = msg.height, point_step = msg.point_step, row_step = msg.row_step;
+  const uint64_t width = msg.width, height = msg.height, point_step = msg.point_step,
+                 row_step = msg.row_step;
   const uint64_t points = width * height;
   if (points == 0) return {};  // an empty cloud is valid; nothing is read
   if (point_step == 0) return "cloud point_step is 0";
@@ -180,23 +220,27 @@ std::string validatePointCloud2(const sensor_msgs::PointCloud2& msg) {
       return "cloud field '" + f->name + "' has unknown datatype " + std::to_string(f->datatype);
     const uint64_t count = std::max<uint64_t>(1, f->count);
     if (uint64_t(f->offset) + count * size > point_step)
-      return "cloud field '" + f->name + "' (offset " + std::to_string(f->offset) + ", " + std::to_string(count) + "x" +
-             std::to_string(size) + " bytes) lies outside point_step " + std::to_string(point_step);
+      return "cloud field '" + f->name + "' (offset " + std::to_string(f->offset) + ", " +
+             std::to_string(count) + "x" + std::to_string(size) +
+             " bytes) lies outside point_step " + std::to_string(point_step);
   }
   if (points > kMaxCloudPoints)
-    return "cloud has " + std::to_string(points) + " points (" + std::to_string(width) + "x" + std::to_string(height) +
-           "), more than the " + std::to_string(kMaxCloudPoints) + " accepted";
+    return "cloud has " + std::to_string(points) + " points (" + std::to_string(width) + "x" +
+           std::to_string(height) + "), more than the " + std::to_string(kMaxCloudPoints) +
+           " accepted";
   if (row_step < width * point_step)
-    return "cloud row_step " + std::to_string(row_step) + " is smaller than width*point_step = " +
-           std::to_string(width) + "*" + std::to_string(point_step);
+    return "cloud row_step " + std::to_string(row_step) +
+           " is smaller than width*point_step = " + std::to_string(width) + "*" +
+           std::to_string(point_step);
   if (uint64_t(msg.data.size()) < height * row_step)
-    return "cloud data holds " + std::to_string(msg.data.size()) + " bytes, height*row_step needs " +
-           std::to_string(height * row_step);
+    return "cloud data holds " + std::to_string(msg.data.size()) +
+           " bytes, height*row_step needs " + std::to_string(height * row_step);
   return {};
 }
 
 Expected<LidarCloud> fromPointCloud2(const sensor_msgs::PointCloud2& msg) {
-  if (const std::string why = validatePointCloud2(msg); !why.empty()) return Expected<LidarCloud>::failure(why);
+  if (const std::string why = validatePointCloud2(msg); !why.empty())
+    return Expected<LidarCloud>::failure(why);
   const auto* fx = findField(msg, "x");
   const auto* fy = findField(msg, "y");
   const auto* fz = findField(msg, "z");
@@ -234,27 +278,35 @@ sensor_msgs::PointCloud2 toPointCloud2(const LidarCloud& cloud) {
   msg.width = static_cast<uint32_t>(cloud.points.size() / msg.height);
   sensor_msgs::PointCloud2Modifier mod(msg);
   if (cloud.has_ring) {
-    mod.setPointCloud2Fields(5, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32,
-                             "z", 1, sensor_msgs::PointField::FLOAT32, "intensity", 1,
-                             sensor_msgs::PointField::FLOAT32, "ring", 1, sensor_msgs::PointField::UINT16);
+    mod.setPointCloud2Fields(
+        5, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32, "z",
+        1, sensor_msgs::PointField::FLOAT32, "intensity", 1, sensor_msgs::PointField::FLOAT32,
+        "ring", 1, sensor_msgs::PointField::UINT16);
     // Pad 18 to 20 bytes: every float of every point stays 4-byte aligned (the iterators bind
     // float references; an 18-byte step misaligns them, undefined behaviour found by UBSan).
     constexpr uint32_t kAlignedRingPointStep = 20;
     msg.point_step = kAlignedRingPointStep;
   } else {
-    mod.setPointCloud2Fields(4, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32,
-                             "z", 1, sensor_msgs::PointField::FLOAT32, "intensity", 1,
-                             sensor_msgs::PointField::FLOAT32);
+    mod.setPointCloud2Fields(
+        4, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32, "z",
+        1, sensor_msgs::PointField::FLOAT32, "intensity", 1, sensor_msgs::PointField::FLOAT32);
   }
   mod.resize(msg.width * msg.height);  // resize() flattens to height 1; restore the layout
   msg.height = static_cast<uint32_t>(std::max(1, cloud.height));
   msg.width = static_cast<uint32_t>(cloud.points.size() / msg.height);
   msg.row_step = msg.width * msg.point_step;
   msg.is_dense = false;
-  sensor_msgs::PointCloud2Iterator<float> ix(msg, "x"), iy(msg, "y"), iz(msg, "z"), ii(msg, "intensity");
+  sensor_msgs::PointCloud2Iterator<float> ix(msg, "x"), iy(msg, "y"), iz(msg, "z"),
+      ii(msg, "intensity");
   for (const auto& p : cloud.points) {
-    *ix = p.x; *iy = p.y; *iz = p.z; *ii = p.intensity;
-    ++ix; ++iy; ++iz; ++ii;
+    *ix = p.x;
+    *iy = p.y;
+    *iz = p.z;
+    *ii = p.intensity;
+    ++ix;
+    ++iy;
+    ++iz;
+    ++ii;
   }
   if (cloud.has_ring) {
     sensor_msgs::PointCloud2Iterator<uint16_t> ir(msg, "ring");
@@ -271,18 +323,26 @@ sensor_msgs::PointCloud2 toPointCloud2(const ColoredCloud& cloud) {
   msg.header.frame_id = cloud.frame_id;
   msg.header.stamp = ros::Time(std::max(0.0, cloud.stamp));
   sensor_msgs::PointCloud2Modifier mod(msg);
-  mod.setPointCloud2Fields(5, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32,
-                           "z", 1, sensor_msgs::PointField::FLOAT32, "intensity", 1, sensor_msgs::PointField::FLOAT32,
-                           "rgb", 1, sensor_msgs::PointField::FLOAT32);
+  mod.setPointCloud2Fields(
+      5, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32, "z", 1,
+      sensor_msgs::PointField::FLOAT32, "intensity", 1, sensor_msgs::PointField::FLOAT32, "rgb", 1,
+      sensor_msgs::PointField::FLOAT32);
   mod.resize(cloud.points.size());
   msg.is_dense = true;  // only projected (finite) points are kept
-  sensor_msgs::PointCloud2Iterator<float> ix(msg, "x"), iy(msg, "y"), iz(msg, "z"), ii(msg, "intensity"),
-      irgb(msg, "rgb");
+  sensor_msgs::PointCloud2Iterator<float> ix(msg, "x"), iy(msg, "y"), iz(msg, "z"),
+      ii(msg, "intensity"), irgb(msg, "rgb");
   for (const auto& p : cloud.points) {
-    *ix = p.x; *iy = p.y; *iz = p.z; *ii = p.intensity;
+    *ix = p.x;
+    *iy = p.y;
+    *iz = p.z;
+    *ii = p.intensity;
     const uint32_t packed = (uint32_t(p.r) << 16) | (uint32_t(p.g) << 8) | uint32_t(p.b);
     std::memcpy(&*irgb, &packed, sizeof(packed));
-    ++ix; ++iy; ++iz; ++ii; ++irgb;
+    ++ix;
+    ++iy;
+    ++iz;
+    ++ii;
+    ++irgb;
   }
   return msg;
 }
@@ -296,8 +356,9 @@ bool isMono16(const std::string& encoding) {
 
 bool supportedEncoding(const std::string& encoding) {
   namespace enc = sensor_msgs::image_encodings;
-  return encoding == enc::MONO8 || isMono16(encoding) || encoding == enc::BGR8 || encoding == enc::RGB8 ||
-         encoding == enc::BGRA8 || encoding == enc::RGBA8 || enc::isBayer(encoding);
+  return encoding == enc::MONO8 || isMono16(encoding) || encoding == enc::BGR8 ||
+         encoding == enc::RGB8 || encoding == enc::BGRA8 || encoding == enc::RGBA8 ||
+         enc::isBayer(encoding);
 }
 
 // 16-bit mono, either endianness, to a host-order CV_16UC1 (cv_bridge mishandles big-endian).
@@ -329,23 +390,29 @@ std::string validateImage(const sensor_msgs::Image& msg) {
   if (!supportedEncoding(msg.encoding))
     return "unsupported image encoding '" + msg.encoding +
            "' (supported: mono8, mono16, 16UC1, bgr8, rgb8, bgra8, rgba8, bayer_*)";
-  const uint64_t elem_bytes = uint64_t(enc::numChannels(msg.encoding)) * uint64_t(enc::bitDepth(msg.encoding)) / 8;
+  const uint64_t elem_bytes =
+      uint64_t(enc::numChannels(msg.encoding)) * uint64_t(enc::bitDepth(msg.encoding)) / 8;
   if (step < width * elem_bytes)
-    return "image step " + std::to_string(step) + " is smaller than width*" + std::to_string(elem_bytes) + " = " +
-           std::to_string(width * elem_bytes) + " bytes for " + msg.encoding;
+    return "image step " + std::to_string(step) + " is smaller than width*" +
+           std::to_string(elem_bytes) + " = " + std::to_string(width * elem_bytes) + " bytes for " +
+           msg.encoding;
   if (height * step > kMaxImageBytes)
-    return "image height*step = " + std::to_string(height * step) + " bytes exceeds " + std::to_string(kMaxImageBytes);
+    return "image height*step = " + std::to_string(height * step) + " bytes exceeds " +
+           std::to_string(kMaxImageBytes);
   if (uint64_t(msg.data.size()) < height * step)
     return "image data holds " + std::to_string(msg.data.size()) + " bytes, height*step needs " +
            std::to_string(height * step);
-  if (enc::bitDepth(msg.encoding) > 8 && !isMono16(msg.encoding) && bool(msg.is_bigendian) != hostIsBigEndian())
-    return "image encoding '" + msg.encoding + "' in foreign byte order is not supported (mono16 is)";
+  if (enc::bitDepth(msg.encoding) > 8 && !isMono16(msg.encoding) &&
+      bool(msg.is_bigendian) != hostIsBigEndian())
+    return "image encoding '" + msg.encoding +
+           "' in foreign byte order is not supported (mono16 is)";
   return {};
 }
 
 Expected<cv::Mat> imageFromMsg(const sensor_msgs::Image& msg) {
   namespace enc = sensor_msgs::image_encodings;
-  if (const std::string why = validateImage(msg); !why.empty()) return Expected<cv::Mat>::failure(why);
+  if (const std::string why = validateImage(msg); !why.empty())
+    return Expected<cv::Mat>::failure(why);
   try {
     if (isMono16(msg.encoding)) {
       const cv::Mat raw = decodeMono16(msg);
@@ -358,10 +425,12 @@ Expected<cv::Mat> imageFromMsg(const sensor_msgs::Image& msg) {
     if (msg.encoding == enc::MONO8) return cv_bridge::toCvCopy(msg, enc::MONO8)->image;
     return cv_bridge::toCvCopy(msg, enc::BGR8)->image;
   } catch (const cv_bridge::Exception& e) {
-    return Expected<cv::Mat>::failure("cannot convert image with encoding '" + msg.encoding + "': " + e.what());
+    return Expected<cv::Mat>::failure("cannot convert image with encoding '" + msg.encoding +
+                                      "': " + e.what());
   } catch (const cv::Exception& e) {
     // e.err is the short description; what() carries source paths and line numbers.
-    return Expected<cv::Mat>::failure("cannot convert image with encoding '" + msg.encoding + "': " + e.err);
+    return Expected<cv::Mat>::failure("cannot convert image with encoding '" + msg.encoding +
+                                      "': " + e.err);
   }
 }
 
@@ -369,9 +438,13 @@ Expected<sensor_msgs::Image> imageToMsg(const cv::Mat& image, const std_msgs::He
   namespace enc = sensor_msgs::image_encodings;
   if (image.empty()) return Expected<sensor_msgs::Image>::failure("image is empty");
   std::string encoding;
-  if (image.type() == CV_8UC3) encoding = enc::BGR8;
-  else if (image.type() == CV_8UC1) encoding = enc::MONO8;
-  else return Expected<sensor_msgs::Image>::failure("only CV_8UC3 (bgr8) and CV_8UC1 (mono8) images can be sent");
+  if (image.type() == CV_8UC3)
+    encoding = enc::BGR8;
+  else if (image.type() == CV_8UC1)
+    encoding = enc::MONO8;
+  else
+    return Expected<sensor_msgs::Image>::failure(
+        "only CV_8UC3 (bgr8) and CV_8UC1 (mono8) images can be sent");
   sensor_msgs::Image msg;
   cv_bridge::CvImage(header, encoding, image).toImageMsg(msg);
   return msg;
@@ -476,7 +549,8 @@ CameraBoardFeatures fromMsg(const CameraBoard& m) {
     f.edge_lines[j] = {m.edges[j].a, m.edges[j].b, m.edges[j].c};
     f.corners_px[j] = {m.corners[j].u, m.corners[j].v};
   }
-  for (const auto& p : m.pattern) f.pattern.push_back({p.id, toEigen(p.board_point), {p.pixel.u, p.pixel.v}});
+  for (const auto& p : m.pattern)
+    f.pattern.push_back({p.id, toEigen(p.board_point), {p.pixel.u, p.pixel.v}});
   f.reprojection_rms_px = m.reprojection_rms;
   return f;
 }
@@ -487,8 +561,8 @@ std::string validateTransform(const geometry_msgs::Transform& m) {
                             m.rotation.y,    m.rotation.z,    m.rotation.w};
   for (double v : values)
     if (!std::isfinite(v)) return "transform holds a non-finite value";
-  const double norm_sq = m.rotation.x * m.rotation.x + m.rotation.y * m.rotation.y + m.rotation.z * m.rotation.z +
-                         m.rotation.w * m.rotation.w;
+  const double norm_sq = m.rotation.x * m.rotation.x + m.rotation.y * m.rotation.y +
+                         m.rotation.z * m.rotation.z + m.rotation.w * m.rotation.w;
   if (std::abs(norm_sq - 1.0) > kQuaternionNormSqTolerance)
     return "transform quaternion is not unit (|q|^2 = " + std::to_string(norm_sq) + ")";
   return {};
@@ -507,7 +581,9 @@ geometry_msgs::Transform toTransformMsg(const Eigen::Isometry3d& T) {
 
 Eigen::Isometry3d fromTransformMsg(const geometry_msgs::Transform& m) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = Eigen::Quaterniond(m.rotation.w, m.rotation.x, m.rotation.y, m.rotation.z).normalized().toRotationMatrix();
+  T.linear() = Eigen::Quaterniond(m.rotation.w, m.rotation.x, m.rotation.y, m.rotation.z)
+                   .normalized()
+                   .toRotationMatrix();
   T.translation() = toEigen(m.translation);
   return T;
 }
@@ -526,7 +602,9 @@ geometry_msgs::Pose toPoseMsg(const Eigen::Isometry3d& T) {
 Eigen::Isometry3d fromPoseMsg(const geometry_msgs::Pose& m) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.linear() =
-      Eigen::Quaterniond(m.orientation.w, m.orientation.x, m.orientation.y, m.orientation.z).normalized().toRotationMatrix();
+      Eigen::Quaterniond(m.orientation.w, m.orientation.x, m.orientation.y, m.orientation.z)
+          .normalized()
+          .toRotationMatrix();
   T.translation() = toEigen(m.position);
   return T;
 }

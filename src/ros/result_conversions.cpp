@@ -8,8 +8,8 @@
 
 namespace board_calib {
 
-CalibrationResult toResultMsg(const CalibrationSolution& s, const VerdictReport& verdict, const ResultFile& file,
-                              const ros::Time& stamp) {
+CalibrationResult toResultMsg(const CalibrationSolution& s, const VerdictReport& verdict,
+                              const ResultFile& file, const ros::Time& stamp) {
   CalibrationResult m;
   m.header.stamp = stamp;
   m.header.frame_id = file.lidar_frame;
@@ -47,8 +47,8 @@ CalibrationResult toResultMsg(const CalibrationSolution& s, const VerdictReport&
   return m;
 }
 
-CalibrationResult toPairResultMsg(const PairEntry& p, const RigPairRun& pair, const multi_sensor::MsgSolution& s,
-                                  const ros::Time& stamp) {
+CalibrationResult toPairResultMsg(const PairEntry& p, const RigPairRun& pair,
+                                  const multi_sensor::MsgSolution& s, const ros::Time& stamp) {
   CalibrationResult m;
   m.header.stamp = stamp;
   m.header.frame_id = p.lidar_frame;

@@ -4,9 +4,9 @@
 #include <board_calib/DropView.h>
 #include <board_calib/SessionFile.h>
 #include <board_calib/calibrator_status.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/names.h>
 #include <std_srvs/Trigger.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include <QComboBox>
 #include <QGridLayout>
@@ -72,8 +72,9 @@ QString number(double value, int decimals) {
 }
 
 double median(std::vector<double> values) {
-  values.erase(std::remove_if(values.begin(), values.end(), [](double v) { return !std::isfinite(v); }),
-               values.end());
+  values.erase(
+      std::remove_if(values.begin(), values.end(), [](double v) { return !std::isfinite(v); }),
+      values.end());
   if (values.empty()) return std::nan("");
   std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
   return values[values.size() / 2];
@@ -92,8 +93,9 @@ CalibrationPanel::CalibrationPanel(QWidget* parent) : rviz::Panel(parent) {
   if (const char* path = std::getenv(kStateFileVariable)) state_file_ = path;
 
   namespace_edit_ = new QLineEdit(kDefaultNamespace);
-  namespace_edit_->setToolTip("the calibrator's private namespace: its services live there, its "
-                              "calibration_result in the parent namespace");
+  namespace_edit_->setToolTip(
+      "the calibrator's private namespace: its services live there, its "
+      "calibration_result in the parent namespace");
   auto* ns_row = new QHBoxLayout;
   ns_row->addWidget(new QLabel("Calibrator"));
   ns_row->addWidget(namespace_edit_);
@@ -109,9 +111,12 @@ CalibrationPanel::CalibrationPanel(QWidget* parent) : rviz::Panel(parent) {
   event_label_ = wrappingLabel();
   int row = 0;
   status_grid->addWidget(summary_label_, row++, 0, 1, 2);
-  for (auto [name, label] : {std::pair{"Views", views_label_}, {"LiDAR board", lidar_label_},
-                             {"Camera board", camera_label_}, {"Board", motion_label_},
-                             {"Next pose", advice_label_}, {"Last event", event_label_}}) {
+  for (auto [name, label] : {std::pair{"Views", views_label_},
+                             {"LiDAR board", lidar_label_},
+                             {"Camera board", camera_label_},
+                             {"Board", motion_label_},
+                             {"Next pose", advice_label_},
+                             {"Last event", event_label_}}) {
     status_grid->addWidget(new QLabel(name), row, 0, Qt::AlignTop);
     status_grid->addWidget(label, row++, 1);
   }
@@ -186,7 +191,8 @@ CalibrationPanel::CalibrationPanel(QWidget* parent) : rviz::Panel(parent) {
   auto* scroll = new QScrollArea;
   scroll->setWidget(content);
   scroll->setWidgetResizable(true);
-  scroll->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);  // widgets shrink to the dock's width
+  scroll->setHorizontalScrollBarPolicy(
+      Qt::ScrollBarAlwaysOff);  // widgets shrink to the dock's width
   scroll->setFrameShape(QFrame::NoFrame);
   auto* layout = new QVBoxLayout(this);
   layout->setContentsMargins(0, 0, 0, 0);
@@ -201,8 +207,10 @@ CalibrationPanel::CalibrationPanel(QWidget* parent) : rviz::Panel(parent) {
   connect(save_button_, &QPushButton::clicked, this, &CalibrationPanel::onSaveSession);
   connect(load_button_, &QPushButton::clicked, this, &CalibrationPanel::onLoadSession);
   connect(views_table_, &QTableWidget::cellClicked, this, &CalibrationPanel::onViewClicked);
-  connect(method_combo_, QOverload<int>::of(&QComboBox::currentIndexChanged), this, [this] { Q_EMIT configChanged(); });
-  connect(session_path_edit_, &QLineEdit::editingFinished, this, [this] { Q_EMIT configChanged(); });
+  connect(method_combo_, QOverload<int>::of(&QComboBox::currentIndexChanged), this,
+          [this] { Q_EMIT configChanged(); });
+  connect(session_path_edit_, &QLineEdit::editingFinished, this,
+          [this] { Q_EMIT configChanged(); });
 
   tick_timer_ = new QTimer(this);
   connect(tick_timer_, &QTimer::timeout, this, &CalibrationPanel::onTick);
@@ -222,7 +230,8 @@ void CalibrationPanel::onInitialize() {
 void CalibrationPanel::load(const rviz::Config& config) {
   rviz::Panel::load(config);
   QString value;
-  if (config.mapGetString("Calibrator", &value) && !value.isEmpty()) namespace_edit_->setText(value);
+  if (config.mapGetString("Calibrator", &value) && !value.isEmpty())
+    namespace_edit_->setText(value);
   if (config.mapGetString("Method", &value)) {
     const int index = method_combo_->findText(value);
     if (index >= 0) method_combo_->setCurrentIndex(index);
@@ -259,7 +268,8 @@ void CalibrationPanel::connectTo(const QString& ns_text) {
   diagnostics_sub_ = nh_.subscribe("/diagnostics", 10, &CalibrationPanel::onDiagnostics, this);
   // The calibrator advertises calibration_result in its node namespace, the parent of its
   // private one.
-  const std::string result_topic = ros::names::append(ros::names::parentNamespace(ns_), "calibration_result");
+  const std::string result_topic =
+      ros::names::append(ros::names::parentNamespace(ns_), "calibration_result");
   result_sub_ = nh_.subscribe(result_topic, 1, &CalibrationPanel::onResult, this);
   showStatus();
   showResult();
@@ -269,13 +279,14 @@ void CalibrationPanel::onDiagnostics(const diagnostic_msgs::DiagnosticArrayConst
   const std::string suffix = std::string(": ") + keys::kStatusName;
   for (const auto& s : msg->status) {
     if (s.hardware_id != keys::kHardwareId) continue;
-    const bool named = s.name == keys::kStatusName || (s.name.size() >= suffix.size() &&
-                                                       s.name.compare(s.name.size() - suffix.size(), suffix.size(),
-                                                                      suffix) == 0);
+    const bool named = s.name == keys::kStatusName ||
+                       (s.name.size() >= suffix.size() &&
+                        s.name.compare(s.name.size() - suffix.size(), suffix.size(), suffix) == 0);
     if (!named) continue;
     // Several calibrators may run: take the one whose services live in our namespace.
-    const auto services = std::find_if(s.values.begin(), s.values.end(),
-                                       [](const diagnostic_msgs::KeyValue& kv) { return kv.key == keys::kServices; });
+    const auto services =
+        std::find_if(s.values.begin(), s.values.end(),
+                     [](const diagnostic_msgs::KeyValue& kv) { return kv.key == keys::kServices; });
     if (services != s.values.end() && services->value != ns_) continue;
 
     Status status;
@@ -284,13 +295,19 @@ void CalibrationPanel::onDiagnostics(const diagnostic_msgs::DiagnosticArrayConst
     status.received = ros::WallTime::now();
     for (const auto& kv : s.values) {
       const QString value = QString::fromStdString(kv.value);
-      if (kv.key == keys::kLidarBoard) status.lidar = value;
-      else if (kv.key == keys::kCameraBoard) status.camera = value;
-      else if (kv.key == keys::kBoardMotion) status.motion = value;
-      else if (kv.key == keys::kLastEvent) status.event = value;
-      else if (kv.key.rfind(keys::kAdvicePrefix, 0) == 0) status.advice << value;
+      if (kv.key == keys::kLidarBoard)
+        status.lidar = value;
+      else if (kv.key == keys::kCameraBoard)
+        status.camera = value;
+      else if (kv.key == keys::kBoardMotion)
+        status.motion = value;
+      else if (kv.key == keys::kLastEvent)
+        status.event = value;
+      else if (kv.key.rfind(keys::kAdvicePrefix, 0) == 0)
+        status.advice << value;
       else if (kv.key == keys::kViewIds) {
-        for (const QString& id : value.split(' ', Qt::SkipEmptyParts)) status.view_ids.push_back(id.toInt());
+        for (const QString& id : value.split(' ', Qt::SkipEmptyParts))
+          status.view_ids.push_back(id.toInt());
       }
     }
     status_ = status;
@@ -311,26 +328,31 @@ void CalibrationPanel::onTick() {
 }
 
 template <class Srv>
-void CalibrationPanel::callService(const char* service, Srv srv, std::function<void(bool, const Srv&)> on_reply) {
+void CalibrationPanel::callService(const char* service, Srv srv,
+                                   std::function<void(bool, const Srv&)> on_reply) {
   const std::string name = ros::names::append(ns_, service);
-  reply_label_->setText(
-      colouredText(QString("%1: calling %2 ...").arg(service, QString::fromStdString(name)), "#666666"));
+  reply_label_->setText(colouredText(
+      QString("%1: calling %2 ...").arg(service, QString::fromStdString(name)), "#666666"));
   // A solve may take a while: it gets its own worker so Capture or Save still answer meanwhile.
   JobQueue& queue = std::string(service) == "calibrate" ? *solve_jobs_ : *jobs_;
   queue.post([this, name, srv, on_reply]() mutable {
     const bool reached = ros::service::call(name, srv);
-    QMetaObject::invokeMethod(this, [on_reply, reached, srv]() { on_reply(reached, srv); }, Qt::QueuedConnection);
+    QMetaObject::invokeMethod(
+        this, [on_reply, reached, srv]() { on_reply(reached, srv); }, Qt::QueuedConnection);
   });
 }
 
 QString CalibrationPanel::noService(const char* service) const {
-  return QString::fromStdString("cannot call " + ros::names::append(ns_, service) + " (calibrator not running?)");
+  return QString::fromStdString("cannot call " + ros::names::append(ns_, service) +
+                                " (calibrator not running?)");
 }
 
 void CalibrationPanel::showReply(const QString& action, bool ok, const QString& message) {
   reply_label_->setText(colouredText(action + ": " + message, ok ? "#1a7f37" : "#c62828"));
-  if (ok) ROS_INFO_STREAM("calibration panel: " << action.toStdString() << ": " << message.toStdString());
-  else ROS_WARN_STREAM("calibration panel: " << action.toStdString() << ": " << message.toStdString());
+  if (ok)
+    ROS_INFO_STREAM("calibration panel: " << action.toStdString() << ": " << message.toStdString());
+  else
+    ROS_WARN_STREAM("calibration panel: " << action.toStdString() << ": " << message.toStdString());
 }
 
 void CalibrationPanel::onCapture() {
@@ -375,7 +397,8 @@ void CalibrationPanel::onCalibrate() {
       showResult();
     }
     const QString first_line = QString::fromStdString(done.response.message).section('\n', 0, 0);
-    showReply("calibrate " + QString::fromStdString(done.request.method), done.response.success, first_line);
+    showReply("calibrate " + QString::fromStdString(done.request.method), done.response.success,
+              first_line);
   });
 }
 
@@ -393,7 +416,8 @@ void CalibrationPanel::onReset() {
 void CalibrationPanel::onSaveSession() {
   SessionFile srv;
   srv.request.path = session_path_edit_->text().trimmed().toStdString();
-  if (srv.request.path.empty()) return showReply("save session", false, "enter a session file path first");
+  if (srv.request.path.empty())
+    return showReply("save session", false, "enter a session file path first");
   callService<SessionFile>("save_session", srv, [this](bool reached, const SessionFile& done) {
     if (!reached) return showReply("save session", false, noService("save_session"));
     showReply("save session", done.response.success, QString::fromStdString(done.response.message));
@@ -403,7 +427,8 @@ void CalibrationPanel::onSaveSession() {
 void CalibrationPanel::onLoadSession() {
   SessionFile srv;
   srv.request.path = session_path_edit_->text().trimmed().toStdString();
-  if (srv.request.path.empty()) return showReply("load session", false, "enter a session file path first");
+  if (srv.request.path.empty())
+    return showReply("load session", false, "enter a session file path first");
   callService<SessionFile>("load_session", srv, [this](bool reached, const SessionFile& done) {
     if (!reached) return showReply("load session", false, noService("load_session"));
     if (done.response.success) {
@@ -415,22 +440,27 @@ void CalibrationPanel::onLoadSession() {
 }
 
 void CalibrationPanel::onViewClicked(int row, int) {
-  if (const QTableWidgetItem* item = views_table_->item(row, 0)) drop_spin_->setValue(item->text().toInt());
+  if (const QTableWidgetItem* item = views_table_->item(row, 0))
+    drop_spin_->setValue(item->text().toInt());
 }
 
 void CalibrationPanel::showStatus() {
-  const bool fresh = status_.level >= 0 && (ros::WallTime::now() - status_.received).toSec() < kStatusStaleS;
+  const bool fresh =
+      status_.level >= 0 && (ros::WallTime::now() - status_.received).toSec() < kStatusStaleS;
   if (!fresh) {
-    const QString why = status_.level < 0 ? "no status from %1 on /diagnostics yet (is the calibrator running?)"
-                                          : "no status from %1 for a while (calibrator stopped?)";
+    const QString why = status_.level < 0
+                            ? "no status from %1 on /diagnostics yet (is the calibrator running?)"
+                            : "no status from %1 for a while (calibrator stopped?)";
     summary_label_->setText(colouredText(why.arg(QString::fromStdString(ns_)), levelColour(-1)));
   } else {
-    summary_label_->setText(QString("<b>%1</b>").arg(colouredText(status_.summary, levelColour(status_.level))));
+    summary_label_->setText(
+        QString("<b>%1</b>").arg(colouredText(status_.summary, levelColour(status_.level))));
   }
   views_label_->setText(QString::number(status_.view_ids.size()));
   const auto found = [](const QString& state) {
     if (state.isEmpty()) return QString("-");
-    return state == "found" ? colouredText(state, levelColour(0)) : colouredText(state, levelColour(1));
+    return state == "found" ? colouredText(state, levelColour(0))
+                            : colouredText(state, levelColour(1));
   };
   lidar_label_->setText(found(status_.lidar));
   camera_label_->setText(found(status_.camera));
@@ -471,7 +501,8 @@ void CalibrationPanel::showResult() {
     };
     set(0, QString::number(status_.view_ids[i]), false);
     set(1, number(mlre[i], 2), std::isfinite(mlre[i]) && mlre[i] > kOutlierFactor * mlre_median);
-    set(2, number(plane[i], 1), std::isfinite(plane[i]) && plane[i] > kOutlierFactor * plane_median);
+    set(2, number(plane[i], 1),
+        std::isfinite(plane[i]) && plane[i] > kOutlierFactor * plane_median);
   }
 
   if (!result_) {
@@ -482,20 +513,23 @@ void CalibrationPanel::showResult() {
   const auto& r = *result_;
   if (r.verdict.empty()) {
     const char* verdict = r.success ? "" : "failed";
-    verdict_label_->setText(
-        colouredText(r.success ? "solved (no verdict in this result)" : "failed", verdictColour(verdict)));
+    verdict_label_->setText(colouredText(
+        r.success ? "solved (no verdict in this result)" : "failed", verdictColour(verdict)));
   } else {
-    const QString verdict = colouredText(QString::fromStdString(r.verdict).toUpper(), verdictColour(r.verdict));
+    const QString verdict =
+        colouredText(QString::fromStdString(r.verdict).toUpper(), verdictColour(r.verdict));
     verdict_label_->setText(
-        QString("<b>%1</b>: %2").arg(verdict, QString::fromStdString(r.verdict_reason).toHtmlEscaped()));
+        QString("<b>%1</b>: %2")
+            .arg(verdict, QString::fromStdString(r.verdict_reason).toHtmlEscaped()));
   }
   if (!r.success) {
     result_label_->setText(QString::fromStdString(r.method + ": " + r.reason).toHtmlEscaped());
     return;
   }
-  const double sigma_t_mm = 1000.0 * std::sqrt(r.stddev_translation_m[0] * r.stddev_translation_m[0] +
-                                               r.stddev_translation_m[1] * r.stddev_translation_m[1] +
-                                               r.stddev_translation_m[2] * r.stddev_translation_m[2]);
+  const double sigma_t_mm =
+      1000.0 * std::sqrt(r.stddev_translation_m[0] * r.stddev_translation_m[0] +
+                         r.stddev_translation_m[1] * r.stddev_translation_m[1] +
+                         r.stddev_translation_m[2] * r.stddev_translation_m[2]);
   const double sigma_r_deg = std::sqrt(r.stddev_rotation_deg[0] * r.stddev_rotation_deg[0] +
                                        r.stddev_rotation_deg[1] * r.stddev_rotation_deg[1] +
                                        r.stddev_rotation_deg[2] * r.stddev_rotation_deg[2]);
@@ -504,8 +538,9 @@ void CalibrationPanel::showResult() {
                                  "t = [%7, %8, %9] m")
                              .arg(QString::fromStdString(r.method))
                              .arg(r.views_used)
-                             .arg(number(r.mlre_px, 2), number(r.plane_rms_mm, 1), number(sigma_t_mm, 1),
-                                  number(sigma_r_deg, 2), number(t.x, 3), number(t.y, 3), number(t.z, 3)));
+                             .arg(number(r.mlre_px, 2), number(r.plane_rms_mm, 1),
+                                  number(sigma_t_mm, 1), number(sigma_r_deg, 2), number(t.x, 3),
+                                  number(t.y, 3), number(t.z, 3)));
 }
 
 void CalibrationPanel::writeStateFile() const {
@@ -544,7 +579,8 @@ void CalibrationPanel::writeStateFile() const {
   QJsonObject widgets;
   const auto centre = [](const QWidget* w) {
     const QPoint p = w->mapToGlobal(w->rect().center());
-    return QJsonArray{p.x(), p.y(), w->isVisible() && w->visibleRegion().contains(w->rect().center())};
+    return QJsonArray{p.x(), p.y(),
+                      w->isVisible() && w->visibleRegion().contains(w->rect().center())};
   };
   widgets["namespace"] = centre(namespace_edit_);
   widgets["capture"] = centre(capture_button_);
@@ -560,8 +596,9 @@ void CalibrationPanel::writeStateFile() const {
   for (int row = 0; row < views_table_->rowCount(); ++row) {
     const QRect cell = views_table_->visualRect(views_table_->model()->index(row, 0));
     const QPoint p = views_table_->viewport()->mapToGlobal(cell.center());
-    widgets[QString("view_row_%1").arg(row)] =
-        QJsonArray{p.x(), p.y(), cell.isValid() && views_table_->viewport()->visibleRegion().contains(cell.center())};
+    widgets[QString("view_row_%1").arg(row)] = QJsonArray{
+        p.x(), p.y(),
+        cell.isValid() && views_table_->viewport()->visibleRegion().contains(cell.center())};
   }
   state["widgets"] = widgets;
   const QPoint origin = mapToGlobal(QPoint(0, 0));

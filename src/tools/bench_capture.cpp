@@ -25,7 +25,8 @@ std::vector<std::string> split(const std::string& s) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string scenario_path = std::string(BOARD_CALIB_SOURCE_DIR) + "/config/scenarios/plain_vlp32c_1920.yaml";
+  std::string scenario_path =
+      std::string(BOARD_CALIB_SOURCE_DIR) + "/config/scenarios/plain_vlp32c_1920.yaml";
   std::string rates = "1,2,5,10,30", layouts = "organized,unorganized", method = "pbpc";
   int seeds = 2, poses = 20;
   double scale = 1.0;
@@ -39,15 +40,23 @@ int main(int argc, char** argv) {
       return argv[++i];
     };
     try {
-      if (a == "--scenario") scenario_path = next();
-      else if (a == "--rates") rates = next();
-      else if (a == "--layouts") layouts = next();
-      else if (a == "--method") method = next();
-      else if (a == "--seeds") seeds = std::stoi(next());
-      else if (a == "--poses") poses = std::stoi(next());
-      else if (a == "--scale") scale = std::stod(next());
+      if (a == "--scenario")
+        scenario_path = next();
+      else if (a == "--rates")
+        rates = next();
+      else if (a == "--layouts")
+        layouts = next();
+      else if (a == "--method")
+        method = next();
+      else if (a == "--seeds")
+        seeds = std::stoi(next());
+      else if (a == "--poses")
+        poses = std::stoi(next());
+      else if (a == "--scale")
+        scale = std::stod(next());
       else {
-        std::cerr << "usage: bench_capture [--scenario FILE] [--rates 1,2,5] [--layouts organized,unorganized] "
+        std::cerr << "usage: bench_capture [--scenario FILE] [--rates 1,2,5] [--layouts "
+                     "organized,unorganized] "
                      "[--seeds N] [--poses N] [--scale S] [--method pbpc|ppc|msg|all]\n";
         return a == "--help" ? 0 : 2;
       }
@@ -66,29 +75,32 @@ int main(int argc, char** argv) {
     std::cerr << "bench_capture: " << methods.error() << "\n";
     return 2;
   }
-  std::printf("| camera Hz | cloud | seed | holds captured | moving captured | views | verdict | rotation error (deg) | translation error (mm) | reported 1 sigma (deg / mm) | time (s) |\n");
+  std::printf(
+      "| camera Hz | cloud | seed | holds captured | moving captured | views | verdict | rotation "
+      "error (deg) | translation error (mm) | reported 1 sigma (deg / mm) | time (s) |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const auto& rate : split(rates))
     for (const auto& layout : split(layouts))
       for (int seed = 1; seed <= seeds; ++seed) {
         const sim::Scenario s =
-            test_support::captureScenario(*base, scale, std::stod(rate), layout == "organized", poses,
-                                          static_cast<unsigned>(seed));
+            test_support::captureScenario(*base, scale, std::stod(rate), layout == "organized",
+                                          poses, static_cast<unsigned>(seed));
         auto session = test_support::runSimulatedSession(s, PipelineOptions{});
         if (!session) {
-          std::printf("| %s | %s | %d | simulation failed: %s |\n", rate.c_str(), layout.c_str(), seed,
-                      session.error().c_str());
+          std::printf("| %s | %s | %d | simulation failed: %s |\n", rate.c_str(), layout.c_str(),
+                      seed, session.error().c_str());
           continue;
         }
         // Why holds were missed, for the table's notes (stderr keeps stdout a table).
         std::fprintf(stderr, "%s Hz %s seed %d: %s\n", rate.c_str(), layout.c_str(), seed,
                      session->capture_summary.c_str());
-        const PairCalibration run = calibratePair(session->views, *methods, s.scene.target, "camera", "lidar");
+        const PairCalibration run =
+            calibratePair(session->views, *methods, s.scene.target, "camera", "lidar");
         const MethodRun* c = run.chosenRun();
         const auto& truth = session->truth.camera_T_lidar;
-        std::printf("| %s | %s | %d | %d/%d | %d | %zu | %s | %.3f | %.1f | %.3f / %.1f | %.0f |\n", rate.c_str(),
-                    layout.c_str(), seed, session->holds_captured, session->holds, session->moving_captured,
-                    session->views.size(), verdictName(run.verdict),
+        std::printf("| %s | %s | %d | %d/%d | %d | %zu | %s | %.3f | %.1f | %.3f / %.1f | %.0f |\n",
+                    rate.c_str(), layout.c_str(), seed, session->holds_captured, session->holds,
+                    session->moving_captured, session->views.size(), verdictName(run.verdict),
                     c ? rotationErrorDeg(c->solution.camera_T_lidar, truth) : -1.0,
                     c ? translationErrorM(c->solution.camera_T_lidar, truth) * 1e3 : -1.0,
                     c ? c->verdict.stddev.rotation_deg.maxCoeff() : -1.0,

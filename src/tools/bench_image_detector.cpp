@@ -1,7 +1,9 @@
 // Benchmark of the camera board detector: single-threaded detection time per frame on simulated
 // 1920x1200 images (plain board, checkerboard, AprilTag grid) with their corner accuracy.
-// Usage (from the package root): bench_image_detector [--frames N] [--targets DIR (default config/targets)]
-//   [--board plain|checkerboard|apriltag_grid (default all)] [--tag-decimate X] [--tag-sigma PX] [--tag-refine 0|1]
+// Usage (from the package root): bench_image_detector [--frames N] [--targets DIR (default
+// config/targets)]
+//   [--board plain|checkerboard|apriltag_grid (default all)] [--tag-decimate X] [--tag-sigma PX]
+//   [--tag-refine 0|1]
 //   [--per-frame]
 #include <board_calib/core/image_detection/image_board_detector.h>
 #include <board_calib/core/sim/simulator.h>
@@ -39,8 +41,9 @@ struct BenchFigures {
 };
 
 // Detection time (median, p95, max) and accuracy over `frames` simulated views of one board.
-BenchFigures benchTarget(const Target& board, ImageBoardDetector* detector, const CameraModel& camera,
-                         const Eigen::Isometry3d& world_T_camera, int frames, bool per_frame) {
+BenchFigures benchTarget(const Target& board, ImageBoardDetector* detector,
+                         const CameraModel& camera, const Eigen::Isometry3d& world_T_camera,
+                         int frames, bool per_frame) {
   const Target* target = &board;
   sim::SceneSpec scene;
   scene.target = *target;
@@ -50,20 +53,23 @@ BenchFigures benchTarget(const Target& board, ImageBoardDetector* detector, cons
   BenchFigures r;
   for (int f = 0; f < frames; ++f) {
     const double roll = (target->type == TargetType::kPlain ? 45 : 15) + angle(rng) / 4;
-    const Eigen::Matrix3d Rb = (Eigen::AngleAxisd(angle(rng) * kRadPerDeg, Eigen::Vector3d::UnitY()) *
-                                Eigen::AngleAxisd(angle(rng) * kRadPerDeg, Eigen::Vector3d::UnitX()) *
-                                Eigen::AngleAxisd(roll * kRadPerDeg, Eigen::Vector3d::UnitZ()))
-                                   .toRotationMatrix();
-    const Eigen::Isometry3d camera_T_board = makeTransform(Rb, Eigen::Vector3d(0, 0, dist(rng)) - Rb * target->center());
-    const cv::Mat image = sim::renderCameraImage(camera, world_T_camera, scene, world_T_camera * camera_T_board,
-                                                 sim::RenderOptions(), rng);
+    const Eigen::Matrix3d Rb =
+        (Eigen::AngleAxisd(angle(rng) * kRadPerDeg, Eigen::Vector3d::UnitY()) *
+         Eigen::AngleAxisd(angle(rng) * kRadPerDeg, Eigen::Vector3d::UnitX()) *
+         Eigen::AngleAxisd(roll * kRadPerDeg, Eigen::Vector3d::UnitZ()))
+            .toRotationMatrix();
+    const Eigen::Isometry3d camera_T_board =
+        makeTransform(Rb, Eigen::Vector3d(0, 0, dist(rng)) - Rb * target->center());
+    const cv::Mat image = sim::renderCameraImage(
+        camera, world_T_camera, scene, world_T_camera * camera_T_board, sim::RenderOptions(), rng);
     const ImageDetection d = detector->detect(image, camera);
     r.times_ms.push_back(d.details.time_ms);
     if (per_frame) std::printf("  frame %d: %.1f ms\n", f, d.details.time_ms);
     if (!d.features.found) continue;
     ++r.found;
     r.sum_rms += d.features.reprojection_rms_px;
-    for (const auto& o : d.features.pattern) {  // pattern points (checkerboard, tag corners) vs truth
+    for (const auto& o :
+         d.features.pattern) {  // pattern points (checkerboard, tag corners) vs truth
       Eigen::Vector2d truth;
       camera.projectUndistorted(camera_T_board * o.board_point, &truth);
       r.max_point_err = std::max(r.max_point_err, (o.pixel - truth).norm());
@@ -83,7 +89,8 @@ BenchFigures benchTarget(const Target& board, ImageBoardDetector* detector, cons
 double percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0.0;
   std::sort(v.begin(), v.end());
-  return v[static_cast<size_t>(std::min<double>(v.size() - 1, std::floor(q * (v.size() - 1) + 0.5)))];
+  return v[static_cast<size_t>(
+      std::min<double>(v.size() - 1, std::floor(q * (v.size() - 1) + 0.5)))];
 }
 
 }  // namespace
@@ -100,16 +107,18 @@ int main(int argc, char** argv) {
     if (std::strcmp(argv[i], "--board") == 0) only = argv[i + 1];
     if (std::strcmp(argv[i], "--tag-decimate") == 0) options.tag_decimate = std::atof(argv[i + 1]);
     if (std::strcmp(argv[i], "--tag-sigma") == 0) options.tag_sigma = std::atof(argv[i + 1]);
-    if (std::strcmp(argv[i], "--tag-refine") == 0) options.tag_refine_edges = std::atoi(argv[i + 1]) != 0;
+    if (std::strcmp(argv[i], "--tag-refine") == 0)
+      options.tag_refine_edges = std::atoi(argv[i + 1]) != 0;
   }
   cv::setNumThreads(1);  // single-threaded figures
   const CameraModel camera = benchCamera();
   Eigen::Matrix3d R;
   R << 0, 0, 1, -1, 0, 0, 0, -1, 0;
   const Eigen::Isometry3d world_T_camera = makeTransform(R, Eigen::Vector3d(0, 0, 0.2));
-  std::printf("%-14s %8s %8s %9s %8s %8s %10s %12s %14s\n", "board", "found", "mean_ms", "median_ms", "p95_ms",
-              "max_ms", "rms_px", "max_err_px", "max_point_px");
-  for (const std::string name : {"plain_1016.yaml", "checkerboard_7x5.yaml", "apriltag_grid_4x4.yaml"}) {
+  std::printf("%-14s %8s %8s %9s %8s %8s %10s %12s %14s\n", "board", "found", "mean_ms",
+              "median_ms", "p95_ms", "max_ms", "rms_px", "max_err_px", "max_point_px");
+  for (const std::string name :
+       {"plain_1016.yaml", "checkerboard_7x5.yaml", "apriltag_grid_4x4.yaml"}) {
     auto target = loadTarget(targets_dir + "/" + name);
     if (!target) {
       std::fprintf(stderr, "%s\n", target.error().c_str());
@@ -121,12 +130,15 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "%s\n", detector.error().c_str());
       return 1;
     }
-    const BenchFigures r = benchTarget(*target, &*detector, camera, world_T_camera, frames, per_frame);
+    const BenchFigures r =
+        benchTarget(*target, &*detector, camera, world_T_camera, frames, per_frame);
     double sum_ms = 0;
     for (double t : r.times_ms) sum_ms += t;
-    std::printf("%-14s %5d/%-3d %8.1f %9.1f %8.1f %8.1f %10.3f %12.3f %14.3f\n", targetTypeName(target->type), r.found,
-                frames, sum_ms / frames, percentile(r.times_ms, 0.5), percentile(r.times_ms, 0.95),
-                percentile(r.times_ms, 1.0), r.found ? r.sum_rms / r.found : 0.0, r.max_err, r.max_point_err);
+    std::printf("%-14s %5d/%-3d %8.1f %9.1f %8.1f %8.1f %10.3f %12.3f %14.3f\n",
+                targetTypeName(target->type), r.found, frames, sum_ms / frames,
+                percentile(r.times_ms, 0.5), percentile(r.times_ms, 0.95),
+                percentile(r.times_ms, 1.0), r.found ? r.sum_rms / r.found : 0.0, r.max_err,
+                r.max_point_err);
   }
   return 0;
 }

@@ -1,7 +1,8 @@
 // Benchmark of the LiDAR board detector on real recordings: median / p90 time per cloud,
 // single-threaded, plus detection counts. Usage:
 //   bench_lidar_detector [--data DIR] [--repeat N] [--no-sparse]
-//   bench_lidar_detector --sim-table config/scenarios/plain_vlp16_outdoor_far.yaml   (rates by distance)
+//   bench_lidar_detector --sim-table config/scenarios/plain_vlp16_outdoor_far.yaml   (rates by
+//   distance)
 // DIR defaults to ../shared/data, relative to the working directory (run it from the package
 // root); it holds basler_os1_plain/, left_vlp32_checker/ and rs16_plain/.
 #include <board_calib/bag_reader.h>
@@ -25,7 +26,8 @@ struct Dataset {
   std::string folder, topic;
 };
 
-int run(const std::string& data, const Dataset& ds, int repeat, const LidarBoardDetectorOptions& options) {
+int run(const std::string& data, const Dataset& ds, int repeat,
+        const LidarBoardDetectorOptions& options) {
   const std::string dir = data + "/" + ds.folder;
   auto target = loadTarget(dir + "/target.yaml");
   if (!target) {
@@ -47,7 +49,8 @@ int run(const std::string& data, const Dataset& ds, int repeat, const LidarBoard
     return 1;
   }
   for (const bool strip_ring : {false, true}) {
-    std::vector<double> ms, cpu_ms;  // wall clock; CPU time of this thread (robust to a busy machine)
+    std::vector<double> ms,
+        cpu_ms;  // wall clock; CPU time of this thread (robust to a busy machine)
     int found = 0, four_edges = 0;
     size_t points = 0;
     for (LidarCloud c : clouds) {
@@ -75,11 +78,13 @@ int run(const std::string& data, const Dataset& ds, int repeat, const LidarBoard
     }
     std::sort(ms.begin(), ms.end());
     std::sort(cpu_ms.begin(), cpu_ms.end());
-    std::printf("%-20s %-22s clouds %2zu  points/cloud %6zu  found %2d  four edges %2d  wall median %6.2f ms  "
-                "p90 %6.2f ms  CPU median %6.2f ms  p90 %6.2f ms\n",
-                ds.folder.c_str(), strip_ring ? "(unorganized, no ring)" : "(as recorded)", clouds.size(),
-                points / clouds.size(), found, four_edges, ms[ms.size() / 2], ms[ms.size() * 9 / 10],
-                cpu_ms[cpu_ms.size() / 2], cpu_ms[cpu_ms.size() * 9 / 10]);
+    std::printf(
+        "%-20s %-22s clouds %2zu  points/cloud %6zu  found %2d  four edges %2d  wall median %6.2f "
+        "ms  "
+        "p90 %6.2f ms  CPU median %6.2f ms  p90 %6.2f ms\n",
+        ds.folder.c_str(), strip_ring ? "(unorganized, no ring)" : "(as recorded)", clouds.size(),
+        points / clouds.size(), found, four_edges, ms[ms.size() / 2], ms[ms.size() * 9 / 10],
+        cpu_ms[cpu_ms.size() / 2], cpu_ms[cpu_ms.size() * 9 / 10]);
   }
   return 0;
 }
@@ -94,7 +99,8 @@ int simTable(const std::string& scenario_path) {
     return 1;
   }
   const double bins[] = {2.0, 5.0, 9.0, 14.0};
-  std::printf("%-8s %-22s %-10s %7s %7s %11s\n", "LiDAR", "cloud", "distance", "clouds", "board", "four edges");
+  std::printf("%-8s %-22s %-10s %7s %7s %11s\n", "LiDAR", "cloud", "distance", "clouds", "board",
+              "four edges");
   for (const char* preset : {"VLP-16", "VLP-32C", "OS1-64"}) {
     for (const bool ring : {true, false}) {
       sim::Scenario s = *loaded;
@@ -112,7 +118,8 @@ int simTable(const std::string& scenario_path) {
       auto timeline = sim::makeTimeline(s);
       auto generator = sim::FrameGenerator::create(s);
       if (!timeline || !generator) {
-        std::fprintf(stderr, "%s: %s\n", preset, timeline ? generator.error().c_str() : timeline.error().c_str());
+        std::fprintf(stderr, "%s: %s\n", preset,
+                     timeline ? generator.error().c_str() : timeline.error().c_str());
         continue;
       }
       std::map<int, std::array<int, 3>> tally;  // bin -> clouds, board, four edges
@@ -131,14 +138,16 @@ int simTable(const std::string& scenario_path) {
         int lines = 0;
         for (const auto& kv : per_line) lines += kv.second >= 2;
         if (lines < 3) continue;
-        const Eigen::Vector3d centre = sim::worldTLidar(s, 0).inverse() * frame.world_T_board * target.center();
+        const Eigen::Vector3d centre =
+            sim::worldTLidar(s, 0).inverse() * frame.world_T_board * target.center();
         const double d = centre.norm();
         const int bin = d < bins[1] ? 0 : d < bins[2] ? 1 : 2;
         const auto det = detectLidarBoard(cloud, target);
         Eigen::Vector3d mean = Eigen::Vector3d::Zero();
         for (const auto& p : det.features.board_points) mean += p;
         mean /= std::max<size_t>(1, det.features.board_points.size());
-        const bool at_board = det.features.found && (mean - centre).norm() < 0.5 * std::min(target.width, target.height);
+        const bool at_board = det.features.found &&
+                              (mean - centre).norm() < 0.5 * std::min(target.width, target.height);
         auto& t = tally[bin];
         ++t[0];
         t[1] += at_board;
@@ -147,8 +156,9 @@ int simTable(const std::string& scenario_path) {
       for (const auto& kv : tally) {
         char range[32];
         std::snprintf(range, sizeof(range), "%.0f-%.0f m", bins[kv.first], bins[kv.first + 1]);
-        std::printf("%-8s %-22s %-10s %7d %7d %11d\n", preset, ring ? "organized, ring" : "unorganized, no ring", range,
-                    kv.second[0], kv.second[1], kv.second[2]);
+        std::printf("%-8s %-22s %-10s %7d %7d %11d\n", preset,
+                    ring ? "organized, ring" : "unorganized, no ring", range, kv.second[0],
+                    kv.second[1], kv.second[2]);
       }
     }
   }
@@ -172,7 +182,9 @@ int main(int argc, char** argv) {
     } else if (a == "--repeat" && i + 1 < argc) {
       repeat = std::max(1, std::atoi(argv[++i]));
     } else {
-      std::fprintf(stderr, "usage: bench_lidar_detector [--data DIR] [--repeat N] [--no-sparse] | --sim-table SCENARIO.yaml\n");
+      std::fprintf(stderr,
+                   "usage: bench_lidar_detector [--data DIR] [--repeat N] [--no-sparse] | "
+                   "--sim-table SCENARIO.yaml\n");
       return a == "--help" || a == "-h" ? 0 : 2;
     }
   }

@@ -10,15 +10,15 @@
 #include <board_calib/core/lidar_detection/lidar_board_detector.h>
 #include <board_calib/core/msg_graph/msg_graph.h>
 #include <board_calib/core/sim/scenario.h>
-#include "support/synthetic_rig.h"
 #include <board_calib/core/transform.h>
+#include "support/synthetic_rig.h"
 
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <ctime>
 #include <map>
-#include <cstring>
 #include <string>
 #include <vector>
 
@@ -60,14 +60,17 @@ bool parseArgs(int argc, char** argv, Args* args) {
       args->seed = static_cast<unsigned>(v);
       continue;
     }
-    std::fprintf(stderr, "usage: bench_msg_graph [--views N] [--scenes N] [--trials N] [--seed S] [--only-pairs] [--scenario FILE]\n");
+    std::fprintf(stderr,
+                 "usage: bench_msg_graph [--views N] [--scenes N] [--trials N] [--seed S] "
+                 "[--only-pairs] [--scenario FILE]\n");
     return false;
   }
   return args->views >= 3 && args->scenes >= 1 && args->trials >= 0;
 }
 
 // Worst pair error among `sensors` against the ground truth.
-void worstPair(const MsgSolution& sol, const sim::RigScene& scene, int sensors, double* rot_deg, double* trans_mm) {
+void worstPair(const MsgSolution& sol, const sim::RigScene& scene, int sensors, double* rot_deg,
+               double* trans_mm) {
   *rot_deg = 0;
   *trans_mm = 0;
   for (int a = 0; a < sensors; ++a)
@@ -91,7 +94,8 @@ std::vector<View> pairViews(const MsgProblem& problem, int camera, int lidar) {
   for (const auto& pose : problem.poses) {
     const auto c = pose.cameras.find(camera);
     const auto l = pose.lidars.find(lidar);
-    if (c == pose.cameras.end() || l == pose.lidars.end() || !c->second.found || !l->second.found) continue;
+    if (c == pose.cameras.end() || l == pose.lidars.end() || !c->second.found || !l->second.found)
+      continue;
     View v;
     v.id = pose.id;
     v.camera = c->second;
@@ -118,7 +122,8 @@ Expected<MsgProblem> detectedProblem(sim::Scenario scenario) {
   }
   MsgProblem problem;
   const int cameras = static_cast<int>(scenario.cameras.size());
-  for (const auto& c : scenario.cameras) problem.sensors.push_back({c.frame_id, SensorKind::kCamera});
+  for (const auto& c : scenario.cameras)
+    problem.sensors.push_back({c.frame_id, SensorKind::kCamera});
   for (const auto& l : scenario.lidars) problem.sensors.push_back({l.frame_id, SensorKind::kLidar});
   std::map<int, BoardPoseObservation> poses;
   for (size_t i = 0; i < timeline->frames.size(); ++i) {
@@ -128,7 +133,9 @@ Expected<MsgProblem> detectedProblem(sim::Scenario scenario) {
     o.id = f.pose;
     if (f.is_camera && !o.cameras.count(f.sensor)) {
       CameraBoardFeatures feat =
-          detectors[f.sensor].detect(generator->image(f, i), generator->cameraModel(f.sensor)).features;
+          detectors[f.sensor]
+              .detect(generator->image(f, i), generator->cameraModel(f.sensor))
+              .features;
       if (feat.found) o.cameras[f.sensor] = feat;
     } else if (!f.is_camera && !o.lidars.count(cameras + f.sensor)) {
       LidarBoardFeatures feat = detectLidarBoard(generator->cloud(f, i), target).features;
@@ -149,8 +156,9 @@ int scenarioPairs(const Args& args) {
   }
   std::printf("%s: camera <- LiDAR pairs of the graph vs PBPC of the pair on detected features\n",
               args.scenario.c_str());
-  std::printf("  %-6s %-26s %6s %9s %9s %7s %11s %11s %11s %11s %9s\n", "seed", "pair", "views", "graph px",
-              "PBPC px", "ratio", "graph deg", "graph mm", "PBPC deg", "PBPC mm", "stereo mm");
+  std::printf("  %-6s %-26s %6s %9s %9s %7s %11s %11s %11s %11s %9s\n", "seed", "pair", "views",
+              "graph px", "PBPC px", "ratio", "graph deg", "graph mm", "PBPC deg", "PBPC mm",
+              "stereo mm");
   const int cameras = static_cast<int>(base->cameras.size());
   for (int k = 0; k < args.scenes; ++k) {
     sim::Scenario scenario = *base;
@@ -183,14 +191,16 @@ int scenarioPairs(const Args& args) {
         const auto mp = meanLineReprojectionErrorPx(views, pbpc.camera_T_lidar);
         if (!pbpc.success || !mg || !mp) {
           std::printf("  %-6u %-26s PBPC failed: %s\n", scenario.seed,
-                      (problem->sensors[c].frame + " <- " + problem->sensors[l].frame).c_str(), pbpc.reason.c_str());
+                      (problem->sensors[c].frame + " <- " + problem->sensors[l].frame).c_str(),
+                      pbpc.reason.c_str());
           continue;
         }
-        std::printf("  %-6u %-26s %6zu %9.2f %9.2f %7.3f %11.3f %11.2f %11.3f %11.2f %9.2f\n", scenario.seed,
-                    (problem->sensors[c].frame + " <- " + problem->sensors[l].frame).c_str(), views.size(), *mg, *mp,
-                    *mg / *mp, rotationErrorDeg(graph, truth), 1000.0 * translationErrorM(graph, truth),
-                    rotationErrorDeg(pbpc.camera_T_lidar, truth), 1000.0 * translationErrorM(pbpc.camera_T_lidar, truth),
-                    stereo);
+        std::printf(
+            "  %-6u %-26s %6zu %9.2f %9.2f %7.3f %11.3f %11.2f %11.3f %11.2f %9.2f\n",
+            scenario.seed, (problem->sensors[c].frame + " <- " + problem->sensors[l].frame).c_str(),
+            views.size(), *mg, *mp, *mg / *mp, rotationErrorDeg(graph, truth),
+            1000.0 * translationErrorM(graph, truth), rotationErrorDeg(pbpc.camera_T_lidar, truth),
+            1000.0 * translationErrorM(pbpc.camera_T_lidar, truth), stereo);
       }
   }
   return 0;
@@ -200,18 +210,21 @@ int scenarioPairs(const Args& args) {
 // (MLRE ratio graph / PBPC, and both errors against the truth), over scenes, noise levels and
 // with a 3x-noise LiDAR; plus the stereo consistency the graph must keep.
 void pairsAgainstPbpc(const Args& args) {
-  std::printf("\ncamera <- LiDAR pairs of the graph vs a PBPC solve of the same pair (%d scenes each):\n",
-              args.scenes);
-  std::printf("  %-34s %9s %9s %9s %11s %11s %11s %11s %9s\n", "rig", "ratio avg", "ratio max", "MLRE px",
-              "graph deg", "graph mm", "PBPC deg", "PBPC mm", "stereo mm");
+  std::printf(
+      "\ncamera <- LiDAR pairs of the graph vs a PBPC solve of the same pair (%d scenes each):\n",
+      args.scenes);
+  std::printf("  %-34s %9s %9s %9s %11s %11s %11s %11s %9s\n", "rig", "ratio avg", "ratio max",
+              "MLRE px", "graph deg", "graph mm", "PBPC deg", "PBPC mm", "stereo mm");
   struct Case {
     const char* name;
     double noise;
     bool noisy_lidar;
   };
-  for (const Case& k : {Case{"rig, nominal noise", 1.0, false}, Case{"rig, 2x noise on every sensor", 2.0, false},
-                        Case{"rig + VLP-16 with 3x noise", 1.0, true}}) {
-    double ratio_sum = 0, ratio_max = 0, mlre_sum = 0, g_rot = 0, g_tr = 0, p_rot = 0, p_tr = 0, stereo = 0;
+  for (const Case& k :
+       {Case{"rig, nominal noise", 1.0, false}, Case{"rig, 2x noise on every sensor", 2.0, false},
+        Case{"rig + VLP-16 with 3x noise", 1.0, true}}) {
+    double ratio_sum = 0, ratio_max = 0, mlre_sum = 0, g_rot = 0, g_tr = 0, p_rot = 0, p_tr = 0,
+           stereo = 0;
     int count = 0, solves = 0;
     for (int i = 0; i < args.scenes; ++i) {
       std::mt19937 rng(args.seed * 1000 + i);
@@ -254,10 +267,12 @@ void pairsAgainstPbpc(const Args& args) {
       std::printf("  %-34s no usable pair (%d graph solves)\n", k.name, solves);
       continue;
     }
-    std::printf("  %-34s %9.3f %9.3f %9.2f %11.3f %11.2f %11.3f %11.2f %9.2f\n", k.name, ratio_sum / count, ratio_max,
-                mlre_sum / count, g_rot, g_tr, p_rot, p_tr, stereo);
+    std::printf("  %-34s %9.3f %9.3f %9.2f %11.3f %11.2f %11.3f %11.2f %9.2f\n", k.name,
+                ratio_sum / count, ratio_max, mlre_sum / count, g_rot, g_tr, p_rot, p_tr, stereo);
   }
-  std::printf("  (deg / mm: worst pair against the truth; stereo: worst camera <-> camera translation error)\n");
+  std::printf(
+      "  (deg / mm: worst pair against the truth; stereo: worst camera <-> camera translation "
+      "error)\n");
 }
 
 // 1. Speed: 4 sensors x N views, single-threaded.
@@ -293,11 +308,14 @@ int speed(const Args& args) {
       std::sort(cpu.begin(), cpu.end());
       double rot = 0, trans = 0;
       worstPair(sol, *scene, 4, &rot, &trans);
-      std::printf("speed: 4 sensors x %d views, 1 thread, covariance %s: whole call median %.0f ms wall, "
-                  "%.0f ms CPU (global solves %.0f ms wall), %d corner + %d plane + %d line terms, worst pair "
-                  "%.3f deg %.2f mm\n",
-                  args.views, covariance ? "on " : "off", total[2], cpu[2], graph[2], sol.residuals.corner_terms,
-                  sol.residuals.plane_terms, sol.residuals.line_terms, rot, trans);
+      std::printf(
+          "speed: 4 sensors x %d views, 1 thread, covariance %s: whole call median %.0f ms wall, "
+          "%.0f ms CPU (global solves %.0f ms wall), %d corner + %d plane + %d line terms, worst "
+          "pair "
+          "%.3f deg %.2f mm\n",
+          args.views, covariance ? "on " : "off", total[2], cpu[2], graph[2],
+          sol.residuals.corner_terms, sol.residuals.plane_terms, sol.residuals.line_terms, rot,
+          trans);
     }
   }
 
@@ -311,7 +329,8 @@ std::vector<Variant> graphVariants() {
   {
     MsgGraphOptions o;
     o.balance_plane_pairs = !o.balance_plane_pairs;
-    variants.push_back({o.balance_plane_pairs ? "with plane-pair balancing" : "without plane-pair balancing", o});
+    variants.push_back(
+        {o.balance_plane_pairs ? "with plane-pair balancing" : "without plane-pair balancing", o});
   }
   {
     MsgGraphOptions o;
@@ -343,10 +362,12 @@ std::vector<Variant> graphVariants() {
 int accuracyOfVariants(const Args& args) {
   std::vector<Variant> variants = graphVariants();
   for (bool noisy : {false, true}) {
-    std::printf("\naccuracy over %d scenes of 40 poses, %s (worst pair among the 4 rig sensors, vs truth):\n",
-                args.scenes, noisy ? "rig + VLP-16 with 3x noise" : "rig (stereo + VLP-32C + OS1-64)");
-    std::printf("  %-50s %10s %10s %10s %10s %8s %8s\n", "variant", "rot mean", "rot max", "trans mean", "trans max",
-                "MLRE px", "ms");
+    std::printf(
+        "\naccuracy over %d scenes of 40 poses, %s (worst pair among the 4 rig sensors, vs "
+        "truth):\n",
+        args.scenes, noisy ? "rig + VLP-16 with 3x noise" : "rig (stereo + VLP-32C + OS1-64)");
+    std::printf("  %-50s %10s %10s %10s %10s %8s %8s\n", "variant", "rot mean", "rot max",
+                "trans mean", "trans max", "MLRE px", "ms");
     std::vector<sim::RigScene> scenes;
     for (int i = 0; i < args.scenes; ++i) {
       std::mt19937 rng(args.seed * 1000 + i);
@@ -390,8 +411,8 @@ int accuracyOfVariants(const Args& args) {
         std::printf("  %-50s all failed\n", v.name);
         continue;
       }
-      std::printf("  %-50s %10.3f %10.3f %10.2f %10.2f %8.2f %8.0f%s\n", v.name, rot_sum / ok, rot_max, tr_sum / ok,
-                  tr_max, mlre_count ? mlre_sum / mlre_count : 0.0, ms / ok,
+      std::printf("  %-50s %10.3f %10.3f %10.2f %10.2f %8.2f %8.0f%s\n", v.name, rot_sum / ok,
+                  rot_max, tr_sum / ok, tr_max, mlre_count ? mlre_sum / mlre_count : 0.0, ms / ok,
                   failures ? (" (" + std::to_string(failures) + " failed)").c_str() : "");
     }
   }
@@ -411,18 +432,23 @@ void randomStarts(const Args& args) {
     double ms = 0;
     for (int t = 0; t < args.trials; ++t) {
       std::vector<Eigen::Isometry3d> start(4, Eigen::Isometry3d::Identity());
-      for (int s = 1; s < 4; ++s) start[s] = perturb(scene->sensors[s].reference_T_sensor, 90.0 * kRadPerDeg, 0.5, rng);
+      for (int s = 1; s < 4; ++s)
+        start[s] = perturb(scene->sensors[s].reference_T_sensor, 90.0 * kRadPerDeg, 0.5, rng);
       const MsgSolution sol = solveMsgGraph(scene->problem, o, start);
       ms += sol.solve_time_ms;
       bool same = sol.success;
       for (int s = 1; s < 4 && same; ++s)
-        same = rotationErrorDeg(sol.sensors[s].reference_T_sensor, ref.sensors[s].reference_T_sensor) < 0.01 &&
-               translationErrorM(sol.sensors[s].reference_T_sensor, ref.sensors[s].reference_T_sensor) < 0.001;
+        same = rotationErrorDeg(sol.sensors[s].reference_T_sensor,
+                                ref.sensors[s].reference_T_sensor) < 0.01 &&
+               translationErrorM(sol.sensors[s].reference_T_sensor,
+                                 ref.sensors[s].reference_T_sensor) < 0.001;
       converged += same ? 1 : 0;
     }
-    std::printf("\nrandom starts (sigma 90 deg, 50 cm): %d / %d converged to the pairwise-initialised solution "
-                "(%.0f ms mean)\n",
-                converged, args.trials, ms / args.trials);
+    std::printf(
+        "\nrandom starts (sigma 90 deg, 50 cm): %d / %d converged to the pairwise-initialised "
+        "solution "
+        "(%.0f ms mean)\n",
+        converged, args.trials, ms / args.trials);
   }
 }
 

@@ -76,7 +76,8 @@ double timeMs(F&& f) {
 Cloud::Ptr toPcl(const LidarCloud& c) {
   Cloud::Ptr out(new Cloud);
   for (const auto& p : c.points)
-    if (std::isfinite(p.x) && (p.x != 0 || p.y != 0 || p.z != 0)) out->push_back(pcl::PointXYZ(p.x, p.y, p.z));
+    if (std::isfinite(p.x) && (p.x != 0 || p.y != 0 || p.z != 0))
+      out->push_back(pcl::PointXYZ(p.x, p.y, p.z));
   return out;
 }
 
@@ -107,7 +108,8 @@ double planeOffsetMm(const Plane& fit, const Sample& s) {
 
 // A fitted 3D line against the nearest true edge: angle (deg) and the distance of that edge's
 // midpoint from the line (mm).
-std::pair<double, double> lineError(const Eigen::Vector3d& point, const Eigen::Vector3d& dir, const Sample& s) {
+std::pair<double, double> lineError(const Eigen::Vector3d& point, const Eigen::Vector3d& dir,
+                                    const Sample& s) {
   double best_deg = 1e9, best_mm = 1e9;
   for (int e = 0; e < 4; ++e) {
     const Eigen::Vector3d a = s.corners[e], b = s.corners[(e + 1) % 4];
@@ -122,7 +124,8 @@ std::pair<double, double> lineError(const Eigen::Vector3d& point, const Eigen::V
 }
 
 // PCL RANSAC model on points, coefficients refined on the inliers.
-bool pclSegment(const Cloud::Ptr& cloud, int model, double threshold, pcl::ModelCoefficients* coeff) {
+bool pclSegment(const Cloud::Ptr& cloud, int model, double threshold,
+                pcl::ModelCoefficients* coeff) {
   pcl::SACSegmentation<pcl::PointXYZ> seg;
   seg.setOptimizeCoefficients(true);
   seg.setModelType(model);
@@ -152,10 +155,12 @@ void compareHull(const LidarBoardFeatures& f, Figures* fig) {
   for (const auto& q : hull.points) pcl_hull.emplace_back(q.x, q.y);
   const double pcl_area = std::abs(lidar_detail::polygonArea(pcl_hull));
   const double ours_area = std::abs(lidar_detail::polygonArea(ours));
-  fig->add("hull_area_diff_pct", 100.0 * std::abs(ours_area - pcl_area) / std::max(ours_area, 1e-9));
+  fig->add("hull_area_diff_pct",
+           100.0 * std::abs(ours_area - pcl_area) / std::max(ours_area, 1e-9));
 }
 
-void comparePlane(const Sample& s, const Cloud::Ptr& all, const LidarBoardFeatures& f, Figures* fig) {
+void comparePlane(const Sample& s, const Cloud::Ptr& all, const LidarBoardFeatures& f,
+                  Figures* fig) {
   // The board with its surroundings: every point within one board diagonal of its centroid.
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   for (const auto& p : f.board_points) centroid += p;
@@ -167,7 +172,8 @@ void comparePlane(const Sample& s, const Cloud::Ptr& all, const LidarBoardFeatur
     if ((Eigen::Vector3d(p.x, p.y, p.z) - centroid).norm() < 2 * radius) crop->push_back(p);
   pcl::ModelCoefficients coeff;
   bool ok = false;
-  fig->add("plane_pcl_ms", timeMs([&] { ok = pclSegment(crop, pcl::SACMODEL_PLANE, kPlaneInlierM, &coeff); }));
+  fig->add("plane_pcl_ms",
+           timeMs([&] { ok = pclSegment(crop, pcl::SACMODEL_PLANE, kPlaneInlierM, &coeff); }));
   if (!ok || coeff.values.size() < 4) return;
   Plane pcl_plane;
   pcl_plane.normal = Eigen::Vector3d(coeff.values[0], coeff.values[1], coeff.values[2]);
@@ -190,19 +196,23 @@ void compareLines(const Sample& s, const LidarBoardFeatures& f, Figures* fig) {
     std::mt19937 rng(42);
     const Points2 pts = inPlane(f.edge_points[e], f.plane);
     lidar_detail::LineFit2D ours;
-    fig->add("line_ours_ms", timeMs([&] { ours = lidar_detail::fitLineRobust(pts, kLineInlierM, kIterations, rng); }));
+    fig->add("line_ours_ms", timeMs([&] {
+               ours = lidar_detail::fitLineRobust(pts, kLineInlierM, kIterations, rng);
+             }));
     pcl::ModelCoefficients coeff;
     bool ok = false;
     const Cloud::Ptr cloud = toPcl(f.edge_points[e]);
-    fig->add("line_pcl_ms", timeMs([&] { ok = pclSegment(cloud, pcl::SACMODEL_LINE, kLineInlierM, &coeff); }));
+    fig->add("line_pcl_ms",
+             timeMs([&] { ok = pclSegment(cloud, pcl::SACMODEL_LINE, kLineInlierM, &coeff); }));
     if (!s.has_truth || !ours.ok || !ok || coeff.values.size() < 6) continue;
     // Our 2D line back in 3D (on the plane).
     const Eigen::Vector3d origin = f.plane.offset * f.plane.normal;
     const Eigen::Vector3d p3 = origin + ours.point.x() * u + ours.point.y() * v;
     const Eigen::Vector3d d3 = ours.direction.x() * u + ours.direction.y() * v;
     const auto [ours_deg, ours_mm] = lineError(p3, d3, s);
-    const auto [pcl_deg, pcl_mm] = lineError(Eigen::Vector3d(coeff.values[0], coeff.values[1], coeff.values[2]),
-                                             Eigen::Vector3d(coeff.values[3], coeff.values[4], coeff.values[5]), s);
+    const auto [pcl_deg, pcl_mm] =
+        lineError(Eigen::Vector3d(coeff.values[0], coeff.values[1], coeff.values[2]),
+                  Eigen::Vector3d(coeff.values[3], coeff.values[4], coeff.values[5]), s);
     const auto [det_deg, det_mm] = lineError(f.edge_line_point[e], f.edge_line_direction[e], s);
     fig->add("line_ours_deg", ours_deg);
     fig->add("line_pcl_deg", pcl_deg);
@@ -238,8 +248,10 @@ void compareClusters(const Cloud::Ptr& all, const LidarBoardFeatures* f, Figures
     if (d < best) best = d, nearest = i;
   }
   for (const auto& cl : clusters)
-    if (std::find(cl.indices.begin(), cl.indices.end(), static_cast<int>(nearest)) != cl.indices.end())
-      fig->add("cluster_board_alone", cl.indices.size() <= 1.2 * f->board_points.size() ? 1.0 : 0.0);
+    if (std::find(cl.indices.begin(), cl.indices.end(), static_cast<int>(nearest)) !=
+        cl.indices.end())
+      fig->add("cluster_board_alone",
+               cl.indices.size() <= 1.2 * f->board_points.size() ? 1.0 : 0.0);
 }
 
 void compare(const Sample& s, const Target& target, Figures* fig) {
@@ -271,7 +283,8 @@ void print(const std::string& name, Figures& fig) {
               fig.median("points"), found);
   std::printf("%-28s %12s %12s\n", "median", "ours", "PCL");
   auto row = [&](const char* what, const char* ours, const char* pcl) {
-    std::printf("%-28s %12.3f %12.3f\n", what, ours ? fig.median(ours) : NAN, pcl ? fig.median(pcl) : NAN);
+    std::printf("%-28s %12.3f %12.3f\n", what, ours ? fig.median(ours) : NAN,
+                pcl ? fig.median(pcl) : NAN);
   };
   row("voxel grid / detection ms", "detect_ours_ms", "voxel_pcl_ms");
   row("convex hull ms", "hull_ours_ms", "hull_pcl_ms");
@@ -306,7 +319,8 @@ int runScenario(const std::string& path, int frames) {
     if (fr.is_camera || !fr.still) continue;
     Sample s;
     s.cloud = gen->cloud(fr, i);
-    const Eigen::Isometry3d lidar_T_board = sim::worldTLidar(*scenario, fr.sensor).inverse() * fr.world_T_board;
+    const Eigen::Isometry3d lidar_T_board =
+        sim::worldTLidar(*scenario, fr.sensor).inverse() * fr.world_T_board;
     s.has_truth = true;
     s.plane.normal = lidar_T_board.linear().col(2);
     s.plane.offset = s.plane.normal.dot(lidar_T_board.translation());
@@ -344,7 +358,8 @@ int runRecording(const std::string& dir, const std::string& topic, int frames) {
 
 int main(int argc, char** argv) {
   std::vector<std::string> scenarios;
-  std::string data = "../shared/data";  // the recordings beside the repository, from the package root
+  std::string data =
+      "../shared/data";  // the recordings beside the repository, from the package root
   int frames = 20;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -360,7 +375,8 @@ int main(int argc, char** argv) {
     }
   }
   if (scenarios.empty())
-    scenarios = {"config/scenarios/plain_vlp32c_1920.yaml", "config/scenarios/checker_vlp16_1280.yaml"};
+    scenarios = {"config/scenarios/plain_vlp32c_1920.yaml",
+                 "config/scenarios/checker_vlp16_1280.yaml"};
   int rc = 0;
   for (const auto& s : scenarios) rc |= runScenario(s, frames);
   rc |= runRecording(data + "/basler_os1_plain", "/os1/points", frames);

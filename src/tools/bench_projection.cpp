@@ -47,7 +47,8 @@ Expected<Eigen::Isometry3d> readExtrinsic(const std::string& path) {
   std::vector<double> values;
   double v;
   while (in >> v) values.push_back(v);
-  if (values.size() != 12) return Expected<Eigen::Isometry3d>::failure("cannot read 12 numbers from " + path);
+  if (values.size() != 12)
+    return Expected<Eigen::Isometry3d>::failure("cannot read 12 numbers from " + path);
   return fromRowMajor(values);
 }
 
@@ -64,7 +65,8 @@ Expected<Frame> realFrame(const std::string& bag, const std::string& extrinsic_p
     if (!have_image) frame.image = f.image.clone();
     have_image = true;
   };
-  callbacks.on_camera_info = [&](const std::string&, const std::string&, const CameraIntrinsics& in) {
+  callbacks.on_camera_info = [&](const std::string&, const std::string&,
+                                 const CameraIntrinsics& in) {
     if (have_info) return;
     auto camera = CameraModel::create(in);
     if (camera.ok()) {
@@ -78,7 +80,8 @@ Expected<Frame> realFrame(const std::string& bag, const std::string& extrinsic_p
   };
   const Status read = readBags({bag}, topics, callbacks);
   if (!read) return Expected<Frame>::failure(read.reason);
-  if (!have_image || !have_info || !have_cloud) return Expected<Frame>::failure("bag lacks image, camera_info or cloud");
+  if (!have_image || !have_info || !have_cloud)
+    return Expected<Frame>::failure("bag lacks image, camera_info or cloud");
   const auto T = readExtrinsic(extrinsic_path);
   if (!T) return Expected<Frame>::failure(T.error());
   frame.camera_T_lidar = *T;
@@ -129,7 +132,8 @@ void bench(const Frame& frame, int iterations, const std::string& save_dir) {
   cv::Mat out;
   for (int it = 0; it < iterations; ++it) {
     const auto t0 = Clock::now();
-    const auto projected = projectCloud(frame.cloud, frame.camera, frame.camera_T_lidar, projection);
+    const auto projected =
+        projectCloud(frame.cloud, frame.camera, frame.camera_T_lidar, projection);
     const double a = msSince(t0);
     if (!projected) {
       std::fprintf(stderr, "projection failed: %s\n", projected.error().c_str());
@@ -150,12 +154,15 @@ void bench(const Frame& frame, int iterations, const std::string& save_dir) {
     occluded = projected->occluded;
   }
   const double n = iterations;
-  std::printf("%s: %zu points, image %dx%d, %zu drawn (%zu occluded), %d iterations\n", frame.name.c_str(),
-              frame.cloud.points.size(), frame.image.cols, frame.image.rows, visible, occluded, iterations);
-  std::printf("  project %.2f ms | copy+draw %.2f ms | colour cloud %.2f ms | total %.2f ms = %.1f Hz\n",
-              t_project / n, t_draw / n, t_color / n, t_total / n, 1000.0 * n / t_total);
+  std::printf("%s: %zu points, image %dx%d, %zu drawn (%zu occluded), %d iterations\n",
+              frame.name.c_str(), frame.cloud.points.size(), frame.image.cols, frame.image.rows,
+              visible, occluded, iterations);
+  std::printf(
+      "  project %.2f ms | copy+draw %.2f ms | colour cloud %.2f ms | total %.2f ms = %.1f Hz\n",
+      t_project / n, t_draw / n, t_color / n, t_total / n, 1000.0 * n / t_total);
   if (!save_dir.empty()) {
-    std::string file = save_dir + "/bench_projection_" + (frame.name[0] == 's' ? "synthetic" : "real") + ".png";
+    std::string file =
+        save_dir + "/bench_projection_" + (frame.name[0] == 's' ? "synthetic" : "real") + ".png";
     cv::imwrite(file, out);
     std::printf("  saved %s\n", file.c_str());
   }
@@ -165,23 +172,32 @@ void bench(const Frame& frame, int iterations, const std::string& save_dir) {
 
 int main(int argc, char** argv) {
   std::string bag = std::string(kDefaultSharedDir) + "/data/basler_os1_plain/session.bag";
-  std::string extrinsic = std::string(kDefaultSharedDir) + "/tools/mlre/authors_extrinsic_basler_os1.txt";
+  std::string extrinsic =
+      std::string(kDefaultSharedDir) + "/tools/mlre/authors_extrinsic_basler_os1.txt";
   int iterations = 50;
   std::string save_dir;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
-    if (arg == "--bag" && i + 1 < argc) bag = argv[++i];
-    else if (arg == "--extrinsic" && i + 1 < argc) extrinsic = argv[++i];
-    else if (arg == "--iterations" && i + 1 < argc) iterations = std::max(1, std::atoi(argv[++i]));
-    else if (arg == "--save" && i + 1 < argc) save_dir = argv[++i];
+    if (arg == "--bag" && i + 1 < argc)
+      bag = argv[++i];
+    else if (arg == "--extrinsic" && i + 1 < argc)
+      extrinsic = argv[++i];
+    else if (arg == "--iterations" && i + 1 < argc)
+      iterations = std::max(1, std::atoi(argv[++i]));
+    else if (arg == "--save" && i + 1 < argc)
+      save_dir = argv[++i];
     else {
-      std::printf("usage: bench_projection [--bag FILE] [--extrinsic FILE] [--iterations N] [--save DIR]\n");
+      std::printf(
+          "usage: bench_projection [--bag FILE] [--extrinsic FILE] [--iterations N] [--save "
+          "DIR]\n");
       return arg == "--help" || arg == "-h" ? 0 : 2;
     }
   }
   const auto real = realFrame(bag, extrinsic);
-  if (real) bench(*real, iterations, save_dir);
-  else std::printf("real frame skipped: %s\n", real.error().c_str());
+  if (real)
+    bench(*real, iterations, save_dir);
+  else
+    std::printf("real frame skipped: %s\n", real.error().c_str());
   bench(syntheticFrame(), iterations, save_dir);
   return 0;
 }

@@ -18,7 +18,9 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+double secondsSince(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
 
 double cpuSeconds() { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
 
@@ -28,7 +30,8 @@ std::vector<std::string> defaultScenarios() {
   if (DIR* d = opendir(dir.c_str())) {
     while (dirent* e = readdir(d)) {
       const std::string name = e->d_name;
-      if (name.size() > 5 && name.substr(name.size() - 5) == ".yaml") out.push_back(dir + "/" + name);
+      if (name.size() > 5 && name.substr(name.size() - 5) == ".yaml")
+        out.push_back(dir + "/" + name);
     }
     closedir(d);
   }
@@ -46,7 +49,8 @@ int main(int argc, char** argv) {
     if (arg == "--poses" && i + 1 < argc) {
       poses_override = std::atoi(argv[++i]);
     } else if (arg == "-h" || arg == "--help") {
-      std::cout << "usage: bench_sim [--poses N] [SCENARIO.yaml...]  (default: config/scenarios/*.yaml)\n";
+      std::cout << "usage: bench_sim [--poses N] [SCENARIO.yaml...]  (default: "
+                   "config/scenarios/*.yaml)\n";
       return 0;
     } else {
       files.push_back(arg);
@@ -57,8 +61,8 @@ int main(int argc, char** argv) {
     std::cerr << "bench_sim: no scenarios given and none found in ./config/scenarios" << std::endl;
     return 1;
   }
-  std::printf("%-22s %5s %6s %6s %9s %10s %10s %10s %9s %9s\n", "scenario", "poses", "images", "clouds",
-              "timeline", "ray map", "img ms", "cloud ms", "total s", "cpu s");
+  std::printf("%-22s %5s %6s %6s %9s %10s %10s %10s %9s %9s\n", "scenario", "poses", "images",
+              "clouds", "timeline", "ray map", "img ms", "cloud ms", "total s", "cpu s");
   for (const auto& file : files) {
     auto scenario = board_calib::sim::loadScenario(file);
     if (!scenario) {
@@ -107,11 +111,13 @@ int main(int argc, char** argv) {
     }
     std::string name = scenario->name.empty() ? file : scenario->name;
     std::printf("%-22s %5d %6zu %6zu %7.0fms %8.0fms %10.1f %10.1f %9.1f %9.1f\n", name.c_str(),
-                scenario->motion.poses, images + scenario->cameras.size(), clouds, 1000 * timeline_s,
-                1000 * ray_map_s, images ? 1000 * image_s / images : 0.0, clouds ? 1000 * cloud_s / clouds : 0.0,
-                secondsSince(t_start), cpuSeconds() - cpu_start);
+                scenario->motion.poses, images + scenario->cameras.size(), clouds,
+                1000 * timeline_s, 1000 * ray_map_s, images ? 1000 * image_s / images : 0.0,
+                clouds ? 1000 * cloud_s / clouds : 0.0, secondsSince(t_start),
+                cpuSeconds() - cpu_start);
   }
-  std::printf("img ms: mean per image after the first of each camera (still frames reuse the noise-free\n"
-              "render and only add noise); ray map: the first image of each camera incl. its ray map.\n");
+  std::printf(
+      "img ms: mean per image after the first of each camera (still frames reuse the noise-free\n"
+      "render and only add noise); ray map: the first image of each camera incl. its ray map.\n");
   return 0;
 }

@@ -4,15 +4,15 @@
 //
 //   bench_solvers [--seeds N] [--trials N]
 #include <board_calib/core/solvers/solvers.h>
-#include "support/synthetic_views.h"
 #include <board_calib/core/transform.h>
+#include "support/synthetic_views.h"
 
 #include <algorithm>
 #include <chrono>
-#include <ctime>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 #include <string>
 #include <vector>
 
@@ -59,7 +59,8 @@ struct Accuracy {
   int failures = 0;
 };
 
-Accuracy accuracy(Method method, const SolverOptions& options, int seeds, const sim::SyntheticFeatureOptions& o) {
+Accuracy accuracy(Method method, const SolverOptions& options, int seeds,
+                  const sim::SyntheticFeatureOptions& o) {
   Accuracy a;
   std::vector<double> times;
   for (int seed = 1; seed <= seeds; ++seed) {
@@ -84,22 +85,26 @@ Accuracy accuracy(Method method, const SolverOptions& options, int seeds, const 
 }
 
 void printAccuracy(const char* label, const Accuracy& a) {
-  std::printf("  %-44s rot mean %.3f max %.3f deg | trans mean %5.1f max %5.1f mm | MLRE %.2f px | %6.1f ms%s\n",
-              label, a.rot_mean, a.rot_max, a.trans_mean * 1000, a.trans_max * 1000, a.mlre, a.time_ms,
-              a.failures ? " | FAILURES" : "");
+  std::printf(
+      "  %-44s rot mean %.3f max %.3f deg | trans mean %5.1f max %5.1f mm | MLRE %.2f px | %6.1f "
+      "ms%s\n",
+      label, a.rot_mean, a.rot_max, a.trans_mean * 1000, a.trans_max * 1000, a.mlre, a.time_ms,
+      a.failures ? " | FAILURES" : "");
 }
 
 // Median wall time and median CPU time (the process's, so other load on the machine does not
 // count) of `runs` solves, ms.
-std::pair<double, double> medianSolveMs(const std::vector<View>& views, Method method, const SolverOptions& options,
-                                        int runs) {
+std::pair<double, double> medianSolveMs(const std::vector<View>& views, Method method,
+                                        const SolverOptions& options, int runs) {
   std::vector<double> wall, cpu;
   for (int i = 0; i < runs; ++i) {
     const auto start = std::chrono::steady_clock::now();
     const std::clock_t cpu_start = std::clock();
     const CalibrationSolution sol = calibrate(views, method, options);
     cpu.push_back(1000.0 * (std::clock() - cpu_start) / CLOCKS_PER_SEC);
-    wall.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+    wall.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+            .count());
     if (!sol.success) std::printf("  solve failed: %s\n", sol.reason.c_str());
   }
   std::sort(wall.begin(), wall.end());
@@ -112,21 +117,26 @@ std::pair<double, double> medianSolveMs(const std::vector<View>& views, Method m
 int main(int argc, char** argv) {
   int seeds = 10, trials = 100;
   for (int i = 1; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--seeds")) seeds = std::atoi(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--trials")) trials = std::atoi(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--seeds"))
+      seeds = std::atoi(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--trials"))
+      trials = std::atoi(argv[i + 1]);
   }
   const sim::SyntheticFeatureOptions o = thirtyViewsOf84Rings();
   const Scenario s = makeScenario(1, o);
-  std::printf("Scenario: %zu views, %.0f board points and %.0f edge points per view, range noise %.0f mm, "
-              "horizontal step %.2f deg, line noise %.1f px\n",
-              s.scene.views.size(), s.board_points, s.edge_points, o.lidar_range_noise_m * 1000,
-              o.lidar_horizontal_resolution_deg, o.line_noise_px);
+  std::printf(
+      "Scenario: %zu views, %.0f board points and %.0f edge points per view, range noise %.0f mm, "
+      "horizontal step %.2f deg, line noise %.1f px\n",
+      s.scene.views.size(), s.board_points, s.edge_points, o.lidar_range_noise_m * 1000,
+      o.lidar_horizontal_resolution_deg, o.line_noise_px);
 
   SolverOptions defaults;
   SolverOptions joint = defaults, sequential = defaults;
   joint.pbpc_schedule = PbpcSchedule::kJoint;
   sequential.pbpc_schedule = PbpcSchedule::kSequential;
-  std::printf("\nSolve time from the closed-form start (median of 20, one thread, including covariance):\n");
+  std::printf(
+      "\nSolve time from the closed-form start (median of 20, one thread, including "
+      "covariance):\n");
   const std::vector<std::pair<const char*, std::pair<Method, SolverOptions>>> timed = {
       {"ppc", {Method::kPpc, defaults}},
       {"pbpc joint", {Method::kPbpc, joint}},
@@ -137,24 +147,33 @@ int main(int argc, char** argv) {
     std::printf("  %-26s wall %6.1f ms, cpu %6.1f ms\n", label, wall, cpu);
   }
 
-  std::printf("\nAccuracy against ground truth over %d seeds (closed-form initialisation, default options):\n", seeds);
+  std::printf(
+      "\nAccuracy against ground truth over %d seeds (closed-form initialisation, default "
+      "options):\n",
+      seeds);
   printAccuracy("ppc", accuracy(Method::kPpc, defaults, seeds, o));
   printAccuracy("pbpc joint", accuracy(Method::kPbpc, joint, seeds, o));
   printAccuracy("pbpc sequential (default)", accuracy(Method::kPbpc, sequential, seeds, o));
   printAccuracy("msg pairwise", accuracy(Method::kMsgPair, defaults, seeds, o));
 
-  std::printf("\nPPC view weighting, camera planes from PnP (default) and with the earlier distance-free noise "
-              "(0.2 deg, 3 mm):\n");
+  std::printf(
+      "\nPPC view weighting, camera planes from PnP (default) and with the earlier distance-free "
+      "noise "
+      "(0.2 deg, 3 mm):\n");
   SolverOptions paper_ppc = defaults;
   paper_ppc.ppc_plane_error_model = false;
   sim::SyntheticFeatureOptions flat = o;
   flat.camera_plane_from_pnp = false;
-  printAccuracy("ppc error model (default), pnp planes", accuracy(Method::kPpc, defaults, seeds, o));
+  printAccuracy("ppc error model (default), pnp planes",
+                accuracy(Method::kPpc, defaults, seeds, o));
   printAccuracy("ppc 1/p_i (paper), pnp planes", accuracy(Method::kPpc, paper_ppc, seeds, o));
-  printAccuracy("ppc error model, distance-free noise", accuracy(Method::kPpc, defaults, seeds, flat));
-  printAccuracy("ppc 1/p_i (paper), distance-free noise", accuracy(Method::kPpc, paper_ppc, seeds, flat));
+  printAccuracy("ppc error model, distance-free noise",
+                accuracy(Method::kPpc, defaults, seeds, flat));
+  printAccuracy("ppc 1/p_i (paper), distance-free noise",
+                accuracy(Method::kPpc, paper_ppc, seeds, flat));
   printAccuracy("pbpc, distance-free noise", accuracy(Method::kPbpc, defaults, seeds, flat));
-  printAccuracy("msg pairwise, distance-free noise", accuracy(Method::kMsgPair, defaults, seeds, flat));
+  printAccuracy("msg pairwise, distance-free noise",
+                accuracy(Method::kMsgPair, defaults, seeds, flat));
 
   std::printf("\nEdge outward shift (per-scan-line extremes lie inside the edge):\n");
   for (double shift : {0.0, 0.5, 1.0}) {
@@ -172,12 +191,15 @@ int main(int argc, char** argv) {
   no_scale.estimate_plane_scale = false;
   printAccuracy("ppc", accuracy(Method::kPpc, defaults, seeds, small));
   printAccuracy("pbpc with plane offset factor", accuracy(Method::kPbpc, defaults, seeds, small));
-  printAccuracy("pbpc without plane offset factor", accuracy(Method::kPbpc, no_scale, seeds, small));
+  printAccuracy("pbpc without plane offset factor",
+                accuracy(Method::kPbpc, no_scale, seeds, small));
   printAccuracy("msg pairwise", accuracy(Method::kMsgPair, defaults, seeds, small));
 
-  std::printf("\nRobustness: %d random starts, rotation N(0, 90 deg), translation N(0, 50 cm) about identity; "
-              "converged = within 0.5 deg / 2 cm of the method's solve from the closed-form start:\n",
-              trials);
+  std::printf(
+      "\nRobustness: %d random starts, rotation N(0, 90 deg), translation N(0, 50 cm) about "
+      "identity; "
+      "converged = within 0.5 deg / 2 cm of the method's solve from the closed-form start:\n",
+      trials);
   RobustnessOptions robustness;
   robustness.trials = trials;
   struct Case {
@@ -199,20 +221,24 @@ int main(int argc, char** argv) {
       std::printf("  %-24s failed: %s\n", c.label, r.reason.c_str());
       continue;
     }
-    std::printf("  %-24s converged %3d/%d (%.0f %%), spread rot %.4f deg trans %.2f mm (max), %.1f ms per solve\n",
-                c.label, r.converged, r.trials, 100 * r.convergence_rate, r.rotation_spread_max_deg,
-                r.translation_spread_max_m * 1000, r.mean_solve_time_ms);
+    std::printf(
+        "  %-24s converged %3d/%d (%.0f %%), spread rot %.4f deg trans %.2f mm (max), %.1f ms per "
+        "solve\n",
+        c.label, r.converged, r.trials, 100 * r.convergence_rate, r.rotation_spread_max_deg,
+        r.translation_spread_max_m * 1000, r.mean_solve_time_ms);
   }
 
   const CalibrationSolution ppc = calibrate(s.scene.views, Method::kPpc, defaults);
   for (const auto& n : ppc.notes) std::printf("\nPPC default on seed 1, note: %s\n", n.c_str());
   const CalibrationSolution sol = calibrate(s.scene.views, Method::kPbpc, defaults);
-  std::printf("\nPBPC default on seed 1: MLRE %.2f px, plane RMS %.1f mm, line RMS %.1f mm, 1 sigma rot (%.3f %.3f %.3f) "
-              "deg trans (%.1f %.1f %.1f) mm, weakest: %s\n",
-              sol.mlre_px.value_or(-1), sol.plane_rms_mm, sol.line_rms_mm, sol.stddev.rotation_deg.x(),
-              sol.stddev.rotation_deg.y(), sol.stddev.rotation_deg.z(), sol.stddev.translation_m.x() * 1000,
-              sol.stddev.translation_m.y() * 1000, sol.stddev.translation_m.z() * 1000,
-              sol.observability.weakest_description.c_str());
+  std::printf(
+      "\nPBPC default on seed 1: MLRE %.2f px, plane RMS %.1f mm, line RMS %.1f mm, 1 sigma rot "
+      "(%.3f %.3f %.3f) "
+      "deg trans (%.1f %.1f %.1f) mm, weakest: %s\n",
+      sol.mlre_px.value_or(-1), sol.plane_rms_mm, sol.line_rms_mm, sol.stddev.rotation_deg.x(),
+      sol.stddev.rotation_deg.y(), sol.stddev.rotation_deg.z(), sol.stddev.translation_m.x() * 1000,
+      sol.stddev.translation_m.y() * 1000, sol.stddev.translation_m.z() * 1000,
+      sol.observability.weakest_description.c_str());
   for (const auto& n : sol.notes) std::printf("  note: %s\n", n.c_str());
   return 0;
 }

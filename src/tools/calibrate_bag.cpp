@@ -7,9 +7,9 @@
 
 #include <board_calib/bag_reader.h>
 #include <board_calib/core/file_io.h>
-#include <board_calib/core/pipeline/pipeline.h>
 #include <board_calib/core/pipeline/pair_calibration.h>
 #include <board_calib/core/pipeline/pair_report.h>
+#include <board_calib/core/pipeline/pipeline.h>
 #include <board_calib/core/projection/projection.h>
 #include <board_calib/core/report/report.h>
 #include <board_calib/core/report/report_plots.h>
@@ -38,26 +38,38 @@ const char* kUsage =
     "usage: calibrate_bag --bag FILE [--bag FILE...] --target TARGET.yaml\n"
     "         --image-topic T --camera-info-topic T --cloud-topic T --method ppc|pbpc|msg|all\n"
     "         [--initial-guess x y z qx qy qz qw] [--output result.yaml] [--report DIR]\n"
-    "         [--still-frames N] [--sync-tolerance S] [--loss none|huber|cauchy|tukey] [--loss-scale M]\n"
+    "         [--still-frames N] [--sync-tolerance S] [--loss none|huber|cauchy|tukey] "
+    "[--loss-scale M]\n"
     "         [--child-frame F] [--save-session FILE] [--load-session FILE] [--truth TRUTH.yaml]\n"
     "         [--check-truth ROT_DEG TRANS_M] [--edge-shift STEPS] [--quiet]\n"
-    "       calibrate_bag --config RIG.yaml --bag FILE [--bag FILE...] --method msg [--output result.yaml]\n"
-    "         [--report DIR] [--truth TRUTH.yaml [--check-truth ROT_DEG TRANS_M]] [--capture still|all]\n"
+    "       calibrate_bag --config RIG.yaml --bag FILE [--bag FILE...] --method msg [--output "
+    "result.yaml]\n"
+    "         [--report DIR] [--truth TRUTH.yaml [--check-truth ROT_DEG TRANS_M]] [--capture "
+    "still|all]\n"
     "         [--quiet]   (docs/MSG.md)\n"
     "\n"
-    "  --initial-guess     camera_T_lidar (p_camera = R p_lidar + t); default: closed-form initialisation\n"
-    "  --still-frames N    frames of the fastest stream that must see the board still around an image,\n"
-    "                      on both sides of it (default 2; 1: no check). Snapshot bags (every stream\n"
+    "  --initial-guess     camera_T_lidar (p_camera = R p_lidar + t); default: closed-form "
+    "initialisation\n"
+    "  --still-frames N    frames of the fastest stream that must see the board still around an "
+    "image,\n"
+    "                      on both sides of it (default 2; 1: no check). Snapshot bags (every "
+    "stream\n"
     "                      0.5 s or more between frames) are recognised and need no setting\n"
     "  --sync-tolerance S  max image/cloud stamp difference of one view, s (default 0.05)\n"
-    "  --load-session F    solve a saved session (no bag needed); --save-session F keeps the views\n"
-    "  --truth FILE        a ground-truth result file (simulate_bag's *.truth.yaml): print the errors\n"
-    "  --check-truth R T   with --truth: exit non-zero if the reported result is off by more than R deg or T m\n"
-    "  --edge-shift STEPS  shift LiDAR edge points outward by STEPS horizontal steps (default 0: beam\n"
+    "  --load-session F    solve a saved session (no bag needed); --save-session F keeps the "
+    "views\n"
+    "  --truth FILE        a ground-truth result file (simulate_bag's *.truth.yaml): print the "
+    "errors\n"
+    "  --check-truth R T   with --truth: exit non-zero if the reported result is off by more than "
+    "R deg or T m\n"
+    "  --edge-shift STEPS  shift LiDAR edge points outward by STEPS horizontal steps (default 0: "
+    "beam\n"
     "                      divergence cancels the extremes' inset)\n"
     "  --loss, --loss-scale  robust loss on point residuals (default tukey, 0.02 m)\n"
-    "  --capture MODE      rig: 'still' (default) captures one pose per hold, as the calibrator's rig mode\n"
-    "                      does live; 'all' makes a board pose of every stamp group (offline only)\n";
+    "  --capture MODE      rig: 'still' (default) captures one pose per hold, as the calibrator's "
+    "rig mode\n"
+    "                      does live; 'all' makes a board pose of every stamp group (offline "
+    "only)\n";
 
 struct Args {
   std::vector<std::string> bags;
@@ -71,7 +83,7 @@ struct Args {
   bool quiet = false;
   std::string config;  // multi-sensor rig (MSG-Cal): everything else comes from the rig file
   double check_rot_deg = 0, check_trans_m = 0;
-  double edge_shift = -1;  // horizontal steps; < 0: solver default
+  double edge_shift = -1;         // horizontal steps; < 0: solver default
   std::string capture = "still";  // rig: still | all
 };
 
@@ -82,10 +94,10 @@ struct Args {
 }
 
 // Ranges of the numeric options: beyond them a value is a typo, not a setting.
-constexpr double kMaxStillFrames = 1000;      // frames (at 10 Hz, 100 s of holding still)
-constexpr double kMaxSyncToleranceS = 5.0;    // s; sensors are never further apart than this
-constexpr double kMaxLossScaleM = 10.0;       // m, larger than any board
-constexpr double kMaxEdgeShiftSteps = 100.0;  // horizontal LiDAR steps
+constexpr double kMaxStillFrames = 1000;           // frames (at 10 Hz, 100 s of holding still)
+constexpr double kMaxSyncToleranceS = 5.0;         // s; sensors are never further apart than this
+constexpr double kMaxLossScaleM = 10.0;            // m, larger than any board
+constexpr double kMaxEdgeShiftSteps = 100.0;       // horizontal LiDAR steps
 constexpr double kQuaternionNormTolerance = 0.01;  // |q| - 1, four typed decimals pass
 
 // A finite number, or a usage error naming the flag and the text.
@@ -103,11 +115,13 @@ double parseNumber(const std::string& flag, const std::string& text) {
 }
 
 // A finite number in (min, max] (or [min, max] when min_inclusive).
-double parseInRange(const std::string& flag, const std::string& text, double min, double max, bool min_inclusive) {
+double parseInRange(const std::string& flag, const std::string& text, double min, double max,
+                    bool min_inclusive) {
   const double v = parseNumber(flag, text);
   if (v > max || v < min || (!min_inclusive && v == min)) {
     std::ostringstream s;
-    s << flag << " must be in " << (min_inclusive ? "[" : "(") << min << ", " << max << "], got " << text;
+    s << flag << " must be in " << (min_inclusive ? "[" : "(") << min << ", " << max << "], got "
+      << text;
     fail(s.str(), kExitUsage);
   }
   return v;
@@ -130,38 +144,57 @@ Args parseArgs(int argc, char** argv) {
     if (f == "--help" || f == "-h") {
       std::cout << kUsage;
       std::exit(kExitOk);
-    } else if (f == "--bag") a.bags.push_back(need(i, f));
-    else if (f == "--target") a.target = need(i, f);
-    else if (f == "--image-topic") a.image_topic = need(i, f);
-    else if (f == "--camera-info-topic") a.info_topic = need(i, f);
-    else if (f == "--cloud-topic") a.cloud_topic = need(i, f);
-    else if (f == "--method") a.method = need(i, f);
-    else if (f == "--output") a.output = need(i, f);
-    else if (f == "--report") a.report = need(i, f);
-    else if (f == "--save-session") a.save_session = need(i, f);
-    else if (f == "--load-session") a.load_session = need(i, f);
-    else if (f == "--truth") a.truth = need(i, f);
-    else if (f == "--child-frame") a.child_frame = need(i, f);
-    else if (f == "--loss") a.loss = need(i, f);
-    else if (f == "--loss-scale") a.loss_scale = parseInRange(f, need(i, f), 0, kMaxLossScaleM, false);
-    else if (f == "--sync-tolerance") a.sync_tolerance = parseInRange(f, need(i, f), 0, kMaxSyncToleranceS, false);
-    else if (f == "--still-frames") a.still_frames = parseCount(f, need(i, f), 1, static_cast<int>(kMaxStillFrames));
-    else if (f == "--quiet") a.quiet = true;
-    else if (f == "--edge-shift") a.edge_shift = parseInRange(f, need(i, f), 0, kMaxEdgeShiftSteps, true);
-    else if (f == "--config") a.config = need(i, f);
-    else if (f == "--capture") a.capture = need(i, f);
+    } else if (f == "--bag")
+      a.bags.push_back(need(i, f));
+    else if (f == "--target")
+      a.target = need(i, f);
+    else if (f == "--image-topic")
+      a.image_topic = need(i, f);
+    else if (f == "--camera-info-topic")
+      a.info_topic = need(i, f);
+    else if (f == "--cloud-topic")
+      a.cloud_topic = need(i, f);
+    else if (f == "--method")
+      a.method = need(i, f);
+    else if (f == "--output")
+      a.output = need(i, f);
+    else if (f == "--report")
+      a.report = need(i, f);
+    else if (f == "--save-session")
+      a.save_session = need(i, f);
+    else if (f == "--load-session")
+      a.load_session = need(i, f);
+    else if (f == "--truth")
+      a.truth = need(i, f);
+    else if (f == "--child-frame")
+      a.child_frame = need(i, f);
+    else if (f == "--loss")
+      a.loss = need(i, f);
+    else if (f == "--loss-scale")
+      a.loss_scale = parseInRange(f, need(i, f), 0, kMaxLossScaleM, false);
+    else if (f == "--sync-tolerance")
+      a.sync_tolerance = parseInRange(f, need(i, f), 0, kMaxSyncToleranceS, false);
+    else if (f == "--still-frames")
+      a.still_frames = parseCount(f, need(i, f), 1, static_cast<int>(kMaxStillFrames));
+    else if (f == "--quiet")
+      a.quiet = true;
+    else if (f == "--edge-shift")
+      a.edge_shift = parseInRange(f, need(i, f), 0, kMaxEdgeShiftSteps, true);
+    else if (f == "--config")
+      a.config = need(i, f);
+    else if (f == "--capture")
+      a.capture = need(i, f);
     else if (f == "--check-truth") {
       a.check_rot_deg = parseInRange(f + " ROT_DEG", need(i, f), 0, 180, false);
       a.check_trans_m = parseInRange(f + " TRANS_M", need(i, f), 0, 1000, false);
-    }
-    else if (f == "--initial-guess") {
+    } else if (f == "--initial-guess") {
       double v[7];
       for (double& x : v) x = parseNumber(f, need(i, f));
       const Eigen::Vector4d q(v[3], v[4], v[5], v[6]);
       if (std::abs(q.norm() - 1.0) > kQuaternionNormTolerance) {
         std::ostringstream s;
-        s << "--initial-guess quaternion (qx qy qz qw) = (" << v[3] << " " << v[4] << " " << v[5] << " " << v[6]
-          << ") has norm " << q.norm() << ", not 1";
+        s << "--initial-guess quaternion (qx qy qz qw) = (" << v[3] << " " << v[4] << " " << v[5]
+          << " " << v[6] << ") has norm " << q.norm() << ", not 1";
         fail(s.str(), kExitUsage);
       }
       a.guess = makeTransform(Eigen::Vector3d(v[0], v[1], v[2]), q);
@@ -170,7 +203,8 @@ Args parseArgs(int argc, char** argv) {
     }
   }
   if (a.method.empty()) fail("--method is required (ppc, pbpc, msg or all)", kExitUsage);
-  if (a.capture != "all" && a.capture != "still") fail("--capture must be all or still, got '" + a.capture + "'", kExitUsage);
+  if (a.capture != "all" && a.capture != "still")
+    fail("--capture must be all or still, got '" + a.capture + "'", kExitUsage);
   if (!a.config.empty()) {
     if (a.method != "msg") fail("--config (a multi-sensor rig) needs --method msg", kExitUsage);
     return a;
@@ -194,13 +228,14 @@ void progress(bool quiet, size_t done, size_t total, size_t views) {
   }
   constexpr int kWidth = 30;
   const int filled = static_cast<int>(kWidth * done / total);
-  std::cerr << "\r[" << std::string(filled, '#') << std::string(kWidth - filled, '.') << "] " << done << "/" << total
-            << " frames, " << views << " views" << std::flush;
+  std::cerr << "\r[" << std::string(filled, '#') << std::string(kWidth - filled, '.') << "] "
+            << done << "/" << total << " frames, " << views << " views" << std::flush;
   if (done == total) std::cerr << "\n";
 }
 
 // Streams the bags through the pipeline (the one bag-reading loop, bag_reader.h).
-void readPairBags(const Args& args, CalibrationPipeline* pipeline, std::string* camera_frame, std::string* lidar_frame) {
+void readPairBags(const Args& args, CalibrationPipeline* pipeline, std::string* camera_frame,
+                  std::string* lidar_frame) {
   auto counts = bagTopicCounts(args.bags);
   if (!counts) fail(counts.error());
   const size_t total = (*counts)[args.image_topic] + (*counts)[args.cloud_topic];
@@ -229,30 +264,39 @@ void readPairBags(const Args& args, CalibrationPipeline* pipeline, std::string* 
   if (!read) fail(read.error());
   pipeline->finish();
   if (!have_intrinsics) fail("no valid camera_info on '" + args.info_topic + "'");
-  if (const auto dropped = read->images_dropped.find(args.image_topic); dropped != read->images_dropped.end())
-    std::cerr << "calibrate_bag: warning: " << dropped->second << " images arrived before the first camera_info on "
-              << args.info_topic << " and were skipped (was camera_info recorded after the images?)\n";
+  if (const auto dropped = read->images_dropped.find(args.image_topic);
+      dropped != read->images_dropped.end())
+    std::cerr << "calibrate_bag: warning: " << dropped->second
+              << " images arrived before the first camera_info on " << args.info_topic
+              << " and were skipped (was camera_info recorded after the images?)\n";
   const PipelineStats& st = pipeline->stats();
   if (!args.quiet) {
-    std::cerr << "calibrate_bag: board found in " << st.images_with_board << "/" << st.images << " images and "
-              << st.clouds_with_board << "/" << st.clouds << " clouds; " << pipeline->session().views().size() << " views kept\n"
+    std::cerr << "calibrate_bag: board found in " << st.images_with_board << "/" << st.images
+              << " images and " << st.clouds_with_board << "/" << st.clouds << " clouds; "
+              << pipeline->session().views().size() << " views kept\n"
               << "  capture: " << pipeline->session().captureStats().summary() << "\n";
-    for (const auto& [why, n] : st.image_failures) std::cerr << "  image: " << n << " x " << why << "\n";
-    for (const auto& [why, n] : st.cloud_failures) std::cerr << "  cloud: " << n << " x " << why << "\n";
+    for (const auto& [why, n] : st.image_failures)
+      std::cerr << "  image: " << n << " x " << why << "\n";
+    for (const auto& [why, n] : st.cloud_failures)
+      std::cerr << "  cloud: " << n << " x " << why << "\n";
   }
-  if (st.images_with_board == 0) fail("the board was never found in the images (" + args.image_topic + ")");
-  if (st.clouds_with_board == 0) fail("the board was never found in the clouds (" + args.cloud_topic + ")");
+  if (st.images_with_board == 0)
+    fail("the board was never found in the images (" + args.image_topic + ")");
+  if (st.clouds_with_board == 0)
+    fail("the board was never found in the clouds (" + args.cloud_topic + ")");
 }
 
 // Errors of every method against a truth file; --check-truth fails on the reported one.
-void checkTruth(const Args& args, const std::vector<CalibrationSolution>& solutions, const CalibrationSolution& chosen,
-                const std::string& camera_frame, const std::string& lidar_frame) {
+void checkTruth(const Args& args, const std::vector<CalibrationSolution>& solutions,
+                const CalibrationSolution& chosen, const std::string& camera_frame,
+                const std::string& lidar_frame) {
   if (!args.truth.empty()) {
     auto truth = loadResultFile(args.truth);
     if (!truth) fail(truth.error());
     Eigen::Isometry3d truth_T = truth->camera_T_lidar;
     for (const auto& p : truth->pairs)
-      if (p.camera_frame == camera_frame && p.lidar_frame == lidar_frame) truth_T = p.camera_T_lidar;
+      if (p.camera_frame == camera_frame && p.lidar_frame == lidar_frame)
+        truth_T = p.camera_T_lidar;
     for (const auto& s : solutions)
       if (s.success)
         std::cout << "error vs truth (" << methodName(s.method) << "): rotation "
@@ -262,9 +306,9 @@ void checkTruth(const Args& args, const std::vector<CalibrationSolution>& soluti
       const double rot = rotationErrorDeg(chosen.camera_T_lidar, truth_T);
       const double trans = translationErrorM(chosen.camera_T_lidar, truth_T);
       if (rot > args.check_rot_deg || trans > args.check_trans_m)
-        fail("reported result misses the truth: " + std::to_string(rot) + " deg, " + std::to_string(trans * 1e3) +
-             " mm (allowed " + std::to_string(args.check_rot_deg) + " deg, " +
-             std::to_string(args.check_trans_m * 1e3) + " mm)");
+        fail("reported result misses the truth: " + std::to_string(rot) + " deg, " +
+             std::to_string(trans * 1e3) + " mm (allowed " + std::to_string(args.check_rot_deg) +
+             " deg, " + std::to_string(args.check_trans_m * 1e3) + " mm)");
     }
   } else if (args.check_rot_deg > 0) {
     fail("--check-truth needs --truth", kExitUsage);
@@ -293,8 +337,9 @@ void writeReport(const Args& args, const PairCalibration& run, const PairSession
   if (!args.load_session.empty()) report.source = "session `" + args.load_session + "`";
   if (pipeline) {
     const PipelineStats& st = pipeline->stats();
-    report.detection = "board found in " + std::to_string(st.images_with_board) + "/" + std::to_string(st.images) +
-                       " images and " + std::to_string(st.clouds_with_board) + "/" + std::to_string(st.clouds) +
+    report.detection = "board found in " + std::to_string(st.images_with_board) + "/" +
+                       std::to_string(st.images) + " images and " +
+                       std::to_string(st.clouds_with_board) + "/" + std::to_string(st.clouds) +
                        " clouds";
     report.view_images = &pipeline->viewImages();
     report.view_clouds = &pipeline->viewClouds();
@@ -311,11 +356,13 @@ void loadSavedSession(const Args& args, std::optional<Target>* target, PairSessi
   if (!st) fail(st.reason);
   // A session solved against another board would pair the wrong geometry with the features.
   if (*target && targetToYaml(**target) != targetToYaml(session->target()))
-    fail("session '" + args.load_session + "' was recorded with a " + targetTypeName(session->target().type) +
-         " board of " + std::to_string(session->target().width) + " x " +
-         std::to_string(session->target().height) + " m, but --target '" + args.target + "' describes a " +
-         targetTypeName((*target)->type) + " board of " + std::to_string((*target)->width) + " x " +
-         std::to_string((*target)->height) + " m (drop --target to use the session's board)");
+    fail("session '" + args.load_session + "' was recorded with a " +
+         targetTypeName(session->target().type) + " board of " +
+         std::to_string(session->target().width) + " x " +
+         std::to_string(session->target().height) + " m, but --target '" + args.target +
+         "' describes a " + targetTypeName((*target)->type) + " board of " +
+         std::to_string((*target)->width) + " x " + std::to_string((*target)->height) +
+         " m (drop --target to use the session's board)");
   *target = session->target();
   if (session->views().empty()) fail("session '" + args.load_session + "' holds no views");
 }
@@ -325,13 +372,14 @@ void printRun(const PairCalibration& run) {
   std::vector<CalibrationSolution> solutions;
   for (const auto& r : run.runs) solutions.push_back(r.solution);
   for (const auto& r : run.runs)
-    std::cout << solutionSummary(r.solution) << "  verdict: " << verdictName(r.verdict.verdict) << " - "
-              << r.verdict.reason << "\n";
+    std::cout << solutionSummary(r.solution) << "  verdict: " << verdictName(r.verdict.verdict)
+              << " - " << r.verdict.reason << "\n";
   if (solutions.size() > 1) std::cout << "\n" << comparisonTable(solutions);
   std::cout << "\n" << verdictSummary(run);
   const CalibrationSolution& chosen = run.shownRun().solution;
   for (const auto& n : run.result.notes)
-    if (std::find(chosen.notes.begin(), chosen.notes.end(), n) == chosen.notes.end()) std::cout << "note: " << n << "\n";
+    if (std::find(chosen.notes.begin(), chosen.notes.end(), n) == chosen.notes.end())
+      std::cout << "note: " << n << "\n";
 }
 
 }  // namespace
@@ -339,8 +387,8 @@ void printRun(const PairCalibration& run) {
 int main(int argc, char** argv) {
   const Args args = parseArgs(argc, argv);
   if (!args.config.empty())
-    return runRigCalibration({args.config, args.bags, args.output, args.report, args.truth, args.check_rot_deg,
-                              args.check_trans_m, args.quiet, args.capture});
+    return runRigCalibration({args.config, args.bags, args.output, args.report, args.truth,
+                              args.check_rot_deg, args.check_trans_m, args.quiet, args.capture});
   const auto wall_start = std::chrono::steady_clock::now();
 
   const auto parsed_methods = parseMethods(args.method);
@@ -380,7 +428,8 @@ int main(int argc, char** argv) {
   }
 
   const std::vector<View> views = session->plainViews();
-  if (views.empty()) fail("no view has the board in both sensors at the same time (check --sync-tolerance)");
+  if (views.empty())
+    fail("no view has the board in both sensors at the same time (check --sync-tolerance)");
   if (camera_frame.empty()) camera_frame = views.front().camera.frame_id;
   if (lidar_frame.empty()) lidar_frame = views.front().lidar.frame_id;
   if (!args.save_session.empty()) {
@@ -391,7 +440,8 @@ int main(int argc, char** argv) {
   // Consistency, every method, the verdict and the choice: the same run as the live calibrator's.
   PairCalibrationOptions run_options;
   run_options.solver = solver;
-  const PairCalibration run = calibratePair(views, methods, *target, camera_frame, lidar_frame, run_options, args.guess);
+  const PairCalibration run =
+      calibratePair(views, methods, *target, camera_frame, lidar_frame, run_options, args.guess);
   if (run.runs.empty()) fail("calibration failed: " + run.reason);  // refused before any solve
   std::vector<CalibrationSolution> solutions;
   for (const auto& r : run.runs) solutions.push_back(r.solution);
@@ -399,21 +449,26 @@ int main(int argc, char** argv) {
   const CalibrationSolution& chosen = run.shownRun().solution;
   const ResultFile& result = run.result;
   // A failed result is kept for inspection only, under a name no tool mistakes for a calibration.
-  const std::string output = run.failed() && !args.output.empty() ? failedResultPath(args.output) : args.output;
+  const std::string output =
+      run.failed() && !args.output.empty() ? failedResultPath(args.output) : args.output;
   if (!output.empty()) {
     const Status st = writeResultFile(output, result);
     if (!st) fail(st.reason);
-    std::cout << (run.failed() ? "FAILED result written for inspection to " : "result written to ") << output << "\n";
+    std::cout << (run.failed() ? "FAILED result written for inspection to " : "result written to ")
+              << output << "\n";
   }
 
   const std::string child = args.child_frame.empty() ? camera_frame : args.child_frame;
 
   checkTruth(args, solutions, chosen, camera_frame, lidar_frame);
 
-  if (!args.report.empty()) writeReport(args, run, *session, pipeline ? &*pipeline : nullptr, child);
+  if (!args.report.empty())
+    writeReport(args, run, *session, pipeline ? &*pipeline : nullptr, child);
   if (run.failed()) fail("calibration failed: " + run.reason);
   if (!args.quiet)
-    std::cerr << "calibrate_bag: done in "
-              << std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count() << " s\n";
+    std::cerr
+        << "calibrate_bag: done in "
+        << std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count()
+        << " s\n";
   return kExitOk;
 }

@@ -8,9 +8,9 @@
 #include <board_calib/core/file_io.h>
 #include <board_calib/core/pipeline/rig_calibration.h>
 #include <board_calib/core/pipeline/rig_pipeline.h>
+#include <board_calib/core/pipeline/rig_report.h>
 #include <board_calib/core/result_io.h>
 #include <board_calib/core/rig/rig_config.h>
-#include <board_calib/core/pipeline/rig_report.h>
 #include <board_calib/core/rig/rig_summary.h>
 #include <board_calib/core/transform.h>
 
@@ -70,14 +70,18 @@ Expected<BagTopics> rigTopics(const RigConfig& rig, const std::vector<std::strin
 Status readRig(const RigArgs& args, const BagTopics& topics, RigPipeline* pipeline) {
   const RigConfig& rig = pipeline->rig();
   std::map<std::string, int> camera_of, lidar_of;
-  for (size_t i = 0; i < rig.cameras.size(); ++i) camera_of[rig.cameras[i].image_topic] = static_cast<int>(i);
-  for (size_t i = 0; i < rig.lidars.size(); ++i) lidar_of[rig.lidars[i].cloud_topic] = static_cast<int>(i);
+  for (size_t i = 0; i < rig.cameras.size(); ++i)
+    camera_of[rig.cameras[i].image_topic] = static_cast<int>(i);
+  for (size_t i = 0; i < rig.lidars.size(); ++i)
+    lidar_of[rig.lidars[i].cloud_topic] = static_cast<int>(i);
   std::map<std::string, int> bad_messages;
   BagFrameCallbacks cb;
   cb.on_image = [&](const ImageFrame& f, const CameraIntrinsics& in) {
     pipeline->addImage(camera_of.at(f.topic), f.image, in, f.frame_id, f.stamp);
   };
-  cb.on_cloud = [&](const std::string& topic, const LidarCloud& cloud) { pipeline->addCloud(lidar_of.at(topic), cloud); };
+  cb.on_cloud = [&](const std::string& topic, const LidarCloud& cloud) {
+    pipeline->addCloud(lidar_of.at(topic), cloud);
+  };
   cb.on_bad_message = [&](const std::string& topic, const std::string& why) {
     if (bad_messages[topic + ": " + why]++ == 0 && !args.quiet)
       std::cerr << "calibrate_bag: skipping a message on " << topic << ": " << why << "\n";
@@ -87,56 +91,65 @@ Status readRig(const RigArgs& args, const BagTopics& topics, RigPipeline* pipeli
   pipeline->finish();
   for (const auto& [topic, n] : read->images_dropped)
     if (n > 0 && !args.quiet)
-      std::cerr << "calibrate_bag: warning: " << n << " images on " << topic << " found no camera_info and were skipped\n";
+      std::cerr << "calibrate_bag: warning: " << n << " images on " << topic
+                << " found no camera_info and were skipped\n";
   const auto& stats = pipeline->stats();
   for (size_t k = 0; k < stats.size(); ++k) {
     const bool camera = k < rig.cameras.size();
     if (!args.quiet) {
-      std::cerr << "calibrate_bag: " << (camera ? "camera " : "LiDAR ") << stats[k].name << ": board found in "
-                << stats[k].found << "/" << stats[k].frames << (camera ? " images\n" : " clouds\n");
+      std::cerr << "calibrate_bag: " << (camera ? "camera " : "LiDAR ") << stats[k].name
+                << ": board found in " << stats[k].found << "/" << stats[k].frames
+                << (camera ? " images\n" : " clouds\n");
       for (const auto& [why, n] : stats[k].failures) std::cerr << "  " << n << " x " << why << "\n";
     }
     if (camera && stats[k].frames == 0)
-      return Status::failure("no image of camera '" + stats[k].name + "' could be used (no valid camera_info on '" +
+      return Status::failure("no image of camera '" + stats[k].name +
+                             "' could be used (no valid camera_info on '" +
                              rig.cameras[k].camera_info_topic + "'?)");
     if (stats[k].found == 0)
-      return Status::failure("the board was never found by " + std::string(camera ? "camera '" : "LiDAR '") +
-                             stats[k].name + "'");
+      return Status::failure("the board was never found by " +
+                             std::string(camera ? "camera '" : "LiDAR '") + stats[k].name + "'");
   }
   return Status::success();
 }
 
 // Error of every pair against a truth file; `check_failed` when a pair misses the limits.
-Status truthErrors(const RigArgs& args, const ResultFile& result, std::ostream& out, bool* check_failed) {
+Status truthErrors(const RigArgs& args, const ResultFile& result, std::ostream& out,
+                   bool* check_failed) {
   auto truth = loadResultFile(args.truth);
   if (!truth) return Status::failure("truth: " + truth.error());
   out << "error vs truth (rotation, translation):\n" << std::fixed;
   for (const auto& p : result.pairs) {
     const auto T = truthPair(*truth, p.camera_frame, p.lidar_frame);
-    if (!T) return Status::failure("truth file has no pair " + p.camera_frame + " <- " + p.lidar_frame);
+    if (!T)
+      return Status::failure("truth file has no pair " + p.camera_frame + " <- " + p.lidar_frame);
     const double rot = rotationErrorDeg(p.camera_T_lidar, *T);
     const double trans = translationErrorM(p.camera_T_lidar, *T);
     const bool bad = (args.check_rotation_deg > 0 && rot > args.check_rotation_deg) ||
                      (args.check_translation_m > 0 && trans > args.check_translation_m);
     *check_failed |= bad;
-    out << "  " << p.camera_frame << " <- " << p.lidar_frame << ": " << std::setprecision(3) << rot << " deg, "
-        << std::setprecision(1) << trans * 1e3 << " mm" << (bad ? "  ** above the --check-truth limit **" : "") << "\n";
+    out << "  " << p.camera_frame << " <- " << p.lidar_frame << ": " << std::setprecision(3) << rot
+        << " deg, " << std::setprecision(1) << trans * 1e3 << " mm"
+        << (bad ? "  ** above the --check-truth limit **" : "") << "\n";
   }
   return Status::success();
 }
 
-Status writeReport(const RigArgs& args, const RigConfig& rig, const RigPipeline& pipeline, const RigCalibration& run,
-                   const std::string& printed) {
+Status writeReport(const RigArgs& args, const RigConfig& rig, const RigPipeline& pipeline,
+                   const RigCalibration& run, const std::string& printed) {
   RigReportInputs inputs;
   inputs.source = "rig `" + args.config + "`, bags:";
   for (const auto& b : args.bags) inputs.source += " `" + b + "`";
   for (const auto& s : pipeline.stats())
     inputs.input_lines.push_back("`" + s.frame_id + "`: board in " + std::to_string(s.found) + "/" +
                                  std::to_string(s.frames) + " frames");
-  inputs.input_lines.push_back(std::to_string(run.problem.poses.size()) + " board poses seen by two or more sensors (capture: " +
-                               args.capture + "; " + pipeline.session().captureStats().summary() + ")");
+  inputs.input_lines.push_back(
+      std::to_string(run.problem.poses.size()) +
+      " board poses seen by two or more sensors (capture: " + args.capture + "; " +
+      pipeline.session().captureStats().summary() + ")");
   const std::string summary = rigSolutionSummary(rig, run.solution, run.result);
-  if (printed.size() > summary.size()) inputs.extra_result_text = printed.substr(summary.size());  // verdict, vs truth
+  if (printed.size() > summary.size())
+    inputs.extra_result_text = printed.substr(summary.size());  // verdict, vs truth
   inputs.verdict_text = rigVerdictSummary(run);
   inputs.failed = run.failed();
   return writeRigReport(args.report, rig, run.problem, run.solution, run.result, inputs);
@@ -167,8 +180,8 @@ int runRigCalibration(const RigArgs& args) {
   auto problem = pipeline->problem();
   if (!problem) return failWith(problem.error());
   if (!args.quiet)
-    std::cerr << "calibrate_bag: " << problem->poses.size() << " board poses (capture " << args.capture << ": "
-              << pipeline->session().captureStats().summary() << ")\n";
+    std::cerr << "calibrate_bag: " << problem->poses.size() << " board poses (capture "
+              << args.capture << ": " << pipeline->session().captureStats().summary() << ")\n";
   for (const auto& p : pipeline->session().problems())
     if (!args.quiet) std::cerr << "  warning: " << p << "\n";
   if (problem->poses.empty())
@@ -181,21 +194,26 @@ int runRigCalibration(const RigArgs& args) {
   out << rigSolutionSummary(*rig, run.solution, run.result) << "\n" << rigVerdictSummary(run);
   bool check_failed = false;
   if (!args.truth.empty())
-    if (const Status st = truthErrors(args, run.result, out, &check_failed); !st) return failWith(st.reason);
+    if (const Status st = truthErrors(args, run.result, out, &check_failed); !st)
+      return failWith(st.reason);
   std::cout << out.str();
   // A failed result is kept for inspection only, under a name no tool mistakes for a calibration.
   if (!args.output.empty()) {
     const std::string output = run.failed() ? failedResultPath(args.output) : args.output;
     if (const Status st = writeResultFile(output, run.result); !st) return failWith(st.reason);
-    std::cout << (run.failed() ? "FAILED result written for inspection to " : "result written to ") << output << "\n";
+    std::cout << (run.failed() ? "FAILED result written for inspection to " : "result written to ")
+              << output << "\n";
   }
   if (!args.report.empty()) {
-    if (const Status st = writeReport(args, *rig, *pipeline, run, out.str()); !st) return failWith(st.reason);
+    if (const Status st = writeReport(args, *rig, *pipeline, run, out.str()); !st)
+      return failWith(st.reason);
     std::cout << "report written to " << args.report << "/report.md\n";
   }
   if (!args.quiet)
-    std::cerr << "calibrate_bag: done in "
-              << std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count() << " s\n";
+    std::cerr
+        << "calibrate_bag: done in "
+        << std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count()
+        << " s\n";
   if (run.failed()) return failWith("calibration failed: " + run.reason);
   if (check_failed) return failWith("a pair is outside the --check-truth limits");
   return kExitOk;

@@ -33,12 +33,15 @@ int main(int argc, char** argv) {
   ros::NodeHandle pnh("~");
   std::string result_file, child_frame, child_frame_suffix;
   if (!pnh.getParam("result_file", result_file) || result_file.empty()) {
-    ROS_FATAL("publish_calibration: private parameter ~result_file (a board_calib result YAML) is required");
+    ROS_FATAL(
+        "publish_calibration: private parameter ~result_file (a board_calib result YAML) is "
+        "required");
     return 2;
   }
   // The shell does not expand `~` after `result_file:=` (README's form), so expand it here.
   if (result_file.rfind("~/", 0) == 0)
-    if (const char* home = std::getenv("HOME")) result_file = std::string(home) + result_file.substr(1);
+    if (const char* home = std::getenv("HOME"))
+      result_file = std::string(home) + result_file.substr(1);
   pnh.param("child_frame", child_frame, std::string());
   pnh.param("child_frame_suffix", child_frame_suffix, std::string());
   const auto result = board_calib::loadResultFile(result_file);
@@ -54,31 +57,36 @@ int main(int argc, char** argv) {
     for (const auto& s : result->sensors)
       if (reference.empty() && s.reference_T_sensor.matrix().isIdentity(1e-12)) reference = s.frame;
     if (reference.empty()) {
-      ROS_FATAL_STREAM("publish_calibration: " << result_file << " lists sensors but no reference_frame");
+      ROS_FATAL_STREAM("publish_calibration: " << result_file
+                                               << " lists sensors but no reference_frame");
       return 1;
     }
     for (const auto& s : result->sensors)
-      if (s.frame != reference) tfs.push_back(stamped(reference, s.frame + child_frame_suffix, s.reference_T_sensor));
+      if (s.frame != reference)
+        tfs.push_back(stamped(reference, s.frame + child_frame_suffix, s.reference_T_sensor));
   } else {
     if (result->camera_frame.empty() || result->lidar_frame.empty()) {
-      ROS_FATAL_STREAM("publish_calibration: " << result_file << " has no camera_frame / lidar_frame");
+      ROS_FATAL_STREAM("publish_calibration: " << result_file
+                                               << " has no camera_frame / lidar_frame");
       return 1;
     }
-    const std::string child = child_frame.empty() ? result->camera_frame + child_frame_suffix : child_frame;
+    const std::string child =
+        child_frame.empty() ? result->camera_frame + child_frame_suffix : child_frame;
     tfs.push_back(stamped(result->lidar_frame, child, result->camera_T_lidar.inverse()));
   }
   // The reader refuses non-finite numbers; this is the last line before the robot's TF tree.
   for (const auto& tf : tfs)
     if (const std::string why = board_calib::validateTransform(tf.transform); !why.empty()) {
-      ROS_FATAL_STREAM("publish_calibration: " << result_file << ": " << tf.header.frame_id << " -> "
-                                               << tf.child_frame_id << ": " << why << "; nothing broadcast");
+      ROS_FATAL_STREAM("publish_calibration: " << result_file << ": " << tf.header.frame_id
+                                               << " -> " << tf.child_frame_id << ": " << why
+                                               << "; nothing broadcast");
       return 1;
     }
   tf2_ros::StaticTransformBroadcaster broadcaster;
   broadcaster.sendTransform(tfs);
   for (const auto& tf : tfs)
-    ROS_INFO_STREAM("publish_calibration: " << tf.header.frame_id << " -> " << tf.child_frame_id << " (from "
-                                            << result_file << ")");
+    ROS_INFO_STREAM("publish_calibration: " << tf.header.frame_id << " -> " << tf.child_frame_id
+                                            << " (from " << result_file << ")");
   ros::spin();
   return 0;
 }

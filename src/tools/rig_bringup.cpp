@@ -45,10 +45,13 @@ struct NodeletSpec {
 std::string checkNames(const board_calib::RigConfig& rig) {
   std::string why;
   for (const auto& name : rig.sensorNames())
-    if (!ros::names::validate(name, why) || name.find('/') != std::string::npos || name.front() == '~')
-      return "sensor name '" + name + "' is not usable as a ROS node name (letters, digits, '_' only)";
+    if (!ros::names::validate(name, why) || name.find('/') != std::string::npos ||
+        name.front() == '~')
+      return "sensor name '" + name +
+             "' is not usable as a ROS node name (letters, digits, '_' only)";
   auto topic = [&](const std::string& key, const std::string& value) {
-    return ros::names::validate(value, why) ? std::string() : key + ": '" + value + "' is not a ROS name: " + why;
+    return ros::names::validate(value, why) ? std::string()
+                                            : key + ": '" + value + "' is not a ROS name: " + why;
   };
   for (size_t i = 0; i < rig.cameras.size(); ++i) {
     const std::string at = "cameras[" + std::to_string(i) + "].";
@@ -66,7 +69,8 @@ std::string checkNames(const board_calib::RigConfig& rig) {
   return "";
 }
 
-std::vector<NodeletSpec> plan(const board_calib::RigConfig& rig, const std::string& rig_file, bool projections) {
+std::vector<NodeletSpec> plan(const board_calib::RigConfig& rig, const std::string& rig_file,
+                              bool projections) {
   std::vector<NodeletSpec> out;
   for (const auto& c : rig.cameras) {
     NodeletSpec s{c.name + "_board_detector", "board_calib/image_board_detector", {}, {}};
@@ -118,7 +122,8 @@ class Bringup {
     ros::ServiceClient list = nh_.serviceClient<nodelet::NodeletList>(manager_ + "/list");
     ros::ServiceClient load = nh_.serviceClient<nodelet::NodeletLoad>(manager_ + "/load_nodelet");
     if (!load.waitForExistence(ros::Duration(wait_s))) {
-      *why = "no nodelet manager at " + nh_.resolveName(manager_) + " (its load_nodelet service did not appear)";
+      *why = "no nodelet manager at " + nh_.resolveName(manager_) +
+             " (its load_nodelet service did not appear)";
       return false;
     }
     nodelet::NodeletList listed;
@@ -126,7 +131,8 @@ class Bringup {
       *why = "cannot list the nodelets of " + nh_.resolveName(manager_);
       return false;
     }
-    const std::set<std::string> present(listed.response.nodelets.begin(), listed.response.nodelets.end());
+    const std::set<std::string> present(listed.response.nodelets.begin(),
+                                        listed.response.nodelets.end());
     for (const auto& s : specs_) {
       const std::string name = nh_.resolveName(s.name, false);
       if (present.count(name)) continue;
@@ -148,7 +154,8 @@ class Bringup {
   }
 
   void unloadAll() {
-    ros::ServiceClient unload = nh_.serviceClient<nodelet::NodeletUnload>(manager_ + "/unload_nodelet");
+    ros::ServiceClient unload =
+        nh_.serviceClient<nodelet::NodeletUnload>(manager_ + "/unload_nodelet");
     if (!unload.exists()) return;  // the manager is gone, and its nodelets with it
     for (auto it = specs_.rbegin(); it != specs_.rend(); ++it) {
       nodelet::NodeletUnload srv;
@@ -174,7 +181,9 @@ int main(int argc, char** argv) {
   bool projections = true;
   double manager_wait_s = 30.0, check_period_s = 2.0;
   if (!pnh.getParam("rig_file", rig_file) || rig_file.empty()) {
-    ROS_FATAL_NAMED(kLog, "rig_bringup: no rig file: give rig_file:=RIG.yaml to rig_calibration.launch (~rig_file; docs/MSG.md)");
+    ROS_FATAL_NAMED(kLog,
+                    "rig_bringup: no rig file: give rig_file:=RIG.yaml to rig_calibration.launch "
+                    "(~rig_file; docs/MSG.md)");
     return 2;
   }
   pnh.param("working_dir", working_dir, std::string());
@@ -182,7 +191,8 @@ int main(int argc, char** argv) {
   pnh.param("projections", projections, true);
   pnh.param("manager_wait", manager_wait_s, manager_wait_s);
   pnh.param("check_period", check_period_s, check_period_s);
-  // roslaunch runs nodes in ROS_HOME: a relative rig file is relative to where roslaunch was called.
+  // roslaunch runs nodes in ROS_HOME: a relative rig file is relative to where roslaunch was
+  // called.
   if (rig_file.rfind("~/", 0) == 0)
     if (const char* home = std::getenv("HOME")) rig_file = std::string(home) + rig_file.substr(1);
   if (rig_file.front() != '/' && !working_dir.empty()) rig_file = working_dir + "/" + rig_file;
@@ -202,14 +212,16 @@ int main(int argc, char** argv) {
     ROS_FATAL_STREAM_NAMED(kLog, "rig_bringup: " << why);
     return 1;
   }
-  ROS_INFO_STREAM_NAMED(kLog, "rig_bringup: " << rig_file << ": " << rig->cameras.size() << " camera(s), "
-                                              << rig->lidars.size() << " LiDAR(s), target " << rig->target_path);
+  ROS_INFO_STREAM_NAMED(kLog, "rig_bringup: " << rig_file << ": " << rig->cameras.size()
+                                              << " camera(s), " << rig->lidars.size()
+                                              << " LiDAR(s), target " << rig->target_path);
   // A respawned manager comes back empty: load the rig again (the calibrator resumes its autosave).
-  ros::WallTimer check = nh.createWallTimer(ros::WallDuration(check_period_s), [&](const ros::WallTimerEvent&) {
-    std::string reason;
-    if (!bringup.loadMissing(check_period_s, &reason))
-      ROS_WARN_STREAM_THROTTLE_NAMED(10.0, kLog, "rig_bringup: " << reason);
-  });
+  ros::WallTimer check =
+      nh.createWallTimer(ros::WallDuration(check_period_s), [&](const ros::WallTimerEvent&) {
+        std::string reason;
+        if (!bringup.loadMissing(check_period_s, &reason))
+          ROS_WARN_STREAM_THROTTLE_NAMED(10.0, kLog, "rig_bringup: " << reason);
+      });
   while (!g_stop && ros::ok()) {
     ros::spinOnce();
     ros::WallDuration(0.05).sleep();

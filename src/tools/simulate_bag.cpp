@@ -29,7 +29,8 @@ void usage(std::ostream& out) {
 
 std::string stem(const std::string& bag_path) {
   const std::string suffix = ".bag";
-  if (bag_path.size() > suffix.size() && bag_path.compare(bag_path.size() - suffix.size(), suffix.size(), suffix) == 0)
+  if (bag_path.size() > suffix.size() &&
+      bag_path.compare(bag_path.size() - suffix.size(), suffix.size(), suffix) == 0)
     return bag_path.substr(0, bag_path.size() - suffix.size());
   return bag_path;
 }
@@ -102,7 +103,8 @@ int main(int argc, char** argv) {
   const board_calib::Status target_status =
       board_calib::writeFileAtomic(target_out, board_calib::targetToYaml(scenario->scene.target));
   if (!target_status) return fail(target_status.reason);
-  const board_calib::Status truth_status = board_calib::writeResultFile(truth_out, board_calib::sim::groundTruth(*scenario));
+  const board_calib::Status truth_status =
+      board_calib::writeResultFile(truth_out, board_calib::sim::groundTruth(*scenario));
   if (!truth_status) return fail(truth_status.reason);
 
   size_t images = 0, clouds = 0;
@@ -111,7 +113,8 @@ int main(int argc, char** argv) {
     bag.open(out_path, rosbag::bagmode::Write);
     bag.setCompression(rosbag::compression::LZ4);
     std::vector<sensor_msgs::CameraInfo> infos;
-    for (const auto& c : scenario->cameras) infos.push_back(board_calib::toCameraInfo(c.intrinsics));
+    for (const auto& c : scenario->cameras)
+      infos.push_back(board_calib::toCameraInfo(c.intrinsics));
     const auto& frames = timeline->frames;
     for (size_t i = 0; i < frames.size(); ++i) {
       const auto& f = frames[i];
@@ -123,7 +126,8 @@ int main(int argc, char** argv) {
         header.frame_id = camera.frame_id;
         header.seq = static_cast<uint32_t>(images);
         const cv::Mat image = generator->image(f, i);
-        if (image.empty()) return fail("camera '" + camera.name + "': rendering failed (invalid render options?)");
+        if (image.empty())
+          return fail("camera '" + camera.name + "': rendering failed (invalid render options?)");
         auto msg = board_calib::imageToMsg(image, header);
         if (!msg) return fail(msg.error());
         sensor_msgs::CameraInfo info = infos[static_cast<size_t>(f.sensor)];
@@ -146,12 +150,16 @@ int main(int argc, char** argv) {
   } catch (const rosbag::BagException& e) {
     return fail("cannot write bag '" + out_path + "': " + e.what());
   }
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (!quiet) std::cerr << "\r";
   std::ifstream sized(out_path, std::ios::binary | std::ios::ate);
   const double megabytes = sized ? static_cast<double>(sized.tellg()) / 1e6 : 0.0;
-  std::printf("wrote %s: %d poses, %zu images, %zu clouds, %.1f s of recording, %.1f MB, generated in %.1f s\n",
-              out_path.c_str(), scenario->motion.poses, images, clouds, timeline->duration_s, megabytes, seconds);
+  std::printf(
+      "wrote %s: %d poses, %zu images, %zu clouds, %.1f s of recording, %.1f MB, generated in %.1f "
+      "s\n",
+      out_path.c_str(), scenario->motion.poses, images, clouds, timeline->duration_s, megabytes,
+      seconds);
   std::printf("target: %s\ntruth:  %s\n", target_out.c_str(), truth_out.c_str());
   return 0;
 }

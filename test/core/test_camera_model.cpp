@@ -91,14 +91,17 @@ TEST_P(CameraModelVsOpenCV, UndistortInvertsProjectionAndMatchesOpenCV) {
   std::vector<cv::Point2d> cv_undist;
   const cv::Mat K = cameraMatrix(in);
   if (GetParam() == DistortionModel::kEquidistant) {
-    cv::fisheye::undistortPoints(raw, cv_undist, K, in.coeffs, cv::noArray(), K,
-                                 cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-14));
+    cv::fisheye::undistortPoints(
+        raw, cv_undist, K, in.coeffs, cv::noArray(), K,
+        cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-14));
   } else {
-    cv::undistortPoints(raw, cv_undist, K, in.coeffs, cv::noArray(), K,
-                        cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 200, 1e-14));
+    cv::undistortPoints(
+        raw, cv_undist, K, in.coeffs, cv::noArray(), K,
+        cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 200, 1e-14));
   }
   for (size_t i = 0; i < pts.size(); ++i) {
-    const Eigen::Vector2d ideal(in.fx * pts[i].x / pts[i].z + in.cx, in.fy * pts[i].y / pts[i].z + in.cy);
+    const Eigen::Vector2d ideal(in.fx * pts[i].x / pts[i].z + in.cx,
+                                in.fy * pts[i].y / pts[i].z + in.cy);
     const Eigen::Vector2d u = model->undistortPixel({raw[i].x, raw[i].y});
     EXPECT_NEAR(u.x(), ideal.x(), 1e-6);
     EXPECT_NEAR(u.y(), ideal.y(), 1e-6);
@@ -112,7 +115,8 @@ TEST_P(CameraModelVsOpenCV, UndistortInvertsProjectionAndMatchesOpenCV) {
 
 INSTANTIATE_TEST_SUITE_P(AllModels, CameraModelVsOpenCV,
                          ::testing::Values(DistortionModel::kNone, DistortionModel::kPlumbBob,
-                                           DistortionModel::kRationalPolynomial, DistortionModel::kEquidistant));
+                                           DistortionModel::kRationalPolynomial,
+                                           DistortionModel::kEquidistant));
 
 TEST(CameraModel, RejectsBadIntrinsics) {
   CameraIntrinsics in = makeIntrinsics(DistortionModel::kPlumbBob);

@@ -22,7 +22,8 @@ struct Config {
 
 // The demo scenario scaled down for test time: 960x600 camera, 2x2 supersampling, 8 holds.
 sim::Scenario scenarioFor(const Config& c) {
-  auto s = sim::loadScenario(std::string(BOARD_CALIB_SOURCE_DIR) + "/config/scenarios/plain_vlp32c_1920.yaml");
+  auto s = sim::loadScenario(std::string(BOARD_CALIB_SOURCE_DIR) +
+                             "/config/scenarios/plain_vlp32c_1920.yaml");
   EXPECT_TRUE(s.ok()) << s.error();
   sim::Scenario out = test_support::captureScenario(*s, 0.5, c.camera_hz, c.organized, 8, c.seed);
   out.cameras.front().render.supersampling = 2;
@@ -32,22 +33,27 @@ sim::Scenario scenarioFor(const Config& c) {
 }  // namespace
 
 TEST(CaptureSim, EveryHoldOnceNeverAMovingBoard) {
-  const std::vector<Config> configs{{2.0, true, 3}, {2.0, false, 4}, {30.0, true, 5}, {1.0, false, 6}};
+  const std::vector<Config> configs{
+      {2.0, true, 3}, {2.0, false, 4}, {30.0, true, 5}, {1.0, false, 6}};
   for (const Config& c : configs) {
     const sim::Scenario scenario = scenarioFor(c);
     auto session = test_support::runSimulatedSession(scenario, PipelineOptions{});
     ASSERT_TRUE(session.ok()) << session.error();
     const auto& s = *session;
-    const PairCalibration run =
-        calibratePair(s.views, {Method::kPbpc}, scenario.scene.target, "camera", "lidar", PairCalibrationOptions{});
+    const PairCalibration run = calibratePair(s.views, {Method::kPbpc}, scenario.scene.target,
+                                              "camera", "lidar", PairCalibrationOptions{});
     const MethodRun* chosen = run.chosenRun();
-    const double rot = chosen ? rotationErrorDeg(chosen->solution.camera_T_lidar, s.truth.camera_T_lidar) : -1;
-    const double trans = chosen ? translationErrorM(chosen->solution.camera_T_lidar, s.truth.camera_T_lidar) : -1;
-    std::printf("[capture] camera %4.0f Hz %-11s seed %u: holds %d/%d, moving %d, views %zu, %s, %.3f deg %.1f mm, %.0f s\n"
-                "          %s\n",
-                c.camera_hz, c.organized ? "organized" : "unorganized", c.seed, s.holds_captured, s.holds,
-                s.moving_captured, s.views.size(), verdictName(run.verdict), rot, trans * 1e3, s.seconds,
-                s.capture_summary.c_str());
+    const double rot =
+        chosen ? rotationErrorDeg(chosen->solution.camera_T_lidar, s.truth.camera_T_lidar) : -1;
+    const double trans =
+        chosen ? translationErrorM(chosen->solution.camera_T_lidar, s.truth.camera_T_lidar) : -1;
+    std::printf(
+        "[capture] camera %4.0f Hz %-11s seed %u: holds %d/%d, moving %d, views %zu, %s, %.3f deg "
+        "%.1f mm, %.0f s\n"
+        "          %s\n",
+        c.camera_hz, c.organized ? "organized" : "unorganized", c.seed, s.holds_captured, s.holds,
+        s.moving_captured, s.views.size(), verdictName(run.verdict), rot, trans * 1e3, s.seconds,
+        s.capture_summary.c_str());
     EXPECT_EQ(s.moving_captured, 0) << c.camera_hz << " Hz";
     // A 1 Hz camera takes one or two images per 1.5 s hold; one may fall within 0.25 s of a move.
     EXPECT_GE(s.holds_captured, c.camera_hz >= 2.0 ? 8 : 7) << c.camera_hz << " Hz";
@@ -58,7 +64,8 @@ TEST(CaptureSim, EveryHoldOnceNeverAMovingBoard) {
     EXPECT_LT(rot, 0.3);
     EXPECT_LT(trans, 0.02);
     for (int i = 0; i < 3; ++i) {
-      EXPECT_LT(std::abs((chosen->solution.camera_T_lidar.translation() - s.truth.camera_T_lidar.translation())(i)),
+      EXPECT_LT(std::abs((chosen->solution.camera_T_lidar.translation() -
+                          s.truth.camera_T_lidar.translation())(i)),
                 3 * chosen->verdict.stddev.translation_m(i));
     }
   }

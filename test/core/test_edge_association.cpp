@@ -4,8 +4,8 @@
 #include <board_calib/core/common/edge_association.h>
 #include <board_calib/core/projection/projection.h>
 #include <board_calib/core/solvers/solvers.h>
-#include "support/synthetic_views.h"
 #include <board_calib/core/transform.h>
+#include "support/synthetic_views.h"
 
 #include <gtest/gtest.h>
 
@@ -36,8 +36,10 @@ Scene renamedScene() {
   s.original = scene->views;
   s.views = scene->views;
   for (View& v : s.views) {
-    std::rotate(v.lidar.edge_points.rbegin(), v.lidar.edge_points.rbegin() + 1, v.lidar.edge_points.rend());
-    std::rotate(v.lidar.edge_valid.rbegin(), v.lidar.edge_valid.rbegin() + 1, v.lidar.edge_valid.rend());
+    std::rotate(v.lidar.edge_points.rbegin(), v.lidar.edge_points.rbegin() + 1,
+                v.lidar.edge_points.rend());
+    std::rotate(v.lidar.edge_valid.rbegin(), v.lidar.edge_valid.rbegin() + 1,
+                v.lidar.edge_valid.rend());
   }
   CameraIntrinsics in;
   in.width = o.image_width;
@@ -56,7 +58,8 @@ TEST(EdgeAssociation, RenamedLidarEdgesArePairedByProjection) {
     const EdgeAssociation a = associateEdges(v.camera, v.lidar, s.truth);
     EXPECT_TRUE(a.relabelled);
     for (int j = 0; j < kNumEdges; ++j)
-      if (a.scored[j]) EXPECT_EQ(a.lidar_edge[j], (j + 1) % kNumEdges) << "view " << v.id << " edge " << j;
+      if (a.scored[j])
+        EXPECT_EQ(a.lidar_edge[j], (j + 1) % kNumEdges) << "view " << v.id << " edge " << j;
   }
   // Paired by projection, the renamed views score as the originals: sub-pixel at the truth
   // (0.3 px line noise, edge points up to one 0.2 deg step inside the edge).
@@ -95,7 +98,8 @@ TEST(EdgeAssociation, OverlayAndSolverReportTheSameMlre) {
     const EdgeAssociation a = associateEdges(v.camera, v.lidar, off);
     for (int j = 0; j < kNumEdges; ++j)
       if (a.scored[j]) EXPECT_EQ(check->image_edge[a.lidar_edge[j]], j) << "view " << v.id;
-    EXPECT_EQ(sol.views[i].edges[0].lidar_edge, associateEdges(v.camera, v.lidar, sol.camera_T_lidar).lidar_edge[0]);
+    EXPECT_EQ(sol.views[i].edges[0].lidar_edge,
+              associateEdges(v.camera, v.lidar, sol.camera_T_lidar).lidar_edge[0]);
   }
 }
 

@@ -51,7 +51,8 @@ TEST(LidarDetectorBadInput, EmptyCloud) {
 }
 
 TEST(LidarDetectorBadInput, AllNaN) {
-  const auto d = detectLidarBoard(organized(1024, 64, std::numeric_limits<float>::quiet_NaN()), plainBoard());
+  const auto d =
+      detectLidarBoard(organized(1024, 64, std::numeric_limits<float>::quiet_NaN()), plainBoard());
   EXPECT_FALSE(d.features.found);
   EXPECT_EQ(d.code, LidarDetectionCode::kNoValidPoints);
   EXPECT_NE(d.features.reason.find("no valid returns"), std::string::npos) << d.features.reason;

@@ -26,15 +26,17 @@ Target plainBoard() {
 
 // Board centred at `centre` (LiDAR = world frame, x forward, z up), printed face towards the
 // LiDAR, rolled about its normal by roll_deg (45 = diamond), then yawed and pitched.
-Eigen::Isometry3d boardPose(const Target& target, const Eigen::Vector3d& centre, double roll_deg, double yaw_deg,
-                            double pitch_deg) {
+Eigen::Isometry3d boardPose(const Target& target, const Eigen::Vector3d& centre, double roll_deg,
+                            double yaw_deg, double pitch_deg) {
   Eigen::Matrix3d facing;
   facing.col(0) = -Eigen::Vector3d::UnitY();  // board x: right as seen from the LiDAR
   facing.col(1) = -Eigen::Vector3d::UnitZ();  // board y: down
   facing.col(2) = Eigen::Vector3d::UnitX();   // board z: away from the LiDAR
-  const Eigen::Matrix3d R = Eigen::AngleAxisd(yaw_deg * kRadPerDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
-                            Eigen::AngleAxisd(pitch_deg * kRadPerDeg, Eigen::Vector3d::UnitY()).toRotationMatrix() *
-                            facing * Eigen::AngleAxisd(roll_deg * kRadPerDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const Eigen::Matrix3d R =
+      Eigen::AngleAxisd(yaw_deg * kRadPerDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
+      Eigen::AngleAxisd(pitch_deg * kRadPerDeg, Eigen::Vector3d::UnitY()).toRotationMatrix() *
+      facing *
+      Eigen::AngleAxisd(roll_deg * kRadPerDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   return makeTransform(R, centre - R * target.center());
 }
 
@@ -50,12 +52,14 @@ Truth truthOf(const Target& target, const Eigen::Isometry3d& lidar_T_board) {
   std::array<Eigen::Vector3d, 4> c;
   const auto outer = target.outerCorners();
   for (int i = 0; i < 4; ++i) c[i] = lidar_T_board * outer[i];
-  // Top = highest; bottom = lowest; of the other two, right = smaller azimuth (seen from the LiDAR).
+  // Top = highest; bottom = lowest; of the other two, right = smaller azimuth (seen from the
+  // LiDAR).
   std::array<int, 4> idx = {0, 1, 2, 3};
   std::sort(idx.begin(), idx.end(), [&](int a, int b) { return c[a].z() > c[b].z(); });
   const int top = idx[0], bottom = idx[3];
   int right = idx[1], left = idx[2];
-  if (std::atan2(c[right].y(), c[right].x()) > std::atan2(c[left].y(), c[left].x())) std::swap(right, left);
+  if (std::atan2(c[right].y(), c[right].x()) > std::atan2(c[left].y(), c[left].x()))
+    std::swap(right, left);
   t.corners = {c[top], c[right], c[bottom], c[left]};
   return t;
 }
@@ -113,7 +117,8 @@ constexpr double kMaxNormalDeg = 0.5;
 constexpr double kMaxEdgeLineM = 0.015;
 
 // Random diamond-held poses around 3 m, as a person holds the board in front of the rig.
-SweepResult sweep(const std::string& lidar, bool organized_with_ring, bool person, int frames, unsigned seed) {
+SweepResult sweep(const std::string& lidar, bool organized_with_ring, bool person, int frames,
+                  unsigned seed) {
   const Target target = plainBoard();
   const sim::LidarSpec s = spec(lidar, organized_with_ring);
   sim::SceneSpec world = scene(target);
@@ -123,47 +128,58 @@ SweepResult sweep(const std::string& lidar, bool organized_with_ring, bool perso
   SweepResult r;
   for (int i = 0; i < frames; ++i) {
     const Eigen::Vector3d centre(3.0 + 0.2 * u(rng), 0.6 * u(rng), 0.1 * u(rng));
-    const Eigen::Isometry3d board = boardPose(target, centre, 45.0 + 10.0 * u(rng), 25.0 * u(rng), 15.0 * u(rng));
-    const LidarCloud cloud = sim::simulateLidarScan(s, Eigen::Isometry3d::Identity(), world, board, rng);
+    const Eigen::Isometry3d board =
+        boardPose(target, centre, 45.0 + 10.0 * u(rng), 25.0 * u(rng), 15.0 * u(rng));
+    const LidarCloud cloud =
+        sim::simulateLidarScan(s, Eigen::Isometry3d::Identity(), world, board, rng);
     const LidarBoardDetection det = detectLidarBoard(cloud, target);
     const Truth truth = truthOf(target, board);
     ++r.frames;
     const auto& f = det.features;
     if (!f.found) {
-      std::printf("%s %s frame %d: %s\n", lidar.c_str(), organized_with_ring ? "organized" : "flat", i,
-                  f.reason.c_str());
+      std::printf("%s %s frame %d: %s\n", lidar.c_str(), organized_with_ring ? "organized" : "flat",
+                  i, f.reason.c_str());
       for (const auto& c : det.candidates)
         if (c.num_points > 200)
-          std::printf("    cand n=%d at (%.2f %.2f %.2f) rect %.2f x %.2f fill %.2f rms %.3f score %.1f %s\n",
-                      c.num_points, c.centroid.x(), c.centroid.y(), c.centroid.z(), c.rectangle_m.x(),
-                      c.rectangle_m.y(), c.fill_ratio, c.rms_m, c.score, c.rejected_because.c_str());
+          std::printf(
+              "    cand n=%d at (%.2f %.2f %.2f) rect %.2f x %.2f fill %.2f rms %.3f score %.1f "
+              "%s\n",
+              c.num_points, c.centroid.x(), c.centroid.y(), c.centroid.z(), c.rectangle_m.x(),
+              c.rectangle_m.y(), c.fill_ratio, c.rms_m, c.score, c.rejected_because.c_str());
       continue;
     }
     ++r.found;
-    const double normal_deg = std::acos(std::min(1.0, f.plane.normal.dot(truth.plane.normal))) * kDegPerRad;
+    const double normal_deg =
+        std::acos(std::min(1.0, f.plane.normal.dot(truth.plane.normal))) * kDegPerRad;
     r.max_normal_deg = std::max(r.max_normal_deg, normal_deg);
     r.normals_within += normal_deg < kMaxNormalDeg;
     if (!f.allEdgesValid()) {
-      std::printf("%s %s frame %d: edges: %s\n", lidar.c_str(), organized_with_ring ? "organized" : "flat", i,
-                  f.reason.c_str());
+      std::printf("%s %s frame %d: edges: %s\n", lidar.c_str(),
+                  organized_with_ring ? "organized" : "flat", i, f.reason.c_str());
       continue;
     }
     ++r.four_edges;
     if (std::getenv("LIDAR_TEST_VERBOSE"))
-      std::printf("  %d: normal %.3f deg, edges %.4f %.4f %.4f %.4f m, pts %zu %zu %zu %zu, size %.3f %.3f\n", i,
-                  std::acos(std::min(1.0, f.plane.normal.dot(truth.plane.normal))) * kDegPerRad,
-                  edgeLineError(f, 0, truth), edgeLineError(f, 1, truth), edgeLineError(f, 2, truth),
-                  edgeLineError(f, 3, truth), f.edge_points[0].size(), f.edge_points[1].size(),
-                  f.edge_points[2].size(), f.edge_points[3].size(), f.measured_size_m.x(), f.measured_size_m.y());
+      std::printf(
+          "  %d: normal %.3f deg, edges %.4f %.4f %.4f %.4f m, pts %zu %zu %zu %zu, size %.3f "
+          "%.3f\n",
+          i, std::acos(std::min(1.0, f.plane.normal.dot(truth.plane.normal))) * kDegPerRad,
+          edgeLineError(f, 0, truth), edgeLineError(f, 1, truth), edgeLineError(f, 2, truth),
+          edgeLineError(f, 3, truth), f.edge_points[0].size(), f.edge_points[1].size(),
+          f.edge_points[2].size(), f.edge_points[3].size(), f.measured_size_m.x(),
+          f.measured_size_m.y());
     if (std::getenv("LIDAR_TEST_DUMP") && std::atoi(std::getenv("LIDAR_TEST_DUMP")) == i) {
       FILE* out = std::fopen("/tmp/lidar_dump.csv", "w");
       for (const auto& p : f.board_points) std::fprintf(out, "b,%f,%f,%f\n", p.x(), p.y(), p.z());
       for (int j = 0; j < kNumEdges; ++j)
-        for (const auto& p : f.edge_points[j]) std::fprintf(out, "e%d,%f,%f,%f\n", j, p.x(), p.y(), p.z());
+        for (const auto& p : f.edge_points[j])
+          std::fprintf(out, "e%d,%f,%f,%f\n", j, p.x(), p.y(), p.z());
       for (int j = 0; j < kNumEdges; ++j)
-        std::fprintf(out, "c%d,%f,%f,%f\n", j, truth.corners[j].x(), truth.corners[j].y(), truth.corners[j].z());
+        std::fprintf(out, "c%d,%f,%f,%f\n", j, truth.corners[j].x(), truth.corners[j].y(),
+                     truth.corners[j].z());
       for (int j = 0; j < kNumEdges; ++j)
-        std::fprintf(out, "d%d,%f,%f,%f\n", j, f.corners[j].x(), f.corners[j].y(), f.corners[j].z());
+        std::fprintf(out, "d%d,%f,%f,%f\n", j, f.corners[j].x(), f.corners[j].y(),
+                     f.corners[j].z());
       std::fclose(out);
     }
     for (int j = 0; j < kNumEdges; ++j) {
@@ -174,11 +190,13 @@ SweepResult sweep(const std::string& lidar, bool organized_with_ring, bool perso
       r.edges_within += e < kMaxEdgeLineM;
     }
   }
-  std::printf("%-8s %-9s %-9s: found %d/%d, four edges %d, normal < 0.5 deg %d (max %.3f deg), edge line RMS < 1.5 cm "
-              "%d/%d (mean %.4f max %.4f m)\n",
-              lidar.c_str(), organized_with_ring ? "organized" : "flat", person ? "person" : "no person", r.found,
-              r.frames, r.four_edges, r.normals_within, r.max_normal_deg, r.edges_within, r.edges_measured,
-              r.edges_measured ? r.sum_edge_m / r.edges_measured : 0.0, r.max_edge_m);
+  std::printf(
+      "%-8s %-9s %-9s: found %d/%d, four edges %d, normal < 0.5 deg %d (max %.3f deg), edge line "
+      "RMS < 1.5 cm "
+      "%d/%d (mean %.4f max %.4f m)\n",
+      lidar.c_str(), organized_with_ring ? "organized" : "flat", person ? "person" : "no person",
+      r.found, r.frames, r.four_edges, r.normals_within, r.max_normal_deg, r.edges_within,
+      r.edges_measured, r.edges_measured ? r.sum_edge_m / r.edges_measured : 0.0, r.max_edge_m);
   return r;
 }
 
@@ -213,9 +231,11 @@ TEST_P(SimSweep, PersonBehindTheBoard) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Lidars, SimSweep,
-                         ::testing::Combine(::testing::Values("VLP-16", "VLP-32C", "OS1-64"), ::testing::Bool()),
+                         ::testing::Combine(::testing::Values("VLP-16", "VLP-32C", "OS1-64"),
+                                            ::testing::Bool()),
                          [](const auto& info) {
-                           std::string name = std::get<0>(info.param) + (std::get<1>(info.param) ? "_organized" : "_flat");
+                           std::string name = std::get<0>(info.param) +
+                                              (std::get<1>(info.param) ? "_organized" : "_flat");
                            name.erase(std::remove(name.begin(), name.end(), '-'), name.end());
                            return name;
                          });
@@ -240,10 +260,12 @@ TEST(LidarDetectorSim, NoBoardGivesAReason) {
   std::mt19937 rng(3);
   // The board is placed outside the room: only floor, walls, ceiling and the person remain.
   const Eigen::Isometry3d far_away = boardPose(target, {40.0, 0.0, 0.0}, 45, 0, 0);
-  const auto det = detectLidarBoard(sim::simulateLidarScan(s, Eigen::Isometry3d::Identity(), scene(target), far_away, rng),
-                                    target);
+  const auto det = detectLidarBoard(
+      sim::simulateLidarScan(s, Eigen::Isometry3d::Identity(), scene(target), far_away, rng),
+      target);
   EXPECT_FALSE(det.features.found);
-  EXPECT_TRUE(det.code == LidarDetectionCode::kWrongSize || det.code == LidarDetectionCode::kNoPlane)
+  EXPECT_TRUE(det.code == LidarDetectionCode::kWrongSize ||
+              det.code == LidarDetectionCode::kNoPlane)
       << lidarDetectionCodeName(det.code) << ": " << det.features.reason;
   EXPECT_FALSE(det.features.reason.empty());
 }
@@ -256,8 +278,9 @@ TEST(LidarDetectorSim, TwoBoardsAreAmbiguous) {
   std::mt19937 rng(4);
   const auto left = boardPose(target, {3.0, 1.0, 0.0}, 45, 10, 0);
   const auto right = boardPose(target, {3.0, -1.0, 0.0}, 40, -10, 0);
-  const LidarCloud both = mergeNearest(sim::simulateLidarScan(s, Eigen::Isometry3d::Identity(), world, left, rng),
-                                       sim::simulateLidarScan(s, Eigen::Isometry3d::Identity(), world, right, rng));
+  const LidarCloud both =
+      mergeNearest(sim::simulateLidarScan(s, Eigen::Isometry3d::Identity(), world, left, rng),
+                   sim::simulateLidarScan(s, Eigen::Isometry3d::Identity(), world, right, rng));
   const auto det = detectLidarBoard(both, target);
   EXPECT_FALSE(det.features.found);
   EXPECT_EQ(det.code, LidarDetectionCode::kAmbiguous) << det.features.reason;
@@ -280,13 +303,14 @@ TEST(LidarDetectorSim, BackgroundModelKeepsOnlyTheNewBoard) {
       // Background: the room with a board-sized static panel (the first board), three scans.
       BackgroundModel background;
       for (int k = 0; k < 3; ++k) {
-        const Status st =
-            background.addFrame(sim::simulateLidarScan(s, Eigen::Isometry3d::Identity(), world, static_board, rng));
+        const Status st = background.addFrame(
+            sim::simulateLidarScan(s, Eigen::Isometry3d::Identity(), world, static_board, rng));
         ASSERT_TRUE(st.ok) << st.reason;
       }
       EXPECT_EQ(background.numFrames(), 3);
       // The empty scene again: almost nothing is new.
-      const LidarCloud empty_again = sim::simulateLidarScan(s, Eigen::Isometry3d::Identity(), world, static_board, rng);
+      const LidarCloud empty_again =
+          sim::simulateLidarScan(s, Eigen::Isometry3d::Identity(), world, static_board, rng);
       const auto mask = background.foregroundMask(empty_again);
       int valid = 0, new_points = 0;
       for (size_t i = 0; i < mask.size(); ++i) {
@@ -299,8 +323,10 @@ TEST(LidarDetectorSim, BackgroundModelKeepsOnlyTheNewBoard) {
 
       // Both boards present: without the model it is ambiguous, with it the held board is found.
       LidarCloud scene_cloud;
-      const LidarCloud a = sim::simulateLidarScan(s, Eigen::Isometry3d::Identity(), world, static_board, rng);
-      const LidarCloud b = sim::simulateLidarScan(s, Eigen::Isometry3d::Identity(), world, held_board, rng);
+      const LidarCloud a =
+          sim::simulateLidarScan(s, Eigen::Isometry3d::Identity(), world, static_board, rng);
+      const LidarCloud b =
+          sim::simulateLidarScan(s, Eigen::Isometry3d::Identity(), world, held_board, rng);
       if (organized) {
         scene_cloud = mergeNearest(a, b);
       } else {
@@ -317,7 +343,9 @@ TEST(LidarDetectorSim, BackgroundModelKeepsOnlyTheNewBoard) {
       const auto with = detectLidarBoard(scene_cloud, target, {}, &background);
       ASSERT_TRUE(with.features.found) << with.features.reason;
       const Truth truth = truthOf(target, held_board);
-      EXPECT_LT(std::acos(std::min(1.0, with.features.plane.normal.dot(truth.plane.normal))) * kDegPerRad, 0.5);
+      EXPECT_LT(
+          std::acos(std::min(1.0, with.features.plane.normal.dot(truth.plane.normal))) * kDegPerRad,
+          0.5);
       EXPECT_NEAR(with.features.plane.offset, truth.plane.offset, 0.01);
       background.clear();
       EXPECT_TRUE(background.empty());
@@ -325,15 +353,14 @@ TEST(LidarDetectorSim, BackgroundModelKeepsOnlyTheNewBoard) {
   }
 }
 
-
 // ------------------------------------------------------------------------------------------
 // Scenario sessions: far sparse boards outdoors, board-sized clutter indoors.
 // ------------------------------------------------------------------------------------------
 struct SessionTally {
-  int clouds = 0;         // clouds with >= 3 scan lines on the board (ground truth)
-  int found = 0;          // the board found there (plane and centre at the truth)
-  int four_edges = 0;     // ... with four valid edges
-  int wrong = 0;          // anything else accepted as the board
+  int clouds = 0;      // clouds with >= 3 scan lines on the board (ground truth)
+  int found = 0;       // the board found there (plane and centre at the truth)
+  int four_edges = 0;  // ... with four valid edges
+  int wrong = 0;       // anything else accepted as the board
   int edges_within = 0, edges_measured = 0;
   double sum_edge_ratio = 0.0;
 };
@@ -352,8 +379,8 @@ int boardScanLines(const LidarCloud& cloud, const std::vector<sim::ReturnOrigin>
   return lines;
 }
 
-SessionTally runSession(const sim::Scenario& scenario, bool stateful, const char* label, double warmup_s = 0.0,
-                        const StaticMemoryOptions& memory = {}) {
+SessionTally runSession(const sim::Scenario& scenario, bool stateful, const char* label,
+                        double warmup_s = 0.0, const StaticMemoryOptions& memory = {}) {
   auto timeline = sim::makeTimeline(scenario);
   EXPECT_TRUE(timeline.ok()) << timeline.error();
   auto generator = sim::FrameGenerator::create(scenario);
@@ -368,7 +395,8 @@ SessionTally runSession(const sim::Scenario& scenario, bool stateful, const char
     if (frame.is_camera || frame.sensor != 0) continue;
     std::vector<sim::ReturnOrigin> origins;
     const LidarCloud cloud = generator->cloud(frame, i, &origins);
-    const LidarBoardDetection det = stateful ? tracker.detect(cloud) : detectLidarBoard(cloud, target);
+    const LidarBoardDetection det =
+        stateful ? tracker.detect(cloud) : detectLidarBoard(cloud, target);
     const Eigen::Isometry3d lidar_T_board = lidar_T_world * frame.world_T_board;
     const Truth truth = truthOf(target, lidar_T_board);
     const Eigen::Vector3d centre = lidar_T_board * target.center();
@@ -385,24 +413,28 @@ SessionTally runSession(const sim::Scenario& scenario, bool stateful, const char
                  (mean - centre).norm() < 0.5 * std::min(target.width, target.height);
       if (!at_board) {
         ++t.wrong;
-        std::printf("[%s] cloud %zu: WRONG board at (%.2f %.2f %.2f), truth (%.2f %.2f %.2f)\n", label, i, mean.x(),
-                    mean.y(), mean.z(), centre.x(), centre.y(), centre.z());
+        std::printf("[%s] cloud %zu: WRONG board at (%.2f %.2f %.2f), truth (%.2f %.2f %.2f)\n",
+                    label, i, mean.x(), mean.y(), mean.z(), centre.x(), centre.y(), centre.z());
       }
     }
     if (lines < 3 || frame.stamp < warmup_s) continue;  // wrong boards count from the start
     ++t.clouds;
     if (!at_board) {
-      std::printf("[%s] cloud %zu at %.1f m, %d lines: missed: %s\n", label, i, centre.norm(), lines, f.reason.c_str());
+      std::printf("[%s] cloud %zu at %.1f m, %d lines: missed: %s\n", label, i, centre.norm(),
+                  lines, f.reason.c_str());
       if (std::getenv("LIDAR_TEST_VERBOSE"))
         for (const auto& c : det.candidates)
-          std::printf("    cand n=%d at (%.2f %.2f %.2f) rect %.2f x %.2f fill %.2f rms %.3f score %.1f %s\n",
-                      c.num_points, c.centroid.x(), c.centroid.y(), c.centroid.z(), c.rectangle_m.x(),
-                      c.rectangle_m.y(), c.fill_ratio, c.rms_m, c.score, c.rejected_because.c_str());
+          std::printf(
+              "    cand n=%d at (%.2f %.2f %.2f) rect %.2f x %.2f fill %.2f rms %.3f score %.1f "
+              "%s\n",
+              c.num_points, c.centroid.x(), c.centroid.y(), c.centroid.z(), c.rectangle_m.x(),
+              c.rectangle_m.y(), c.fill_ratio, c.rms_m, c.score, c.rejected_because.c_str());
       continue;
     }
     ++t.found;
     if (!f.allEdgesValid()) {
-      std::printf("[%s] cloud %zu at %.1f m, %d lines: edges: %s\n", label, i, centre.norm(), lines, f.reason.c_str());
+      std::printf("[%s] cloud %zu at %.1f m, %d lines: edges: %s\n", label, i, centre.norm(), lines,
+                  f.reason.c_str());
       continue;
     }
     ++t.four_edges;
@@ -418,10 +450,12 @@ SessionTally runSession(const sim::Scenario& scenario, bool stateful, const char
       t.sum_edge_ratio += e / tol;
     }
   }
-  std::printf("[%s] clouds with >= 3 lines %d: board found %d, four edges %d, wrong boards %d, edges within "
-              "tolerance %d/%d (mean error / tolerance %.2f)\n",
-              label, t.clouds, t.found, t.four_edges, t.wrong, t.edges_within, t.edges_measured,
-              t.edges_measured ? t.sum_edge_ratio / t.edges_measured : 0.0);
+  std::printf(
+      "[%s] clouds with >= 3 lines %d: board found %d, four edges %d, wrong boards %d, edges "
+      "within "
+      "tolerance %d/%d (mean error / tolerance %.2f)\n",
+      label, t.clouds, t.found, t.four_edges, t.wrong, t.edges_within, t.edges_measured,
+      t.edges_measured ? t.sum_edge_ratio / t.edges_measured : 0.0);
   return t;
 }
 
@@ -482,7 +516,8 @@ TEST(LidarDetectorScenario, ClutterIsNeverTakenForTheBoard) {
   ASSERT_GT(t.clouds, 55);
   EXPECT_GE(t.found, (t.clouds * 90) / 100);
   EXPECT_GE(t.four_edges, (t.clouds * 85) / 100);
-  EXPECT_GE(t.found, single.found - single.wrong) << "the memory must not lose boards the single frame found";
+  EXPECT_GE(t.found, single.found - single.wrong)
+      << "the memory must not lose boards the single frame found";
 }
 
 }  // namespace

@@ -1,8 +1,8 @@
 // MSG graph on simulated rigs at known ground truth: a stereo pair, a VLP-32C-like and an
 // OS1-64-like LiDAR, 40 board poses of a 1 m AprilTag grid (issue 9 targets).
 #include <board_calib/core/msg_graph/msg_graph.h>
-#include "support/synthetic_rig.h"
 #include <board_calib/core/transform.h>
+#include "support/synthetic_rig.h"
 
 #include <gtest/gtest.h>
 
@@ -38,29 +38,35 @@ struct PairError {
 };
 
 PairError pairError(const MsgSolution& sol, const sim::RigScene& scene, int a, int b) {
-  const Eigen::Isometry3d truth = scene.sensors[a].reference_T_sensor.inverse() * scene.sensors[b].reference_T_sensor;
+  const Eigen::Isometry3d truth =
+      scene.sensors[a].reference_T_sensor.inverse() * scene.sensors[b].reference_T_sensor;
   const Eigen::Isometry3d est = *sensorTSensor(sol, a, b);
   return {rotationErrorDeg(est, truth), translationErrorM(est, truth)};
 }
 
 // Every pair among `sensors` within the tolerances.
-void expectPairsWithin(const MsgSolution& sol, const sim::RigScene& scene, const std::vector<int>& sensors,
-                       double rot_tol_deg, double trans_tol_m) {
+void expectPairsWithin(const MsgSolution& sol, const sim::RigScene& scene,
+                       const std::vector<int>& sensors, double rot_tol_deg, double trans_tol_m) {
   for (size_t i = 0; i < sensors.size(); ++i)
     for (size_t j = i + 1; j < sensors.size(); ++j) {
       const PairError e = pairError(sol, scene, sensors[i], sensors[j]);
-      EXPECT_LT(e.rotation_deg, rot_tol_deg) << scene.sensors[sensors[i]].frame << "<->" << scene.sensors[sensors[j]].frame;
-      EXPECT_LT(e.translation_m, trans_tol_m) << scene.sensors[sensors[i]].frame << "<->" << scene.sensors[sensors[j]].frame;
+      EXPECT_LT(e.rotation_deg, rot_tol_deg)
+          << scene.sensors[sensors[i]].frame << "<->" << scene.sensors[sensors[j]].frame;
+      EXPECT_LT(e.translation_m, trans_tol_m)
+          << scene.sensors[sensors[i]].frame << "<->" << scene.sensors[sensors[j]].frame;
     }
 }
 
-double maxPairRotationDeg(const MsgSolution& sol, const sim::RigScene& scene, const std::vector<int>& sensors) {
+double maxPairRotationDeg(const MsgSolution& sol, const sim::RigScene& scene,
+                          const std::vector<int>& sensors) {
   double m = 0;
   for (size_t i = 0; i < sensors.size(); ++i)
-    for (size_t j = i + 1; j < sensors.size(); ++j) m = std::max(m, pairError(sol, scene, sensors[i], sensors[j]).rotation_deg);
+    for (size_t j = i + 1; j < sensors.size(); ++j)
+      m = std::max(m, pairError(sol, scene, sensors[i], sensors[j]).rotation_deg);
   return m;
 }
-double maxPairTranslationM(const MsgSolution& sol, const sim::RigScene& scene, const std::vector<int>& sensors) {
+double maxPairTranslationM(const MsgSolution& sol, const sim::RigScene& scene,
+                           const std::vector<int>& sensors) {
   double m = 0;
   for (size_t i = 0; i < sensors.size(); ++i)
     for (size_t j = i + 1; j < sensors.size(); ++j)
@@ -103,8 +109,8 @@ struct SpreadRatio {
   std::string frame;
   double rotation = 0.0, translation = 0.0;
 };
-std::vector<SpreadRatio> spreadOverPredicted(const std::vector<sim::RigSensor>& rig, const MsgGraphOptions& options,
-                                             int scenes) {
+std::vector<SpreadRatio> spreadOverPredicted(const std::vector<sim::RigSensor>& rig,
+                                             const MsgGraphOptions& options, int scenes) {
   const int n = static_cast<int>(rig.size());
   std::vector<double> err_r(n, 0.0), pred_r(n, 0.0), err_t(n, 0.0), pred_t(n, 0.0);
   int reference = 0;
@@ -130,10 +136,13 @@ std::vector<SpreadRatio> spreadOverPredicted(const std::vector<sim::RigSensor>& 
   for (int s = 0; s < n; ++s) {
     if (s == reference) continue;
     out.push_back({rig[s].frame, std::sqrt(err_r[s] / pred_r[s]), std::sqrt(err_t[s] / pred_t[s])});
-    std::printf("%s: RMS error / RMS predicted 1 sigma over %d scenes: rotation %.2f (RMS %.4f deg), translation %.2f "
-                "(RMS %.2f mm)\n",
-                rig[s].frame.c_str(), scenes, out.back().rotation, std::sqrt(err_r[s] / scenes) * kDegPerRad,
-                out.back().translation, 1000.0 * std::sqrt(err_t[s] / scenes));
+    std::printf(
+        "%s: RMS error / RMS predicted 1 sigma over %d scenes: rotation %.2f (RMS %.4f deg), "
+        "translation %.2f "
+        "(RMS %.2f mm)\n",
+        rig[s].frame.c_str(), scenes, out.back().rotation,
+        std::sqrt(err_r[s] / scenes) * kDegPerRad, out.back().translation,
+        1000.0 * std::sqrt(err_t[s] / scenes));
   }
   return out;
 }
@@ -184,7 +193,8 @@ TEST(MsgGraph, NoisyFifthSensorDoesNotRuinTheOthers) {
   expectPairsWithin(sol, scene, {0, 1, 2, 3}, kNoisyRotationTolDeg, kNoisyTranslationTolM);
   std::cout << "good pairs: max " << maxPairRotationDeg(sol, scene, {0, 1, 2, 3}) << " deg, "
             << 1000 * maxPairTranslationM(sol, scene, {0, 1, 2, 3}) << " mm; noisy sensor sigma "
-            << sol.sensors[4].offset_sigma_m * 1000 << " mm vs " << sol.sensors[3].offset_sigma_m * 1000 << " mm\n";
+            << sol.sensors[4].offset_sigma_m * 1000 << " mm vs "
+            << sol.sensors[3].offset_sigma_m * 1000 << " mm\n";
   // The noisy sensor is found noisier than its good sibling.
   EXPECT_GT(sol.sensors[4].offset_sigma_m, sol.sensors[3].offset_sigma_m);
 }
@@ -233,8 +243,8 @@ TEST(MsgGraph, CameraLidarPairsFitTheImageEdgesAsWellAsTheirPbpcSolve) {
       const auto pbpc_mlre = meanLineReprojectionErrorPx(views, pbpc.camera_T_lidar);
       ASSERT_TRUE(graph_mlre && pbpc_mlre);
       EXPECT_LT(*graph_mlre, kMaxMlreRatio * *pbpc_mlre)
-          << scene.sensors[c].frame << " <- " << scene.sensors[l].frame << ": graph " << *graph_mlre << " px, PBPC "
-          << *pbpc_mlre << " px";
+          << scene.sensors[c].frame << " <- " << scene.sensors[l].frame << ": graph " << *graph_mlre
+          << " px, PBPC " << *pbpc_mlre << " px";
     }
   const auto stereo = stereoConsistency(sol, 0, 1, scene.sensors[1].reference_T_sensor);
   ASSERT_TRUE(stereo.ok()) << stereo.error();
@@ -273,14 +283,17 @@ TEST(MsgGraph, ConvergesFromRandomStarts) {
   for (int trial = 0; trial < kTrials; ++trial) {
     std::vector<Eigen::Isometry3d> start;
     for (int s = 0; s < 4; ++s)
-      start.push_back(s == 0 ? Eigen::Isometry3d::Identity()
-                             : perturb(scene.sensors[s].reference_T_sensor, 90.0 * kRadPerDeg, 0.5, rng));
+      start.push_back(
+          s == 0 ? Eigen::Isometry3d::Identity()
+                 : perturb(scene.sensors[s].reference_T_sensor, 90.0 * kRadPerDeg, 0.5, rng));
     const MsgSolution sol = solveMsgGraph(scene.problem, options, start);
     EXPECT_FALSE(sol.used_pairwise_init);
     bool same = sol.success;
     for (int s = 1; s < 4 && same; ++s)
-      same = rotationErrorDeg(sol.sensors[s].reference_T_sensor, reference.sensors[s].reference_T_sensor) < kSameDeg &&
-             translationErrorM(sol.sensors[s].reference_T_sensor, reference.sensors[s].reference_T_sensor) < kSameM;
+      same = rotationErrorDeg(sol.sensors[s].reference_T_sensor,
+                              reference.sensors[s].reference_T_sensor) < kSameDeg &&
+             translationErrorM(sol.sensors[s].reference_T_sensor,
+                               reference.sensors[s].reference_T_sensor) < kSameM;
     converged += same ? 1 : 0;
   }
   std::cout << "random starts converged: " << converged << " / " << kTrials << "\n";
@@ -325,8 +338,10 @@ TEST(MsgGraph, DegenerateInputGivesReasons) {
   // Every board pose with the same orientation: plane-to-plane cannot fix the poses.
   MsgProblem parallel = scene.problem;
   for (auto& pose : parallel.poses) {
-    for (auto& [s, f] : pose.cameras) f.plane.normal = scene.problem.poses[0].cameras.at(s).plane.normal;
-    for (auto& [s, f] : pose.lidars) f.plane.normal = scene.problem.poses[0].lidars.at(s).plane.normal;
+    for (auto& [s, f] : pose.cameras)
+      f.plane.normal = scene.problem.poses[0].cameras.at(s).plane.normal;
+    for (auto& [s, f] : pose.lidars)
+      f.plane.normal = scene.problem.poses[0].lidars.at(s).plane.normal;
   }
   MsgGraphOptions no_corners;
   no_corners.use_corner_terms = false;
@@ -358,7 +373,9 @@ TEST(MsgGraph, OutlierObservationsAreRejected) {
   const std::vector<int> corrupted_lidar_poses = {3, 11, 25};
   for (int p : corrupted_lidar_poses) scene.problem.poses[p].lidars.at(2).plane.offset += 0.15;
   auto& cam = scene.problem.poses[17].cameras.at(1);
-  cam.plane.normal = (Eigen::AngleAxisd(10 * kRadPerDeg, Eigen::Vector3d::UnitX()) * cam.plane.normal).normalized();
+  cam.plane.normal =
+      (Eigen::AngleAxisd(10 * kRadPerDeg, Eigen::Vector3d::UnitX()) * cam.plane.normal)
+          .normalized();
   for (auto& c : cam.pattern) c.pixel += Eigen::Vector2d(25.0, -15.0);
   const MsgSolution sol = solveMsgGraph(scene.problem, MsgGraphOptions());
   ASSERT_TRUE(sol.success) << sol.reason;
@@ -409,7 +426,8 @@ TEST(MsgGraph, ReferenceSensorChoiceDoesNotChangeTheRelativePoses) {
   EXPECT_TRUE(lidar_ref.sensors[3].reference_T_sensor.isApprox(Eigen::Isometry3d::Identity()));
   for (int a = 0; a < 4; ++a)
     for (int b = a + 1; b < 4; ++b) {
-      const Eigen::Isometry3d x = *sensorTSensor(camera_ref, a, b), y = *sensorTSensor(lidar_ref, a, b);
+      const Eigen::Isometry3d x = *sensorTSensor(camera_ref, a, b),
+                              y = *sensorTSensor(lidar_ref, a, b);
       EXPECT_LT(rotationErrorDeg(x, y), 0.01);
       EXPECT_LT(translationErrorM(x, y), 0.001);
     }
@@ -465,20 +483,24 @@ TEST(MsgGraph, PairCovarianceMatchesTheSpreadAndNeedsTheCrossTerms) {
     MsgSolution independent = sol;
     independent.pose_covariance.block<6, 6>(0, 6).setZero();
     independent.pose_covariance.block<6, 6>(6, 0).setZero();
-    stereo_without_cross.add(*sensorTSensor(sol, 0, 1), stereo_truth, *relativeCovariance(independent, 0, 1));
+    stereo_without_cross.add(*sensorTSensor(sol, 0, 1), stereo_truth,
+                             *relativeCovariance(independent, 0, 1));
   }
   for (const auto& [key, spread] : pairs) {
     const std::string name = rig[key.first].frame + "<-" + rig[key.second].frame;
-    std::printf("%s: RMS error / RMS predicted 1 sigma over %d scenes: rotation %.2f, translation %.2f\n", name.c_str(),
-                kScenes, spread.rotationRatio(), spread.translationRatio());
+    std::printf(
+        "%s: RMS error / RMS predicted 1 sigma over %d scenes: rotation %.2f, translation %.2f\n",
+        name.c_str(), kScenes, spread.rotationRatio(), spread.translationRatio());
     EXPECT_GT(spread.rotationRatio(), 1.0 / kFactor) << name;
     EXPECT_LT(spread.rotationRatio(), kFactor) << name;
     EXPECT_GT(spread.translationRatio(), 1.0 / kFactor) << name;
     EXPECT_LT(spread.translationRatio(), kFactor) << name;
   }
-  std::printf("stereo pair: with cross terms rotation %.2f, translation %.2f; without: rotation %.2f, translation %.2f\n",
-              stereo.rotationRatio(), stereo.translationRatio(), stereo_without_cross.rotationRatio(),
-              stereo_without_cross.translationRatio());
+  std::printf(
+      "stereo pair: with cross terms rotation %.2f, translation %.2f; without: rotation %.2f, "
+      "translation %.2f\n",
+      stereo.rotationRatio(), stereo.translationRatio(), stereo_without_cross.rotationRatio(),
+      stereo_without_cross.translationRatio());
   EXPECT_GT(stereo.rotationRatio(), 1.0 / kFactor);
   EXPECT_LT(stereo.rotationRatio(), kFactor);
   EXPECT_GT(stereo.translationRatio(), 1.0 / kFactor);
@@ -519,8 +541,10 @@ TEST(MsgGraph, ResultFileListsEverySensorAndPair) {
   ASSERT_EQ(parsed->pairs.size(), 4u);
   for (size_t i = 0; i < 4; ++i) {
     EXPECT_EQ(parsed->pairs[i].camera_frame, file.pairs[i].camera_frame);
-    EXPECT_LT(rotationErrorDeg(parsed->pairs[i].camera_T_lidar, file.pairs[i].camera_T_lidar), 1e-3);
-    EXPECT_LT(translationErrorM(parsed->pairs[i].camera_T_lidar, file.pairs[i].camera_T_lidar), 1e-5);
+    EXPECT_LT(rotationErrorDeg(parsed->pairs[i].camera_T_lidar, file.pairs[i].camera_T_lidar),
+              1e-3);
+    EXPECT_LT(translationErrorM(parsed->pairs[i].camera_T_lidar, file.pairs[i].camera_T_lidar),
+              1e-5);
   }
 }
 

@@ -1,7 +1,7 @@
 // Grouping per-sensor streams by stamp into board poses, then solving the graph from them.
 #include <board_calib/core/msg_graph/pose_grouping.h>
-#include "support/synthetic_rig.h"
 #include <board_calib/core/transform.h>
+#include "support/synthetic_rig.h"
 
 #include <gtest/gtest.h>
 
@@ -62,8 +62,12 @@ TEST(MsgSession, GroupsJitteredStreamsIntoTheBoardPoses) {
   ASSERT_TRUE(sol.success) << sol.reason;
   for (int s = 1; s < 4; ++s) {
     // Issue 9 target for every pair: 0.2 deg, 1 cm.
-    EXPECT_LT(rotationErrorDeg(sol.sensors[s].reference_T_sensor, scene->sensors[s].reference_T_sensor), 0.2);
-    EXPECT_LT(translationErrorM(sol.sensors[s].reference_T_sensor, scene->sensors[s].reference_T_sensor), 0.01);
+    EXPECT_LT(
+        rotationErrorDeg(sol.sensors[s].reference_T_sensor, scene->sensors[s].reference_T_sensor),
+        0.2);
+    EXPECT_LT(
+        translationErrorM(sol.sensors[s].reference_T_sensor, scene->sensors[s].reference_T_sensor),
+        0.01);
   }
 }
 

@@ -60,8 +60,9 @@ LidarPoint lidarPoint(const Eigen::Vector3d& p, float intensity = 100.f) {
 }
 
 // A LiDAR-frame point that lands at raw pixel (u, v) at camera depth z.
-Eigen::Vector3d lidarPointAtPixel(const CameraModel& camera, const Eigen::Isometry3d& camera_T_lidar, double u,
-                                  double v, double z) {
+Eigen::Vector3d lidarPointAtPixel(const CameraModel& camera,
+                                  const Eigen::Isometry3d& camera_T_lidar, double u, double v,
+                                  double z) {
   const Eigen::Vector3d ray = camera.unprojectRay(Eigen::Vector2d(u, v));
   return camera_T_lidar.inverse() * (ray * (z / ray.z()));
 }
@@ -76,7 +77,8 @@ TEST(Projection, MatchesCameraModelProjectAndCountsCulledPoints) {
   LidarCloud cloud;
   cloud.frame_id = "lidar";
   const int kVisible = 300;
-  for (int i = 0; i < kVisible; ++i) cloud.points.push_back(lidarPoint(lidarPointAtPixel(camera, T, u(rng), v(rng), z(rng))));
+  for (int i = 0; i < kVisible; ++i)
+    cloud.points.push_back(lidarPoint(lidarPointAtPixel(camera, T, u(rng), v(rng), z(rng))));
   // Behind the camera, beyond max depth, off to the side, NaN and zero-range.
   cloud.points.push_back(lidarPoint(T.inverse() * Eigen::Vector3d(0.1, 0.1, -3.0)));
   cloud.points.push_back(lidarPoint(T.inverse() * Eigen::Vector3d(0.1, 0.1, 45.0)));
@@ -112,8 +114,8 @@ TEST(Projection, CullsPointsThatFoldBackThroughTheDistortion) {
   const Eigen::Vector3d off_axis(2.3, 0.0, 1.0);
   Eigen::Vector2d folded;
   ASSERT_TRUE(camera.project(off_axis, &folded));
-  ASSERT_TRUE(folded.x() >= 0 && folded.x() < camera.width()) << "the test camera must fold this point back, got "
-                                                               << folded.transpose();
+  ASSERT_TRUE(folded.x() >= 0 && folded.x() < camera.width())
+      << "the test camera must fold this point back, got " << folded.transpose();
   LidarCloud cloud;
   cloud.points.push_back(lidarPoint(off_axis));
   cloud.points.push_back(lidarPoint(Eigen::Vector3d(0.1, 0.05, 2.0)));
@@ -129,10 +131,13 @@ TEST(Projection, ZBufferDropsPointsHiddenBehindNearerOnes) {
   const CameraModel camera = makeCamera();
   const Eigen::Isometry3d T = cameraTLidar();
   LidarCloud cloud;
-  cloud.points.push_back(lidarPoint(lidarPointAtPixel(camera, T, 500.0, 400.0, 3.0)));   // board
-  cloud.points.push_back(lidarPoint(lidarPointAtPixel(camera, T, 501.0, 401.0, 9.0)));   // wall behind it
-  cloud.points.push_back(lidarPoint(lidarPointAtPixel(camera, T, 502.0, 400.0, 3.1)));   // board, within tolerance
-  cloud.points.push_back(lidarPoint(lidarPointAtPixel(camera, T, 900.0, 400.0, 9.0)));   // wall elsewhere
+  cloud.points.push_back(lidarPoint(lidarPointAtPixel(camera, T, 500.0, 400.0, 3.0)));  // board
+  cloud.points.push_back(
+      lidarPoint(lidarPointAtPixel(camera, T, 501.0, 401.0, 9.0)));  // wall behind it
+  cloud.points.push_back(
+      lidarPoint(lidarPointAtPixel(camera, T, 502.0, 400.0, 3.1)));  // board, within tolerance
+  cloud.points.push_back(
+      lidarPoint(lidarPointAtPixel(camera, T, 900.0, 400.0, 9.0)));  // wall elsewhere
   ProjectionOptions options;
   options.zbuffer_cell_px = 6;
   options.occlusion_tolerance_m = 0.3;
@@ -161,7 +166,8 @@ TEST(Projection, RejectsBadOptionsAndInputsWithReasons) {
   Eigen::Isometry3d nan_T = Eigen::Isometry3d::Identity();
   nan_T.translation().x() = std::numeric_limits<double>::quiet_NaN();
   EXPECT_FALSE(projectCloud(cloud, camera, nan_T, ProjectionOptions()).ok());
-  EXPECT_FALSE(projectCloud(cloud, CameraModel(), Eigen::Isometry3d::Identity(), ProjectionOptions()).ok());
+  EXPECT_FALSE(
+      projectCloud(cloud, CameraModel(), Eigen::Isometry3d::Identity(), ProjectionOptions()).ok());
 
   cv::Mat float_image(10, 10, CV_32FC1, cv::Scalar(0));
   ProjectedCloud empty;
@@ -250,7 +256,8 @@ TEST(Overlay, ColorCloudSamplesTheImageBilinearly) {
   cv::Mat image(camera.height(), camera.width(), CV_8UC3);
   for (int y = 0; y < image.rows; ++y)
     for (int x = 0; x < image.cols; ++x)
-      image.at<cv::Vec3b>(y, x) = cv::Vec3b(static_cast<uint8_t>(x % 256), static_cast<uint8_t>(y % 256), 77);
+      image.at<cv::Vec3b>(y, x) =
+          cv::Vec3b(static_cast<uint8_t>(x % 256), static_cast<uint8_t>(y % 256), 77);
   LidarCloud cloud;
   cloud.frame_id = "lidar";
   cloud.stamp = 12.5;
@@ -301,7 +308,8 @@ SyntheticView makeView(const CameraModel& camera, const Eigen::Isometry3d& camer
   SyntheticView view;
   view.image.found = true;
   view.lidar.found = true;
-  const Eigen::Vector2d centre = (corners_px[0] + corners_px[1] + corners_px[2] + corners_px[3]) / 4;
+  const Eigen::Vector2d centre =
+      (corners_px[0] + corners_px[1] + corners_px[2] + corners_px[3]) / 4;
   for (int j = 0; j < 4; ++j) {
     const Eigen::Vector2d a = corners_px[j], b = corners_px[(j + 1) % 4];
     Eigen::Vector3d l(b.y() - a.y(), a.x() - b.x(), 0.0);
@@ -313,7 +321,8 @@ SyntheticView makeView(const CameraModel& camera, const Eigen::Isometry3d& camer
     view.lidar.edge_valid[j] = true;
     for (int n = 1; n < 20; ++n) {
       const double s = n / 20.0;
-      const Eigen::Vector3d p_cam = corners_cam[j] + s * (corners_cam[(j + 1) % 4] - corners_cam[j]);
+      const Eigen::Vector3d p_cam =
+          corners_cam[j] + s * (corners_cam[(j + 1) % 4] - corners_cam[j]);
       view.lidar.edge_points[j].push_back(camera_T_lidar.inverse() * p_cam);
     }
   }
@@ -352,7 +361,8 @@ TEST(EdgeCheck, ReassociatesEdgesNamedDifferentlyAndReportsFailures) {
   const Eigen::Isometry3d T = cameraTLidar();
   SyntheticView view = makeView(camera, T);
   // The LiDAR names its edges one step rotated.
-  std::rotate(view.lidar.edge_points.begin(), view.lidar.edge_points.begin() + 1, view.lidar.edge_points.end());
+  std::rotate(view.lidar.edge_points.begin(), view.lidar.edge_points.begin() + 1,
+              view.lidar.edge_points.end());
   EdgeCheckOptions options;
   auto check = checkProjectedEdges(view.lidar, view.image, camera, T, options);
   ASSERT_TRUE(check.ok());
@@ -366,7 +376,8 @@ TEST(EdgeCheck, ReassociatesEdgesNamedDifferentlyAndReportsFailures) {
   // Behind the camera: a specific reason, no crash.
   Eigen::Isometry3d flipped = T;
   flipped.linear() = expSO3(Eigen::Vector3d(0, M_PI, 0)) * T.linear();
-  const auto behind = checkProjectedEdges(view.lidar, view.image, camera, flipped, EdgeCheckOptions());
+  const auto behind =
+      checkProjectedEdges(view.lidar, view.image, camera, flipped, EdgeCheckOptions());
   ASSERT_FALSE(behind.ok());
   EXPECT_NE(behind.error().find("in front of the camera"), std::string::npos);
   view.lidar.found = false;
@@ -377,7 +388,8 @@ TEST(EdgeCheck, ReassociatesEdgesNamedDifferentlyAndReportsFailures) {
 TEST(Frustum, CornersProjectToTheImageCorners) {
   const CameraModel camera = makeCamera();
   const auto corners = frustumCorners(camera, 2.0);
-  const Eigen::Vector2d expected[4] = {{-0.5, -0.5}, {1919.5, -0.5}, {1919.5, 1199.5}, {-0.5, 1199.5}};
+  const Eigen::Vector2d expected[4] = {
+      {-0.5, -0.5}, {1919.5, -0.5}, {1919.5, 1199.5}, {-0.5, 1199.5}};
   for (int i = 0; i < 4; ++i) {
     EXPECT_NEAR(corners[i].z(), 2.0, 1e-12);
     Eigen::Vector2d px;

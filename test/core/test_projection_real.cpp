@@ -38,7 +38,8 @@ TEST(ProjectionReal, EdgeCheckReproducesTheIndependentMlreTool) {
 
   int frames = 0, points = 0;
   double sum_frame_mlre = 0, sum_point_residuals = 0;
-  for (const auto& entry : std::filesystem::directory_iterator(kMlreDir + "/ref_basler_os1_plain")) {
+  for (const auto& entry :
+       std::filesystem::directory_iterator(kMlreDir + "/ref_basler_os1_plain")) {
     if (entry.path().extension() != ".yaml") continue;
     const YAML::Node ref = YAML::LoadFile(entry.path().string());
     const YAML::Node cam = ref["camera"];
@@ -93,7 +94,8 @@ TEST(ProjectionReal, EdgeCheckReproducesTheIndependentMlreTool) {
     ++frames;
 
     // With the association left to the check, the best assignment is the reference one.
-    const auto reassociated = checkProjectedEdges(lidar, image, *camera, *camera_T_lidar, EdgeCheckOptions());
+    const auto reassociated =
+        checkProjectedEdges(lidar, image, *camera, *camera_T_lidar, EdgeCheckOptions());
     ASSERT_TRUE(reassociated.ok());
     EXPECT_NEAR(reassociated->mlre_px, check->mlre_px, 1e-9) << entry.path();
   }

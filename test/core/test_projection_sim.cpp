@@ -52,7 +52,8 @@ struct BoardGeometry {
     if (t <= 0) return false;
     *p_lidar = t * d;
     *p_board = lidar_T_board.inverse() * *p_lidar;
-    return p_board->x() >= 0 && p_board->y() >= 0 && p_board->x() < target.width && p_board->y() < target.height;
+    return p_board->x() >= 0 && p_board->y() >= 0 && p_board->x() < target.width &&
+           p_board->y() < target.height;
   }
 };
 
@@ -65,16 +66,18 @@ int boardSide(const Target& target, const Eigen::Vector3d& p_board) {
 
 // Sub-pixel position (px along the outward normal, 0 = at `undistorted`) where the grey level
 // crosses half-way between the board and the background; NaN when the profile is unclear.
-double edgeOffsetPx(const cv::Mat& grey, const CameraModel& camera, const Eigen::Vector2d& undistorted,
-                    const Eigen::Vector2d& outward) {
+double edgeOffsetPx(const cv::Mat& grey, const CameraModel& camera,
+                    const Eigen::Vector2d& undistorted, const Eigen::Vector2d& outward) {
   constexpr double kReach = 8.0, kStep = 0.125, kPlateau = 5.0;
   std::vector<double> s_values, profile;
   for (double s = -kReach; s <= kReach + 1e-9; s += kStep) {
     const Eigen::Vector2d raw = camera.distortPixel(undistorted + s * outward);
-    if (raw.x() < 1 || raw.y() < 1 || raw.x() > grey.cols - 2 || raw.y() > grey.rows - 2) return NAN;
+    if (raw.x() < 1 || raw.y() < 1 || raw.x() > grey.cols - 2 || raw.y() > grey.rows - 2)
+      return NAN;
     cv::Mat patch;
-    cv::getRectSubPix(grey, cv::Size(1, 1), cv::Point2f(static_cast<float>(raw.x()), static_cast<float>(raw.y())),
-                      patch, CV_32F);
+    cv::getRectSubPix(grey, cv::Size(1, 1),
+                      cv::Point2f(static_cast<float>(raw.x()), static_cast<float>(raw.y())), patch,
+                      CV_32F);
     s_values.push_back(s);
     profile.push_back(patch.at<float>(0, 0));
   }
@@ -115,23 +118,25 @@ TEST(ProjectionSim, ProjectedLidarEdgePointsLandOnTheRenderedBoardEdges) {
   sim::SceneSpec scene;
   scene.target.type = TargetType::kPlain;
   scene.target.width = scene.target.height = 1.016;
-  scene.room = false;      // board on black: a clean photometric edge to measure
+  scene.room = false;  // board on black: a clean photometric edge to measure
   scene.occluder = false;
   Eigen::Matrix3d facing;  // board x = -y_world (right), y = -z_world (down), z = +x_world (away)
   facing << 0, 0, 1, -1, 0, 0, 0, -1, 0;
-  const Eigen::Matrix3d R_board = fromRollPitchYaw(Eigen::Vector3d(0.0, 0.0, 12.0 * kRadPerDeg)) * facing *
-                                  expSO3(Eigen::Vector3d(0, 0, 47.0 * kRadPerDeg)) *
+  const Eigen::Matrix3d R_board = fromRollPitchYaw(Eigen::Vector3d(0.0, 0.0, 12.0 * kRadPerDeg)) *
+                                  facing * expSO3(Eigen::Vector3d(0, 0, 47.0 * kRadPerDeg)) *
                                   expSO3(Eigen::Vector3d(8.0 * kRadPerDeg, 0, 0));
   Eigen::Isometry3d world_T_board = makeTransform(R_board, Eigen::Vector3d(4.0, 0.1, 0.05));
   world_T_board.translation() -= R_board * scene.target.center();
 
   std::mt19937 rng(11);
   std::vector<sim::ReturnOrigin> origins;
-  const LidarCloud scan = sim::simulateLidarScan(*spec, world_T_lidar, scene, world_T_board, rng, &origins);
+  const LidarCloud scan =
+      sim::simulateLidarScan(*spec, world_T_lidar, scene, world_T_board, rng, &origins);
   ASSERT_EQ(scan.points.size(), origins.size());
   ASSERT_TRUE(scan.organized());
   sim::RenderOptions render;
-  const cv::Mat image = sim::renderCameraImage(camera, world_T_camera, scene, world_T_board, render, rng);
+  const cv::Mat image =
+      sim::renderCameraImage(camera, world_T_camera, scene, world_T_board, render, rng);
   ASSERT_FALSE(image.empty());
 
   // Per-scan-line extremes of the board returns, then refined on the true geometry.
@@ -152,11 +157,13 @@ TEST(ProjectionSim, ProjectedLidarEdgePointsLandOnTheRenderedBoardEdges) {
     }
     if (lo < 0) continue;
     const double el = spec->elevations_deg[ring] * kRadPerDeg;
-    for (const auto& [extreme, outward] : {std::pair<int, int>{lo, -1}, std::pair<int, int>{hi, +1}}) {
+    for (const auto& [extreme, outward] :
+         {std::pair<int, int>{lo, -1}, std::pair<int, int>{hi, +1}}) {
       // Step to the last column whose beam centre hits the board, then bisect towards the next.
       Eigen::Vector3d p_lidar, p_board;
       int in = extreme;
-      while (!board.hit(spec->azimuthRad(ring, in), el, &p_lidar, &p_board) && in != (lo + hi) / 2) in -= outward;
+      while (!board.hit(spec->azimuthRad(ring, in), el, &p_lidar, &p_board) && in != (lo + hi) / 2)
+        in -= outward;
       if (!board.hit(spec->azimuthRad(ring, in), el, &p_lidar, &p_board)) continue;
       int out = in + outward;
       while (board.hit(spec->azimuthRad(ring, out), el, &p_lidar, &p_board)) out += outward;
@@ -237,8 +244,8 @@ TEST(ProjectionSim, ProjectedLidarEdgePointsLandOnTheRenderedBoardEdges) {
   // yet catches any half-pixel convention slip combined with a projection error.
   EXPECT_LT(worst_image_px, 1.0) << "mean " << sum_image_px / measured_edges;
   EXPECT_LT(sum_image_px / measured_edges, 0.35);
-  std::printf("projected edge points vs rendered edges: %d points, mean %.3f px, worst %.3f px\n", measured_edges,
-              sum_image_px / measured_edges, worst_image_px);
+  std::printf("projected edge points vs rendered edges: %d points, mean %.3f px, worst %.3f px\n",
+              measured_edges, sum_image_px / measured_edges, worst_image_px);
 
   // The overlay itself: the whole scan drawn, then the projected-edges check of the raw
   // extremes against the true lines. Raw extremes sit inside the board by less than one column
@@ -251,11 +258,13 @@ TEST(ProjectionSim, ProjectedLidarEdgePointsLandOnTheRenderedBoardEdges) {
   edge_options.reassociate = false;  // sides are named identically on both sensors here
   const auto check = checkProjectedEdges(measured, truth, camera, camera_T_lidar, edge_options);
   ASSERT_TRUE(check.ok()) << check.error();
-  const double column_step_px = camera.intrinsics().fx * spec->horizontal_resolution_deg * kRadPerDeg;
+  const double column_step_px =
+      camera.intrinsics().fx * spec->horizontal_resolution_deg * kRadPerDeg;
   EXPECT_LT(check->mlre_px, column_step_px);
   ASSERT_TRUE(drawEdgeCheck(truth, *check, camera, edge_options, &overlay).ok);
   const std::string out = ::testing::TempDir() + "board_calib_projection_sim_overlay.png";
   cv::imwrite(out, overlay);
-  std::printf("raw per-scan-line extremes: MLRE %.2f px (column step %.1f px); overlay saved to %s\n", check->mlre_px,
-              column_step_px, out.c_str());
+  std::printf(
+      "raw per-scan-line extremes: MLRE %.2f px (column step %.1f px); overlay saved to %s\n",
+      check->mlre_px, column_step_px, out.c_str());
 }

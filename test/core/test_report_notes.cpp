@@ -40,15 +40,18 @@ TEST(ReportNotes, RectangularBoardComparedSideBySide) {
   // rs16_plain: 0.80 x 0.60 m declared, the LiDAR reads 0.800 x 0.632 m. The old check compared
   // the mean side (0.716 vs 0.700) and blamed both sides.
   const CalibrationSolution none;  // no solve: size notes only
-  const std::string note = sizeNote(consistencyNotes(viewsMeasuring(0.800, 0.632), rectangle(0.8, 0.6), none));
+  const std::string note =
+      sizeNote(consistencyNotes(viewsMeasuring(0.800, 0.632), rectangle(0.8, 0.6), none));
   ASSERT_FALSE(note.empty());
   EXPECT_NE(note.find("0.800 x 0.632 m"), std::string::npos) << note;
   EXPECT_NE(note.find("height +5.3 %"), std::string::npos) << note;
   EXPECT_EQ(note.find("width"), std::string::npos) << note;
   // Matching sides: no note, even though the mean of width and height (0.7) matches neither.
-  EXPECT_TRUE(sizeNote(consistencyNotes(viewsMeasuring(0.805, 0.598), rectangle(0.8, 0.6), none)).empty());
+  EXPECT_TRUE(
+      sizeNote(consistencyNotes(viewsMeasuring(0.805, 0.598), rectangle(0.8, 0.6), none)).empty());
   // A rectangle read as a square of the mean size would be wrong on both sides.
-  const std::string both = sizeNote(consistencyNotes(viewsMeasuring(0.7, 0.7), rectangle(0.8, 0.6), none));
+  const std::string both =
+      sizeNote(consistencyNotes(viewsMeasuring(0.7, 0.7), rectangle(0.8, 0.6), none));
   EXPECT_NE(both.find("width -12.5 %"), std::string::npos) << both;
   EXPECT_NE(both.find("height +16.7 %"), std::string::npos) << both;
 }
@@ -71,12 +74,16 @@ TEST(ReportNotes, CompensatedPlaneScaleQuotesCompensatedFigures) {
   ASSERT_FALSE(note.empty());
   // Never the uncompensated-offset warning next to "the solve used it".
   for (const auto& n : consistencyNotes(scene->views, rectangle(1.0, 1.0), s))
-    EXPECT_EQ(n.find("the camera plane depth (from the declared board size) and the LiDAR disagree"), std::string::npos)
+    EXPECT_EQ(
+        n.find("the camera plane depth (from the declared board size) and the LiDAR disagree"),
+        std::string::npos)
         << n;
   // The quoted compensated offset is small (2 cm range noise averages out over the points:
   // below 1 cm), the quoted raw one is the ~5 % of 2-5 m the scale absorbed (> 5 cm).
   std::smatch m;
-  ASSERT_TRUE(std::regex_search(note, m, std::regex("lie ([0-9.]+) cm .* \\(([0-9.]+) cm mean offset\\)"))) << note;
+  ASSERT_TRUE(
+      std::regex_search(note, m, std::regex("lie ([0-9.]+) cm .* \\(([0-9.]+) cm mean offset\\)")))
+      << note;
   EXPECT_LT(std::stod(m[1]), 1.0) << note;
   EXPECT_GT(std::stod(m[2]), 5.0) << note;
   EXPECT_NE(solutionSummary(s).find("before the plane scale"), std::string::npos);

@@ -18,9 +18,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr int kBadView = 4;               // index of the view whose image line is moved
+constexpr int kBadView = 4;  // index of the view whose image line is moved
 constexpr int kBadEdge = kUpperRight;
-constexpr double kLineShiftPx = 40.0;     // a gross error, as a hand or a wrong line gives
+constexpr double kLineShiftPx = 40.0;  // a gross error, as a hand or a wrong line gives
 
 struct Fixture {
   std::vector<View> views;
@@ -38,15 +38,19 @@ Fixture makeFixture(bool corrupt) {
   EXPECT_TRUE(scene.ok()) << scene.error();
   Fixture f;
   f.views = scene->views;
-  if (corrupt) f.views[kBadView].camera.edge_lines[kBadEdge].z() -= kLineShiftPx;  // (a, b) unit: moves it 40 px
+  if (corrupt)
+    f.views[kBadView].camera.edge_lines[kBadEdge].z() -=
+        kLineShiftPx;  // (a, b) unit: moves it 40 px
   SolverOptions solver;
-  for (Method m : {Method::kPpc, Method::kPbpc}) f.solutions.push_back(calibrate(f.views, m, solver));
+  for (Method m : {Method::kPpc, Method::kPbpc})
+    f.solutions.push_back(calibrate(f.views, m, solver));
   for (const auto& s : f.solutions) EXPECT_TRUE(s.success) << s.reason;
   return f;
 }
 
 std::string tempDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("board_calib_plots_" + name + "_" + std::to_string(::getpid()));
+  const fs::path dir =
+      fs::temp_directory_path() / ("board_calib_plots_" + name + "_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir.string();
@@ -107,18 +111,20 @@ TEST(ReportPlots, WritesFiguresAtTheRequestedSizeAndHighlightsTheOutlier) {
 TEST(ReportPlots, MarkdownLinksFiguresOutliersAndEveryOverlay) {
   const Fixture f = makeFixture(true);
   const std::string dir = tempDir("md");
-  for (const char* name : {"overlay_view_10.jpg", "overlay_view_2.jpg", "overlay_view_1.jpg", "notes.txt"})
+  for (const char* name :
+       {"overlay_view_10.jpg", "overlay_view_2.jpg", "overlay_view_1.jpg", "notes.txt"})
     std::ofstream(dir + "/" + name) << "x";
   { std::ofstream(dir + "/report.md") << "# board_calib report\n"; }
   auto figures = appendReportFigures(dir, f.views, f.solutions, 1);
   ASSERT_TRUE(figures.ok()) << figures.error();
-  EXPECT_EQ(listOverlayFiles(dir), (std::vector<std::string>{"overlay_view_1.jpg", "overlay_view_2.jpg",
-                                                             "overlay_view_10.jpg"}));
+  EXPECT_EQ(listOverlayFiles(dir),
+            (std::vector<std::string>{"overlay_view_1.jpg", "overlay_view_2.jpg",
+                                      "overlay_view_10.jpg"}));
   std::ifstream in(dir + "/report.md");
   const std::string md((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   EXPECT_EQ(md.rfind("# board_calib report", 0), 0u);  // appended, not overwritten
-  for (const char* s : {"](edge_errors.png)", "](pose_coverage.png)", "](methods.png)", "(overlay_view_1.jpg)",
-                        "(overlay_view_2.jpg)", "(overlay_view_10.jpg)"})
+  for (const char* s : {"](edge_errors.png)", "](pose_coverage.png)", "](methods.png)",
+                        "(overlay_view_1.jpg)", "(overlay_view_2.jpg)", "(overlay_view_10.jpg)"})
     EXPECT_NE(md.find(s), std::string::npos) << s;
   const std::string flagged = "view " + std::to_string(f.views[kBadView].id) + ", edge UR";
   EXPECT_NE(md.find(flagged), std::string::npos) << md;

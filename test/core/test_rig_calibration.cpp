@@ -3,9 +3,9 @@
 // another object in 30 % of the poses, swapped cameras, a sensor whose stamps pair it with the
 // wrong poses) never gives a silent success: each case is failed or doubtful with a reason, or
 // every pair lies within 3 sigma of its own reported uncertainty.
-#include "support/synthetic_rig.h"
 #include <board_calib/core/pipeline/rig_calibration.h>
 #include <board_calib/core/transform.h>
+#include "support/synthetic_rig.h"
 
 #include <gtest/gtest.h>
 
@@ -35,14 +35,17 @@ Scene makeScene(unsigned seed, int poses) {
   out.target = so.target;
   // The rig file's view of the sensors, with the factory stereo calibration as known extrinsic.
   for (const auto& sensor : out.scene.sensors) {
-    if (sensor.kind == multi_sensor::SensorKind::kCamera) out.rig.cameras.push_back({sensor.frame, "", "", "", 0, 0, 0});
-    else out.rig.lidars.push_back({sensor.frame, "", "", 0, 0, 0});
+    if (sensor.kind == multi_sensor::SensorKind::kCamera)
+      out.rig.cameras.push_back({sensor.frame, "", "", "", 0, 0, 0});
+    else
+      out.rig.lidars.push_back({sensor.frame, "", "", 0, 0, 0});
   }
   out.rig.reference = out.scene.sensors[0].frame;
   KnownExtrinsic stereo;
   stereo.a = out.scene.sensors[0].frame;
   stereo.b = out.scene.sensors[1].frame;
-  stereo.a_T_b = out.scene.sensors[0].reference_T_sensor.inverse() * out.scene.sensors[1].reference_T_sensor;
+  stereo.a_T_b =
+      out.scene.sensors[0].reference_T_sensor.inverse() * out.scene.sensors[1].reference_T_sensor;
   out.rig.known_extrinsics.push_back(stereo);
   return out;
 }
@@ -59,12 +62,13 @@ bool withinReportedSigma(const RigCalibration& run, const Scene& s, std::string*
     const Eigen::Isometry3d truth = truthPair(s, p.camera, p.lidar);
     const double rot = rotationErrorDeg(p.solution.camera_T_lidar, truth);
     const double trans = translationErrorM(p.solution.camera_T_lidar, truth);
-    const double rot_sigma = p.verdict.stddev.rotation_deg.norm(), trans_sigma = p.verdict.stddev.translation_m.norm();
+    const double rot_sigma = p.verdict.stddev.rotation_deg.norm(),
+                 trans_sigma = p.verdict.stddev.translation_m.norm();
     if (rot > 3.0 * rot_sigma || trans > 3.0 * trans_sigma) {
       ok = false;
       *worst += p.camera_frame + " <- " + p.lidar_frame + ": " + std::to_string(rot) + " deg / " +
-                std::to_string(trans * 1e3) + " mm against 1 sigma " + std::to_string(rot_sigma) + " deg / " +
-                std::to_string(trans_sigma * 1e3) + " mm; ";
+                std::to_string(trans * 1e3) + " mm against 1 sigma " + std::to_string(rot_sigma) +
+                " deg / " + std::to_string(trans_sigma * 1e3) + " mm; ";
     }
   }
   return ok;
@@ -85,8 +89,10 @@ TEST(RigCalibration, CleanRigIsGoodWithEveryPairAtTheTruth) {
   for (const auto& p : run.pairs) {
     const Eigen::Isometry3d truth = truthPair(s, p.camera, p.lidar);
     // The graph's target on this rig (test_msg_graph): 0.2 deg / 1 cm per pair.
-    EXPECT_LT(rotationErrorDeg(p.solution.camera_T_lidar, truth), 0.2) << p.camera_frame << " <- " << p.lidar_frame;
-    EXPECT_LT(translationErrorM(p.solution.camera_T_lidar, truth), 0.01) << p.camera_frame << " <- " << p.lidar_frame;
+    EXPECT_LT(rotationErrorDeg(p.solution.camera_T_lidar, truth), 0.2)
+        << p.camera_frame << " <- " << p.lidar_frame;
+    EXPECT_LT(translationErrorM(p.solution.camera_T_lidar, truth), 0.01)
+        << p.camera_frame << " <- " << p.lidar_frame;
     EXPECT_TRUE(p.verdict.cross_validation.ran);
   }
   // The result file carries the verdict overall and per pair, and round-trips.
@@ -148,7 +154,7 @@ MsgProblem coplanar(MsgProblem p) {
 
 TEST(RigCalibration, FaultSweepNeverGivesASilentSuccess) {
   std::map<std::string, std::map<std::string, int>> counts;  // case -> verdict -> count
-  std::map<std::string, std::string> reasons;                 // case -> the last reason given
+  std::map<std::string, std::string> reasons;                // case -> the last reason given
   for (unsigned seed : {3u, 11u}) {
     const Scene s = makeScene(seed, 20);
     const std::vector<std::pair<std::string, MsgProblem>> cases = {
@@ -156,25 +162,29 @@ TEST(RigCalibration, FaultSweepNeverGivesASilentSuccess) {
         {"2 poses", firstPoses(s.scene.problem, 2)},
         {"3 poses", firstPoses(s.scene.problem, 3)},
         {"coplanar poses", coplanar(s.scene.problem)},
-        {"LiDAR sees another object in 30 % of poses", lidarSeesAnotherObject(s.scene.problem, 3, 3)},
+        {"LiDAR sees another object in 30 % of poses",
+         lidarSeesAnotherObject(s.scene.problem, 3, 3)},
         {"swapped cameras", swappedCameras(s.scene.problem)},
         {"LiDAR stamps offset by one hold", stampsOffset(s.scene.problem, 2)},
     };
     for (const auto& [name, problem] : cases) {
       const RigCalibration run = calibrateRig(problem, s.rig, s.target, fastOptions());
       ++counts[name][verdictName(run.verdict)];
-      reasons[name] = run.reason + " [" + std::to_string(run.left_out.size()) + " observations left out]";
+      reasons[name] =
+          run.reason + " [" + std::to_string(run.left_out.size()) + " observations left out]";
       EXPECT_FALSE(run.reason.empty()) << name;
       if (run.verdict != Verdict::kGood) continue;
       std::string worst;
       EXPECT_TRUE(withinReportedSigma(run, s, &worst))
-          << name << " (seed " << seed << "): a good verdict off the truth: " << worst << "\n" << rigVerdictSummary(run);
+          << name << " (seed " << seed << "): a good verdict off the truth: " << worst << "\n"
+          << rigVerdictSummary(run);
     }
   }
   // The counts for docs/BENCHMARKS.md.
   for (const auto& [name, by_verdict] : counts) {
     std::cout << "| " << name << " |";
-    for (const char* v : {"good", "doubtful", "failed"}) std::cout << " " << (by_verdict.count(v) ? by_verdict.at(v) : 0) << " |";
+    for (const char* v : {"good", "doubtful", "failed"})
+      std::cout << " " << (by_verdict.count(v) ? by_verdict.at(v) : 0) << " |";
     std::cout << " " << reasons[name] << " |\n";
   }
   // Too few poses to judge are never good.

@@ -72,40 +72,53 @@ TEST(RigConfig, ParsesEveryField) {
 }
 
 TEST(RigConfig, AbsoluteTargetIsKept) {
-  auto rig = parseRigConfig(variant("target: targets/board.yaml", "target: /abs/board.yaml"), "/rigs");
+  auto rig =
+      parseRigConfig(variant("target: targets/board.yaml", "target: /abs/board.yaml"), "/rigs");
   ASSERT_TRUE(rig) << rig.error();
   EXPECT_EQ(rig->target_path, "/abs/board.yaml");
 }
 
 TEST(RigConfig, ErrorsNameTheKey) {
-  EXPECT_NE(errorOf(variant("target: targets/board.yaml\n", "")).find("'target'"), std::string::npos);
-  EXPECT_NE(errorOf(variant("reference: vlp", "reference: os1")).find("rig.reference"), std::string::npos);
-  EXPECT_NE(errorOf(variant("image_topic: /l/img, ", "")).find("cameras[0]: missing key 'image_topic'"),
+  EXPECT_NE(errorOf(variant("target: targets/board.yaml\n", "")).find("'target'"),
             std::string::npos);
-  EXPECT_NE(errorOf(variant("cloud_topic: /vlp/points", "cloud_topic: [1, 2]")).find("lidars[0].cloud_topic"),
+  EXPECT_NE(errorOf(variant("reference: vlp", "reference: os1")).find("rig.reference"),
             std::string::npos);
-  EXPECT_NE(errorOf(variant("pixel_sigma_px: 0.3", "pixel_sigma_px: -1")).find("cameras[0].noise.pixel_sigma_px"),
+  EXPECT_NE(
+      errorOf(variant("image_topic: /l/img, ", "")).find("cameras[0]: missing key 'image_topic'"),
+      std::string::npos);
+  EXPECT_NE(errorOf(variant("cloud_topic: /vlp/points", "cloud_topic: [1, 2]"))
+                .find("lidars[0].cloud_topic"),
             std::string::npos);
-  EXPECT_NE(errorOf(variant("pixel_sigma_px: 0.3", "pixel_sigma: 0.3")).find("unknown key 'pixel_sigma'"),
+  EXPECT_NE(errorOf(variant("pixel_sigma_px: 0.3", "pixel_sigma_px: -1"))
+                .find("cameras[0].noise.pixel_sigma_px"),
             std::string::npos);
+  EXPECT_NE(
+      errorOf(variant("pixel_sigma_px: 0.3", "pixel_sigma: 0.3")).find("unknown key 'pixel_sigma'"),
+      std::string::npos);
   // Unknown keys at every level name the key and where it is (a typo never falls back silently).
-  EXPECT_NE(errorOf(variant("image_topic: /l/img", "imagetopic: /l/img")).find("cameras[0]: unknown key 'imagetopic'"),
+  EXPECT_NE(errorOf(variant("image_topic: /l/img", "imagetopic: /l/img"))
+                .find("cameras[0]: unknown key 'imagetopic'"),
             std::string::npos);
   EXPECT_NE(errorOf(variant("cloud_topic: /vlp/points", "cloud_topic: /vlp/points, topic: /x"))
                 .find("lidars[0]: unknown key 'topic'"),
             std::string::npos);
-  EXPECT_NE(errorOf(variant("reference: vlp", "reference: vlp\nlidar: []")).find("rig: unknown key 'lidar'"),
+  EXPECT_NE(errorOf(variant("reference: vlp", "reference: vlp\nlidar: []"))
+                .find("rig: unknown key 'lidar'"),
             std::string::npos);
-  EXPECT_NE(errorOf(variant("stamp_tolerance_s: 0.02", "stamp_tolerance_s: 0")).find("stamp_tolerance_s"),
+  EXPECT_NE(
+      errorOf(variant("stamp_tolerance_s: 0.02", "stamp_tolerance_s: 0")).find("stamp_tolerance_s"),
+      std::string::npos);
+  EXPECT_NE(errorOf(variant("stamp_tolerance_s: 0.02", "stamp_tolerance_s: soon"))
+                .find("rig.stamp_tolerance_s"),
             std::string::npos);
-  EXPECT_NE(errorOf(variant("stamp_tolerance_s: 0.02", "stamp_tolerance_s: soon")).find("rig.stamp_tolerance_s"),
+  EXPECT_NE(errorOf(variant("{name: right", "{name: left")).find("duplicate sensor name 'left'"),
             std::string::npos);
-  EXPECT_NE(errorOf(variant("{name: right", "{name: left")).find("duplicate sensor name 'left'"), std::string::npos);
   EXPECT_NE(errorOf(variant("/r/info", "/l/info")).find("'/l/info' used twice"), std::string::npos);
   EXPECT_NE(errorOf(variant("features_topic: /r/board", "features_topic: left/camera_board"))
                 .find("'left/camera_board' used twice"),
             std::string::npos);
-  EXPECT_NE(errorOf(variant("b: right", "b: rear")).find("known_extrinsics[0].b"), std::string::npos);
+  EXPECT_NE(errorOf(variant("b: right", "b: rear")).find("known_extrinsics[0].b"),
+            std::string::npos);
   EXPECT_NE(errorOf(variant("translation: [0.12, 0, 0]", "translation: [0.12, 0]"))
                 .find("known_extrinsics[0].a_T_b.translation"),
             std::string::npos);
@@ -113,12 +126,14 @@ TEST(RigConfig, ErrorsNameTheKey) {
   EXPECT_NE(errorOf("cameras: [").find("invalid YAML"), std::string::npos);
   EXPECT_NE(errorOf("- 1\n- 2\n").find("top level"), std::string::npos);
   // One sensor is not a rig.
-  EXPECT_NE(errorOf("target: t.yaml\nreference: vlp\nlidars: [{name: vlp, cloud_topic: /p}]\n").find("two sensors"),
+  EXPECT_NE(errorOf("target: t.yaml\nreference: vlp\nlidars: [{name: vlp, cloud_topic: /p}]\n")
+                .find("two sensors"),
             std::string::npos);
 }
 
 TEST(RigConfig, LoadsTheShippedRigAndItsTarget) {
-  const std::string path = std::string(BOARD_CALIB_SOURCE_DIR) + "/config/rigs/multi_rig_apriltag.yaml";
+  const std::string path =
+      std::string(BOARD_CALIB_SOURCE_DIR) + "/config/rigs/multi_rig_apriltag.yaml";
   auto rig = loadRigConfig(path);
   ASSERT_TRUE(rig) << rig.error();
   EXPECT_EQ(rig->cameras.size(), 2u);

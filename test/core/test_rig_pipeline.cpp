@@ -14,10 +14,12 @@ namespace board_calib {
 namespace {
 
 TEST(RigPipeline, LiveAndOfflineEntriesGiveTheSameResult) {
-  auto scenario = sim::loadScenario(std::string(BOARD_CALIB_SOURCE_DIR) + "/test/data/msg_rig_scenario.yaml");
+  auto scenario =
+      sim::loadScenario(std::string(BOARD_CALIB_SOURCE_DIR) + "/test/data/msg_rig_scenario.yaml");
   ASSERT_TRUE(scenario.ok()) << scenario.error();
   scenario->motion.poses = 6;  // enough to cross-validate (5), small enough for the test budget
-  auto rig = loadRigConfig(std::string(BOARD_CALIB_SOURCE_DIR) + "/config/rigs/multi_rig_apriltag.yaml");
+  auto rig =
+      loadRigConfig(std::string(BOARD_CALIB_SOURCE_DIR) + "/config/rigs/multi_rig_apriltag.yaml");
   ASSERT_TRUE(rig.ok()) << rig.error();
   const Target& target = scenario->scene.target;
   auto timeline = sim::makeTimeline(*scenario);
@@ -46,7 +48,8 @@ TEST(RigPipeline, LiveAndOfflineEntriesGiveTheSameResult) {
       const auto& camera = scenario->cameras[static_cast<size_t>(f.sensor)];
       const cv::Mat image = generator->image(f, i);
       offline->addImage(f.sensor, image, camera.intrinsics, camera.frame_id, f.stamp);
-      ImageDetection d = detectors[static_cast<size_t>(f.sensor)].detect(image, models[static_cast<size_t>(f.sensor)]);
+      ImageDetection d = detectors[static_cast<size_t>(f.sensor)].detect(
+          image, models[static_cast<size_t>(f.sensor)]);
       d.features.stamp = f.stamp;
       d.features.frame_id = camera.frame_id;
       live->addCameraFeatures(f.sensor, d.features);
@@ -83,14 +86,20 @@ TEST(RigPipeline, LiveAndOfflineEntriesGiveTheSameResult) {
   size_t checked = 0;
   for (size_t i = 0; i < a.pairs.size(); ++i) {
     // Same frames, same code: the same numbers (up to the solver's floating-point noise).
-    EXPECT_LT(rotationErrorDeg(a.pairs[i].solution.camera_T_lidar, b.pairs[i].solution.camera_T_lidar), 1e-9);
-    EXPECT_LT(translationErrorM(a.pairs[i].solution.camera_T_lidar, b.pairs[i].solution.camera_T_lidar), 1e-9);
+    EXPECT_LT(
+        rotationErrorDeg(a.pairs[i].solution.camera_T_lidar, b.pairs[i].solution.camera_T_lidar),
+        1e-9);
+    EXPECT_LT(
+        translationErrorM(a.pairs[i].solution.camera_T_lidar, b.pairs[i].solution.camera_T_lidar),
+        1e-9);
     for (const auto& p : truth.pairs)
       if (p.camera_frame == a.pairs[i].camera_frame && p.lidar_frame == a.pairs[i].lidar_frame) {
         ++checked;
         // 6 poses: the rig e2e bound (0.2 deg / 1 cm) holds with room on this rig.
-        EXPECT_LT(rotationErrorDeg(a.pairs[i].solution.camera_T_lidar, p.camera_T_lidar), 0.2) << p.camera_frame;
-        EXPECT_LT(translationErrorM(a.pairs[i].solution.camera_T_lidar, p.camera_T_lidar), 0.01) << p.camera_frame;
+        EXPECT_LT(rotationErrorDeg(a.pairs[i].solution.camera_T_lidar, p.camera_T_lidar), 0.2)
+            << p.camera_frame;
+        EXPECT_LT(translationErrorM(a.pairs[i].solution.camera_T_lidar, p.camera_T_lidar), 0.01)
+            << p.camera_frame;
       }
   }
   EXPECT_EQ(checked, a.pairs.size()) << "every pair compared with the truth";

@@ -1,8 +1,8 @@
 // Rig report: every camera <- LiDAR pair judged at the graph's pose on the board poses both
 // sensors saw (the pair report's figures per pair), and the report folder written.
-#include "support/synthetic_rig.h"
 #include <board_calib/core/pipeline/rig_report.h>
 #include <board_calib/core/transform.h>
+#include "support/synthetic_rig.h"
 
 #include <gtest/gtest.h>
 
@@ -31,9 +31,11 @@ class RigReportTest : public ::testing::Test {
     result = multi_sensor::msgResultFile(scene.problem, solution);
     rig.target_path = "board.yaml";
     for (const auto& sensor : scene.sensors) {
-      if (sensor.kind == multi_sensor::SensorKind::kCamera) rig.cameras.push_back({sensor.frame, "/i" + sensor.frame,
-                                                                          "/c" + sensor.frame, "/f" + sensor.frame});
-      else rig.lidars.push_back({sensor.frame, "/p" + sensor.frame, "/f" + sensor.frame});
+      if (sensor.kind == multi_sensor::SensorKind::kCamera)
+        rig.cameras.push_back(
+            {sensor.frame, "/i" + sensor.frame, "/c" + sensor.frame, "/f" + sensor.frame});
+      else
+        rig.lidars.push_back({sensor.frame, "/p" + sensor.frame, "/f" + sensor.frame});
     }
     rig.reference = scene.sensors.front().frame;
   }
@@ -51,7 +53,8 @@ TEST_F(RigReportTest, EveryPairIsJudgedOnThePosesBothSensorsSaw) {
   // lie up to one column step inside the edge, a few px at these distances).
   ResultFile truth = result;
   for (auto& p : truth.pairs) {
-    Eigen::Isometry3d ref_T_camera = Eigen::Isometry3d::Identity(), ref_T_lidar = Eigen::Isometry3d::Identity();
+    Eigen::Isometry3d ref_T_camera = Eigen::Isometry3d::Identity(),
+                      ref_T_lidar = Eigen::Isometry3d::Identity();
     for (const auto& s : scene.sensors) {
       if (s.frame == p.camera_frame) ref_T_camera = s.reference_T_sensor;
       if (s.frame == p.lidar_frame) ref_T_lidar = s.reference_T_sensor;
@@ -62,18 +65,21 @@ TEST_F(RigReportTest, EveryPairIsJudgedOnThePosesBothSensorsSaw) {
   // The same pairs with the camera turned by 0.5 deg about its y axis: every projected point moves
   // f tan(0.5 deg) = 9 px sideways (f = 1000 px), about 6 px across the diamond's 45 deg edges.
   ResultFile turned = result;
-  for (auto& p : turned.pairs) p.camera_T_lidar.prerotate(Eigen::AngleAxisd(0.5 * M_PI / 180.0, Eigen::Vector3d::UnitY()));
+  for (auto& p : turned.pairs)
+    p.camera_T_lidar.prerotate(Eigen::AngleAxisd(0.5 * M_PI / 180.0, Eigen::Vector3d::UnitY()));
   const auto turned_pairs = evaluateRigPairs(scene.problem, solution, turned);
   for (size_t i = 0; i < pairs.size(); ++i) {
     const auto& p = pairs[i];
     int both = 0;
     for (const auto& pose : scene.problem.poses) {
-      const int c = static_cast<int>(std::find_if(solution.sensors.begin(), solution.sensors.end(),
-                                                  [&](const auto& s) { return s.frame == p.camera_frame; }) -
-                                     solution.sensors.begin());
-      const int l = static_cast<int>(std::find_if(solution.sensors.begin(), solution.sensors.end(),
-                                                  [&](const auto& s) { return s.frame == p.lidar_frame; }) -
-                                     solution.sensors.begin());
+      const int c =
+          static_cast<int>(std::find_if(solution.sensors.begin(), solution.sensors.end(),
+                                        [&](const auto& s) { return s.frame == p.camera_frame; }) -
+                           solution.sensors.begin());
+      const int l =
+          static_cast<int>(std::find_if(solution.sensors.begin(), solution.sensors.end(),
+                                        [&](const auto& s) { return s.frame == p.lidar_frame; }) -
+                           solution.sensors.begin());
       both += pose.cameras.count(c) && pose.lidars.count(l);
     }
     EXPECT_EQ(static_cast<int>(p.views.size()), both) << p.folder;
@@ -83,10 +89,12 @@ TEST_F(RigReportTest, EveryPairIsJudgedOnThePosesBothSensorsSaw) {
     ASSERT_TRUE(turned_pairs[i].evaluation.mlre_px.has_value()) << p.folder;
     ASSERT_TRUE(truth_pairs[i].evaluation.mlre_px.has_value()) << p.folder;
     const double at_truth = *truth_pairs[i].evaluation.mlre_px;
-    std::cout << p.folder << ": MLRE " << *p.evaluation.mlre_px << " px at the graph's pose, " << at_truth
-              << " px at the truth, " << *turned_pairs[i].evaluation.mlre_px << " px turned by 0.5 deg\n";
+    std::cout << p.folder << ": MLRE " << *p.evaluation.mlre_px << " px at the graph's pose, "
+              << at_truth << " px at the truth, " << *turned_pairs[i].evaluation.mlre_px
+              << " px turned by 0.5 deg\n";
     // The graph's pose is within about 0.1 deg / 5 mm of the truth (test_msg_graph): at 2-5 m that
-    // moves edge points by at most ~2 px and mostly along the edge; 0.5 px of slack above the floor.
+    // moves edge points by at most ~2 px and mostly along the edge; 0.5 px of slack above the
+    // floor.
     EXPECT_LT(*p.evaluation.mlre_px, at_truth + 0.5) << p.folder;
     EXPECT_GT(*turned_pairs[i].evaluation.mlre_px, at_truth + 3.0) << p.folder;
     // The graph's 1 sigma travels with the pair.
@@ -111,11 +119,14 @@ TEST_F(RigReportTest, WritesTheRigPageAndOnePagePerPairWithItsFigures) {
   for (const auto& p : evaluateRigPairs(scene.problem, solution, result)) {
     EXPECT_NE(md.str().find("(" + p.folder + "/report.md)"), std::string::npos) << p.folder;
     EXPECT_TRUE(std::filesystem::exists(dir + "/" + p.folder + "/report.md")) << p.folder;
-    EXPECT_GT(std::filesystem::file_size(dir + "/" + p.folder + "/edge_errors.png"), 1000u) << p.folder;
-    EXPECT_GT(std::filesystem::file_size(dir + "/" + p.folder + "/pose_coverage.png"), 1000u) << p.folder;
+    EXPECT_GT(std::filesystem::file_size(dir + "/" + p.folder + "/edge_errors.png"), 1000u)
+        << p.folder;
+    EXPECT_GT(std::filesystem::file_size(dir + "/" + p.folder + "/pose_coverage.png"), 1000u)
+        << p.folder;
   }
   // An unwritable folder is a reason, not a crash.
-  EXPECT_FALSE(writeRigReport("/proc/no_such_dir/report", rig, scene.problem, solution, result, inputs));
+  EXPECT_FALSE(
+      writeRigReport("/proc/no_such_dir/report", rig, scene.problem, solution, result, inputs));
 }
 
 }  // namespace

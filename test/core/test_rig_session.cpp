@@ -1,9 +1,9 @@
 // Live rig session: board poses captured from interleaved per-sensor streams (holds and moves,
 // as a person waving the board produces them), solved against the ground truth, saved and
 // reloaded; bad input gives specific events.
-#include "support/synthetic_rig.h"
 #include <board_calib/core/rig/rig_session.h>
 #include <board_calib/core/transform.h>
+#include "support/synthetic_rig.h"
 
 #include <gtest/gtest.h>
 
@@ -52,12 +52,14 @@ Feed play(RigSession& session, const sim::RigScene& scene, int hold_frames, int 
   const std::vector<double> offset = {0.005, 0.006, 0.0, 0.013};
   double t = t0;
   auto wanted = [&](int k) {
-    return only_sensors.empty() || std::find(only_sensors.begin(), only_sensors.end(), k) != only_sensors.end();
+    return only_sensors.empty() ||
+           std::find(only_sensors.begin(), only_sensors.end(), k) != only_sensors.end();
   };
   for (const auto& pose : scene.problem.poses) {
     for (int i = 0; i < hold_frames + move_frames; ++i, t += kFramePeriodS) {
-      const Eigen::Vector3d shift = i < hold_frames ? Eigen::Vector3d::Zero()
-                                                    : Eigen::Vector3d(0.1 * (i - hold_frames + 1), 0.0, 0.0);
+      const Eigen::Vector3d shift = i < hold_frames
+                                        ? Eigen::Vector3d::Zero()
+                                        : Eigen::Vector3d(0.1 * (i - hold_frames + 1), 0.0, 0.0);
       for (auto [k, f] : pose.cameras) {
         if (!wanted(k)) continue;
         f.stamp = t + offset[k];
@@ -105,8 +107,10 @@ TEST_F(RigSessionTest, CapturesOnePosePerHoldWithEverySensorAndSolvesToTruth) {
   for (size_t k = 1; k < scene.sensors.size(); ++k) {
     const Eigen::Isometry3d& truth = scene.sensors[k].reference_T_sensor;
     // The graph target on this rig: every sensor within 0.2 deg / 1 cm.
-    EXPECT_LT(rotationErrorDeg(sol.sensors[k].reference_T_sensor, truth), 0.2) << scene.sensors[k].frame;
-    EXPECT_LT(translationErrorM(sol.sensors[k].reference_T_sensor, truth), 0.01) << scene.sensors[k].frame;
+    EXPECT_LT(rotationErrorDeg(sol.sensors[k].reference_T_sensor, truth), 0.2)
+        << scene.sensors[k].frame;
+    EXPECT_LT(translationErrorM(sol.sensors[k].reference_T_sensor, truth), 0.01)
+        << scene.sensors[k].frame;
   }
 }
 
@@ -121,7 +125,8 @@ TEST_F(RigSessionTest, ARepeatedHoldIsNotCapturedTwice) {
   EXPECT_EQ(session.poses().size(), first);
   EXPECT_EQ(again.accepted(), 0);
   bool told = false;
-  for (const auto& e : again.events) told |= e.message.find("already saw this board pose") != std::string::npos;
+  for (const auto& e : again.events)
+    told |= e.message.find("already saw this board pose") != std::string::npos;
   EXPECT_TRUE(told) << "the user must be told why nothing is captured";
 }
 
@@ -132,7 +137,8 @@ TEST_F(RigSessionTest, APoseSeenByOneSensorIsRejectedWithTheReason) {
   EXPECT_TRUE(session.poses().empty());
   bool told = false;
   for (const auto& e : feed.events)
-    told |= e.kind == SessionEvent::Kind::kRejected && e.message.find("seen by 1 sensor(s) (vlp32)") != std::string::npos;
+    told |= e.kind == SessionEvent::Kind::kRejected &&
+            e.message.find("seen by 1 sensor(s) (vlp32)") != std::string::npos;
   EXPECT_TRUE(told);
 }
 
@@ -167,19 +173,23 @@ TEST_F(RigSessionTest, SaveLoadRoundTripGivesTheSameSolution) {
   play(session, scene, kHoldFrames, 2);
   session.flush();
   ASSERT_GE(session.poses().size(), 20u);
-  const std::string path = (std::filesystem::temp_directory_path() / "board_calib_rig_session_test.yaml").string();
+  const std::string path =
+      (std::filesystem::temp_directory_path() / "board_calib_rig_session_test.yaml").string();
   ASSERT_TRUE(session.save(path).ok);
   RigSession loaded = makeSession();
   const Status st = loaded.load(path);
   ASSERT_TRUE(st.ok) << st.reason;
   ASSERT_EQ(loaded.poses().size(), session.poses().size());
-  for (size_t k = 0; k < scene.sensors.size(); ++k) EXPECT_EQ(loaded.sensors()[k].frame, session.sensors()[k].frame);
+  for (size_t k = 0; k < scene.sensors.size(); ++k)
+    EXPECT_EQ(loaded.sensors()[k].frame, session.sensors()[k].frame);
   const MsgSolution a = solveMsgGraph(session.problem(0), MsgGraphOptions{});
   const MsgSolution b = solveMsgGraph(loaded.problem(0), MsgGraphOptions{});
   ASSERT_TRUE(a.success && b.success);
   for (size_t k = 1; k < scene.sensors.size(); ++k) {
-    EXPECT_LT(rotationErrorDeg(a.sensors[k].reference_T_sensor, b.sensors[k].reference_T_sensor), 1e-6);
-    EXPECT_LT(translationErrorM(a.sensors[k].reference_T_sensor, b.sensors[k].reference_T_sensor), 1e-7);
+    EXPECT_LT(rotationErrorDeg(a.sensors[k].reference_T_sensor, b.sensors[k].reference_T_sensor),
+              1e-6);
+    EXPECT_LT(translationErrorM(a.sensors[k].reference_T_sensor, b.sensors[k].reference_T_sensor),
+              1e-7);
   }
   // Captures continue after a load with fresh ids.
   const int last_id = loaded.poses().back().observation.id;
@@ -195,9 +205,7 @@ TEST_F(RigSessionTest, SaveLoadRoundTripGivesTheSameSolution) {
   EXPECT_NE(refused.reason.find("sensor 1"), std::string::npos) << refused.reason;
   EXPECT_FALSE(loaded.load("/nonexistent/rig_session.yaml").ok);
   EXPECT_EQ(loaded.poses().size(), session.poses().size() - 1);
-  {
-    std::ofstream(path) << "poses: [1, 2\n";
-  }
+  { std::ofstream(path) << "poses: [1, 2\n"; }
   EXPECT_FALSE(loaded.load(path).ok);
   std::remove(path.c_str());
 }
@@ -236,7 +244,9 @@ TEST_F(RigSessionTest, ManualCaptureAndABagRestartKeepThePoses) {
   const SessionEvent e = session.captureNow();
   ASSERT_EQ(e.kind, SessionEvent::Kind::kAccepted) << e.message;
   ASSERT_EQ(session.poses().size(), 1u);
-  EXPECT_EQ(session.poses().front().observation.cameras.size() + session.poses().front().observation.lidars.size(), 4u);
+  EXPECT_EQ(session.poses().front().observation.cameras.size() +
+                session.poses().front().observation.lidars.size(),
+            4u);
   // The bag starts over (stamps jump back): poses stay, streams restart cleanly.
   options.auto_capture = true;
   session.setOptions(options);
@@ -281,7 +291,9 @@ TEST_F(RigSessionTest, ASensorWithOffsetStampsIsNamedWithItsOffset) {
   quiet.addLidar(2, missed);
   const auto named = quiet.problems();
   ASSERT_EQ(named.size(), 2u);
-  EXPECT_NE(named[0].find("vlp32: never saw the board in 1 messages (last: no plane"), std::string::npos) << named[0];
+  EXPECT_NE(named[0].find("vlp32: never saw the board in 1 messages (last: no plane"),
+            std::string::npos)
+      << named[0];
   EXPECT_NE(named[1].find("os1: no board features received"), std::string::npos) << named[1];
 }
 
@@ -293,7 +305,8 @@ struct RigRecording {
   int holds = 0;
 };
 
-RigRecording playRecording(RigSession& session, const sim::RigScene& scene, double camera_hz, double phase_s) {
+RigRecording playRecording(RigSession& session, const sim::RigScene& scene, double camera_hz,
+                           double phase_s) {
   constexpr double kHoldS = 1.5, kMoveS = 1.0, kLidarHz = 10.0, kSpeedMps = 0.4;
   const double cycle = kHoldS + kMoveS;
   const auto& poses = scene.problem.poses;
@@ -309,9 +322,11 @@ RigRecording playRecording(RigSession& session, const sim::RigScene& scene, doub
   for (size_t k = 0; k < scene.problem.sensors.size(); ++k) {
     const bool camera = scene.problem.sensors[k].kind == SensorKind::kCamera;
     const double period = 1.0 / (camera ? camera_hz : kLidarHz);
-    for (double t = phase_s + 0.011 * static_cast<double>(k); t < end; t += period) ticks.push_back({t, static_cast<int>(k)});
+    for (double t = phase_s + 0.011 * static_cast<double>(k); t < end; t += period)
+      ticks.push_back({t, static_cast<int>(k)});
   }
-  std::sort(ticks.begin(), ticks.end(), [](const Tick& a, const Tick& b) { return a.stamp < b.stamp; });
+  std::sort(ticks.begin(), ticks.end(),
+            [](const Tick& a, const Tick& b) { return a.stamp < b.stamp; });
   const Eigen::Vector3d direction = Eigen::Vector3d(1.0, 0.0, 1.0).normalized();
   for (const auto& tick : ticks) {
     const int hold = static_cast<int>(tick.stamp / cycle);
@@ -355,7 +370,8 @@ TEST_F(RigSessionTest, SparseCamerasAndFastLidarsCaptureEveryHoldAndNoMovingFram
       for (const auto& [k, f] : p.observation.lidars) check(k, f.stamp);
       if (holds.size() != 1 || *holds.begin() < 0) {
         ++moving;
-        ADD_FAILURE() << "pose " << p.observation.id << " joins a moving frame or two holds: " << p.why;
+        ADD_FAILURE() << "pose " << p.observation.id
+                      << " joins a moving frame or two holds: " << p.why;
       } else if (p.observation.cameras.size() == 2) {
         holds_with_cameras.insert(*holds.begin());
       }

@@ -7,9 +7,9 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <regex>
 #include <sstream>
-#include <functional>
 
 using namespace board_calib;
 
@@ -24,7 +24,8 @@ Target plainTarget() {
 
 // Camera looking along the LiDAR's x axis (optical z = LiDAR x, x = -LiDAR y, y = -LiDAR z).
 const Eigen::Isometry3d kCameraTLidar =
-    makeTransform((Eigen::Matrix3d() << 0, -1, 0, 0, 0, -1, 1, 0, 0).finished(), Eigen::Vector3d(0.05, -0.1, 0.02));
+    makeTransform((Eigen::Matrix3d() << 0, -1, 0, 0, 0, -1, 1, 0, 0).finished(),
+                  Eigen::Vector3d(0.05, -0.1, 0.02));
 
 // Features of both sensors for a board pose given in the camera frame.
 View makeView(const Eigen::Isometry3d& camera_T_board, double stamp, const Target& target,
@@ -45,7 +46,8 @@ View makeView(const Eigen::Isometry3d& camera_T_board, double stamp, const Targe
   v.lidar.stamp = stamp + 0.013;
   v.lidar.plane = v.camera.plane.transformed(kCameraTLidar.inverse());
   for (int i = 0; i < 10; ++i)
-    for (int j = 0; j < 10; ++j) v.lidar.board_points.push_back(lidar_T_board * Eigen::Vector3d(0.1 * i, 0.1 * j, 0));
+    for (int j = 0; j < 10; ++j)
+      v.lidar.board_points.push_back(lidar_T_board * Eigen::Vector3d(0.1 * i, 0.1 * j, 0));
   v.lidar.measured_size_m = Eigen::Vector2d(target.width, target.height) * lidar_size_scale;
   return v;
 }
@@ -66,8 +68,9 @@ void feed(PairSession& s, const View& v, SessionEvent* last) {
 }  // namespace
 
 // LiDAR and camera at their own rates: the board moves in [0, 0.5) s and is held still from 0.5 s.
-void feedStreams(PairSession& s, const Target& target, double lidar_hz, double camera_hz, double t_end,
-                 const std::function<Eigen::Isometry3d(double)>& pose_at, std::vector<SessionEvent>* events) {
+void feedStreams(PairSession& s, const Target& target, double lidar_hz, double camera_hz,
+                 double t_end, const std::function<Eigen::Isometry3d(double)>& pose_at,
+                 std::vector<SessionEvent>* events) {
   double next_lidar = 0.0, next_camera = 0.004;
   while (std::min(next_lidar, next_camera) < t_end) {
     if (next_lidar <= next_camera) {
@@ -83,7 +86,8 @@ void feedStreams(PairSession& s, const Target& target, double lidar_hz, double c
 }
 
 int countKind(const std::vector<SessionEvent>& events, SessionEvent::Kind kind) {
-  return static_cast<int>(std::count_if(events.begin(), events.end(), [&](const SessionEvent& e) { return e.kind == kind; }));
+  return static_cast<int>(std::count_if(events.begin(), events.end(),
+                                        [&](const SessionEvent& e) { return e.kind == kind; }));
 }
 
 TEST(Session, AcceptsOnlyAfterTheBoardIsStill) {
@@ -91,7 +95,9 @@ TEST(Session, AcceptsOnlyAfterTheBoardIsStill) {
   PairSession s(target, SessionOptions{});
   std::vector<SessionEvent> events;
   // Moves 0.6 m/s until 0.5 s, then still until 2 s: one view, of the still board.
-  feedStreams(s, target, 10.0, 10.0, 2.0, [](double t) { return boardPose(0.6 * std::min(t, 0.5), 3, 10, 0); }, &events);
+  feedStreams(
+      s, target, 10.0, 10.0, 2.0,
+      [](double t) { return boardPose(0.6 * std::min(t, 0.5), 3, 10, 0); }, &events);
   ASSERT_EQ(s.views().size(), 1u) << s.captureStats().summary();
   // The last frame of the move is the LiDAR's at 0.4 s: no frame of it may fall in the window.
   EXPECT_GT(s.views()[0].view.camera.stamp, 0.4 + SessionOptions{}.still_window_s);
@@ -128,10 +134,15 @@ TEST(Session, SnapshotRecordingsMakeEveryPairACandidate) {
   const Target target = plainTarget();
   PairSession s(target, SessionOptions{});
   SessionEvent e;
-  for (int k = 0; k < 6; ++k) feed(s, makeView(boardPose(0.3 * k - 0.8, 2.5 + 0.3 * k, 20.0 * (k % 3) - 20, 15.0 * (k % 2)), 2.0 * k, target), &e);
+  for (int k = 0; k < 6; ++k)
+    feed(s,
+         makeView(boardPose(0.3 * k - 0.8, 2.5 + 0.3 * k, 20.0 * (k % 3) - 20, 15.0 * (k % 2)),
+                  2.0 * k, target),
+         &e);
   s.finish();
   EXPECT_EQ(s.views().size(), 6u) << s.captureStats().summary();
-  EXPECT_NE(s.captureStats().last_stillness.find("snapshot"), std::string::npos) << s.captureStats().last_stillness;
+  EXPECT_NE(s.captureStats().last_stillness.find("snapshot"), std::string::npos)
+      << s.captureStats().last_stillness;
 }
 
 TEST(Session, RejectsUnsynchronisedAndDuplicatePoses) {
@@ -173,7 +184,8 @@ TEST(Session, SanityGates) {
   EXPECT_NE(e.message.find("no plane"), std::string::npos);
 
   // With an estimate, a view whose planes disagree is refused.
-  s.setEstimate(makeTransform(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, 0.5)) * kCameraTLidar);
+  s.setEstimate(makeTransform(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, 0.5)) *
+                kCameraTLidar);
   feed(s, makeView(boardPose(0.5, 4, -30, 0), 2.0, target), &e);
   EXPECT_EQ(e.kind, SessionEvent::Kind::kRejected);
   EXPECT_NE(e.message.find("disagree"), std::string::npos) << e.message;
@@ -246,8 +258,10 @@ TEST(Session, HostileSessionFilesAreRefused) {
   SessionOptions opt;
   PairSession s(target, opt);
   for (int i = 0; i < 2; ++i)
-    s.addView(makeView(makeTransform(Eigen::Vector3d(0.1 * i, 0, 2.5), Eigen::Vector4d(0.2 * i, 0, 0, 1)), i, target),
-              "test", false);
+    s.addView(
+        makeView(makeTransform(Eigen::Vector3d(0.1 * i, 0, 2.5), Eigen::Vector4d(0.2 * i, 0, 0, 1)),
+                 i, target),
+        "test", false);
   const std::string path = ::testing::TempDir() + "/board_calib_hostile_session.yaml";
   ASSERT_TRUE(s.save(path).ok);
   std::ifstream in(path);
@@ -255,8 +269,10 @@ TEST(Session, HostileSessionFilesAreRefused) {
   buffer << in.rdbuf();
   const std::string good = buffer.str();
 
-  const auto expectRefused = [&](const std::regex& what, const std::string& with, const std::string& fragment) {
-    const std::string bad = std::regex_replace(good, what, with, std::regex_constants::format_first_only);
+  const auto expectRefused = [&](const std::regex& what, const std::string& with,
+                                 const std::string& fragment) {
+    const std::string bad =
+        std::regex_replace(good, what, with, std::regex_constants::format_first_only);
     ASSERT_NE(bad, good) << "the mutation did not apply";
     std::ofstream(path) << bad;
     PairSession loaded(target, opt);
@@ -266,7 +282,8 @@ TEST(Session, HostileSessionFilesAreRefused) {
     EXPECT_TRUE(loaded.views().empty());
   };
   expectRefused(std::regex("plane: \\[[^,\\]]+"), "plane: [.nan", "lidar.plane");
-  expectRefused(std::regex("image_size: \\[[^\\]]*\\]"), "image_size: [1e20, -5]", "camera.image_size");
+  expectRefused(std::regex("image_size: \\[[^\\]]*\\]"), "image_size: [1e20, -5]",
+                "camera.image_size");
   expectRefused(std::regex("id: 1\\n"), "id: 0\n", "appears twice");
   expectRefused(std::regex("camera_T_board_xyz_qxyzw: \\[([^,]+, ){3}[^\\]]*\\]"),
                 "camera_T_board_xyz_qxyzw: [0, 0, 2, 0, 0, 0, 0]", "quaternion");

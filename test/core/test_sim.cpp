@@ -3,8 +3,8 @@
 #include <board_calib/core/sim/simulator.h>
 #include <board_calib/core/transform.h>
 
-#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
+#include <Eigen/Eigenvalues>
 
 #include <apriltag/apriltag.h>
 #include <apriltag/tag36h11.h>
@@ -13,8 +13,8 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
-#include <cstdio>
 #include <cmath>
+#include <cstdio>
 #include <map>
 
 namespace board_calib {
@@ -36,16 +36,19 @@ Eigen::Isometry3d cameraLookingAlongX(const Eigen::Vector3d& position) {
 
 // Board centred at `centre`, printed face towards the camera at the origin, rolled about the
 // viewing direction by roll_deg (a diamond at 45) and turned by yaw_deg / pitch_deg.
-Eigen::Isometry3d boardPose(const Target& target, const Eigen::Vector3d& centre, double roll_deg, double yaw_deg = 0,
-                            double pitch_deg = 0) {
+Eigen::Isometry3d boardPose(const Target& target, const Eigen::Vector3d& centre, double roll_deg,
+                            double yaw_deg = 0, double pitch_deg = 0) {
   const Eigen::Matrix3d facing = cameraLookingAlongX(Eigen::Vector3d::Zero()).linear();
-  const Eigen::Matrix3d R = Eigen::AngleAxisd(yaw_deg * kRadPerDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
-                            Eigen::AngleAxisd(pitch_deg * kRadPerDeg, Eigen::Vector3d::UnitY()).toRotationMatrix() *
-                            facing * Eigen::AngleAxisd(roll_deg * kRadPerDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const Eigen::Matrix3d R =
+      Eigen::AngleAxisd(yaw_deg * kRadPerDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
+      Eigen::AngleAxisd(pitch_deg * kRadPerDeg, Eigen::Vector3d::UnitY()).toRotationMatrix() *
+      facing *
+      Eigen::AngleAxisd(roll_deg * kRadPerDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   return makeTransform(R, centre - R * target.center());
 }
 
-CameraModel makeCamera(int width, int height, double f, DistortionModel model, std::vector<double> coeffs) {
+CameraModel makeCamera(int width, int height, double f, DistortionModel model,
+                       std::vector<double> coeffs) {
   CameraIntrinsics in;
   in.width = width;
   in.height = height;
@@ -71,15 +74,17 @@ double bilinear(const cv::Mat& grey, double u, double v) {
   if (u0 < 0 || v0 < 0 || u0 + 1 >= grey.cols || v0 + 1 >= grey.rows) return std::nan("");
   const double a = u - u0, b = v - v0;
   auto at = [&](int x, int y) { return static_cast<double>(grey.at<float>(y, x)); };
-  return (at(u0, v0) * (1 - a) + at(u0 + 1, v0) * a) * (1 - b) + (at(u0, v0 + 1) * (1 - a) + at(u0 + 1, v0 + 1) * a) * b;
+  return (at(u0, v0) * (1 - a) + at(u0 + 1, v0) * a) * (1 - b) +
+         (at(u0, v0 + 1) * (1 - a) + at(u0 + 1, v0 + 1) * a) * b;
 }
 
 // Measures each board edge in the image independently of the truth's position estimate: along
 // the projected edge, the 50 % crossing of the intensity profile across it (local levels from
 // 3 px either side), undistorted, then a total-least-squares line per edge; corners are the
 // intersections. Returns the four measured corners in undistorted pixels.
-std::array<Eigen::Vector2d, 4> measureBoardCorners(const cv::Mat& image, const CameraModel& camera,
-                                                   const std::array<Eigen::Vector3d, 4>& corners_camera) {
+std::array<Eigen::Vector2d, 4> measureBoardCorners(
+    const cv::Mat& image, const CameraModel& camera,
+    const std::array<Eigen::Vector3d, 4>& corners_camera) {
   cv::Mat grey;
   cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
   grey.convertTo(grey, CV_32F);
@@ -160,7 +165,8 @@ TEST(SimCamera, BoardCornersLandOnProjectedTruth) {
     for (double roll : {35.0, 52.0}) {
       const Eigen::Isometry3d world_T_board = boardPose(target, {3.0, 0.3, -0.1}, roll, 15, -10);
       RenderOptions options;  // default noise and vignetting on
-      const cv::Mat image = renderCameraImage(camera, world_T_camera, scene, world_T_board, options, rng);
+      const cv::Mat image =
+          renderCameraImage(camera, world_T_camera, scene, world_T_board, options, rng);
       ASSERT_EQ(image.type(), CV_8UC3);
       const Eigen::Isometry3d camera_T_board = world_T_camera.inverse() * world_T_board;
       std::array<Eigen::Vector3d, 4> corners_camera;
@@ -186,16 +192,19 @@ TEST(SimCamera, OpenCvFindsCheckerboardAtTruth) {
   const Target target = loadConfigTarget("checkerboard_7x5.yaml");
   SceneSpec scene;
   scene.target = target;
-  const CameraModel camera = makeCamera(1280, 720, 1000, DistortionModel::kPlumbBob, {-0.2, 0.05, 0, 0, 0});
+  const CameraModel camera =
+      makeCamera(1280, 720, 1000, DistortionModel::kPlumbBob, {-0.2, 0.05, 0, 0, 0});
   const Eigen::Isometry3d world_T_camera = cameraLookingAlongX(Eigen::Vector3d::Zero());
   const Eigen::Isometry3d world_T_board = boardPose(target, {2.5, -0.2, 0.1}, 20, -20, 10);
   std::mt19937 rng(7);
-  const cv::Mat image = renderCameraImage(camera, world_T_camera, scene, world_T_board, RenderOptions(), rng);
+  const cv::Mat image =
+      renderCameraImage(camera, world_T_camera, scene, world_T_board, RenderOptions(), rng);
   cv::Mat grey;
   cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
   const cv::Size pattern(target.checkerboard.cols, target.checkerboard.rows);
   std::vector<cv::Point2f> found;
-  ASSERT_TRUE(cv::findChessboardCorners(grey, pattern, found, cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE));
+  ASSERT_TRUE(cv::findChessboardCorners(
+      grey, pattern, found, cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE));
   cv::cornerSubPix(grey, found, cv::Size(5, 5), cv::Size(-1, -1),
                    cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 1e-3));
   const Points3 truth3 = target.checkerboardCorners();
@@ -207,7 +216,8 @@ TEST(SimCamera, OpenCvFindsCheckerboardAtTruth) {
     ASSERT_TRUE(camera.project(world_T_camera.inverse() * world_T_board * truth3[i], &truth));
     const auto& f = found[i];
     const auto& r = found[found.size() - 1 - i];
-    const double ef = (Eigen::Vector2d(f.x, f.y) - truth).norm(), er = (Eigen::Vector2d(r.x, r.y) - truth).norm();
+    const double ef = (Eigen::Vector2d(f.x, f.y) - truth).norm(),
+                 er = (Eigen::Vector2d(r.x, r.y) - truth).norm();
     err_fwd += ef;
     err_rev += er;
     max_fwd = std::max(max_fwd, ef);
@@ -227,11 +237,13 @@ TEST(SimCamera, AprilTagFindsEveryTagAtTruth) {
   const Target target = loadConfigTarget("apriltag_grid_4x4.yaml");
   SceneSpec scene;
   scene.target = target;
-  const CameraModel camera = makeCamera(1600, 1200, 1300, DistortionModel::kPlumbBob, {-0.15, 0.03, 0, 0, 0});
+  const CameraModel camera =
+      makeCamera(1600, 1200, 1300, DistortionModel::kPlumbBob, {-0.15, 0.03, 0, 0, 0});
   const Eigen::Isometry3d world_T_camera = cameraLookingAlongX(Eigen::Vector3d::Zero());
   const Eigen::Isometry3d world_T_board = boardPose(target, {2.6, 0.2, 0.0}, 38, 15, -8);
   std::mt19937 rng(11);
-  const cv::Mat image = renderCameraImage(camera, world_T_camera, scene, world_T_board, RenderOptions(), rng);
+  const cv::Mat image =
+      renderCameraImage(camera, world_T_camera, scene, world_T_board, RenderOptions(), rng);
   cv::Mat grey;
   cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
 
@@ -247,8 +259,10 @@ TEST(SimCamera, AprilTagFindsEveryTagAtTruth) {
     apriltag_detection_t* det = nullptr;
     zarray_get(detections, i, &det);
     std::array<Eigen::Vector2d, 4> corners;
-    // libapriltag's pixel centres sit at integer + 0.5 (libapriltag's convention): shift to OpenCV's.
-    for (int k = 0; k < 4; ++k) corners[k] = Eigen::Vector2d(det->p[k][0] - 0.5, det->p[k][1] - 0.5);
+    // libapriltag's pixel centres sit at integer + 0.5 (libapriltag's convention): shift to
+    // OpenCV's.
+    for (int k = 0; k < 4; ++k)
+      corners[k] = Eigen::Vector2d(det->p[k][0] - 0.5, det->p[k][1] - 0.5);
     found[det->id] = corners;
   }
   apriltag_detections_destroy(detections);
@@ -285,10 +299,12 @@ TEST(SimLidar, BoardReturnsLieOnTruePlaneWithinNoise) {
   for (const char* preset : {"VLP-16", "VLP-32C", "OS1-64"}) {
     auto spec = lidarPreset(preset);
     ASSERT_TRUE(spec.ok()) << spec.error();
-    const Eigen::Isometry3d world_T_lidar = makeTransform(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, 0.1));
+    const Eigen::Isometry3d world_T_lidar =
+        makeTransform(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, 0.1));
     const Eigen::Isometry3d world_T_board = boardPose(target, {3.5, 0.4, 0.2}, 45, 20);
     std::vector<ReturnOrigin> origins;
-    const LidarCloud cloud = simulateLidarScan(*spec, world_T_lidar, scene, world_T_board, rng, &origins);
+    const LidarCloud cloud =
+        simulateLidarScan(*spec, world_T_lidar, scene, world_T_board, rng, &origins);
     ASSERT_EQ(origins.size(), cloud.points.size());
     const Plane plane_lidar = [&] {
       Plane p;
@@ -352,8 +368,8 @@ TEST(SimLidar, OrganizationAndRingsMatchPreset) {
   for (const char* preset : {"VLP-16", "VLP-32C", "OS1-64"}) {
     auto spec = lidarPreset(preset);
     ASSERT_TRUE(spec.ok());
-    const LidarCloud cloud =
-        simulateLidarScan(*spec, Eigen::Isometry3d::Identity(), scene, boardPose(target, {3, 0, 0}, 40), rng);
+    const LidarCloud cloud = simulateLidarScan(*spec, Eigen::Isometry3d::Identity(), scene,
+                                               boardPose(target, {3, 0, 0}, 40), rng);
     ASSERT_EQ(cloud.height, static_cast<int>(spec->elevations_deg.size())) << preset;
     ASSERT_EQ(cloud.width, spec->columns()) << preset;
     EXPECT_TRUE(cloud.has_ring);
@@ -368,7 +384,8 @@ TEST(SimLidar, OrganizationAndRingsMatchPreset) {
         ++finite;
         // The elevation of each return is its ring's elevation (the room is closed: all return).
         const double el = std::atan2(p.z, std::hypot(p.x, p.y)) / kRadPerDeg;
-        EXPECT_NEAR(el, spec->elevations_deg[static_cast<size_t>(r)], 1e-3) << preset << " ring " << r;
+        EXPECT_NEAR(el, spec->elevations_deg[static_cast<size_t>(r)], 1e-3)
+            << preset << " ring " << r;
         const double az = std::atan2(p.y, p.x);
         EXPECT_NEAR(std::remainder(az - spec->azimuthRad(r, c), 2 * M_PI), 0.0, 1e-5);
       }
@@ -391,7 +408,8 @@ TEST(SimLidar, UnorganizedWithoutRingAndDropouts) {
   spec->organized = false;
   spec->with_ring = false;
   std::mt19937 rng(9);
-  const LidarCloud full = simulateLidarScan(*spec, Eigen::Isometry3d::Identity(), scene, boardPose(target, {3, 0, 0}, 40), rng);
+  const LidarCloud full = simulateLidarScan(*spec, Eigen::Isometry3d::Identity(), scene,
+                                            boardPose(target, {3, 0, 0}, 40), rng);
   EXPECT_FALSE(full.organized());
   EXPECT_FALSE(full.has_ring);
   EXPECT_EQ(full.height, 1);
@@ -401,8 +419,8 @@ TEST(SimLidar, UnorganizedWithoutRingAndDropouts) {
     ASSERT_EQ(p.ring, -1);
   }
   spec->dropout_probability = 0.3;
-  const LidarCloud dropped =
-      simulateLidarScan(*spec, Eigen::Isometry3d::Identity(), scene, boardPose(target, {3, 0, 0}, 40), rng);
+  const LidarCloud dropped = simulateLidarScan(*spec, Eigen::Isometry3d::Identity(), scene,
+                                               boardPose(target, {3, 0, 0}, 40), rng);
   const double kept = static_cast<double>(dropped.points.size()) / full.points.size();
   // ~36k returns: the binomial spread of the kept fraction is ~0.003.
   EXPECT_NEAR(kept, 0.7, 0.02);
@@ -417,16 +435,18 @@ TEST(SimClutter, PanelsAreSeenByLidarAndCamera) {
   scene.target = target;
   scene.occluder = false;
   Panel poster;  // on the wall ahead (x = +10), 0.15 m off it, facing the rig
-  poster.world_T_panel = makeTransform(cameraLookingAlongX(Eigen::Vector3d::Zero()).linear(), Eigen::Vector3d(9.85, 2.0, 0.5));
+  poster.world_T_panel = makeTransform(cameraLookingAlongX(Eigen::Vector3d::Zero()).linear(),
+                                       Eigen::Vector3d(9.85, 2.0, 0.5));
   poster.width_m = 1.0;
   poster.height_m = 1.3;
   poster.grey = 0.1;
   poster.intensity = 150;
   Panel stand = poster;  // free-standing behind the rig, turned and rolled like a held board
-  stand.world_T_panel = makeTransform(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
-                                          cameraLookingAlongX(Eigen::Vector3d::Zero()).linear() *
-                                          Eigen::AngleAxisd(M_PI / 4, Eigen::Vector3d::UnitZ()).toRotationMatrix(),
-                                      Eigen::Vector3d(-4.0, 0.0, 0.3));
+  stand.world_T_panel =
+      makeTransform(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
+                        cameraLookingAlongX(Eigen::Vector3d::Zero()).linear() *
+                        Eigen::AngleAxisd(M_PI / 4, Eigen::Vector3d::UnitZ()).toRotationMatrix(),
+                    Eigen::Vector3d(-4.0, 0.0, 0.3));
   stand.grey = 0.9;
   stand.intensity = 220;
   scene.panels = {poster, stand};
@@ -438,7 +458,8 @@ TEST(SimClutter, PanelsAreSeenByLidarAndCamera) {
   std::mt19937 rng(2);
   // The board far away, out of the room: only room and panels remain.
   const Eigen::Isometry3d board_away = boardPose(target, {40, 0, 0}, 45);
-  const LidarCloud cloud = simulateLidarScan(*spec, Eigen::Isometry3d::Identity(), scene, board_away, rng);
+  const LidarCloud cloud =
+      simulateLidarScan(*spec, Eigen::Isometry3d::Identity(), scene, board_away, rng);
   for (size_t k = 0; k < scene.panels.size(); ++k) {
     const Panel& panel = scene.panels[k];
     const Eigen::Isometry3d panel_T_world = panel.world_T_panel.inverse();
@@ -447,8 +468,8 @@ TEST(SimClutter, PanelsAreSeenByLidarAndCamera) {
       if (!std::isfinite(p.x)) continue;
       const Eigen::Vector3d q = panel_T_world * Eigen::Vector3d(p.x, p.y, p.z);
       // Inside the panel (0.05 m from its rim, away from mixed returns) and on its plane.
-      if (std::abs(q.x()) < 0.5 * panel.width_m - 0.05 && std::abs(q.y()) < 0.5 * panel.height_m - 0.05 &&
-          std::abs(q.z()) < 0.2) {
+      if (std::abs(q.x()) < 0.5 * panel.width_m - 0.05 &&
+          std::abs(q.y()) < 0.5 * panel.height_m - 0.05 && std::abs(q.z()) < 0.2) {
         ++on;
         EXPECT_LT(std::abs(q.z()), 1e-4) << "panel " << k;  // noise-free: exactly on the plane
         EXPECT_NEAR(p.intensity, panel.intensity, 1e-3) << "panel " << k;
@@ -461,12 +482,15 @@ TEST(SimClutter, PanelsAreSeenByLidarAndCamera) {
   RenderOptions render;
   render.noise_sigma = 0;
   render.vignetting = 0;
-  const cv::Mat image = renderCameraImage(camera, cameraLookingAlongX(Eigen::Vector3d::Zero()), scene, board_away, render, rng);
+  const cv::Mat image = renderCameraImage(camera, cameraLookingAlongX(Eigen::Vector3d::Zero()),
+                                          scene, board_away, render, rng);
   ASSERT_FALSE(image.empty());
   auto greyAt = [&](const Eigen::Vector3d& world) {
     Eigen::Vector2d px(0, 0);
-    EXPECT_TRUE(camera.project(cameraLookingAlongX(Eigen::Vector3d::Zero()).inverse() * world, &px));
-    const cv::Vec3b c = image.at<cv::Vec3b>(static_cast<int>(std::lround(px.y())), static_cast<int>(std::lround(px.x())));
+    EXPECT_TRUE(
+        camera.project(cameraLookingAlongX(Eigen::Vector3d::Zero()).inverse() * world, &px));
+    const cv::Vec3b c = image.at<cv::Vec3b>(static_cast<int>(std::lround(px.y())),
+                                            static_cast<int>(std::lround(px.x())));
     return (c[0] + c[1] + c[2]) / 3.0;
   };
   const double inside = greyAt(Eigen::Vector3d(9.85, 2.0, 0.5));
@@ -497,20 +521,24 @@ TEST(SimOutdoor, GroundFacadesSkyAndBoardLook) {
   std::mt19937 rng(4);
   const Eigen::Isometry3d board = boardPose(target, {8, 0, 0}, 0);  // upright, facing the LiDAR
   std::vector<ReturnOrigin> origins;
-  const LidarCloud cloud = simulateLidarScan(*spec, Eigen::Isometry3d::Identity(), scene, board, rng, &origins);
+  const LidarCloud cloud =
+      simulateLidarScan(*spec, Eigen::Isometry3d::Identity(), scene, board, rng, &origins);
   int ground = 0, facade = 0, above = 0, mark = 0, board_plain = 0;
   for (size_t i = 0; i < cloud.points.size(); ++i) {
     const auto& p = cloud.points[i];
     if (!std::isfinite(p.x)) continue;
     const Eigen::Vector3d q(p.x, p.y, p.z);
     if (std::abs(q.z() - scene.floor_z_m) < 1e-3) ++ground;
-    if (std::abs(std::abs(q.y()) - scene.street_half_width_m) < 1e-3 || std::abs(std::abs(q.x()) - scene.facade_distance_m) < 1e-3) ++facade;
+    if (std::abs(std::abs(q.y()) - scene.street_half_width_m) < 1e-3 ||
+        std::abs(std::abs(q.x()) - scene.facade_distance_m) < 1e-3)
+      ++facade;
     if (q.z() > 16.0 + scene.floor_z_m) ++above;
     if (origins[i] == ReturnOrigin::kBoard) {
       const Eigen::Vector3d b = board.inverse() * q;
       if (b.x() > 0.42 && b.x() < 0.58 && b.y() > 0.32 && b.y() < 0.68) {
         ++mark;
-        EXPECT_LT(p.intensity, 0.5 * scene.board_intensity);  // printed: the black print's reflectivity
+        EXPECT_LT(p.intensity,
+                  0.5 * scene.board_intensity);  // printed: the black print's reflectivity
       } else if (std::abs(b.x() - 0.5) > 0.15) {
         ++board_plain;
         EXPECT_GT(p.intensity, 0.8 * scene.board_intensity);
@@ -532,10 +560,12 @@ TEST(SimOutdoor, GroundFacadesSkyAndBoardLook) {
   auto colourAt = [&](const Eigen::Vector3d& world) {
     Eigen::Vector2d px(0, 0);
     EXPECT_TRUE(camera.project(cam.inverse() * world, &px));
-    return image.at<cv::Vec3b>(static_cast<int>(std::lround(px.y())), static_cast<int>(std::lround(px.x())));
+    return image.at<cv::Vec3b>(static_cast<int>(std::lround(px.y())),
+                               static_cast<int>(std::lround(px.x())));
   };
-  const cv::Vec3b sky = colourAt(Eigen::Vector3d(45, 0, 20));  // above the facade ahead (top at 13.3 m)
-  EXPECT_GT(sky[0], 150);  // bright, blue-ish
+  const cv::Vec3b sky =
+      colourAt(Eigen::Vector3d(45, 0, 20));  // above the facade ahead (top at 13.3 m)
+  EXPECT_GT(sky[0], 150);                    // bright, blue-ish
   EXPECT_GT(sky[0], sky[2]);
   const cv::Vec3b face = colourAt(board * Eigen::Vector3d(0.2, 0.2, 0));
   EXPECT_GT(face[2], face[0] + 30) << "cardboard: red well above blue";
@@ -557,15 +587,19 @@ TEST(SimRegression, DefaultSceneUnchanged) {
   ASSERT_TRUE(spec.ok());
   std::mt19937 rng(21);
   const Eigen::Isometry3d board = boardPose(target, {3, 0.3, 0}, 40, 10, 5);
-  const LidarCloud cloud = simulateLidarScan(*spec, Eigen::Isometry3d::Identity(), scene, board, rng);
+  const LidarCloud cloud =
+      simulateLidarScan(*spec, Eigen::Isometry3d::Identity(), scene, board, rng);
   double cloud_sum = 0;
   for (size_t i = 0; i < cloud.points.size(); ++i) {
     const auto& p = cloud.points[i];
-    if (std::isfinite(p.x)) cloud_sum += (i % 7 + 1) * (p.x + 2 * p.y + 3 * p.z + 0.01 * p.intensity);
+    if (std::isfinite(p.x))
+      cloud_sum += (i % 7 + 1) * (p.x + 2 * p.y + 3 * p.z + 0.01 * p.intensity);
   }
-  const CameraModel camera = makeCamera(320, 240, 250, DistortionModel::kPlumbBob, {-0.1, 0.02, 0, 0, 0});
+  const CameraModel camera =
+      makeCamera(320, 240, 250, DistortionModel::kPlumbBob, {-0.1, 0.02, 0, 0, 0});
   RenderOptions render;
-  const cv::Mat image = renderCameraImage(camera, cameraLookingAlongX(Eigen::Vector3d(0, 0.1, 0)), scene, board, render, rng);
+  const cv::Mat image = renderCameraImage(camera, cameraLookingAlongX(Eigen::Vector3d(0, 0.1, 0)),
+                                          scene, board, render, rng);
   double image_sum = 0;
   for (int v = 0; v < image.rows; ++v)
     for (int u = 0; u < image.cols; ++u) {

@@ -22,7 +22,8 @@ std::vector<std::string> scenarioFiles() {
   if (DIR* dir = opendir(kScenarioDir.c_str())) {
     while (dirent* entry = readdir(dir)) {
       const std::string name = entry->d_name;
-      if (name.size() > 5 && name.substr(name.size() - 5) == ".yaml") out.push_back(kScenarioDir + "/" + name);
+      if (name.size() > 5 && name.substr(name.size() - 5) == ".yaml")
+        out.push_back(kScenarioDir + "/" + name);
     }
     closedir(dir);
   }
@@ -31,7 +32,8 @@ std::vector<std::string> scenarioFiles() {
 }
 
 // Angle (deg, 0..90) between a board edge and the LiDAR scan lines as the LiDAR sees it.
-double edgeSlopeDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& centre) {
+double edgeSlopeDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                    const Eigen::Vector3d& centre) {
   const Eigen::Vector3d view = centre.normalized();
   Eigen::Vector3d edge = b - a;
   edge -= edge.dot(view) * view;
@@ -52,23 +54,27 @@ TEST(SimScenario, ShippedScenariosLoadAndPlaceEveryPose) {
     ASSERT_EQ(timeline->world_T_board_poses.size(), static_cast<size_t>(s.motion.poses));
     const auto outer = s.scene.target.outerCorners();
     for (const auto& world_T_board : timeline->world_T_board_poses) {
-      const Eigen::Vector3d centre_rig = s.world_T_rig.inverse() * world_T_board * s.scene.target.center();
+      const Eigen::Vector3d centre_rig =
+          s.world_T_rig.inverse() * world_T_board * s.scene.target.center();
       EXPECT_GE(centre_rig.norm(), s.motion.min_distance_m - 1e-9);
       EXPECT_LE(centre_rig.norm(), s.motion.max_distance_m + 1e-9);
       for (size_t c = 0; c < s.cameras.size(); ++c) {
         auto model = CameraModel::create(s.cameras[c].intrinsics);
         ASSERT_TRUE(model.ok());
-        const Eigen::Isometry3d camera_T_board = worldTCamera(s, static_cast<int>(c)).inverse() * world_T_board;
+        const Eigen::Isometry3d camera_T_board =
+            worldTCamera(s, static_cast<int>(c)).inverse() * world_T_board;
         for (const auto& corner : outer) EXPECT_TRUE(model->isVisible(camera_T_board * corner));
         // The printed face (seen from board -z) faces the camera.
         EXPECT_LT((camera_T_board.inverse().translation()).z(), 0);
       }
       for (size_t l = 0; l < s.lidars.size(); ++l) {
-        const Eigen::Isometry3d lidar_T_board = worldTLidar(s, static_cast<int>(l)).inverse() * world_T_board;
+        const Eigen::Isometry3d lidar_T_board =
+            worldTLidar(s, static_cast<int>(l)).inverse() * world_T_board;
         const Eigen::Vector3d centre = lidar_T_board * s.scene.target.center();
         for (int e = 0; e < 4; ++e)
-          EXPECT_GE(edgeSlopeDeg(lidar_T_board * outer[e], lidar_T_board * outer[(e + 1) % 4], centre),
-                    s.motion.min_edge_slope_deg - 1e-6)
+          EXPECT_GE(
+              edgeSlopeDeg(lidar_T_board * outer[e], lidar_T_board * outer[(e + 1) % 4], centre),
+              s.motion.min_edge_slope_deg - 1e-6)
               << "edge " << e << " near-parallel to the scan lines";
       }
     }
@@ -116,7 +122,8 @@ TEST(SimScenario, TimelineHoldsMovesStampsAndThinning) {
         best_gap = std::min(best_gap, std::abs(a.stamp - b.stamp));
   EXPECT_NEAR(best_gap, std::abs(s.cameras[0].stamp_offset_s - s.lidars[0].stamp_offset_s), 1e-9);
   // Moves are smooth: consecutive held poses are different.
-  EXPECT_GT(translationErrorM(timeline->world_T_board_poses[0], timeline->world_T_board_poses[1]), 1e-3);
+  EXPECT_GT(translationErrorM(timeline->world_T_board_poses[0], timeline->world_T_board_poses[1]),
+            1e-3);
 }
 
 TEST(SimScenario, GroundTruthCoversEveryPair) {
@@ -132,7 +139,8 @@ TEST(SimScenario, GroundTruthCoversEveryPair) {
   // OS1 16 cm above the VLP and turned by 30 deg.
   std::map<std::string, Eigen::Isometry3d> ref_T;
   for (const auto& e : truth.sensors) ref_T[e.frame] = e.reference_T_sensor;
-  EXPECT_NEAR((ref_T["left_optical"].translation() - ref_T["right_optical"].translation()).norm(), 0.12, 1e-9);
+  EXPECT_NEAR((ref_T["left_optical"].translation() - ref_T["right_optical"].translation()).norm(),
+              0.12, 1e-9);
   EXPECT_NEAR(rotationErrorDeg(ref_T["velodyne"], ref_T["os1_lidar"]), std::hypot(30.0, 1.1), 0.5);
   for (const auto& pair : truth.pairs) {
     const Eigen::Isometry3d expected = ref_T[pair.camera_frame].inverse() * ref_T[pair.lidar_frame];
@@ -180,7 +188,8 @@ TEST(SimScenario, FramesReuseStillRenderAndDifferOnlyByNoise) {
   EXPECT_GT(mean_abs, 1.5);
   EXPECT_LT(mean_abs, 2.8);
   // Regenerating a frame on its own gives the same pixels (noise seeded per frame).
-  const cv::Mat again = generator->image(timeline->frames[still_pose0[1].first], still_pose0[1].first);
+  const cv::Mat again =
+      generator->image(timeline->frames[still_pose0[1].first], still_pose0[1].first);
   EXPECT_EQ(cv::norm(again, still_pose0[1].second, cv::NORM_INF), 0.0);
 }
 
@@ -195,10 +204,12 @@ TEST(SimScenario, SeededClutterAndOutdoorFarPoses) {
   auto again = loadScenario(kScenarioDir + "/plain_vlp32c_clutter.yaml");
   ASSERT_TRUE(again.ok());
   for (size_t k = 0; k < clutter->scene.panels.size(); ++k)
-    EXPECT_TRUE(clutter->scene.panels[k].world_T_panel.isApprox(again->scene.panels[k].world_T_panel));
-  const std::string yaml = "target: ../targets/plain_1016.yaml\n"
-                           "cameras: [{name: c, width: 640, height: 480, fx: 500, fy: 500, cx: 320, cy: 240}]\n"
-                           "scene: {posters: 5, board_marks: 4, clutter_seed: ";
+    EXPECT_TRUE(
+        clutter->scene.panels[k].world_T_panel.isApprox(again->scene.panels[k].world_T_panel));
+  const std::string yaml =
+      "target: ../targets/plain_1016.yaml\n"
+      "cameras: [{name: c, width: 640, height: 480, fx: 500, fy: 500, cx: 320, cy: 240}]\n"
+      "scene: {posters: 5, board_marks: 4, clutter_seed: ";
   auto a = parseScenario(yaml + "1}\n", kScenarioDir);
   auto b = parseScenario(yaml + "2}\n", kScenarioDir);
   ASSERT_TRUE(a.ok()) << a.error();
@@ -245,11 +256,13 @@ TEST(SimScenario, SeededClutterAndOutdoorFarPoses) {
         const Eigen::Vector3d a0 = inv * worldTLidar(*s, 0).translation(), b0 = inv * centre;
         if ((a0.z() > 0) == (b0.z() > 0)) continue;
         const Eigen::Vector3d q = a0 + (b0 - a0) * (a0.z() / (a0.z() - b0.z()));
-        EXPECT_FALSE(std::abs(q.x()) <= 0.5 * panel.width_m && std::abs(q.y()) <= 0.5 * panel.height_m);
+        EXPECT_FALSE(std::abs(q.x()) <= 0.5 * panel.width_m &&
+                     std::abs(q.y()) <= 0.5 * panel.height_m);
       }
     }
   }
-  if (const char* dump = std::getenv("SIM_SCENARIO_DUMP")) {  // eyeball the scenes: writes PNGs there
+  if (const char* dump =
+          std::getenv("SIM_SCENARIO_DUMP")) {  // eyeball the scenes: writes PNGs there
     for (const auto* s : {&*clutter, &*far}) {
       auto t = makeTimeline(*s);
       auto gen = FrameGenerator::create(*s);
@@ -257,12 +270,15 @@ TEST(SimScenario, SeededClutterAndOutdoorFarPoses) {
       for (size_t i = 0; i < t->frames.size(); ++i)
         if (t->frames[i].is_camera && t->frames[i].still && t->frames[i].pose % 5 == 0) {
           const cv::Mat image = gen->image(t->frames[i], i);  // bgr8 -> binary PPM (rgb)
-          std::ofstream out(std::string(dump) + "/" + s->name + "_" + std::to_string(t->frames[i].pose) + ".ppm");
+          std::ofstream out(std::string(dump) + "/" + s->name + "_" +
+                            std::to_string(t->frames[i].pose) + ".ppm");
           out << "P6\n" << image.cols << " " << image.rows << "\n255\n";
           for (int v = 0; v < image.rows; ++v)
             for (int u = 0; u < image.cols; ++u) {
               const cv::Vec3b c = image.at<cv::Vec3b>(v, u);
-              out.put(static_cast<char>(c[2])).put(static_cast<char>(c[1])).put(static_cast<char>(c[0]));
+              out.put(static_cast<char>(c[2]))
+                  .put(static_cast<char>(c[1]))
+                  .put(static_cast<char>(c[0]));
             }
         }
     }
@@ -282,18 +298,24 @@ TEST(SimScenario, BadFilesGiveReasonsNamingTheKey) {
       {good_camera, "target"},
       {"target: nope.yaml\n" + good_camera, "nope.yaml"},
       {"target: ../targets/plain_1016.yaml\nlidars: [{name: l, preset: HDL-1}]\n", "HDL-1"},
-      {"target: ../targets/plain_1016.yaml\ncameras: [{name: c, width: 640, height: 480, fx: -5, fy: 500, cx: 1, "
+      {"target: ../targets/plain_1016.yaml\ncameras: [{name: c, width: 640, height: 480, fx: -5, "
+       "fy: 500, cx: 1, "
        "cy: 1}]\n",
        "focal"},
       {"target: ../targets/plain_1016.yaml\n" + good_camera + "motion: {poses: 0}\n", "poses"},
-      {"target: ../targets/plain_1016.yaml\n" + good_camera + "motion: {hold_s: fast}\n", "motion.hold_s"},
+      {"target: ../targets/plain_1016.yaml\n" + good_camera + "motion: {hold_s: fast}\n",
+       "motion.hold_s"},
       {"target: ../targets/plain_1016.yaml\n", "no sensors"},
       {"target: [\n", "YAML"},
-      {"target: ../targets/plain_1016.yaml\n" + good_camera + "scene: {posters: -1}\n", "scene.posters"},
-      {"target: ../targets/plain_1016.yaml\n" + good_camera + "scene: {board_grey: 2}\n", "board_grey"},
-      {"target: ../targets/plain_1016.yaml\n" + good_camera + "scene: {panels: [{center: [1, 2], width: 1, height: 1}]}\n",
+      {"target: ../targets/plain_1016.yaml\n" + good_camera + "scene: {posters: -1}\n",
+       "scene.posters"},
+      {"target: ../targets/plain_1016.yaml\n" + good_camera + "scene: {board_grey: 2}\n",
+       "board_grey"},
+      {"target: ../targets/plain_1016.yaml\n" + good_camera +
+           "scene: {panels: [{center: [1, 2], width: 1, height: 1}]}\n",
        "scene.panels[0].center"},
-      {"target: ../targets/plain_1016.yaml\n" + good_camera + "scene: {board_marks: [{min: [0, 0]}]}\n",
+      {"target: ../targets/plain_1016.yaml\n" + good_camera +
+           "scene: {board_marks: [{min: [0, 0]}]}\n",
        "scene.board_marks[0].max"},
   };
   for (const auto& c : cases) {
@@ -302,15 +324,17 @@ TEST(SimScenario, BadFilesGiveReasonsNamingTheKey) {
     EXPECT_NE(s.error().find(c.expect), std::string::npos) << "reason: " << s.error();
   }
   // Fields of view that cannot overlap: a clear reason instead of a hang.
-  auto s = parseScenario("target: ../targets/plain_1016.yaml\n"
-                         "cameras: [{name: c, width: 640, height: 480, fx: 500, fy: 500, cx: 320, cy: 240,\n"
-                         "           pose: {rpy_deg: [0, 0, 180]}}]\n"
-                         "motion: {poses: 1}\n",
-                         base);
+  auto s = parseScenario(
+      "target: ../targets/plain_1016.yaml\n"
+      "cameras: [{name: c, width: 640, height: 480, fx: 500, fy: 500, cx: 320, cy: 240,\n"
+      "           pose: {rpy_deg: [0, 0, 180]}}]\n"
+      "motion: {poses: 1}\n",
+      base);
   ASSERT_TRUE(s.ok()) << s.error();
   auto timeline = makeTimeline(*s);
   ASSERT_FALSE(timeline.ok());
-  EXPECT_NE(timeline.error().find("cannot place board pose 0"), std::string::npos) << timeline.error();
+  EXPECT_NE(timeline.error().find("cannot place board pose 0"), std::string::npos)
+      << timeline.error();
 }
 
 }  // namespace

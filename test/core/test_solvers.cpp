@@ -1,7 +1,7 @@
 // Solvers on synthetic features at known ground truth (issue 3 targets).
 #include <board_calib/core/solvers/solvers.h>
-#include "support/synthetic_views.h"
 #include <board_calib/core/transform.h>
+#include "support/synthetic_views.h"
 
 #include <gtest/gtest.h>
 
@@ -23,7 +23,8 @@ sim::SyntheticFeatureOptions thirtyViewsAt2cmRangeNoise() {
   return o;
 }
 
-sim::SyntheticScene makeScene(unsigned seed, const sim::SyntheticFeatureOptions& o = thirtyViewsAt2cmRangeNoise()) {
+sim::SyntheticScene makeScene(
+    unsigned seed, const sim::SyntheticFeatureOptions& o = thirtyViewsAt2cmRangeNoise()) {
   std::mt19937 rng(seed);
   const Eigen::Isometry3d truth = sim::randomCameraTLidar(rng);
   auto scene = sim::generateSyntheticViews(o, truth, rng);
@@ -37,7 +38,8 @@ struct Errors {
 };
 
 Errors errors(const CalibrationSolution& sol, const Eigen::Isometry3d& truth) {
-  return {rotationErrorDeg(sol.camera_T_lidar, truth), translationErrorM(sol.camera_T_lidar, truth)};
+  return {rotationErrorDeg(sol.camera_T_lidar, truth),
+          translationErrorM(sol.camera_T_lidar, truth)};
 }
 
 TEST(Solvers, MethodNamesRoundTrip) {
@@ -88,7 +90,8 @@ TEST(Solvers, PpcAndPbpcRecoverGroundTruth) {
     const auto pbpc = calibrate(scene.views, Method::kPbpc, options);
     ASSERT_TRUE(ppc.success) << ppc.reason;
     ASSERT_TRUE(pbpc.success) << pbpc.reason;
-    const Errors e_ppc = errors(ppc, scene.camera_T_lidar), e_pbpc = errors(pbpc, scene.camera_T_lidar);
+    const Errors e_ppc = errors(ppc, scene.camera_T_lidar),
+                 e_pbpc = errors(pbpc, scene.camera_T_lidar);
     EXPECT_LT(e_ppc.rot_deg, 0.2) << "seed " << seed;
     EXPECT_LT(e_ppc.trans_m, 0.01) << "seed " << seed;
     EXPECT_LT(e_pbpc.rot_deg, 0.2) << "seed " << seed;
@@ -126,8 +129,9 @@ TEST(Solvers, PpcPlaneErrorModelBeatsPaperWeighting) {
   }
   EXPECT_LT(rot_model, rot_paper);
   EXPECT_LT(trans_model, trans_paper);
-  std::printf("PPC squared errors, plane error model / paper weighting: rotation %.2f, translation %.2f\n",
-              rot_model / rot_paper, trans_model / trans_paper);
+  std::printf(
+      "PPC squared errors, plane error model / paper weighting: rotation %.2f, translation %.2f\n",
+      rot_model / rot_paper, trans_model / trans_paper);
 }
 
 TEST(Solvers, MsgPairwiseRecoversGroundTruth) {
@@ -151,7 +155,8 @@ TEST(Solvers, MsgPairwiseRecoversGroundTruth) {
     EXPECT_GT(msg.plane_rms_mm, 0.0);
     EXPECT_TRUE(msg.covariance.allFinite());
   }
-  std::printf("MSG pairwise, worst over 11 seeds: %.3f deg, %.1f mm\n", worst_rot, 1000.0 * worst_trans);
+  std::printf("MSG pairwise, worst over 11 seeds: %.3f deg, %.1f mm\n", worst_rot,
+              1000.0 * worst_trans);
 }
 
 TEST(Solvers, PlaneToPlaneBetweenTwoLidars) {
@@ -182,7 +187,8 @@ TEST(Solvers, PlaneToPlaneBetweenTwoCameras) {
   std::normal_distribution<double> noise(0.0, 1.0);
   auto noisy = [&](const Plane& p) {
     Plane out = p;
-    out.normal = (p.normal + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)) * 0.2 * kRadPerDeg).normalized();
+    out.normal = (p.normal + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)) * 0.2 * kRadPerDeg)
+                     .normalized();
     out.offset += 0.003 * noise(rng);
     return out;
   };
@@ -268,7 +274,8 @@ TEST(Solvers, DegenerateInputGivesSpecificReasons) {
   for (Method m : {Method::kPpc, Method::kPbpc, Method::kMsgPair}) {
     sol = calibrate(same, m, options);
     EXPECT_FALSE(sol.success) << methodName(m);
-    EXPECT_NE(sol.reason.find("parallel"), std::string::npos) << methodName(m) << ": " << sol.reason;
+    EXPECT_NE(sol.reason.find("parallel"), std::string::npos)
+        << methodName(m) << ": " << sol.reason;
   }
   // NaN in a view: that view is skipped with a reason; with too few left, the solve fails.
   std::vector<View> nan_views(scene.views.begin(), scene.views.begin() + 3);
@@ -328,8 +335,9 @@ TEST(Solvers, CovarianceShrinksWithMoreViewsAndMatchesSpread) {
     EXPECT_LT(ratio_t, kFactor) << methodName(m);
     EXPECT_GT(ratio_r, 1.0 / kFactor) << methodName(m);
     EXPECT_LT(ratio_r, kFactor) << methodName(m);
-    std::printf("%s: RMS error / RMS predicted sigma over %d draws: translation %.2f, rotation %.2f\n", methodName(m),
-                kDraws, ratio_t, ratio_r);
+    std::printf(
+        "%s: RMS error / RMS predicted sigma over %d draws: translation %.2f, rotation %.2f\n",
+        methodName(m), kDraws, ratio_t, ratio_r);
   }
 }
 
@@ -350,7 +358,8 @@ TEST(Solvers, RobustLossesAllConverge) {
   // Every selectable loss reaches the truth; a few gross outliers (points 1 m off the board)
   // are down-weighted by the robust ones.
   auto scene = makeScene(8);
-  for (int i = 0; i < 10; ++i) scene.views[i].lidar.board_points[0] += Eigen::Vector3d(1.0, 0.0, 0.0);
+  for (int i = 0; i < 10; ++i)
+    scene.views[i].lidar.board_points[0] += Eigen::Vector3d(1.0, 0.0, 0.0);
   for (RobustLoss loss : {RobustLoss::kHuber, RobustLoss::kCauchy, RobustLoss::kTukey}) {
     SolverOptions options;
     options.loss = loss;
@@ -388,9 +397,11 @@ TEST(Solvers, WeakDirectionDetected) {
   // differ) and the translation across it. Which one is weakest depends on the camera plane
   // noise (PnP planes: the rotation, 1.3 deg; distance-free noise: the translation, 20 mm).
   const Vector6d& v = sol.observability.weakest_direction;
-  const bool rotation_about_z = std::abs(v(2)) > 0.7, translation_across = v.segment<2>(3).norm() > 0.7;
+  const bool rotation_about_z = std::abs(v(2)) > 0.7,
+             translation_across = v.segment<2>(3).norm() > 0.7;
   EXPECT_TRUE(rotation_about_z || translation_across) << v.transpose();
-  EXPECT_NE(sol.observability.weakest_description.find(rotation_about_z ? "rotation about camera z" : "translation"),
+  EXPECT_NE(sol.observability.weakest_description.find(rotation_about_z ? "rotation about camera z"
+                                                                        : "translation"),
             std::string::npos)
       << sol.observability.weakest_description;
 }
@@ -415,7 +426,8 @@ TEST(Solvers, BoardSizeMismatchIsAbsorbedByPlaneScale) {
 TEST(Solvers, EdgeReassociationFixesSwappedLabels) {
   auto scene = makeScene(17);
   // Swap two LiDAR edge labels in a few views.
-  for (int i : {2, 5, 11}) std::swap(scene.views[i].lidar.edge_points[0], scene.views[i].lidar.edge_points[1]);
+  for (int i : {2, 5, 11})
+    std::swap(scene.views[i].lidar.edge_points[0], scene.views[i].lidar.edge_points[1]);
   const auto sol = calibrate(scene.views, Method::kPbpc, SolverOptions());
   ASSERT_TRUE(sol.success) << sol.reason;
   EXPECT_LT(errors(sol, scene.camera_T_lidar).rot_deg, 0.2);

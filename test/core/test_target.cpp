@@ -15,14 +15,16 @@ const char* kChecker =
     "checkerboard: {cols: 9, rows: 6, square: 0.0615, origin: [0.2005, 0.1565]}\n";
 const char* kGrid =
     "type: apriltag_grid\nwidth: 1.016\nheight: 1.016\n"
-    "apriltag_grid: {family: tag36h11, cols: 4, rows: 4, tag_size: 0.16, spacing: 0.04, first_id: 0, "
+    "apriltag_grid: {family: tag36h11, cols: 4, rows: 4, tag_size: 0.16, spacing: 0.04, first_id: "
+    "0, "
     "origin: [0.1, 0.1]}\n";
 
 // The error must name the key, so a user knows what to fix.
 void expectErrorMentions(const std::string& yaml, const std::string& fragment) {
   const auto t = parseTarget(yaml);
   ASSERT_FALSE(t.ok()) << "accepted: " << yaml;
-  EXPECT_NE(t.error().find(fragment), std::string::npos) << "error '" << t.error() << "' lacks '" << fragment << "'";
+  EXPECT_NE(t.error().find(fragment), std::string::npos)
+      << "error '" << t.error() << "' lacks '" << fragment << "'";
 }
 
 }  // namespace
@@ -85,24 +87,30 @@ TEST(Target, MalformedFilesNameTheKey) {
   expectErrorMentions("type: plain\nwidth: abc\nheight: 1\n", "'width'");
   expectErrorMentions("type: plain\nwidth: 1\nheight: 1\ncolour: red\n", "'colour'");
   expectErrorMentions("type: checkerboard\nwidth: 1\nheight: 1\n", "'checkerboard'");
-  expectErrorMentions("type: checkerboard\nwidth: 1\nheight: 1\ncheckerboard: {cols: 7, rows: 5, square: 0.1}\n",
-                      "'checkerboard.origin'");
   expectErrorMentions(
-      "type: checkerboard\nwidth: 1\nheight: 1\ncheckerboard: {cols: 7.5, rows: 5, square: 0.1, origin: [0.2, 0.2]}\n",
+      "type: checkerboard\nwidth: 1\nheight: 1\ncheckerboard: {cols: 7, rows: 5, square: 0.1}\n",
+      "'checkerboard.origin'");
+  expectErrorMentions(
+      "type: checkerboard\nwidth: 1\nheight: 1\ncheckerboard: {cols: 7.5, rows: 5, square: 0.1, "
+      "origin: [0.2, 0.2]}\n",
       "'checkerboard.cols'");
   expectErrorMentions(
-      "type: checkerboard\nwidth: 1\nheight: 1\ncheckerboard: {cols: 7, rows: 5, square: 0.1, origin: [0.2, 0.2], "
+      "type: checkerboard\nwidth: 1\nheight: 1\ncheckerboard: {cols: 7, rows: 5, square: 0.1, "
+      "origin: [0.2, 0.2], "
       "size: 3}\n",
       "'checkerboard.size'");
   expectErrorMentions(
-      "type: checkerboard\nwidth: 0.5\nheight: 0.5\ncheckerboard: {cols: 7, rows: 5, square: 0.1, origin: [0.1, 0.1]}\n",
+      "type: checkerboard\nwidth: 0.5\nheight: 0.5\ncheckerboard: {cols: 7, rows: 5, square: 0.1, "
+      "origin: [0.1, 0.1]}\n",
       "does not fit");
   expectErrorMentions(
-      "type: apriltag_grid\nwidth: 0.5\nheight: 0.5\napriltag_grid: {family: tag36h11, cols: 4, rows: 4, tag_size: "
+      "type: apriltag_grid\nwidth: 0.5\nheight: 0.5\napriltag_grid: {family: tag36h11, cols: 4, "
+      "rows: 4, tag_size: "
       "0.16, spacing: 0.04, first_id: 0, origin: [0.1, 0.1]}\n",
       "does not fit");
   expectErrorMentions(
-      "type: apriltag_grid\nwidth: 1\nheight: 1\napriltag_grid: {family: tag25h9, cols: 2, rows: 2, tag_size: "
+      "type: apriltag_grid\nwidth: 1\nheight: 1\napriltag_grid: {family: tag25h9, cols: 2, rows: "
+      "2, tag_size: "
       "0.16, spacing: 0.04, first_id: 0, origin: [0.1, 0.1]}\n",
       "family");
   expectErrorMentions("[1, 2, 3]", "mapping");
@@ -116,14 +124,16 @@ TEST(Target, UnreadableFileIsAnError) {
 }
 
 TEST(Target, ShippedAndSharedTargetsLoad) {
-  for (const std::string& path : {std::string(BOARD_CALIB_SOURCE_DIR) + "/config/targets/plain_1016.yaml",
-                                 std::string(BOARD_CALIB_SOURCE_DIR) + "/config/targets/checkerboard_7x5.yaml",
-                                 std::string(BOARD_CALIB_SOURCE_DIR) + "/config/targets/apriltag_grid_4x4.yaml"}) {
+  for (const std::string& path :
+       {std::string(BOARD_CALIB_SOURCE_DIR) + "/config/targets/plain_1016.yaml",
+        std::string(BOARD_CALIB_SOURCE_DIR) + "/config/targets/checkerboard_7x5.yaml",
+        std::string(BOARD_CALIB_SOURCE_DIR) + "/config/targets/apriltag_grid_4x4.yaml"}) {
     const auto t = board_calib::loadTarget(path);
     EXPECT_TRUE(t.ok()) << t.error();
   }
   const std::string shared = BOARD_CALIB_SHARED_DIR;
-  for (const char* rel : {"/data/basler_os1_plain/target.yaml", "/data/left_vlp32_checker/target.yaml"}) {
+  for (const char* rel :
+       {"/data/basler_os1_plain/target.yaml", "/data/left_vlp32_checker/target.yaml"}) {
     std::ifstream probe(shared + rel);
     if (!probe) continue;  // ../shared is optional outside CI
     const auto t = board_calib::loadTarget(shared + rel);
@@ -135,7 +145,8 @@ TEST(Target, ShippedAndSharedTargetsLoad) {
 TEST(Target, HostileValuesAreRefused) {
   // rows * cols overflowed int and passed the tag-count limit, then allocated until bad_alloc.
   expectErrorMentions(
-      "type: apriltag_grid\nwidth: 1\nheight: 1\napriltag_grid: {family: tag36h11, cols: 65536, rows: 65536, "
+      "type: apriltag_grid\nwidth: 1\nheight: 1\napriltag_grid: {family: tag36h11, cols: 65536, "
+      "rows: 65536, "
       "tag_size: 0.00000001, spacing: 0, first_id: 0, origin: [0.1, 0.1]}\n",
       "65536 x 65536");
   expectErrorMentions("type: plain\nwidth: 1\nwidth: 2\nheight: 1\n", "duplicate key 'width'");
@@ -143,14 +154,17 @@ TEST(Target, HostileValuesAreRefused) {
   expectErrorMentions("type: plain\nwidth: .inf\nheight: 1\n", "finite");
   expectErrorMentions("type: plain\nwidth: .nan\nheight: 1\n", "finite");
   expectErrorMentions(
-      "type: checkerboard\nwidth: 1\nheight: 1\ncheckerboard: {cols: 7, rows: 5, square: 0.1, origin: [.nan, 0.2]}\n",
+      "type: checkerboard\nwidth: 1\nheight: 1\ncheckerboard: {cols: 7, rows: 5, square: 0.1, "
+      "origin: [.nan, 0.2]}\n",
       "checkerboard.origin");
   expectErrorMentions(
-      "type: checkerboard\nwidth: 1\nheight: 1\ncheckerboard: {cols: 2147483648, rows: 5, square: 0.1, origin: [0.2, "
+      "type: checkerboard\nwidth: 1\nheight: 1\ncheckerboard: {cols: 2147483648, rows: 5, square: "
+      "0.1, origin: [0.2, "
       "0.2]}\n",
       "checkerboard.cols");
   expectErrorMentions(
-      "type: checkerboard\nwidth: 9\nheight: 9\ncheckerboard: {cols: 200, rows: 201, square: 0.001, origin: [0.2, "
+      "type: checkerboard\nwidth: 9\nheight: 9\ncheckerboard: {cols: 200, rows: 201, square: "
+      "0.001, origin: [0.2, "
       "0.2]}\n",
       "inner corners");
 }

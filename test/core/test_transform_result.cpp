@@ -51,7 +51,8 @@ TEST(ResultFile, WriteReadRoundTrip) {
   r.sensors.push_back({"os1_lidar", "lidar", Eigen::Isometry3d::Identity()});
   r.sensors.push_back({"camera", "camera", r.camera_T_lidar.inverse()});
   r.pairs.push_back({"camera", "os1_lidar", r.camera_T_lidar, 1.7, std::nullopt});
-  r.pairs.push_back({"camera2", "os1_lidar", r.camera_T_lidar, std::nullopt, PoseStddev{{0.004, 0.005, 0.006}, {0.1, 0.2, 0.3}}});
+  r.pairs.push_back({"camera2", "os1_lidar", r.camera_T_lidar, std::nullopt,
+                     PoseStddev{{0.004, 0.005, 0.006}, {0.1, 0.2, 0.3}}});
 
   const std::string path = ::testing::TempDir() + "/board_calib_result.yaml";
   ASSERT_TRUE(writeResultFile(path, r).ok);
@@ -86,10 +87,12 @@ TEST(ResultFile, ContractKeysPresentAndInverseConsistent) {
   r.method = "ppc";
   r.camera_frame = "c";
   r.lidar_frame = "l";
-  r.camera_T_lidar = makeTransform(Eigen::Vector3d(0.1, -0.2, 0.3), Eigen::Vector4d(0.5, -0.5, 0.5, 0.5));
+  r.camera_T_lidar =
+      makeTransform(Eigen::Vector3d(0.1, -0.2, 0.3), Eigen::Vector4d(0.5, -0.5, 0.5, 0.5));
   const std::string yaml = resultToYaml(r);
-  for (const char* key : {"method:", "camera_frame:", "lidar_frame:", "camera_T_lidar:", "lidar_T_camera:",
-                          "translation:", "rotation_xyzw:", "matrix:", "views_used:"})
+  for (const char* key :
+       {"method:", "camera_frame:", "lidar_frame:", "camera_T_lidar:", "lidar_T_camera:",
+        "translation:", "rotation_xyzw:", "matrix:", "views_used:"})
     EXPECT_NE(yaml.find(key), std::string::npos) << key;
   // Matrix-only input (e.g. hand-edited) is accepted as well.
   const auto m = rowMajor(r.camera_T_lidar);
@@ -103,7 +106,8 @@ TEST(ResultFile, ContractKeysPresentAndInverseConsistent) {
 TEST(ResultFile, BadInputGivesReasons) {
   EXPECT_FALSE(loadResultFile("/nonexistent.yaml").ok());
   EXPECT_FALSE(parseResult("method: x\n").ok());
-  const auto bad = parseResult("method: x\ncamera_frame: c\nlidar_frame: l\ncamera_T_lidar: {translation: [1, 2]}\n");
+  const auto bad = parseResult(
+      "method: x\ncamera_frame: c\nlidar_frame: l\ncamera_T_lidar: {translation: [1, 2]}\n");
   ASSERT_FALSE(bad.ok());
   EXPECT_NE(bad.error().find("camera_T_lidar"), std::string::npos);
 }

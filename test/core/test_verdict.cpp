@@ -2,8 +2,8 @@
 // and its reported 1 sigma covers its error; corrupted views are left out or the result refused;
 // every fault of the sweep is failed or doubtful with a reason, never a silent success.
 #include <board_calib/core/pipeline/pair_calibration.h>
-#include "support/synthetic_views.h"
 #include <board_calib/core/transform.h>
+#include "support/synthetic_views.h"
 
 #include <gtest/gtest.h>
 
@@ -37,7 +37,8 @@ PairCalibration run(const std::vector<View>& views, const std::string& method,
                     const std::optional<Eigen::Isometry3d>& guess = std::nullopt) {
   PairCalibrationOptions options;
   options.solver = SolverOptions{};  // the synthetic features' settings (edge shift on)
-  return calibratePair(views, *parseMethods(method), plainTarget(), "camera", "lidar", options, guess);
+  return calibratePair(views, *parseMethods(method), plainTarget(), "camera", "lidar", options,
+                       guess);
 }
 
 // Error in units of the reported 1 sigma, worst axis (rotation about the camera axes, translation).
@@ -60,10 +61,12 @@ double errorInSigmas(const PairCalibration& r, const Eigen::Isometry3d& truth) {
 TEST(Consistency, FindsTheConsensusAndTheCorruptedViews) {
   const auto scene = makeScene(3);
   std::vector<View> views = scene.views;
-  // View 4: the LiDAR took a wall 1.5 m behind the board; view 9: the camera plane from another region.
+  // View 4: the LiDAR took a wall 1.5 m behind the board; view 9: the camera plane from another
+  // region.
   for (auto& p : views[4].lidar.board_points) p += 1.5 * views[4].lidar.plane.normal;
   views[4].lidar.plane.offset += 1.5;
-  views[9].camera.plane.normal = (Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitX()) * views[9].camera.plane.normal);
+  views[9].camera.plane.normal =
+      (Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitX()) * views[9].camera.plane.normal);
   const ConsistencyReport r = checkViewConsistency(views, plainTarget());
   ASSERT_TRUE(r.ok) << r.reason;
   EXPECT_TRUE(r.checkable);
@@ -98,8 +101,9 @@ TEST(Verdict, CorruptedViewsAreLeftOutOrTheResultRefused) {
     for (int k = 0; k < 6; ++k) {
       View& bad = v[static_cast<size_t>(5 * k + 1)];
       if (k % 3 == 0) {  // the LiDAR board is another object: a poster 1 m aside, turned 20 deg
-        const Eigen::Isometry3d move = makeTransform(
-            Eigen::AngleAxisd(0.35, Eigen::Vector3d::UnitZ()).toRotationMatrix(), Eigen::Vector3d(0.3, 1.0, 0.2));
+        const Eigen::Isometry3d move =
+            makeTransform(Eigen::AngleAxisd(0.35, Eigen::Vector3d::UnitZ()).toRotationMatrix(),
+                          Eigen::Vector3d(0.3, 1.0, 0.2));
         for (auto& p : bad.lidar.board_points) p = move * p;
         for (auto& e : bad.lidar.edge_points)
           for (auto& p : e) p = move * p;
@@ -108,7 +112,8 @@ TEST(Verdict, CorruptedViewsAreLeftOutOrTheResultRefused) {
         bad.camera = v[static_cast<size_t>((5 * k + 13) % v.size())].camera;
       } else {  // moving board: the LiDAR saw it 0.3 s later, 25 cm and 8 deg further
         const Eigen::Isometry3d move =
-            makeTransform(Eigen::AngleAxisd(0.14, Eigen::Vector3d::UnitY()).toRotationMatrix(), Eigen::Vector3d(0.25, 0, 0));
+            makeTransform(Eigen::AngleAxisd(0.14, Eigen::Vector3d::UnitY()).toRotationMatrix(),
+                          Eigen::Vector3d(0.25, 0, 0));
         for (auto& p : bad.lidar.board_points) p = move * p;
         for (auto& e : bad.lidar.edge_points)
           for (auto& p : e) p = move * p;
@@ -122,8 +127,10 @@ TEST(Verdict, CorruptedViewsAreLeftOutOrTheResultRefused) {
     }
     const MethodRun* c = r.chosenRun();
     ASSERT_NE(c, nullptr);
-    EXPECT_LT(rotationErrorDeg(c->solution.camera_T_lidar, scene.camera_T_lidar), 0.2) << "seed " << seed;
-    EXPECT_LT(translationErrorM(c->solution.camera_T_lidar, scene.camera_T_lidar), 0.01) << "seed " << seed;
+    EXPECT_LT(rotationErrorDeg(c->solution.camera_T_lidar, scene.camera_T_lidar), 0.2)
+        << "seed " << seed;
+    EXPECT_LT(translationErrorM(c->solution.camera_T_lidar, scene.camera_T_lidar), 0.01)
+        << "seed " << seed;
     EXPECT_LT(errorInSigmas(r, scene.camera_T_lidar), 3.0) << "seed " << seed;
     EXPECT_GE(r.consistency.inconsistentIds().size(), 5u) << "seed " << seed;
   }
@@ -146,7 +153,8 @@ TEST(Verdict, FaultSweepIsNeverASilentSuccess) {
   nan_guess.translation().x() = std::numeric_limits<double>::quiet_NaN();
   cases.push_back({"zero quaternion guess", all, zero_quaternion});
   cases.push_back({"NaN guess", all, nan_guess});
-  for (int n = 1; n <= 3; ++n) cases.push_back({std::to_string(n) + " view(s)", {all.begin(), all.begin() + n}, {}});
+  for (int n = 1; n <= 3; ++n)
+    cases.push_back({std::to_string(n) + " view(s)", {all.begin(), all.begin() + n}, {}});
   {
     std::vector<View> coplanar(8, all[0]);  // one board pose, eight times
     for (size_t i = 0; i < coplanar.size(); ++i) coplanar[i].id = static_cast<int>(i);
@@ -154,13 +162,15 @@ TEST(Verdict, FaultSweepIsNeverASilentSuccess) {
   }
   {
     std::vector<View> shuffled = all;  // camera and LiDAR features from different moments
-    for (size_t i = 0; i < shuffled.size(); ++i) shuffled[i].camera = all[(i + 7) % all.size()].camera;
+    for (size_t i = 0; i < shuffled.size(); ++i)
+      shuffled[i].camera = all[(i + 7) % all.size()].camera;
     cases.push_back({"shuffled pairing (infinite sync tolerance)", shuffled, {}});
   }
   {
     std::vector<View> swapped = all;  // the LiDAR features of another sensor mounted elsewhere
-    const Eigen::Isometry3d other = makeTransform(Eigen::AngleAxisd(2.5, Eigen::Vector3d::UnitZ()).toRotationMatrix(),
-                                                  Eigen::Vector3d(1.0, -2.0, 0.5));
+    const Eigen::Isometry3d other =
+        makeTransform(Eigen::AngleAxisd(2.5, Eigen::Vector3d::UnitZ()).toRotationMatrix(),
+                      Eigen::Vector3d(1.0, -2.0, 0.5));
     for (size_t i = 0; i < swapped.size(); i += 2) {
       for (auto& p : swapped[i].lidar.board_points) p = other * p;
       for (auto& e : swapped[i].lidar.edge_points)
@@ -169,28 +179,35 @@ TEST(Verdict, FaultSweepIsNeverASilentSuccess) {
     }
     cases.push_back({"two LiDARs mixed", swapped, {}});
   }
-  cases.push_back({"far-off guess (180 deg)", all,
-                   makeTransform(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY()).toRotationMatrix(), Eigen::Vector3d(3, 0, 0)) *
-                       scene.camera_T_lidar,
-                   "ppc"});
+  cases.push_back(
+      {"far-off guess (180 deg)", all,
+       makeTransform(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY()).toRotationMatrix(),
+                     Eigen::Vector3d(3, 0, 0)) *
+           scene.camera_T_lidar,
+       "ppc"});
   int failed = 0, doubtful = 0, good_but_right = 0;
   for (const auto& c : cases) {
     const PairCalibration r = run(c.views, c.method, c.guess);
-    std::printf("[fault sweep] %-45s %-8s %s\n", c.name.c_str(), verdictName(r.verdict), r.reason.c_str());
+    std::printf("[fault sweep] %-45s %-8s %s\n", c.name.c_str(), verdictName(r.verdict),
+                r.reason.c_str());
     EXPECT_FALSE(r.reason.empty()) << c.name;
-    if (r.verdict == Verdict::kFailed) ++failed;
-    else if (r.verdict == Verdict::kDoubtful) ++doubtful;
+    if (r.verdict == Verdict::kFailed)
+      ++failed;
+    else if (r.verdict == Verdict::kDoubtful)
+      ++doubtful;
     else {
       // A good verdict is allowed only where the answer is right (a far guess Ceres recovers from).
       const MethodRun* run_ok = r.chosenRun();
       ASSERT_NE(run_ok, nullptr);
-      EXPECT_LT(rotationErrorDeg(run_ok->solution.camera_T_lidar, scene.camera_T_lidar), 0.3) << c.name;
-      EXPECT_LT(translationErrorM(run_ok->solution.camera_T_lidar, scene.camera_T_lidar), 0.02) << c.name;
+      EXPECT_LT(rotationErrorDeg(run_ok->solution.camera_T_lidar, scene.camera_T_lidar), 0.3)
+          << c.name;
+      EXPECT_LT(translationErrorM(run_ok->solution.camera_T_lidar, scene.camera_T_lidar), 0.02)
+          << c.name;
       ++good_but_right;
     }
   }
-  std::printf("[fault sweep] %zu cases: %d failed, %d doubtful, %d good and right\n", cases.size(), failed, doubtful,
-              good_but_right);
+  std::printf("[fault sweep] %zu cases: %d failed, %d doubtful, %d good and right\n", cases.size(),
+              failed, doubtful, good_but_right);
   EXPECT_GE(failed + doubtful, static_cast<int>(cases.size()) - 1);
 }
 

@@ -6,10 +6,10 @@
 #include <board_calib/conversions.h>
 #include <board_calib/core/file_io.h>
 #include <board_calib/core/result_io.h>
-#include "fuzz_text.h"
 #include <board_calib/core/session/session.h>
 #include <board_calib/core/target.h>
 #include <board_calib/core/transform.h>
+#include "fuzz_text.h"
 
 #include <gtest/gtest.h>
 #include <sensor_msgs/image_encodings.h>
@@ -42,8 +42,9 @@ std::string readFile(const std::string& path) {
 
 uint32_t pick32(std::mt19937& rng, uint32_t sane) {
   // Boundary values and near-misses find the arithmetic bugs; random values the rest.
-  const uint32_t specials[] = {0u, 1u, 2u, 3u, 4u, 7u, 8u, 16u, 0x7fffffffu, 0x80000000u, 0xffffffffu,
-                               65535u, 65536u, 65537u, sane, sane + 1, sane - 1, sane * 2, sane / 2};
+  const uint32_t specials[] = {0u,   1u,          2u,          3u,          4u,      7u,     8u,
+                               16u,  0x7fffffffu, 0x80000000u, 0xffffffffu, 65535u,  65536u, 65537u,
+                               sane, sane + 1,    sane - 1,    sane * 2,    sane / 2};
   switch (rng() % 3) {
     case 0: return specials[rng() % (sizeof(specials) / sizeof(specials[0]))];
     case 1: return sane + static_cast<uint32_t>(static_cast<int>(rng() % 17) - 8);
@@ -52,8 +53,8 @@ uint32_t pick32(std::mt19937& rng, uint32_t sane) {
 }
 
 double pickDouble(std::mt19937& rng, double sane) {
-  const double specials[] = {0.0, -0.0, -1.0, 1.0, 1e-300, 1e300, -1e300, NAN, INFINITY, -INFINITY, sane, -sane,
-                             sane * 1e6};
+  const double specials[] = {0.0, -0.0,     -1.0,      1.0,  1e-300, 1e300,     -1e300,
+                             NAN, INFINITY, -INFINITY, sane, -sane,  sane * 1e6};
   if (rng() % 2) return specials[rng() % (sizeof(specials) / sizeof(specials[0]))];
   return sane * std::uniform_real_distribution<double>(-3, 3)(rng);
 }
@@ -93,7 +94,8 @@ void mutateCloud(std::mt19937& rng, sensor_msgs::PointCloud2* m) {
         if (!m->fields.empty()) m->fields[rng() % m->fields.size()].offset = pick32(rng, 4);
         break;
       case 7:
-        if (!m->fields.empty()) m->fields[rng() % m->fields.size()].datatype = static_cast<uint8_t>(rng() % 12);
+        if (!m->fields.empty())
+          m->fields[rng() % m->fields.size()].datatype = static_cast<uint8_t>(rng() % 12);
         break;
       case 8:
         if (!m->fields.empty()) m->fields[rng() % m->fields.size()].count = pick32(rng, 1);
@@ -109,7 +111,8 @@ void mutateCloud(std::mt19937& rng, sensor_msgs::PointCloud2* m) {
 // --- Image -------------------------------------------------------------------------------------
 
 sensor_msgs::Image baseImage(std::mt19937& rng) {
-  static const char* kEncodings[] = {"mono8", "mono16", "bgr8", "rgb8", "bgra8", "rgba8", "bayer_rggb8", "16UC1"};
+  static const char* kEncodings[] = {"mono8", "mono16", "bgr8",        "rgb8",
+                                     "bgra8", "rgba8",  "bayer_rggb8", "16UC1"};
   sensor_msgs::Image m;
   m.encoding = kEncodings[rng() % 8];
   m.width = 1 + rng() % 9;
@@ -123,8 +126,9 @@ sensor_msgs::Image baseImage(std::mt19937& rng) {
 }
 
 void mutateImage(std::mt19937& rng, sensor_msgs::Image* m) {
-  static const char* kEncodings[] = {"mono8", "mono16", "bgr8", "32FC1", "", "yuv422", "bayer_bggr16", "8UC3",
-                                     "rgba16", "nonsense", "16UC1", "bgra8"};
+  static const char* kEncodings[] = {"mono8",  "mono16",   "bgr8",         "32FC1",
+                                     "",       "yuv422",   "bayer_bggr16", "8UC3",
+                                     "rgba16", "nonsense", "16UC1",        "bgra8"};
   const int mutations = 1 + static_cast<int>(rng() % 3);
   for (int k = 0; k < mutations; ++k) {
     switch (rng() % 6) {
@@ -153,7 +157,8 @@ sensor_msgs::CameraInfo baseInfo() {
 }
 
 void mutateInfo(std::mt19937& rng, sensor_msgs::CameraInfo* m) {
-  static const char* kModels[] = {"plumb_bob", "rational_polynomial", "equidistant", "", "none", "weird"};
+  static const char* kModels[] = {"plumb_bob", "rational_polynomial", "equidistant", "", "none",
+                                  "weird"};
   const int mutations = 1 + static_cast<int>(rng() % 3);
   for (int k = 0; k < mutations; ++k) {
     switch (rng() % 5) {
@@ -184,7 +189,8 @@ std::string sessionText(const std::string& dir) {
     v.camera.K << 800, 0, 640, 0, 800, 360, 0, 0, 1;
     v.camera.image_width = 1280;
     v.camera.image_height = 720;
-    v.camera.camera_T_board = makeTransform(Eigen::Vector3d(0.1 * i, 0, 2 + i), Eigen::Vector4d(0.1 * i, 0, 0, 1));
+    v.camera.camera_T_board =
+        makeTransform(Eigen::Vector3d(0.1 * i, 0, 2 + i), Eigen::Vector4d(0.1 * i, 0, 0, 1));
     v.camera.plane.normal = v.camera.camera_T_board.linear().col(2);
     v.camera.plane.offset = v.camera.plane.normal.dot(v.camera.camera_T_board.translation());
     v.lidar.plane = v.camera.plane;
@@ -200,7 +206,8 @@ std::string sessionText(const std::string& dir) {
 class FuzzInputs : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = std::filesystem::temp_directory_path() / ("board_calib_fuzz_" + std::to_string(::getpid()));
+    dir_ =
+        std::filesystem::temp_directory_path() / ("board_calib_fuzz_" + std::to_string(::getpid()));
     std::filesystem::create_directories(dir_);
   }
   void TearDown() override { std::filesystem::remove_all(dir_); }
@@ -227,12 +234,16 @@ TEST_F(FuzzInputs, PointCloud2) {
     if (points == 0) continue;
     uint64_t field_end = 0;
     for (const auto& f : msg.fields)
-      if (f.name == "x" || f.name == "y" || f.name == "z" || f.name == "intensity" || f.name == "ring")
+      if (f.name == "x" || f.name == "y" || f.name == "z" || f.name == "intensity" ||
+          f.name == "ring")
         field_end = std::max<uint64_t>(field_end, uint64_t(f.offset) + 8);
-    const uint64_t last = uint64_t(msg.height - 1) * msg.row_step + uint64_t(msg.width - 1) * msg.point_step;
-    ASSERT_LE(last + std::min<uint64_t>(field_end, msg.point_step), msg.data.size()) << "iteration " << i;
+    const uint64_t last =
+        uint64_t(msg.height - 1) * msg.row_step + uint64_t(msg.width - 1) * msg.point_step;
+    ASSERT_LE(last + std::min<uint64_t>(field_end, msg.point_step), msg.data.size())
+        << "iteration " << i;
   }
-  // Some mutations (byte flips, toggled endianness) keep the message valid: the happy path runs too.
+  // Some mutations (byte flips, toggled endianness) keep the message valid: the happy path runs
+  // too.
   EXPECT_GT(accepted, kMessageIterations / 20);
 }
 
@@ -288,9 +299,10 @@ TEST_F(FuzzInputs, CameraInfoAndTransform) {
 TEST_F(FuzzInputs, TargetYaml) {
   std::mt19937 rng(15004);
   const std::string root = BOARD_CALIB_SOURCE_DIR;
-  const std::vector<std::string> seeds = {readFile(root + "/config/targets/plain_1016.yaml"),
-                                          readFile(root + "/config/targets/checkerboard_7x5.yaml"),
-                                          readFile(root + "/config/targets/apriltag_grid_4x4.yaml")};
+  const std::vector<std::string> seeds = {
+      readFile(root + "/config/targets/plain_1016.yaml"),
+      readFile(root + "/config/targets/checkerboard_7x5.yaml"),
+      readFile(root + "/config/targets/apriltag_grid_4x4.yaml")};
   for (const auto& s : seeds) ASSERT_TRUE(parseTarget(s).ok()) << s;
   for (int i = 0; i < kYamlIterations; ++i) {
     const auto target = parseTarget(mutateText(rng, seeds[rng() % seeds.size()]));
@@ -322,8 +334,10 @@ TEST_F(FuzzInputs, SessionYaml) {
     std::set<int> ids;
     for (const auto& v : session.views()) {
       ASSERT_TRUE(ids.insert(v.view.id).second);
-      ASSERT_TRUE(v.view.camera.plane.normal.allFinite() && std::isfinite(v.view.camera.plane.offset));
-      ASSERT_TRUE(v.view.lidar.plane.normal.allFinite() && std::isfinite(v.view.lidar.plane.offset));
+      ASSERT_TRUE(v.view.camera.plane.normal.allFinite() &&
+                  std::isfinite(v.view.camera.plane.offset));
+      ASSERT_TRUE(v.view.lidar.plane.normal.allFinite() &&
+                  std::isfinite(v.view.lidar.plane.offset));
       ASSERT_TRUE(v.view.camera.image_width > 0 && v.view.camera.image_height > 0);
       ASSERT_TRUE(v.view.camera.camera_T_board.matrix().allFinite());
     }
@@ -350,7 +364,8 @@ TEST_F(FuzzInputs, ResultYaml) {
 TEST_F(FuzzInputs, NonFiles) {
   const std::string d = dir_.string();
   std::ofstream(d + "/empty.yaml").close();
-  for (const std::string& path : {d, d + "/empty.yaml", std::string("/dev/null"), d + "/missing.yaml"}) {
+  for (const std::string& path :
+       {d, d + "/empty.yaml", std::string("/dev/null"), d + "/missing.yaml"}) {
     EXPECT_FALSE(loadTarget(path).ok()) << path;
     EXPECT_FALSE(loadResultFile(path).ok()) << path;
     PairSession session(Target{}, SessionOptions{});

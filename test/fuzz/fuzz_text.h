@@ -10,9 +10,11 @@
 namespace fuzz {
 
 inline std::string mutateText(std::mt19937& rng, std::string text) {
-  static const char* kTokens[] = {"nan", ".nan", "inf", "-.inf", "-1", "0", "1e300", "65536", "2147483648",
-                                  "-2147483649", "1e20", "[]", "{}", "~", "\"\"", "[1e20, -5]", "[nan, 0, 1]",
-                                  "&a", "*a", "!!binary", "'", "\"", ":", "- ", "\t", "{", "[", "#"};
+  static const char* kTokens[] = {
+      "nan",   ".nan",       "inf",         "-.inf", "-1", "0",        "1e300",
+      "65536", "2147483648", "-2147483649", "1e20",  "[]", "{}",       "~",
+      "\"\"",  "[1e20, -5]", "[nan, 0, 1]", "&a",    "*a", "!!binary", "'",
+      "\"",    ":",          "- ",          "\t",    "{",  "[",        "#"};
   const int mutations = 1 + static_cast<int>(rng() % 4);
   for (int k = 0; k < mutations && !text.empty(); ++k) {
     const size_t at = rng() % text.size();
@@ -21,7 +23,7 @@ inline std::string mutateText(std::mt19937& rng, std::string text) {
       case 1: text.erase(at, 1 + rng() % 8); break;
       case 2: text.insert(at, kTokens[rng() % (sizeof(kTokens) / sizeof(kTokens[0]))]); break;
       case 3: text.resize(at); break;  // truncated file
-      case 4: {  // replace a number by a hostile token
+      case 4: {                        // replace a number by a hostile token
         const size_t digit = text.find_first_of("0123456789", at);
         if (digit == std::string::npos) break;
         const size_t end = text.find_first_not_of("0123456789.e-", digit);

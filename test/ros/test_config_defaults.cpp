@@ -11,7 +11,8 @@ namespace board_calib {
 namespace {
 
 TEST(ConfigDefaults, CloudBoardDetectorCfgMatchesTheCore) {
-  const LidarBoardDetectorOptions mapped = optionsFromConfig(CloudBoardDetectorConfig::__getDefault__());
+  const LidarBoardDetectorOptions mapped =
+      optionsFromConfig(CloudBoardDetectorConfig::__getDefault__());
   const LidarBoardDetectorOptions core;
 #define BOARD_CALIB_EXPECT_SAME(cfg, member) \
   EXPECT_EQ(mapped.member, core.member) << "cfg/CloudBoardDetector.cfg default of '" #cfg "'";
@@ -20,7 +21,8 @@ TEST(ConfigDefaults, CloudBoardDetectorCfgMatchesTheCore) {
 }
 
 TEST(ConfigDefaults, ImageBoardDetectorCfgMatchesTheCore) {
-  const ImageBoardDetectorOptions mapped = optionsFromConfig(ImageBoardDetectorConfig::__getDefault__());
+  const ImageBoardDetectorOptions mapped =
+      optionsFromConfig(ImageBoardDetectorConfig::__getDefault__());
   const ImageBoardDetectorOptions core;
 #define BOARD_CALIB_EXPECT_SAME(cfg, member) \
   EXPECT_EQ(mapped.member, core.member) << "cfg/ImageBoardDetector.cfg default of '" #cfg "'";

@@ -75,8 +75,9 @@ TEST(Conversions, RingAsUint8AndMissingFields) {
   msg.height = 1;
   msg.width = 2;
   sensor_msgs::PointCloud2Modifier mod(msg);
-  mod.setPointCloud2Fields(4, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32, "z",
-                           1, sensor_msgs::PointField::FLOAT32, "ring", 1, sensor_msgs::PointField::UINT8);
+  mod.setPointCloud2Fields(
+      4, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32, "z", 1,
+      sensor_msgs::PointField::FLOAT32, "ring", 1, sensor_msgs::PointField::UINT8);
   mod.resize(2);
   sensor_msgs::PointCloud2Iterator<uint8_t> ring(msg, "ring");
   *ring = 7;
@@ -137,7 +138,8 @@ TEST(Conversions, BoardFeaturesRoundTrip) {
   c.K << 700, 0, 400, 0, 700, 300, 0, 0, 1;
   c.image_width = 800;
   c.image_height = 600;
-  c.camera_T_board = makeTransform(Eigen::Vector3d(0.1, 0.2, 3.0), Eigen::Vector4d(0.1, 0.2, 0.3, 0.9));
+  c.camera_T_board =
+      makeTransform(Eigen::Vector3d(0.1, 0.2, 3.0), Eigen::Vector4d(0.1, 0.2, 0.3, 0.9));
   c.edge_lines[0] = {0.6, 0.8, -100};
   c.edge_valid = {true, true, true, false};
   c.corners_px[3] = {-20, 310};
@@ -155,7 +157,8 @@ TEST(Conversions, BoardFeaturesRoundTrip) {
 }
 
 TEST(Conversions, TransformMessages) {
-  const Eigen::Isometry3d T = makeTransform(Eigen::Vector3d(1, 2, 3), Eigen::Vector4d(0, 0, 0.7071, 0.7071));
+  const Eigen::Isometry3d T =
+      makeTransform(Eigen::Vector3d(1, 2, 3), Eigen::Vector4d(0, 0, 0.7071, 0.7071));
   EXPECT_LT(rotationErrorDeg(fromTransformMsg(toTransformMsg(T)), T), 1e-9);
   EXPECT_LT(translationErrorM(fromPoseMsg(toPoseMsg(T)), T), 1e-12);
 }
@@ -168,8 +171,9 @@ sensor_msgs::PointCloud2 smallCloud() {
   msg.height = 2;
   msg.width = 2;
   sensor_msgs::PointCloud2Modifier mod(msg);
-  mod.setPointCloud2Fields(4, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32, "z",
-                           1, sensor_msgs::PointField::FLOAT32, "intensity", 1, sensor_msgs::PointField::FLOAT32);
+  mod.setPointCloud2Fields(
+      4, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32, "z", 1,
+      sensor_msgs::PointField::FLOAT32, "intensity", 1, sensor_msgs::PointField::FLOAT32);
   mod.resize(4);
   msg.height = 2;
   msg.width = 2;
@@ -179,7 +183,8 @@ sensor_msgs::PointCloud2 smallCloud() {
   return msg;
 }
 
-sensor_msgs::Image monoImage(const std::string& encoding, uint32_t width, uint32_t height, uint32_t step) {
+sensor_msgs::Image monoImage(const std::string& encoding, uint32_t width, uint32_t height,
+                             uint32_t step) {
   sensor_msgs::Image msg;
   msg.encoding = encoding;
   msg.width = width;
@@ -237,7 +242,8 @@ TEST(ConversionsValidation, BigEndianCloudIsConverted) {
   const sensor_msgs::PointCloud2 little = smallCloud();
   sensor_msgs::PointCloud2 big = little;
   big.is_bigendian = true;
-  for (size_t p = 0; p + 4 <= big.data.size(); p += 4) std::reverse(big.data.begin() + p, big.data.begin() + p + 4);
+  for (size_t p = 0; p + 4 <= big.data.size(); p += 4)
+    std::reverse(big.data.begin() + p, big.data.begin() + p + 4);
   const auto a = fromPointCloud2(little);
   const auto b = fromPointCloud2(big);
   ASSERT_TRUE(a.ok() && b.ok());
@@ -278,7 +284,8 @@ TEST(ConversionsValidation, ImageStepAndOverflow) {
   msg.width = msg.height = msg.step = 60000;  // 3.6 GB claimed, 16 bytes held
   EXPECT_FALSE(imageFromMsg(msg).ok());
   msg = monoImage("32FC1", 4, 4, 16);
-  EXPECT_NE(imageFromMsg(msg).error().find("unsupported image encoding '32FC1'"), std::string::npos);
+  EXPECT_NE(imageFromMsg(msg).error().find("unsupported image encoding '32FC1'"),
+            std::string::npos);
   msg = monoImage("mono8", 4, 4, 4);
   EXPECT_TRUE(imageFromMsg(msg).ok());
 }

@@ -12,10 +12,10 @@
 #include <board_calib/core/image_detection/image_board_detector.h>
 
 #include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/photo.hpp>
-#include <yaml-cpp/yaml.h>
 
 #include <cmath>
 #include <cstdlib>
@@ -34,9 +34,9 @@ struct Frame {
   std::string name;
   cv::Mat image;
   CameraIntrinsics intrinsics;
-  std::array<Eigen::Vector3d, kNumEdges> lines;                        // reference lines
-  std::array<std::array<Eigen::Vector2d, 2>, kNumEdges> segments;      // visible reference segments
-  std::array<Eigen::Vector2d, kNumEdges> corners;                      // corner j = line j x line j+1
+  std::array<Eigen::Vector3d, kNumEdges> lines;                    // reference lines
+  std::array<std::array<Eigen::Vector2d, 2>, kNumEdges> segments;  // visible reference segments
+  std::array<Eigen::Vector2d, kNumEdges> corners;                  // corner j = line j x line j+1
   Target target;
 
   CameraModel camera() const { return *CameraModel::create(intrinsics); }
@@ -80,7 +80,8 @@ std::vector<Frame> baslerFrames() {
     f.image = rec.images[i];
     f.intrinsics = *rec.intrinsics;
     f.target = *target;
-    const YAML::Node ref = YAML::LoadFile(kRef + "frame" + std::to_string(2 * i) + ".yaml")["image"]["edges"];
+    const YAML::Node ref =
+        YAML::LoadFile(kRef + "frame" + std::to_string(2 * i) + ".yaml")["image"]["edges"];
     bool complete = true;
     for (int j = 0; j < kNumEdges; ++j) {
       const YAML::Node e = ref[edgeName(j)];
@@ -93,7 +94,8 @@ std::vector<Frame> baslerFrames() {
       f.lines[j] = Eigen::Vector3d(l[0], l[1], l[2]);
       for (int k = 0; k < 2; ++k) {
         Eigen::Vector2d p(seg[k][0], seg[k][1]);
-        f.segments[j][k] = p - (f.lines[j].head<2>().dot(p) + f.lines[j].z()) * f.lines[j].head<2>();
+        f.segments[j][k] =
+            p - (f.lines[j].head<2>().dot(p) + f.lines[j].z()) * f.lines[j].head<2>();
       }
     }
     if (!complete) continue;
@@ -167,7 +169,8 @@ cv::Mat boardMask(const Frame& f, int erode_px = 0) {
 
 double boardSizePx(const Frame& f) {
   double s = 0;
-  for (int j = 0; j < kNumEdges; ++j) s += (f.corners[(j + 1) % 4] - f.corners[j]).norm() / kNumEdges;
+  for (int j = 0; j < kNumEdges; ++j)
+    s += (f.corners[(j + 1) % 4] - f.corners[j]).norm() / kNumEdges;
   return s;
 }
 
@@ -195,7 +198,8 @@ void lowContrast(Frame* f, double delta) {
   const cv::Scalar in = cv::mean(f->image, mask), around = cv::mean(f->image, ring);
   cv::Mat img, shifted;
   f->image.convertTo(img, CV_32FC3);
-  img += cv::Scalar(around[0] - in[0] + delta, around[1] - in[1] + delta, around[2] - in[2] + delta);
+  img +=
+      cv::Scalar(around[0] - in[0] + delta, around[1] - in[1] + delta, around[2] - in[2] + delta);
   img.convertTo(shifted, CV_8UC3);
   shifted.copyTo(f->image, mask);
 }
@@ -221,14 +225,17 @@ void printMarks(Frame* f, std::mt19937& rng) {
   cv::Mat marks = f->image.clone();
   for (int k = 0; k < 14; ++k) {
     const cv::Point c = pts[pick(rng)];
-    const cv::Scalar colour = u(rng) < 0.6 ? cv::Scalar(30, 30, 30) : cv::Scalar(40 + 150 * u(rng), 40, 150 * u(rng));
+    const cv::Scalar colour =
+        u(rng) < 0.6 ? cv::Scalar(30, 30, 30) : cv::Scalar(40 + 150 * u(rng), 40, 150 * u(rng));
     const int r = std::max(2, static_cast<int>((0.02 + 0.05 * u(rng)) * size));
     switch (k % 3) {
       case 0: cv::circle(marks, c, r, colour, cv::FILLED, cv::LINE_AA); break;
-      case 1: cv::rectangle(marks, c - cv::Point(r, r / 2), c + cv::Point(r, r / 2), colour, cv::FILLED); break;
+      case 1:
+        cv::rectangle(marks, c - cv::Point(r, r / 2), c + cv::Point(r, r / 2), colour, cv::FILLED);
+        break;
       default:
-        cv::putText(marks, "BOARD 14", c, cv::FONT_HERSHEY_SIMPLEX, std::max(0.3, size / 600.0), colour,
-                    std::max(1, static_cast<int>(size / 300)), cv::LINE_AA);
+        cv::putText(marks, "BOARD 14", c, cv::FONT_HERSHEY_SIMPLEX, std::max(0.3, size / 600.0),
+                    colour, std::max(1, static_cast<int>(size / 300)), cv::LINE_AA);
     }
   }
   marks.copyTo(f->image, inner);
@@ -248,7 +255,9 @@ void woodGrain(Frame* f, std::mt19937& rng) {
     for (int x = 0; x < img.cols; ++x) {
       if (!m[x]) continue;
       const double s = x * ca + y * sa, t = -x * sa + y * ca;
-      const double g = 1.0 + 0.15 * std::sin(2 * M_PI * (s + 0.3 * period * std::sin(t / (7 * period))) / period);
+      const double g =
+          1.0 +
+          0.15 * std::sin(2 * M_PI * (s + 0.3 * period * std::sin(t / (7 * period))) / period);
       p[x] *= static_cast<float>(g);
     }
   }
@@ -277,16 +286,19 @@ void occludeLowerCorners(Frame* f, std::mt19937& rng) {
   const int top = lowest.y - static_cast<int>(0.22 * size);
   for (int side : {-1, 1}) {
     const int x = lowest.x + side * static_cast<int>((0.06 + 0.04 * u(rng)) * size);
-    const std::vector<cv::Point> leg = {{x - leg_w / 2, top}, {x + leg_w / 2, top},
-                                        {x + leg_w / 2 + side * leg_w / 3, f->image.rows}, {x - leg_w / 2 + side * leg_w / 3, f->image.rows}};
+    const std::vector<cv::Point> leg = {{x - leg_w / 2, top},
+                                        {x + leg_w / 2, top},
+                                        {x + leg_w / 2 + side * leg_w / 3, f->image.rows},
+                                        {x - leg_w / 2 + side * leg_w / 3, f->image.rows}};
     cv::fillPoly(f->image, std::vector<std::vector<cv::Point>>{leg}, leg_colour, cv::LINE_AA);
   }
   // A hand over the lower right side (LR), 65 % along from its upper end, inside the image.
   const Eigen::Vector2d a = f->corners[1], b = f->corners[2];
   const Eigen::Vector2d h = camera.distortPixel(a + 0.65 * (b - a));
   if (h.x() > 0 && h.y() > 0 && h.x() < f->image.cols && h.y() < f->image.rows)
-    cv::ellipse(f->image, cv::Point(int(h.x()), int(h.y())), cv::Size(int(0.06 * size), int(0.035 * size)),
-                45, 0, 360, cv::Scalar(120, 150, 200), cv::FILLED, cv::LINE_AA);
+    cv::ellipse(f->image, cv::Point(int(h.x()), int(h.y())),
+                cv::Size(int(0.06 * size), int(0.035 * size)), 45, 0, 360,
+                cv::Scalar(120, 150, 200), cv::FILLED, cv::LINE_AA);
 }
 
 // The board replaced by the background around it (inpainted on a coarse copy, plus noise).
@@ -323,7 +335,8 @@ void shrink(Frame* f, double s, bool canvas, std::mt19937& rng) {
     Eigen::Vector2d centre = Eigen::Vector2d::Zero();
     for (const auto& c : f->corners) centre += 0.25 * (s * (c.array() + 0.5) - 0.5).matrix();
     const double radius = 0.5 * s * boardSizePx(*f) * 1.6;
-    std::uniform_real_distribution<double> ux(radius, out.cols - radius), uy(radius, out.rows - radius);
+    std::uniform_real_distribution<double> ux(radius, out.cols - radius),
+        uy(radius, out.rows - radius);
     const Eigen::Vector2d place(ux(rng), uy(rng));
     offset = place - centre;
     // Integer offset: no resampling of the pasted pixels.
@@ -332,7 +345,8 @@ void shrink(Frame* f, double s, bool canvas, std::mt19937& rng) {
     cv::circle(alpha, cv::Point(int(place.x()), int(place.y())), int(radius), 1.0, cv::FILLED);
     const int blur = 2 * static_cast<int>(0.15 * radius) + 1;
     cv::GaussianBlur(alpha, alpha, cv::Size(blur, blur), 0);
-    const cv::Rect dst = cv::Rect(int(offset.x()), int(offset.y()), small.cols, small.rows) & cv::Rect(0, 0, out.cols, out.rows);
+    const cv::Rect dst = cv::Rect(int(offset.x()), int(offset.y()), small.cols, small.rows) &
+                         cv::Rect(0, 0, out.cols, out.rows);
     const cv::Rect src = dst - cv::Point(int(offset.x()), int(offset.y()));
     for (int y = 0; y < dst.height; ++y)
       for (int x = 0; x < dst.width; ++x) {
@@ -342,7 +356,9 @@ void shrink(Frame* f, double s, bool canvas, std::mt19937& rng) {
         for (int c = 0; c < 3; ++c) o[c] = cv::saturate_cast<uchar>(a * p[c] + (1 - a) * o[c]);
       }
   }
-  auto map = [&](const Eigen::Vector2d& p) -> Eigen::Vector2d { return Eigen::Vector2d(s * (p.array() + 0.5) - 0.5) + offset; };
+  auto map = [&](const Eigen::Vector2d& p) -> Eigen::Vector2d {
+    return Eigen::Vector2d(s * (p.array() + 0.5) - 0.5) + offset;
+  };
   CameraIntrinsics& in = f->intrinsics;
   in.fx *= s;
   in.fy *= s;
@@ -395,10 +411,13 @@ Frame augment(const Frame& clean, const Case& c, int index, std::mt19937& rng) {
   f.image = clean.image.clone();
   for (const Op op : c.ops) {
     switch (op) {
-      case kColour: recolourBoard(&f, index % 2 ? cv::Scalar(95, 140, 180) : cv::Scalar(150, 90, 50)); break;
+      case kColour:
+        recolourBoard(&f, index % 2 ? cv::Scalar(95, 140, 180) : cv::Scalar(150, 90, 50));
+        break;
       case kLowContrast: lowContrast(&f, index % 2 ? 12.0 : -12.0); break;
       case kBackground:
-        changeBackground(&f, index % 2 ? 0.6 : 1.3, index % 2 ? cv::Scalar(40, 10, 0) : cv::Scalar(0, -10, -30));
+        changeBackground(&f, index % 2 ? 0.6 : 1.3,
+                         index % 2 ? cv::Scalar(40, 10, 0) : cv::Scalar(0, -10, -30));
         break;
       case kPrint: printMarks(&f, rng); break;
       case kWood: woodGrain(&f, rng); break;
@@ -417,7 +436,8 @@ Frame augment(const Frame& clean, const Case& c, int index, std::mt19937& rng) {
   return f;
 }
 
-void writeDebug(const std::string& name, const cv::Mat& image, const CameraModel& camera, const ImageDetection& det) {
+void writeDebug(const std::string& name, const cv::Mat& image, const CameraModel& camera,
+                const ImageDetection& det) {
   const char* dir = std::getenv("BOARD_CALIB_DEBUG_DIR");
   if (!dir) return;
   std::filesystem::create_directories(dir);
@@ -440,8 +460,8 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   std::mt19937 rng(14);
   int total = 0, total_found = 0, edges = 0, edges_within = 0, basler_edges = 0, basler_within = 0;
   double worst_all = 0;
-  std::printf("%-40s %8s %8s %8s %12s %10s %9s %8s\n", "case", "found", "basler", "rs16", "edges<=1px", "worst px",
-              "mean ms", "max ms");
+  std::printf("%-40s %8s %8s %8s %12s %10s %9s %8s\n", "case", "found", "basler", "rs16",
+              "edges<=1px", "worst px", "mean ms", "max ms");
   // Development aid: BOARD_CALIB_AUG_CASES="0,3" runs only those cases (all when unset).
   const char* only = std::getenv("BOARD_CALIB_AUG_CASES");
   auto selected = [only](size_t k) {
@@ -473,10 +493,13 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
       ++found;
       (basler ? basler_found : rs16_found) += 1;
       for (int j = 0; j < kNumEdges; ++j) {
-        // The reference segment's ends on the found line (a wrong board or a wrong name is far off).
+        // The reference segment's ends on the found line (a wrong board or a wrong name is far
+        // off).
         double dist = 0;
-        for (const auto& p : f.segments[j]) dist = std::max(dist, std::abs(fe.edge_lines[j].head<2>().dot(p) + fe.edge_lines[j].z()));
-        if (f.lines[j].head<2>().dot(fe.edge_lines[j].head<2>()) < 0.99) dist = std::max(dist, 1e3);  // other orientation
+        for (const auto& p : f.segments[j])
+          dist = std::max(dist, std::abs(fe.edge_lines[j].head<2>().dot(p) + fe.edge_lines[j].z()));
+        if (f.lines[j].head<2>().dot(fe.edge_lines[j].head<2>()) < 0.99)
+          dist = std::max(dist, 1e3);  // other orientation
         ++case_edges;
         case_within += dist <= 1.0;
         if (basler) {
@@ -484,11 +507,13 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
           basler_within += dist <= 1.0;
         }
         worst = std::max(worst, dist);
-        if (dist > 1.0) std::printf("  edge %-10s %s %s: %.2f px\n", f.name.c_str(), c.name.c_str(), edgeName(j), dist);
+        if (dist > 1.0)
+          std::printf("  edge %-10s %s %s: %.2f px\n", f.name.c_str(), c.name.c_str(), edgeName(j),
+                      dist);
       }
     }
-    std::printf("%-40s %4d/%-3d %5d/16 %6d/8 %6d/%-5d %10.2f %9.1f %8.1f\n", c.name.c_str(), found, n, basler_found,
-                rs16_found, case_within, case_edges, worst, sum_ms / n, max_ms);
+    std::printf("%-40s %4d/%-3d %5d/16 %6d/8 %6d/%-5d %10.2f %9.1f %8.1f\n", c.name.c_str(), found,
+                n, basler_found, rs16_found, case_within, case_edges, worst, sum_ms / n, max_ms);
     total += n;
     total_found += found;
     edges += case_edges;
@@ -500,10 +525,12 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
     // photometric cases, 0-3 of 8 far or occluded), below the target.
     if (c.ops.empty()) EXPECT_GE(rs16_found, 5) << c.name;
   }
-  std::printf("all cases: four edges in %d/%d frames (%.1f %%), %d/%d edges within 1 px (worst %.2f px); basler_os1_plain "
-              "%d/%d edges within 1 px\n",
-              total_found, total, 100.0 * total_found / total, edges_within, edges, worst_all, basler_within,
-              basler_edges);
+  std::printf(
+      "all cases: four edges in %d/%d frames (%.1f %%), %d/%d edges within 1 px (worst %.2f px); "
+      "basler_os1_plain "
+      "%d/%d edges within 1 px\n",
+      total_found, total, 100.0 * total_found / total, edges_within, edges, worst_all,
+      basler_within, basler_edges);
   // Lines within 1 px of the independent reference: measured 685 of 700 basler edges (the rest
   // are wrong boards or shifted lines in the occluded and recoloured cases).
   EXPECT_GE(basler_within, 0.97 * basler_edges);
@@ -536,10 +563,12 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
 constexpr double kPriorShiftPx = 12.0, kPriorJitterPx = 4.0, kPriorTolerancePx = 25.0;
 
 ExpectedBoard priorProjection(const Frame& f, std::mt19937& rng) {
-  std::uniform_real_distribution<double> shift(-kPriorShiftPx, kPriorShiftPx), jitter(-kPriorJitterPx, kPriorJitterPx);
+  std::uniform_real_distribution<double> shift(-kPriorShiftPx, kPriorShiftPx),
+      jitter(-kPriorJitterPx, kPriorJitterPx);
   const Eigen::Vector2d common(shift(rng), shift(rng));
   ExpectedBoard e;
-  for (int j = 0; j < kNumEdges; ++j) e.corners_px[j] = f.corners[j] + common + Eigen::Vector2d(jitter(rng), jitter(rng));
+  for (int j = 0; j < kNumEdges; ++j)
+    e.corners_px[j] = f.corners[j] + common + Eigen::Vector2d(jitter(rng), jitter(rng));
   e.tolerance_px = kPriorTolerancePx;
   return e;
 }
@@ -551,7 +580,8 @@ int edgesWithin1px(const Frame& f, const CameraBoardFeatures& fe) {
     double best = 1e18;
     for (int k = 0; k < kNumEdges; ++k) {
       double dist = 0;
-      for (const auto& p : f.segments[j]) dist = std::max(dist, std::abs(fe.edge_lines[k].head<2>().dot(p) + fe.edge_lines[k].z()));
+      for (const auto& p : f.segments[j])
+        dist = std::max(dist, std::abs(fe.edge_lines[k].head<2>().dot(p) + fe.edge_lines[k].z()));
       best = std::min(best, dist);
     }
     within += best <= 1.0;
@@ -593,23 +623,28 @@ TEST(ImageDetectorAugmented, SecondChanceInsideTheProjectedBoard) {
       if (!second.features.found || !second.features.allEdgesValid()) {
         EXPECT_FALSE(second.features.reason.empty());
         if (whole_on_board)
-          std::printf("  lost %-10s %s: %s\n", f.name.c_str(), kCases[k].name.c_str(), second.features.reason.c_str());
+          std::printf("  lost %-10s %s: %s\n", f.name.c_str(), kCases[k].name.c_str(),
+                      second.features.reason.c_str());
         continue;
       }
       ++second_found;
       edges += kNumEdges;
       within += edgesWithin1px(f, second.features);
     }
-    std::printf("%-40s whole image on the board %2d/%zu, second chance %2d/%zu, its edges within 1 px %d/%d\n",
-                kCases[k].name.c_str(), on_board, frames.size(), second_found, frames.size(), within, edges);
+    std::printf(
+        "%-40s whole image on the board %2d/%zu, second chance %2d/%zu, its edges within 1 px "
+        "%d/%d\n",
+        kCases[k].name.c_str(), on_board, frames.size(), second_found, frames.size(), within,
+        edges);
     all_on_board += on_board;
     all_second += second_found;
     all_frames += static_cast<int>(frames.size());
     all_edges += edges;
     all_within += within;
   }
-  std::printf("four edges: whole image on the board %d/%d, second chance %d/%d, edges within 1 px %d/%d\n",
-              all_on_board, all_frames, all_second, all_frames, all_within, all_edges);
+  std::printf(
+      "four edges: whole image on the board %d/%d, second chance %d/%d, edges within 1 px %d/%d\n",
+      all_on_board, all_frames, all_second, all_frames, all_within, all_edges);
   // The second chance keeps every board the whole image found on the reference (measured 69 of
   // 96 against 61: where the whole image took another rectangle, or a board with a line off) ...
   EXPECT_GE(all_second, all_on_board);
@@ -626,11 +661,14 @@ TEST(ImageDetectorAugmented, SecondChanceInsideTheProjectedBoard) {
     const CameraModel camera = f.camera();
     auto det = ImageBoardDetector::create(f.target, ImageBoardDetectorOptions{});
     const ImageDetection d = det->detectNear(f.image, camera, priorProjection(f, rng));
-    if (d.features.found) std::printf("  WRONG %s: a board near the blanked one\n", f.name.c_str());
-    else EXPECT_FALSE(d.features.reason.empty());
+    if (d.features.found)
+      std::printf("  WRONG %s: a board near the blanked one\n", f.name.c_str());
+    else
+      EXPECT_FALSE(d.features.reason.empty());
     wrong += d.features.found;
   }
-  std::printf("blanked, searched near the projected board: %d wrong boards in %zu frames\n", wrong, frames.size());
+  std::printf("blanked, searched near the projected board: %d wrong boards in %zu frames\n", wrong,
+              frames.size());
   EXPECT_EQ(wrong, 0);
 }
 

@@ -8,8 +8,8 @@
 #include <board_calib/core/image_detection/image_board_detector.h>
 
 #include <gtest/gtest.h>
-#include <opencv2/imgcodecs.hpp>
 #include <yaml-cpp/yaml.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include <cmath>
 #include <cstdlib>
@@ -45,7 +45,8 @@ Session readSession(const std::string& name) {
   return s;
 }
 
-void writeDebug(const std::string& name, const cv::Mat& image, const CameraModel& camera, const ImageDetection& det) {
+void writeDebug(const std::string& name, const cv::Mat& image, const CameraModel& camera,
+                const ImageDetection& det) {
   const char* dir = std::getenv("BOARD_CALIB_DEBUG_DIR");
   if (!dir) return;
   std::filesystem::create_directories(dir);
@@ -54,8 +55,8 @@ void writeDebug(const std::string& name, const cv::Mat& image, const CameraModel
 
 // Mean perpendicular distance (px) of `line` from the reference line over the reference segment
 // (its end points are edge pixels, so they are first projected onto the reference line).
-double meanDistanceOverSegment(const Eigen::Vector3d& line, const Eigen::Vector3d& ref, Eigen::Vector2d a,
-                               Eigen::Vector2d b) {
+double meanDistanceOverSegment(const Eigen::Vector3d& line, const Eigen::Vector3d& ref,
+                               Eigen::Vector2d a, Eigen::Vector2d b) {
   a -= (ref.head<2>().dot(a) + ref.z()) * ref.head<2>();
   b -= (ref.head<2>().dot(b) + ref.z()) * ref.head<2>();
   constexpr int kSamples = 50;
@@ -89,30 +90,38 @@ TEST(ImageDetectorReal, PlainBoardBaslerOs1) {
       EXPECT_LT(f.plane.offset, 4.5) << "frame " << i;
       EXPECT_GT(f.plane.normal.z(), 0.0) << "frame " << i;
     }
-    const YAML::Node ref = YAML::LoadFile(kRef + "frame" + std::to_string(2 * i) + ".yaml")["image"]["edges"];
+    const YAML::Node ref =
+        YAML::LoadFile(kRef + "frame" + std::to_string(2 * i) + ".yaml")["image"]["edges"];
     for (int j = 0; j < kNumEdges; ++j) {
       const YAML::Node e = ref[edgeName(j)];
       if (!e || !e["valid"].as<bool>() || !f.edge_valid[j]) continue;
       const auto l = e["line_undist"].as<std::vector<double>>();
       const auto seg = e["segment_undist"].as<std::vector<std::vector<double>>>();
       const Eigen::Vector3d ref_line(l[0], l[1], l[2]);
-      const double dist = meanDistanceOverSegment(f.edge_lines[j], ref_line, {seg[0][0], seg[0][1]}, {seg[1][0], seg[1][1]});
+      const double dist = meanDistanceOverSegment(f.edge_lines[j], ref_line, {seg[0][0], seg[0][1]},
+                                                  {seg[1][0], seg[1][1]});
       // Same orientation convention: outward normals must agree (not only the line).
-      EXPECT_GT(ref_line.head<2>().dot(f.edge_lines[j].head<2>()), 0.999) << "frame " << i << " " << edgeName(j);
+      EXPECT_GT(ref_line.head<2>().dot(f.edge_lines[j].head<2>()), 0.999)
+          << "frame " << i << " " << edgeName(j);
       ++edges_compared;
       edges_within_1px += dist <= 1.0;
       worst = std::max(worst, dist);
-      RecordProperty("frame" + std::to_string(i) + "_" + edgeName(j) + "_dist_px", std::to_string(dist));
-      if (dist > 1.0) ADD_FAILURE() << "frame " << i << " edge " << edgeName(j) << " is " << dist << " px from the reference";
+      RecordProperty("frame" + std::to_string(i) + "_" + edgeName(j) + "_dist_px",
+                     std::to_string(dist));
+      if (dist > 1.0)
+        ADD_FAILURE() << "frame " << i << " edge " << edgeName(j) << " is " << dist
+                      << " px from the reference";
     }
-    std::printf("frame %2zu: found %d corner rms %.2f px, edges %d%d%d%d rms_edges %.2f %.2f %.2f %.2f  %.1f ms  %s\n", i,
-                f.found, f.reprojection_rms_px,
-                f.edge_valid[0], f.edge_valid[1], f.edge_valid[2], f.edge_valid[3], d.details.edge_rms_px[0],
-                d.details.edge_rms_px[1], d.details.edge_rms_px[2], d.details.edge_rms_px[3], d.details.time_ms,
-                f.reason.c_str());
+    std::printf(
+        "frame %2zu: found %d corner rms %.2f px, edges %d%d%d%d rms_edges %.2f %.2f %.2f %.2f  "
+        "%.1f ms  %s\n",
+        i, f.found, f.reprojection_rms_px, f.edge_valid[0], f.edge_valid[1], f.edge_valid[2],
+        f.edge_valid[3], d.details.edge_rms_px[0], d.details.edge_rms_px[1],
+        d.details.edge_rms_px[2], d.details.edge_rms_px[3], d.details.time_ms, f.reason.c_str());
   }
-  std::printf("four edges in %d/16 frames; %d/%d edges within 1 px of the reference (worst %.2f px)\n",
-              frames_with_four_edges, edges_within_1px, edges_compared, worst);
+  std::printf(
+      "four edges in %d/16 frames; %d/%d edges within 1 px of the reference (worst %.2f px)\n",
+      frames_with_four_edges, edges_within_1px, edges_compared, worst);
   // Issue target: four edges in >= 15 of 16 frames, lines within 1 px of the board edge.
   EXPECT_GE(frames_with_four_edges, 15);
   EXPECT_GE(edges_compared, 4 * 15);
@@ -151,13 +160,16 @@ TEST(ImageDetectorReal, CheckerboardLeftVlp32) {
     rms.push_back(f.reprojection_rms_px);
     EXPECT_EQ(f.pattern.size(), 54u);
     EXPECT_TRUE(f.allEdgesValid());
-    // Orientation convention: the board's x axis points towards image +u (boards tilted up to ~70 deg here).
+    // Orientation convention: the board's x axis points towards image +u (boards tilted up to ~70
+    // deg here).
     EXPECT_GT(f.camera_T_board.linear()(0, 0), 0.2) << "frame " << i;
     EXPECT_GT(f.plane.offset, 0.5) << "frame " << i;
   }
   std::nth_element(rms.begin(), rms.begin() + rms.size() / 2, rms.end());
-  std::printf("checkerboard: median reprojection rms %.3f px, worst %.3f px over 32 frames, %d below 0.3 px\n",
-              rms[rms.size() / 2], worst_rms, below_target);
+  std::printf(
+      "checkerboard: median reprojection rms %.3f px, worst %.3f px over 32 frames, %d below 0.3 "
+      "px\n",
+      rms[rms.size() / 2], worst_rms, below_target);
   EXPECT_LT(rms[rms.size() / 2], 0.31);
   EXPECT_GE(below_target, 16);
 }

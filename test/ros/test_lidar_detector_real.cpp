@@ -9,9 +9,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <ctime>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
 
 using namespace board_calib;
 
@@ -66,21 +66,25 @@ Tally run(const std::vector<LidarCloud>& clouds, const Target& target, const cha
       ++t.four_edges;
       t.size_sum += 0.5 * (f.measured_size_m.x() + f.measured_size_m.y());
     }
-    std::printf("[%s] frame %2d: found %d edges %d%d%d%d n=%zu edge pts %zu/%zu/%zu/%zu d=%.3f size %.3f x %.3f | %s\n",
-                label, t.frames - 1, f.found, f.edge_valid[0], f.edge_valid[1], f.edge_valid[2], f.edge_valid[3],
-                f.board_points.size(), f.edge_points[0].size(), f.edge_points[1].size(), f.edge_points[2].size(),
-                f.edge_points[3].size(), f.plane.offset, f.measured_size_m.x(), f.measured_size_m.y(),
-                f.reason.c_str());
+    std::printf(
+        "[%s] frame %2d: found %d edges %d%d%d%d n=%zu edge pts %zu/%zu/%zu/%zu d=%.3f size %.3f x "
+        "%.3f | %s\n",
+        label, t.frames - 1, f.found, f.edge_valid[0], f.edge_valid[1], f.edge_valid[2],
+        f.edge_valid[3], f.board_points.size(), f.edge_points[0].size(), f.edge_points[1].size(),
+        f.edge_points[2].size(), f.edge_points[3].size(), f.plane.offset, f.measured_size_m.x(),
+        f.measured_size_m.y(), f.reason.c_str());
     if (std::getenv("LIDAR_TEST_VERBOSE"))
       for (const auto& c : det.candidates)
-        std::printf("    cand n=%d at (%.2f %.2f %.2f) rect %.2f x %.2f fill %.2f rms %.3f score %.3f %s\n", c.num_points,
-                    c.centroid.x(), c.centroid.y(), c.centroid.z(), c.rectangle_m.x(), c.rectangle_m.y(), c.fill_ratio,
-                    c.rms_m, c.score, c.rejected_because.c_str());
+        std::printf(
+            "    cand n=%d at (%.2f %.2f %.2f) rect %.2f x %.2f fill %.2f rms %.3f score %.3f %s\n",
+            c.num_points, c.centroid.x(), c.centroid.y(), c.centroid.z(), c.rectangle_m.x(),
+            c.rectangle_m.y(), c.fill_ratio, c.rms_m, c.score, c.rejected_because.c_str());
   }
   std::sort(cpu_ms.begin(), cpu_ms.end());
   if (!cpu_ms.empty())
-    std::printf("[%s] detector CPU time per cloud: median %.2f ms, max %.2f ms (%zu points per cloud)\n", label,
-                cpu_ms[cpu_ms.size() / 2], cpu_ms.back(), clouds.front().points.size());
+    std::printf(
+        "[%s] detector CPU time per cloud: median %.2f ms, max %.2f ms (%zu points per cloud)\n",
+        label, cpu_ms[cpu_ms.size() / 2], cpu_ms.back(), clouds.front().points.size());
   return t;
 }
 

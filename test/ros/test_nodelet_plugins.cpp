@@ -2,8 +2,8 @@
 // manager loads it), and every nodelet source has its declaration: the two stay in sync.
 #include <gtest/gtest.h>
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_loader.hpp>
 #include <ros/ros.h>
+#include <pluginlib/class_loader.hpp>
 
 #include <fstream>
 #include <regex>
@@ -19,7 +19,8 @@ std::set<std::string> declaredClasses() {
   const std::string xml = text.str();
   std::set<std::string> names;
   const std::regex class_name(R"re(<class\s+name="([^"]+)")re");
-  for (auto it = std::sregex_iterator(xml.begin(), xml.end(), class_name); it != std::sregex_iterator(); ++it)
+  for (auto it = std::sregex_iterator(xml.begin(), xml.end(), class_name);
+       it != std::sregex_iterator(); ++it)
     names.insert((*it)[1]);
   return names;
 }
@@ -27,7 +28,8 @@ std::set<std::string> declaredClasses() {
 }  // namespace
 
 TEST(NodeletPlugins, DeclarationsMatchTheNodeletSources) {
-  const std::set<std::string> expected = {"board_calib/cloud_board_detector", "board_calib/image_board_detector",
+  const std::set<std::string> expected = {"board_calib/cloud_board_detector",
+                                          "board_calib/image_board_detector",
                                           "board_calib/calibrator", "board_calib/projection"};
   EXPECT_EQ(declaredClasses(), expected);
 }
@@ -37,7 +39,8 @@ TEST(NodeletPlugins, EveryDeclaredClassLoads) {
   const auto declared = declaredClasses();
   ASSERT_FALSE(declared.empty());
   for (const auto& name : declared) {
-    ASSERT_TRUE(loader.isClassAvailable(name)) << name << " is not visible to pluginlib (package export?)";
+    ASSERT_TRUE(loader.isClassAvailable(name))
+        << name << " is not visible to pluginlib (package export?)";
     try {
       boost::shared_ptr<nodelet::Nodelet> instance = loader.createInstance(name);
       EXPECT_TRUE(instance != nullptr) << name;
@@ -47,9 +50,11 @@ TEST(NodeletPlugins, EveryDeclaredClassLoads) {
   }
 }
 
-// Nodelet constructors may create NodeHandles: roscpp must be initialised and a master running (rostest).
+// Nodelet constructors may create NodeHandles: roscpp must be initialised and a master running
+// (rostest).
 int main(int argc, char** argv) {
   ::testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "test_nodelet_plugins", ros::init_options::AnonymousName | ros::init_options::NoSigintHandler);
+  ros::init(argc, argv, "test_nodelet_plugins",
+            ros::init_options::AnonymousName | ros::init_options::NoSigintHandler);
   return RUN_ALL_TESTS();
 }

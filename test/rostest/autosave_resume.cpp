@@ -8,9 +8,9 @@
 #include <board_calib/core/transform.h>
 
 #include <gtest/gtest.h>
+#include <ros/network.h>
 #include <ros/ros.h>
 #include <std_srvs/Trigger.h>
-#include <ros/network.h>
 #include <xmlrpcpp/XmlRpc.h>
 
 #include <signal.h>
@@ -65,7 +65,8 @@ int calibratorPid() {
   XmlRpc::XmlRpcValue args, result, payload;
   args[0] = ros::this_node::getName();
   args[1] = "/calibrator";
-  if (!ros::master::execute("lookupNode", args, result, payload, false) || int(result[0]) != 1) return -1;
+  if (!ros::master::execute("lookupNode", args, result, payload, false) || int(result[0]) != 1)
+    return -1;
   const std::string uri = result[2];
   std::string host;
   uint32_t port = 0;
@@ -89,7 +90,8 @@ TEST(AutosaveResume, KilledManagerLosesNoView) {
   ros::Publisher lidar_pub = nh.advertise<board_calib::LidarBoard>("lidar_board", 10);
   ros::Publisher camera_pub = nh.advertise<board_calib::CameraBoard>("camera_board", 10);
   const ros::WallTime wait_until = ros::WallTime::now() + ros::WallDuration(10.0);
-  while ((lidar_pub.getNumSubscribers() == 0 || camera_pub.getNumSubscribers() == 0) && ros::WallTime::now() < wait_until)
+  while ((lidar_pub.getNumSubscribers() == 0 || camera_pub.getNumSubscribers() == 0) &&
+         ros::WallTime::now() < wait_until)
     ros::WallDuration(0.05).sleep();
   ASSERT_GT(lidar_pub.getNumSubscribers(), 0u);
 
@@ -97,8 +99,9 @@ TEST(AutosaveResume, KilledManagerLosesNoView) {
   // both sides of an image), poses 40 cm apart (diversity gate).
   double stamp = 100.0;
   for (int v = 0; v < kViews; ++v) {
-    const Eigen::Isometry3d pose = board_calib::makeTransform(Eigen::Vector3d(-1.5 + 0.4 * v, -0.5, 3.0),
-                                                              Eigen::Vector4d(0.05 * (v % 3), 0.05 * (v % 2), 0, 1));
+    const Eigen::Isometry3d pose =
+        board_calib::makeTransform(Eigen::Vector3d(-1.5 + 0.4 * v, -0.5, 3.0),
+                                   Eigen::Vector4d(0.05 * (v % 3), 0.05 * (v % 2), 0, 1));
     for (int frame = 0; frame < 7; ++frame, stamp += 0.1) {
       board_calib::LidarBoard lidar;
       board_calib::CameraBoard camera;

@@ -6,10 +6,10 @@
 #include "wait_for_bag_end.h"
 
 #include <gtest/gtest.h>
+#include <ros/ros.h>
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
-#include <ros/ros.h>
 
 TEST(LiveReplayReal, SnapshotRecordingGivesAPbpcResult) {
   ros::NodeHandle nh;
@@ -24,7 +24,8 @@ TEST(LiveReplayReal, SnapshotRecordingGivesAPbpcResult) {
   ros::ServiceClient saver = nh.serviceClient<board_calib::SessionFile>("calibrator/save_session");
   ASSERT_TRUE(saver.waitForExistence(ros::Duration(30.0)));
   board_calib::SessionFile save;
-  save.request.path = std::string(std::getenv("ROS_HOME") ? std::getenv("ROS_HOME") : "/tmp") + "/live_replay_real_session.yaml";
+  save.request.path = std::string(std::getenv("ROS_HOME") ? std::getenv("ROS_HOME") : "/tmp") +
+                      "/live_replay_real_session.yaml";
   ASSERT_TRUE(saver.call(save));
   EXPECT_TRUE(save.response.success) << save.response.message;
   EXPECT_GE(static_cast<int>(save.response.views), min_views) << "views captured from the 16 poses";
@@ -45,14 +46,15 @@ TEST(LiveReplayReal, SnapshotRecordingGivesAPbpcResult) {
   const std::string marker = "report written to ";
   const auto at = srv.response.message.find(marker);
   ASSERT_NE(at, std::string::npos) << srv.response.message;
-  const std::string report =
-      srv.response.message.substr(at + marker.size(), srv.response.message.find('\n', at) - at - marker.size());
+  const std::string report = srv.response.message.substr(
+      at + marker.size(), srv.response.message.find('\n', at) - at - marker.size());
   std::ifstream md(report);
   ASSERT_TRUE(md.good()) << report;
   const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("## Verdict: "), std::string::npos);
   EXPECT_NE(text.find("edge_errors.png"), std::string::npos);
-  // The independent tool scores this calibration at about 6 px on these frames (docs/BENCHMARKS.md).
+  // The independent tool scores this calibration at about 6 px on these frames
+  // (docs/BENCHMARKS.md).
   EXPECT_LT(r.mlre_px, 10.0);
 }
 

@@ -17,10 +17,11 @@ TEST(MessageRoundTrip, LidarBoardThroughMaster) {
 
   board_calib::LidarBoardFeatures received;
   bool got = false;
-  ros::Subscriber sub = nh.subscribe<board_calib::LidarBoard>("board", 1, [&](const board_calib::LidarBoardConstPtr& m) {
-    received = board_calib::fromMsg(*m);
-    got = true;
-  });
+  ros::Subscriber sub = nh.subscribe<board_calib::LidarBoard>(
+      "board", 1, [&](const board_calib::LidarBoardConstPtr& m) {
+        received = board_calib::fromMsg(*m);
+        got = true;
+      });
   ros::Publisher pub = nh.advertise<board_calib::LidarBoard>("board", 1);
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(20.0);
   while (!got && ros::ok() && ros::WallTime::now() < deadline) {

@@ -9,12 +9,12 @@
 #include "wait_for_bag_end.h"
 
 #include <gtest/gtest.h>
-#include <algorithm>
-#include <cmath>
-#include <set>
 #include <ros/ros.h>
 #include <tf2_eigen/tf2_eigen.h>
 #include <tf2_ros/transform_listener.h>
+#include <algorithm>
+#include <cmath>
+#include <set>
 
 namespace {
 
@@ -43,7 +43,8 @@ TEST(PipelineEndToEnd, CalibratedTfMatchesGroundTruth) {
   tf2_ros::TransformListener listener(buffer);
 
   ASSERT_TRUE(board_calib_test::waitForBagEnd(nh, timeout_s))
-      << "the bag did not play to its end within " << timeout_s << " s (or no /clock from rosbag play)";
+      << "the bag did not play to its end within " << timeout_s
+      << " s (or no /clock from rosbag play)";
 
   ros::ServiceClient client = nh.serviceClient<board_calib::Calibrate>("calibrator/calibrate");
   ASSERT_TRUE(client.waitForExistence(ros::Duration(30.0)));
@@ -57,11 +58,13 @@ TEST(PipelineEndToEnd, CalibratedTfMatchesGroundTruth) {
   // Ground truth of this pair.
   Eigen::Isometry3d truth_T = truth->camera_T_lidar;
   for (const auto& p : truth->pairs)
-    if (p.camera_frame == r.camera_frame && p.lidar_frame == r.lidar_frame) truth_T = p.camera_T_lidar;
+    if (p.camera_frame == r.camera_frame && p.lidar_frame == r.lidar_frame)
+      truth_T = p.camera_T_lidar;
 
   // The broadcast TF (parent LiDAR, child camera) carries lidar_T_camera.
   const ros::WallTime tf_deadline = ros::WallTime::now() + ros::WallDuration(10.0);
-  while (!buffer.canTransform(r.lidar_frame, r.camera_frame, ros::Time(0)) && ros::WallTime::now() < tf_deadline)
+  while (!buffer.canTransform(r.lidar_frame, r.camera_frame, ros::Time(0)) &&
+         ros::WallTime::now() < tf_deadline)
     ros::WallDuration(0.05).sleep();
   geometry_msgs::TransformStamped tf;
   try {
@@ -72,8 +75,9 @@ TEST(PipelineEndToEnd, CalibratedTfMatchesGroundTruth) {
   const Eigen::Isometry3d camera_T_lidar = tf2::transformToEigen(tf).inverse();
   const double rot = board_calib::rotationErrorDeg(camera_T_lidar, truth_T);
   const double trans = board_calib::translationErrorM(camera_T_lidar, truth_T);
-  std::cout << "[pipeline_e2e] " << method << " with " << r.views_used << " views: rotation error " << rot
-            << " deg, translation error " << trans * 1e3 << " mm, MLRE " << r.mlre_px << " px" << std::endl;
+  std::cout << "[pipeline_e2e] " << method << " with " << r.views_used << " views: rotation error "
+            << rot << " deg, translation error " << trans * 1e3 << " mm, MLRE " << r.mlre_px
+            << " px" << std::endl;
   // Tolerances from the issue: the simulated noise (2 cm range, 0.2 px) supports 0.2 deg / 1 cm.
   EXPECT_LT(rot, rotation_tol_deg);
   EXPECT_LT(trans, translation_tol_m);
@@ -85,7 +89,8 @@ TEST(PipelineEndToEnd, CalibratedTfMatchesGroundTruth) {
   ASSERT_EQ(r.view_ids.size(), r.view_mlre_px.size());
   ASSERT_EQ(r.view_ids.size(), r.view_plane_rms_mm.size());
   EXPECT_GE(r.view_ids.size(), r.views_used);
-  EXPECT_EQ(std::set<int>(r.view_ids.begin(), r.view_ids.end()).size(), r.view_ids.size()) << "duplicate view ids";
+  EXPECT_EQ(std::set<int>(r.view_ids.begin(), r.view_ids.end()).size(), r.view_ids.size())
+      << "duplicate view ids";
   std::vector<double> plane, mlre;
   for (size_t i = 0; i < r.view_ids.size(); ++i) {
     if (std::isfinite(r.view_plane_rms_mm[i])) plane.push_back(r.view_plane_rms_mm[i]);

@@ -60,13 +60,16 @@ TEST(ProjectionNodelet, LazyOverlayAndColoredCloud) {
 
   sensor_msgs::ImageConstPtr overlay;
   sensor_msgs::PointCloud2ConstPtr colored;
-  ros::Subscriber overlay_sub =
-      nh.subscribe<sensor_msgs::Image>("overlay", 1, [&](const sensor_msgs::ImageConstPtr& m) { overlay = m; });
+  ros::Subscriber overlay_sub = nh.subscribe<sensor_msgs::Image>(
+      "overlay", 1, [&](const sensor_msgs::ImageConstPtr& m) { overlay = m; });
   ros::Subscriber colored_sub = nh.subscribe<sensor_msgs::PointCloud2>(
       "colored_cloud", 1, [&](const sensor_msgs::PointCloud2ConstPtr& m) { colored = m; });
-  ASSERT_TRUE(waitFor([&] { return image_pub.getNumSubscribers() > 0 && info_pub.getNumSubscribers() > 0 &&
-                                   cloud_pub.getNumSubscribers() > 0; },
-                      10.0))
+  ASSERT_TRUE(waitFor(
+      [&] {
+        return image_pub.getNumSubscribers() > 0 && info_pub.getNumSubscribers() > 0 &&
+               cloud_pub.getNumSubscribers() > 0;
+      },
+      10.0))
       << "the nodelet did not subscribe to its inputs once its outputs had subscribers";
 
   CameraIntrinsics in;
@@ -89,7 +92,8 @@ TEST(ProjectionNodelet, LazyOverlayAndColoredCloud) {
       cloud.points.push_back(p);
     }
   cloud.width = static_cast<int>(cloud.points.size());
-  const cv::Mat image(kHeight, kWidth, CV_8UC3, cv::Scalar(kBackground[0], kBackground[1], kBackground[2]));
+  const cv::Mat image(kHeight, kWidth, CV_8UC3,
+                      cv::Scalar(kBackground[0], kBackground[1], kBackground[2]));
 
   // Publish until both outputs arrived (the subscriptions may take a moment to connect).
   const bool got = waitFor(
@@ -141,7 +145,9 @@ TEST(ProjectionNodelet, LazyOverlayAndColoredCloud) {
   // Lazy again: outputs dropped -> inputs unsubscribed.
   overlay_sub.shutdown();
   colored_sub.shutdown();
-  EXPECT_TRUE(waitFor([&] { return image_pub.getNumSubscribers() == 0 && cloud_pub.getNumSubscribers() == 0; }, 10.0));
+  EXPECT_TRUE(waitFor(
+      [&] { return image_pub.getNumSubscribers() == 0 && cloud_pub.getNumSubscribers() == 0; },
+      10.0));
 }
 
 // Edge-check mode: the detected image line is drawn (bent by no distortion here: straight),
@@ -154,11 +160,14 @@ TEST(ProjectionNodelet, EdgeCheckOverlay) {
   ros::Publisher camera_board_pub = nh.advertise<CameraBoard>("camera_board", 2);
   ros::Publisher lidar_board_pub = nh.advertise<LidarBoard>("lidar_board", 2);
   sensor_msgs::ImageConstPtr overlay;
-  ros::Subscriber overlay_sub =
-      nh.subscribe<sensor_msgs::Image>("overlay", 1, [&](const sensor_msgs::ImageConstPtr& m) { overlay = m; });
-  ASSERT_TRUE(waitFor([&] { return camera_board_pub.getNumSubscribers() > 0 && lidar_board_pub.getNumSubscribers() > 0 &&
-                                   image_pub.getNumSubscribers() > 0; },
-                      10.0))
+  ros::Subscriber overlay_sub = nh.subscribe<sensor_msgs::Image>(
+      "overlay", 1, [&](const sensor_msgs::ImageConstPtr& m) { overlay = m; });
+  ASSERT_TRUE(waitFor(
+      [&] {
+        return camera_board_pub.getNumSubscribers() > 0 &&
+               lidar_board_pub.getNumSubscribers() > 0 && image_pub.getNumSubscribers() > 0;
+      },
+      10.0))
       << "edge_check is on: the nodelet should subscribe to the board topics";
 
   CameraIntrinsics in;
@@ -197,7 +206,8 @@ TEST(ProjectionNodelet, EdgeCheckOverlay) {
     cloud.points.push_back(lp);
   }
   cloud.width = static_cast<int>(cloud.points.size());
-  const cv::Mat image(kHeight, kWidth, CV_8UC3, cv::Scalar(kBackground[0], kBackground[1], kBackground[2]));
+  const cv::Mat image(kHeight, kWidth, CV_8UC3,
+                      cv::Scalar(kBackground[0], kBackground[1], kBackground[2]));
 
   const bool got = waitFor(
       [&] {
@@ -237,7 +247,8 @@ TEST(ProjectionNodelet, EdgeCheckOverlay) {
   int zero_residual_points = 0;
   for (int k = 0; k < 8; ++k) {
     const int v = static_cast<int>(60.0 + 45.0 * k + 0.5);
-    if (drawn.at<cv::Vec3b>(v, static_cast<int>(kLineU) + 3) == zero_residual) ++zero_residual_points;
+    if (drawn.at<cv::Vec3b>(v, static_cast<int>(kLineU) + 3) == zero_residual)
+      ++zero_residual_points;
   }
   EXPECT_GE(zero_residual_points, 7);
   // The MLRE annotation: white text in the top-left corner.

@@ -13,7 +13,8 @@
 namespace {
 
 // parent_T_child from TF (waits up to 10 s of wall time); nullopt when it never arrives.
-std::optional<Eigen::Isometry3d> lookup(tf2_ros::Buffer& buffer, const std::string& parent, const std::string& child) {
+std::optional<Eigen::Isometry3d> lookup(tf2_ros::Buffer& buffer, const std::string& parent,
+                                        const std::string& child) {
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(10.0);
   while (!buffer.canTransform(parent, child, ros::Time(0)) && ros::WallTime::now() < deadline)
     ros::WallDuration(0.05).sleep();
@@ -25,7 +26,8 @@ std::optional<Eigen::Isometry3d> lookup(tf2_ros::Buffer& buffer, const std::stri
 }
 
 // Sub-micrometre / micro-degree: the file's values pass through the TF message unchanged.
-void expectSame(const Eigen::Isometry3d& got, const Eigen::Isometry3d& expected, const std::string& what) {
+void expectSame(const Eigen::Isometry3d& got, const Eigen::Isometry3d& expected,
+                const std::string& what) {
   EXPECT_LT(board_calib::rotationErrorDeg(got, expected), 1e-6) << what;
   EXPECT_LT(board_calib::translationErrorM(got, expected), 1e-7) << what;
 }
@@ -52,7 +54,8 @@ TEST(PublishCalibration, PairAndRigResultsAreBroadcast) {
   for (const auto& s : rig->sensors) {
     if (s.frame == rig->reference_frame) continue;
     const auto got = lookup(buffer, rig->reference_frame, s.frame + "_calib");
-    ASSERT_TRUE(got.has_value()) << "no TF " << rig->reference_frame << " -> " << s.frame << "_calib";
+    ASSERT_TRUE(got.has_value()) << "no TF " << rig->reference_frame << " -> " << s.frame
+                                 << "_calib";
     expectSame(*got, s.reference_T_sensor, s.frame);
     ++checked;
   }

@@ -4,10 +4,10 @@
 // truth, the result file must list every sensor and pair, and a saved rig session must reload to
 // the same poses. ~sensors, ~pairs and ~min_poses describe the rig under test.
 #include <board_calib/Calibrate.h>
-#include <board_calib/calibrator_status.h>
 #include <board_calib/SessionFile.h>
-#include <board_calib/core/result_io.h>
+#include <board_calib/calibrator_status.h>
 #include <board_calib/conversions.h>
+#include <board_calib/core/result_io.h>
 #include <board_calib/core/transform.h>
 
 #include "wait_for_bag_end.h"
@@ -59,7 +59,8 @@ TEST(RigLiveEndToEnd, EverySensorTfMatchesGroundTruth) {
         for (const auto& s : a->status)
           if (s.hardware_id == board_calib::calibrator_status::kHardwareId) health = s;
       });
-  ASSERT_TRUE(board_calib_test::waitForBagEnd(nh, timeout_s)) << "the bag did not play to its end within " << timeout_s << " s";
+  ASSERT_TRUE(board_calib_test::waitForBagEnd(nh, timeout_s))
+      << "the bag did not play to its end within " << timeout_s << " s";
 
   ros::ServiceClient client = nh.serviceClient<board_calib::Calibrate>("calibrator/calibrate");
   ASSERT_TRUE(client.waitForExistence(ros::Duration(30.0)));
@@ -75,18 +76,22 @@ TEST(RigLiveEndToEnd, EverySensorTfMatchesGroundTruth) {
   ASSERT_TRUE(srv.response.success) << srv.response.message;
   std::cout << "[rig_live_e2e]\n" << srv.response.message << std::endl;
   ASSERT_EQ(srv.response.sensors.size(), static_cast<size_t>(sensors));
-  EXPECT_EQ(srv.response.all_results.size(), static_cast<size_t>(pairs)) << "every camera x every LiDAR";
+  EXPECT_EQ(srv.response.all_results.size(), static_cast<size_t>(pairs))
+      << "every camera x every LiDAR";
   for (const auto& r : srv.response.all_results) {
     // Every pair says how good it is: a finite, positive 1 sigma from the graph covariance.
     for (int i = 0; i < 3; ++i) {
-      EXPECT_TRUE(std::isfinite(r.stddev_translation_m[i]) && r.stddev_translation_m[i] > 0.0) << r.camera_frame;
-      EXPECT_TRUE(std::isfinite(r.stddev_rotation_deg[i]) && r.stddev_rotation_deg[i] > 0.0) << r.camera_frame;
+      EXPECT_TRUE(std::isfinite(r.stddev_translation_m[i]) && r.stddev_translation_m[i] > 0.0)
+          << r.camera_frame;
+      EXPECT_TRUE(std::isfinite(r.stddev_rotation_deg[i]) && r.stddev_rotation_deg[i] > 0.0)
+          << r.camera_frame;
     }
     EXPECT_LT(r.stddev_translation_m[0], 0.01) << r.camera_frame << " <- " << r.lidar_frame;
     // The target: every camera <- LiDAR pair within 0.2 deg / 1 cm of the truth.
-    const auto truth_pair = std::find_if(truth->pairs.begin(), truth->pairs.end(), [&](const auto& p) {
-      return p.camera_frame == r.camera_frame && p.lidar_frame == r.lidar_frame;
-    });
+    const auto truth_pair =
+        std::find_if(truth->pairs.begin(), truth->pairs.end(), [&](const auto& p) {
+          return p.camera_frame == r.camera_frame && p.lidar_frame == r.lidar_frame;
+        });
     if (truth_pair == truth->pairs.end()) {
       ADD_FAILURE() << "no truth for the pair " << r.camera_frame << " <- " << r.lidar_frame;
       continue;
@@ -94,8 +99,8 @@ TEST(RigLiveEndToEnd, EverySensorTfMatchesGroundTruth) {
     const Eigen::Isometry3d got = board_calib::fromTransformMsg(r.camera_T_lidar);
     const double rot = board_calib::rotationErrorDeg(got, truth_pair->camera_T_lidar);
     const double trans = board_calib::translationErrorM(got, truth_pair->camera_T_lidar);
-    std::cout << "[rig_live_e2e] pair " << r.camera_frame << " <- " << r.lidar_frame << ": " << rot << " deg, "
-              << trans * 1e3 << " mm from truth" << std::endl;
+    std::cout << "[rig_live_e2e] pair " << r.camera_frame << " <- " << r.lidar_frame << ": " << rot
+              << " deg, " << trans * 1e3 << " mm from truth" << std::endl;
     EXPECT_LT(rot, rotation_tol_deg) << r.camera_frame << " <- " << r.lidar_frame;
     EXPECT_LT(trans, translation_tol_m) << r.camera_frame << " <- " << r.lidar_frame;
   }
@@ -110,7 +115,8 @@ TEST(RigLiveEndToEnd, EverySensorTfMatchesGroundTruth) {
     const Eigen::Isometry3d expected = truth_ref.inverse() * truth_poses.at(s.frame);
     // The broadcast static TF: parent = reference frame, child = the sensor.
     const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(10.0);
-    while (!buffer.canTransform(reference, s.frame, ros::Time(0)) && ros::WallTime::now() < deadline)
+    while (!buffer.canTransform(reference, s.frame, ros::Time(0)) &&
+           ros::WallTime::now() < deadline)
       ros::WallDuration(0.05).sleep();
     geometry_msgs::TransformStamped tf;
     try {
@@ -122,8 +128,8 @@ TEST(RigLiveEndToEnd, EverySensorTfMatchesGroundTruth) {
     const Eigen::Isometry3d got = tf2::transformToEigen(tf);
     const double rot = board_calib::rotationErrorDeg(got, expected);
     const double trans = board_calib::translationErrorM(got, expected);
-    std::cout << "[rig_live_e2e] " << reference << " -> " << s.frame << ": " << rot << " deg, " << trans * 1e3
-              << " mm from truth (" << s.poses_used << " poses)" << std::endl;
+    std::cout << "[rig_live_e2e] " << reference << " -> " << s.frame << ": " << rot << " deg, "
+              << trans * 1e3 << " mm from truth (" << s.poses_used << " poses)" << std::endl;
     // The target for the simulated rig: every pair within 0.2 deg / 1 cm.
     EXPECT_LT(rot, rotation_tol_deg) << s.frame;
     EXPECT_LT(trans, translation_tol_m) << s.frame;
@@ -150,7 +156,8 @@ TEST(RigLiveEndToEnd, EverySensorTfMatchesGroundTruth) {
   ASSERT_TRUE(written.ok()) << written.error();
   EXPECT_EQ(written->sensors.size(), static_cast<size_t>(sensors));
   EXPECT_EQ(written->pairs.size(), static_cast<size_t>(pairs));
-  // The rig report: the rig page and one page per pair with its figures (core/pipeline/rig_report.h).
+  // The rig report: the rig page and one page per pair with its figures
+  // (core/pipeline/rig_report.h).
   EXPECT_TRUE(std::filesystem::exists(output_dir + "/report/report.md"));
   for (const auto& p : written->pairs) {
     const std::string page = output_dir + "/report/" + p.camera_frame + "__" + p.lidar_frame;

@@ -12,12 +12,13 @@ namespace board_calib_test {
 inline bool waitForBagEnd(ros::NodeHandle& nh, double timeout_s, double quiet_s = 4.0) {
   ros::Time last_clock;
   ros::WallTime last_change = ros::WallTime::now();
-  ros::Subscriber sub = nh.subscribe<rosgraph_msgs::Clock>("/clock", 10, [&](const rosgraph_msgs::ClockConstPtr& c) {
-    if (c->clock != last_clock) {
-      last_clock = c->clock;
-      last_change = ros::WallTime::now();
-    }
-  });
+  ros::Subscriber sub =
+      nh.subscribe<rosgraph_msgs::Clock>("/clock", 10, [&](const rosgraph_msgs::ClockConstPtr& c) {
+        if (c->clock != last_clock) {
+          last_clock = c->clock;
+          last_change = ros::WallTime::now();
+        }
+      });
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
   while (ros::ok() && ros::WallTime::now() < deadline) {
     ros::spinOnce();

@@ -8,8 +8,8 @@
 namespace board_calib {
 namespace test_support {
 
-sim::Scenario captureScenario(const sim::Scenario& base, double image_scale, double camera_hz, bool organized,
-                              int poses, unsigned seed) {
+sim::Scenario captureScenario(const sim::Scenario& base, double image_scale, double camera_hz,
+                              bool organized, int poses, unsigned seed) {
   constexpr double kImageNoise = 2.0;  // grey levels
   sim::Scenario s = base;
   auto& cam = s.cameras.front();
@@ -30,7 +30,8 @@ sim::Scenario captureScenario(const sim::Scenario& base, double image_scale, dou
   return s;
 }
 
-Expected<SimulatedSession> runSimulatedSession(const sim::Scenario& scenario, const PipelineOptions& options) {
+Expected<SimulatedSession> runSimulatedSession(const sim::Scenario& scenario,
+                                               const PipelineOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   auto timeline = sim::makeTimeline(scenario);
   if (!timeline) return Expected<SimulatedSession>::failure(timeline.error());
@@ -65,10 +66,13 @@ Expected<SimulatedSession> runSimulatedSession(const sim::Scenario& scenario, co
     out.views.push_back(sv.view);
     const auto c = camera_truth.find(sv.view.camera.stamp);
     const auto l = lidar_truth.find(sv.view.lidar.stamp);
-    const bool still = c != camera_truth.end() && l != lidar_truth.end() && c->second.first && l->second.first &&
-                       c->second.second == l->second.second && c->second.second >= 0;
-    if (still) captured.insert(c->second.second);
-    else ++out.moving_captured;
+    const bool still = c != camera_truth.end() && l != lidar_truth.end() && c->second.first &&
+                       l->second.first && c->second.second == l->second.second &&
+                       c->second.second >= 0;
+    if (still)
+      captured.insert(c->second.second);
+    else
+      ++out.moving_captured;
   }
   out.holds_captured = static_cast<int>(captured.size());
   out.capture_summary = pipeline->session().captureStats().summary();

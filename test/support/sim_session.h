@@ -14,23 +14,26 @@ namespace board_calib {
 namespace test_support {
 
 struct SimulatedSession {
-  int holds = 0;             ///< held poses in the recording
-  int holds_captured = 0;    ///< holds that gave a view whose image and cloud are still frames of that hold
-  int moving_captured = 0;   ///< views with a frame taken while the board moved (or from another hold)
+  int holds = 0;  ///< held poses in the recording
+  int holds_captured =
+      0;  ///< holds that gave a view whose image and cloud are still frames of that hold
+  int moving_captured =
+      0;  ///< views with a frame taken while the board moved (or from another hold)
   std::vector<View> views;
   std::string capture_summary;
   ResultFile truth;
-  double seconds = 0.0;      ///< simulation and pipeline, wall
+  double seconds = 0.0;  ///< simulation and pipeline, wall
 };
 
 /// `base` with its first camera scaled by `image_scale` (size and focal length) at `camera_hz`,
 /// 2 grey levels of image noise, the first LiDAR organized with a ring field or not, `poses`
 /// holds, and every frame emitted (holds and moves): a capture test's recording.
-sim::Scenario captureScenario(const sim::Scenario& base, double image_scale, double camera_hz, bool organized,
-                              int poses, unsigned seed);
+sim::Scenario captureScenario(const sim::Scenario& base, double image_scale, double camera_hz,
+                              bool organized, int poses, unsigned seed);
 
 /// Simulates `scenario` (first camera, first LiDAR) and feeds every frame in stamp order.
-Expected<SimulatedSession> runSimulatedSession(const sim::Scenario& scenario, const PipelineOptions& options);
+Expected<SimulatedSession> runSimulatedSession(const sim::Scenario& scenario,
+                                               const PipelineOptions& options);
 
 }  // namespace test_support
 }  // namespace board_calib

@@ -16,8 +16,8 @@ namespace sim {
 
 namespace {
 
-constexpr double kMinDepthM = 0.1;        // points nearer than this are not imaged
-constexpr double kMinIncidenceCos = 1e-3; // rays (almost) parallel to the board miss it
+constexpr double kMinDepthM = 0.1;         // points nearer than this are not imaged
+constexpr double kMinIncidenceCos = 1e-3;  // rays (almost) parallel to the board miss it
 constexpr int kPnpIterations = 50;
 
 Eigen::Isometry3d opticalTLidarBase() {
@@ -29,7 +29,8 @@ Eigen::Isometry3d opticalTLidarBase() {
   return makeTransform(R, Eigen::Vector3d::Zero());
 }
 
-Eigen::Isometry3d lidarPose(const Eigen::Vector3d& translation, const Eigen::Vector3d& extra_rpy_deg) {
+Eigen::Isometry3d lidarPose(const Eigen::Vector3d& translation,
+                            const Eigen::Vector3d& extra_rpy_deg) {
   Eigen::Isometry3d T = opticalTLidarBase();
   T.linear() = T.linear() * fromRollPitchYaw(extra_rpy_deg * kRadPerDeg);
   T.translation() = translation;
@@ -38,7 +39,8 @@ Eigen::Isometry3d lidarPose(const Eigen::Vector3d& translation, const Eigen::Vec
 
 // Reprojection of a board point through camera_T_board (angle-axis + translation), in px.
 struct PnpCost {
-  PnpCost(const Eigen::Vector3d& board_point, const Eigen::Vector2d& pixel, const Eigen::Matrix3d& K)
+  PnpCost(const Eigen::Vector3d& board_point, const Eigen::Vector2d& pixel,
+          const Eigen::Matrix3d& K)
       : board_point_(board_point), pixel_(pixel), K_(K) {}
   template <typename T>
   bool operator()(const T* const rotation, const T* const translation, T* residual) const {
@@ -57,14 +59,16 @@ struct PnpCost {
 };
 
 // Refines camera_T_board from the noisy corners, starting at `start` (PnP as a detector does).
-Eigen::Isometry3d refinePnp(const std::vector<PatternObservation>& pattern, const Eigen::Matrix3d& K,
-                            const Eigen::Isometry3d& start, double* rms_px) {
+Eigen::Isometry3d refinePnp(const std::vector<PatternObservation>& pattern,
+                            const Eigen::Matrix3d& K, const Eigen::Isometry3d& start,
+                            double* rms_px) {
   Eigen::AngleAxisd aa(start.linear());
   Eigen::Vector3d r = aa.angle() * aa.axis();
   Eigen::Vector3d t = start.translation();
   ceres::Problem problem;
   for (const auto& obs : pattern)
-    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PnpCost, 2, 3, 3>(new PnpCost(obs.board_point, obs.pixel, K)),
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PnpCost, 2, 3, 3>(
+                                 new PnpCost(obs.board_point, obs.pixel, K)),
                              nullptr, r.data(), t.data());
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::DENSE_QR;
@@ -86,7 +90,8 @@ bool insideImage(const RigSensor& s, const Eigen::Vector2d& uv) {
 
 // Camera observation; nullopt when the board is not completely in view.
 std::optional<CameraBoardFeatures> observeCamera(const RigSensor& s, const Target& target,
-                                                 const Eigen::Isometry3d& sensor_T_board, std::mt19937& rng) {
+                                                 const Eigen::Isometry3d& sensor_T_board,
+                                                 std::mt19937& rng) {
   std::normal_distribution<double> noise(0.0, s.pixel_noise_px * s.noise_scale);
   const auto outer = target.outerCorners();
   std::array<Eigen::Vector2d, 4> outer_px;
@@ -107,7 +112,8 @@ std::optional<CameraBoardFeatures> observeCamera(const RigSensor& s, const Targe
       PatternObservation obs;
       obs.id = tag.id * 4 + c;
       obs.board_point = tag.corners[c];
-      obs.pixel = project(s, sensor_T_board * tag.corners[c]) + Eigen::Vector2d(noise(rng), noise(rng));
+      obs.pixel =
+          project(s, sensor_T_board * tag.corners[c]) + Eigen::Vector2d(noise(rng), noise(rng));
       f.pattern.push_back(obs);
     }
   }
@@ -135,7 +141,8 @@ std::optional<CameraBoardFeatures> observeCamera(const RigSensor& s, const Targe
 // LiDAR observation by ray casting; nullopt when too few rings / points hit the board.
 std::optional<LidarBoardFeatures> observeLidar(const RigSensor& s, const RigSceneOptions& opt,
                                                const std::vector<double>& ring_bias,
-                                               const Eigen::Isometry3d& sensor_T_board, std::mt19937& rng) {
+                                               const Eigen::Isometry3d& sensor_T_board,
+                                               std::mt19937& rng) {
   const Target& target = opt.target;
   const Eigen::Isometry3d board_T_sensor = sensor_T_board.inverse();
   Plane plane;
@@ -160,16 +167,19 @@ std::optional<LidarBoardFeatures> observeLidar(const RigSensor& s, const RigScen
   Points3 hits;
   int rings_hit = 0;
   for (int ring = 0; ring < s.rings; ++ring) {
-    const double el = (s.rings == 1 ? s.min_elevation_deg
-                                    : s.min_elevation_deg + (s.max_elevation_deg - s.min_elevation_deg) * ring / (s.rings - 1)) *
-                      kRadPerDeg;
+    const double el =
+        (s.rings == 1 ? s.min_elevation_deg
+                      : s.min_elevation_deg +
+                            (s.max_elevation_deg - s.min_elevation_deg) * ring / (s.rings - 1)) *
+        kRadPerDeg;
     Points3 ring_hits;
     Points3 ring_true;
     const long k0 = static_cast<long>(std::floor((centre_az + lo) / step));
     const long k1 = static_cast<long>(std::ceil((centre_az + hi) / step));
     for (long k = k0; k <= k1; ++k) {
       const double az = k * step;
-      const Eigen::Vector3d u(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
+      const Eigen::Vector3d u(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
+                              std::sin(el));
       const double cos_inc = plane.normal.dot(u);
       if (cos_inc < kMinIncidenceCos) continue;
       const double range = plane.offset / cos_inc;
@@ -185,13 +195,15 @@ std::optional<LidarBoardFeatures> observeLidar(const RigSensor& s, const RigScen
     // Per-ring extremes are edge points, assigned to the nearest physical board edge.
     for (size_t idx : {size_t{0}, ring_hits.size() - 1}) {
       const Eigen::Vector3d b = board_T_sensor * ring_true[idx];
-      const std::array<double, 4> dist = {b.y(), target.width - b.x(), target.height - b.y(), b.x()};
+      const std::array<double, 4> dist = {b.y(), target.width - b.x(), target.height - b.y(),
+                                          b.x()};
       const int edge = static_cast<int>(std::min_element(dist.begin(), dist.end()) - dist.begin());
       f.edge_points[edge].push_back(ring_hits[idx]);
       if (ring_hits.size() == 1) break;
     }
   }
-  if (rings_hit < opt.min_lidar_rings || static_cast<int>(hits.size()) < opt.min_lidar_points) return std::nullopt;
+  if (rings_hit < opt.min_lidar_rings || static_cast<int>(hits.size()) < opt.min_lidar_points)
+    return std::nullopt;
   // Plane by PCA of the hits, normal away from the sensor.
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const auto& p : hits) mean += p;
@@ -235,7 +247,8 @@ Eigen::Isometry3d drawBoardPose(const RigSceneOptions& opt, std::mt19937& rng) {
   // Centre direction inside a cone around the optical axis (z).
   const double off = opt.max_off_axis_deg * kRadPerDeg * std::sqrt(uni(rng));
   const double phi = two_pi * uni(rng);
-  const Eigen::Vector3d dir(std::sin(off) * std::cos(phi), std::sin(off) * std::sin(phi), std::cos(off));
+  const Eigen::Vector3d dir(std::sin(off) * std::cos(phi), std::sin(off) * std::sin(phi),
+                            std::cos(off));
   const double dist = opt.min_distance_m + (opt.max_distance_m - opt.min_distance_m) * uni(rng);
   // Normal: the viewing ray tilted by up to max_tilt about a random perpendicular axis.
   Eigen::Vector3d perp = dir.cross(Eigen::Vector3d::UnitX()).normalized();
@@ -265,12 +278,14 @@ std::vector<RigSensor> defaultRig() {
   RigSensor right = left;
   right.frame = "camera_right";
   right.reference_T_sensor =
-      makeTransform(fromRollPitchYaw(Eigen::Vector3d(0.3, -0.4, 0.2) * kRadPerDeg), Eigen::Vector3d(0.12, 0.002, -0.001));
+      makeTransform(fromRollPitchYaw(Eigen::Vector3d(0.3, -0.4, 0.2) * kRadPerDeg),
+                    Eigen::Vector3d(0.12, 0.002, -0.001));
   rig.push_back(right);
   RigSensor vlp;
   vlp.frame = "vlp32c";
   vlp.kind = multi_sensor::SensorKind::kLidar;
-  vlp.reference_T_sensor = lidarPose(Eigen::Vector3d(0.06, -0.18, -0.05), Eigen::Vector3d(1.5, -2.0, 3.0));
+  vlp.reference_T_sensor =
+      lidarPose(Eigen::Vector3d(0.06, -0.18, -0.05), Eigen::Vector3d(1.5, -2.0, 3.0));
   vlp.rings = 32;
   vlp.min_elevation_deg = -25.0;
   vlp.max_elevation_deg = 15.0;
@@ -279,7 +294,8 @@ std::vector<RigSensor> defaultRig() {
   rig.push_back(vlp);
   RigSensor os1 = vlp;
   os1.frame = "os1_64";
-  os1.reference_T_sensor = lidarPose(Eigen::Vector3d(0.04, 0.15, 0.02), Eigen::Vector3d(-1.0, 2.5, -4.0));
+  os1.reference_T_sensor =
+      lidarPose(Eigen::Vector3d(0.04, 0.15, 0.02), Eigen::Vector3d(-1.0, 2.5, -4.0));
   os1.rings = 64;
   os1.min_elevation_deg = -22.5;
   os1.max_elevation_deg = 22.5;
@@ -293,7 +309,8 @@ RigSensor extraLidar16(const std::string& frame, double noise_scale) {
   RigSensor s;
   s.frame = frame;
   s.kind = multi_sensor::SensorKind::kLidar;
-  s.reference_T_sensor = lidarPose(Eigen::Vector3d(-0.35, -0.10, 0.10), Eigen::Vector3d(0.5, 1.0, 6.0));
+  s.reference_T_sensor =
+      lidarPose(Eigen::Vector3d(-0.35, -0.10, 0.10), Eigen::Vector3d(0.5, 1.0, 6.0));
   s.rings = 16;
   s.min_elevation_deg = -15.0;
   s.max_elevation_deg = 15.0;
@@ -319,22 +336,27 @@ std::string RigSceneOptions::validate() const {
   const std::string t = target.validate();
   if (!t.empty()) return "target: " + t;
   if (target.type != TargetType::kAprilTagGrid) return "target must be an AprilTag grid";
-  if (!(min_distance_m > 0) || !(max_distance_m >= min_distance_m)) return "need 0 < min_distance_m <= max_distance_m";
+  if (!(min_distance_m > 0) || !(max_distance_m >= min_distance_m))
+    return "need 0 < min_distance_m <= max_distance_m";
   if (!(max_tilt_deg >= 0 && max_tilt_deg < 80)) return "max_tilt_deg must be in [0, 80)";
-  if (!(max_off_axis_deg >= 0 && max_off_axis_deg < 80)) return "max_off_axis_deg must be in [0, 80)";
-  if (min_lidar_rings < 1 || min_lidar_points < 3) return "min_lidar_rings >= 1 and min_lidar_points >= 3";
+  if (!(max_off_axis_deg >= 0 && max_off_axis_deg < 80))
+    return "max_off_axis_deg must be in [0, 80)";
+  if (min_lidar_rings < 1 || min_lidar_points < 3)
+    return "min_lidar_rings >= 1 and min_lidar_points >= 3";
   if (max_attempts < num_poses) return "max_attempts must be >= num_poses";
   return "";
 }
 
-Expected<RigScene> generateRigScene(const std::vector<RigSensor>& sensors, const RigSceneOptions& options,
-                                             std::mt19937& rng) {
+Expected<RigScene> generateRigScene(const std::vector<RigSensor>& sensors,
+                                    const RigSceneOptions& options, std::mt19937& rng) {
   const std::string invalid = options.validate();
   if (!invalid.empty()) return Expected<RigScene>::failure("invalid synthetic options: " + invalid);
   if (sensors.size() < 2) return Expected<RigScene>::failure("a rig needs >= 2 sensors");
   for (const auto& s : sensors)
-    if (s.kind == multi_sensor::SensorKind::kLidar && (s.rings < 1 || !(s.horizontal_resolution_deg > 0)))
-      return Expected<RigScene>::failure("LiDAR '" + s.frame + "' needs >= 1 ring and a resolution > 0");
+    if (s.kind == multi_sensor::SensorKind::kLidar &&
+        (s.rings < 1 || !(s.horizontal_resolution_deg > 0)))
+      return Expected<RigScene>::failure("LiDAR '" + s.frame +
+                                         "' needs >= 1 ring and a resolution > 0");
   RigScene scene;
   scene.sensors = sensors;
   for (const auto& s : sensors) {
@@ -355,9 +377,10 @@ Expected<RigScene> generateRigScene(const std::vector<RigSensor>& sensors, const
   int attempts = 0;
   while (static_cast<int>(scene.problem.poses.size()) < options.num_poses) {
     if (++attempts > options.max_attempts)
-      return Expected<RigScene>::failure(
-          "only " + std::to_string(scene.problem.poses.size()) + " of " + std::to_string(options.num_poses) +
-          " board poses fit every sensor's field of view after " + std::to_string(options.max_attempts) + " draws");
+      return Expected<RigScene>::failure("only " + std::to_string(scene.problem.poses.size()) +
+                                         " of " + std::to_string(options.num_poses) +
+                                         " board poses fit every sensor's field of view after " +
+                                         std::to_string(options.max_attempts) + " draws");
     const Eigen::Isometry3d ref_T_board = ref_T_s0 * drawBoardPose(options, rng);
     multi_sensor::BoardPoseObservation obs;
     obs.id = static_cast<int>(scene.problem.poses.size());
@@ -366,12 +389,16 @@ Expected<RigScene> generateRigScene(const std::vector<RigSensor>& sensors, const
       const Eigen::Isometry3d s_T_board = sensors[i].reference_T_sensor.inverse() * ref_T_board;
       if (sensors[i].kind == multi_sensor::SensorKind::kCamera) {
         auto f = observeCamera(sensors[i], options.target, s_T_board, rng);
-        if (f) obs.cameras[static_cast<int>(i)] = std::move(*f);
-        else all = false;
+        if (f)
+          obs.cameras[static_cast<int>(i)] = std::move(*f);
+        else
+          all = false;
       } else {
         auto f = observeLidar(sensors[i], options, ring_bias[i], s_T_board, rng);
-        if (f) obs.lidars[static_cast<int>(i)] = std::move(*f);
-        else all = false;
+        if (f)
+          obs.lidars[static_cast<int>(i)] = std::move(*f);
+        else
+          all = false;
       }
     }
     if (!all) continue;

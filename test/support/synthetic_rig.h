@@ -21,18 +21,18 @@ struct RigSensor {
   multi_sensor::SensorKind kind = multi_sensor::SensorKind::kCamera;
   Eigen::Isometry3d reference_T_sensor = Eigen::Isometry3d::Identity();  ///< ground truth
   // Camera (pinhole, undistorted pixels).
-  int image_width = 1280, image_height = 960;  ///< px
+  int image_width = 1280, image_height = 960;       ///< px
   double fx = 1000, fy = 1000, cx = 640, cy = 480;  ///< px
-  double pixel_noise_px = 0.3;  ///< 1 sigma per corner coordinate, px
+  double pixel_noise_px = 0.3;                      ///< 1 sigma per corner coordinate, px
   // LiDAR (spinning; rings evenly spread between the two elevations).
   int rings = 32;
   double min_elevation_deg = -25.0, max_elevation_deg = 15.0;  ///< deg
-  double horizontal_resolution_deg = 0.2;  ///< deg
-  double range_noise_m = 0.01;             ///< 1 sigma along the ray, m
+  double horizontal_resolution_deg = 0.2;                      ///< deg
+  double range_noise_m = 0.01;                                 ///< 1 sigma along the ray, m
   /// 1 sigma of a fixed per-ring range offset (laser-to-laser calibration error, drawn once
   /// per scene): a systematic error that tilts the fitted plane differently per board pose.
   double ring_bias_m = 0.002;
-  double max_range_m = 50.0;               ///< m
+  double max_range_m = 50.0;   ///< m
   int max_board_points = 400;  ///< uniform subsample of the kept board points; 0 keeps all
   /// Multiplies every noise of this sensor (3 for the "noisy sensor" experiments).
   double noise_scale = 1.0;
@@ -48,12 +48,12 @@ struct RigSceneOptions {
   int num_poses = 40;
   Target target;  ///< defaults to a 1 m AprilTag grid (4 x 4 tags of 0.2 m)
   double min_distance_m = 2.0, max_distance_m = 5.0;  ///< board centre from the reference sensor
-  double max_tilt_deg = 35.0;        ///< board normal away from the viewing ray
-  double diamond_jitter_deg = 15.0;  ///< in-plane rotation around 45 deg
-  double max_off_axis_deg = 15.0;    ///< board centre direction off the reference optical axis
-  int min_lidar_rings = 4;           ///< rings that must cross the board for a LiDAR to see it
+  double max_tilt_deg = 35.0;                         ///< board normal away from the viewing ray
+  double diamond_jitter_deg = 15.0;                   ///< in-plane rotation around 45 deg
+  double max_off_axis_deg = 15.0;  ///< board centre direction off the reference optical axis
+  int min_lidar_rings = 4;         ///< rings that must cross the board for a LiDAR to see it
   int min_lidar_points = 60;
-  int max_attempts = 5000;           ///< board pose draws before giving up
+  int max_attempts = 5000;  ///< board pose draws before giving up
 
   RigSceneOptions();
   std::string validate() const;
@@ -69,7 +69,7 @@ struct RigScene {
 /// enough rings and points). Fails with a reason when the options are invalid or the sensors
 /// share too little field of view.
 Expected<RigScene> generateRigScene(const std::vector<RigSensor>& sensors,
-                                             const RigSceneOptions& options, std::mt19937& rng);
+                                    const RigSceneOptions& options, std::mt19937& rng);
 
 }  // namespace sim
 }  // namespace board_calib

@@ -14,13 +14,14 @@ namespace sim {
 namespace {
 
 constexpr int kMaxAttemptsPerView = 200;
-constexpr double kImageMarginPx = 10.0;      // corners this far inside the image
-constexpr double kLidarFovMarginDeg = 0.5;   // corners this far inside the vertical FOV
-constexpr int kMinRingPoints = 2;            // a ring needs a left and a right extreme
-constexpr int kMinEdgePoints = 3;            // edge line fit
+constexpr double kImageMarginPx = 10.0;     // corners this far inside the image
+constexpr double kLidarFovMarginDeg = 0.5;  // corners this far inside the vertical FOV
+constexpr int kMinRingPoints = 2;           // a ring needs a left and a right extreme
+constexpr int kMinEdgePoints = 3;           // edge line fit
 
 Eigen::Vector3d anyPerpendicular(const Eigen::Vector3d& v) {
-  const Eigen::Vector3d a = std::abs(v.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+  const Eigen::Vector3d a =
+      std::abs(v.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
   return v.cross(a).normalized();
 }
 
@@ -55,8 +56,8 @@ void fitLine(const Points3& points, Eigen::Vector3d* point, Eigen::Vector3d* dir
 }
 
 // Midpoint of the shortest segment between two 3D lines.
-Eigen::Vector3d closestPoint(const Eigen::Vector3d& p1, const Eigen::Vector3d& d1, const Eigen::Vector3d& p2,
-                             const Eigen::Vector3d& d2) {
+Eigen::Vector3d closestPoint(const Eigen::Vector3d& p1, const Eigen::Vector3d& d1,
+                             const Eigen::Vector3d& p2, const Eigen::Vector3d& d2) {
   const Eigen::Vector3d w = p1 - p2;
   const double a = d1.dot(d1), b = d1.dot(d2), c = d2.dot(d2), d = d1.dot(w), e = d2.dot(w);
   const double den = a * c - b * b;
@@ -65,7 +66,8 @@ Eigen::Vector3d closestPoint(const Eigen::Vector3d& p1, const Eigen::Vector3d& d
   return 0.5 * ((p1 + s * d1) + (p2 + t * d2));
 }
 
-Eigen::Vector3d lineThrough(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& inside) {
+Eigen::Vector3d lineThrough(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                            const Eigen::Vector2d& inside) {
   Eigen::Vector3d l = Eigen::Vector3d(a.x(), a.y(), 1.0).cross(Eigen::Vector3d(b.x(), b.y(), 1.0));
   l /= l.head<2>().norm();
   if (l.dot(Eigen::Vector3d(inside.x(), inside.y(), 1.0)) > 0) l = -l;  // interior < 0
@@ -79,8 +81,9 @@ Eigen::Vector2d intersect(const Eigen::Vector3d& l1, const Eigen::Vector3d& l2) 
 
 // PnP by Gauss-Newton on the reprojection error of the board corners, from a start near the
 // optimum (the true pose): the pose the detector's PnP (IPPE + LM) converges to.
-Eigen::Isometry3d refinePnp(const std::array<Eigen::Vector3d, 4>& object, const std::array<Eigen::Vector2d, 4>& image,
-                            const Eigen::Matrix3d& K, Eigen::Isometry3d T) {
+Eigen::Isometry3d refinePnp(const std::array<Eigen::Vector3d, 4>& object,
+                            const std::array<Eigen::Vector2d, 4>& image, const Eigen::Matrix3d& K,
+                            Eigen::Isometry3d T) {
   constexpr int kIterations = 20;
   constexpr double kStep = 1e-7;  // numerical derivative step, rad / m
   auto residuals = [&](const Eigen::Isometry3d& pose) {
@@ -119,20 +122,24 @@ std::string SyntheticFeatureOptions::validate() const {
   if (!(board_width_m > 0) || !(board_height_m > 0)) return "board size must be > 0";
   if (!(declared_size_factor > 0)) return "declared_size_factor must be > 0";
   if (lidar_rings < 2) return "lidar_rings must be >= 2";
-  if (!(lidar_vertical_fov_deg > 0) || lidar_vertical_fov_deg >= 180) return "lidar_vertical_fov_deg must be in (0, 180)";
+  if (!(lidar_vertical_fov_deg > 0) || lidar_vertical_fov_deg >= 180)
+    return "lidar_vertical_fov_deg must be in (0, 180)";
   if (!(lidar_horizontal_resolution_deg > 0)) return "lidar_horizontal_resolution_deg must be > 0";
   if (lidar_range_noise_m < 0 || line_noise_px < 0 || camera_plane_normal_noise_deg < 0 ||
       camera_plane_offset_noise_m < 0)
     return "noise levels must be >= 0";
   if (max_board_points < 0) return "max_board_points must be >= 0";
-  if (image_width < 2 || image_height < 2 || !(fx > 0) || !(fy > 0)) return "camera intrinsics invalid";
+  if (image_width < 2 || image_height < 2 || !(fx > 0) || !(fy > 0))
+    return "camera intrinsics invalid";
   if (!(min_distance_m > 0) || max_distance_m < min_distance_m) return "distance range invalid";
   if (max_tilt_deg < 0 || max_tilt_deg >= 80) return "max_tilt_deg must be in [0, 80)";
-  if (max_off_axis_fraction < 0 || max_off_axis_fraction > 1) return "max_off_axis_fraction must be in [0, 1]";
+  if (max_off_axis_fraction < 0 || max_off_axis_fraction > 1)
+    return "max_off_axis_fraction must be in [0, 1]";
   return "";
 }
 
-Eigen::Isometry3d randomCameraTLidar(std::mt19937& rng, double max_extra_rotation_deg, double max_offset_m) {
+Eigen::Isometry3d randomCameraTLidar(std::mt19937& rng, double max_extra_rotation_deg,
+                                     double max_offset_m) {
   // camera x = -lidar y, camera y = -lidar z, camera z = lidar x.
   Eigen::Matrix3d base;
   base << 0, -1, 0, 0, 0, -1, 1, 0, 0;
@@ -147,9 +154,11 @@ Eigen::Isometry3d randomCameraTLidar(std::mt19937& rng, double max_extra_rotatio
 }
 
 Expected<SyntheticScene> generateSyntheticViews(const SyntheticFeatureOptions& o,
-                                                const Eigen::Isometry3d& camera_T_lidar, std::mt19937& rng) {
+                                                const Eigen::Isometry3d& camera_T_lidar,
+                                                std::mt19937& rng) {
   const std::string invalid = o.validate();
-  if (!invalid.empty()) return Expected<SyntheticScene>::failure("invalid synthetic options: " + invalid);
+  if (!invalid.empty())
+    return Expected<SyntheticScene>::failure("invalid synthetic options: " + invalid);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
   std::normal_distribution<double> normal(0.0, 1.0);
   Eigen::Matrix3d K;
@@ -157,7 +166,8 @@ Expected<SyntheticScene> generateSyntheticViews(const SyntheticFeatureOptions& o
   const Eigen::Isometry3d lidar_T_camera = camera_T_lidar.inverse();
   const double w = o.board_width_m, h = o.board_height_m;
   const std::array<Eigen::Vector3d, 4> board_corners = {
-      Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(w, 0, 0), Eigen::Vector3d(w, h, 0), Eigen::Vector3d(0, h, 0)};
+      Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(w, 0, 0), Eigen::Vector3d(w, h, 0),
+      Eigen::Vector3d(0, h, 0)};
   const double step = o.lidar_horizontal_resolution_deg * kRadPerDeg;
   const double half_fov = 0.5 * o.lidar_vertical_fov_deg * kRadPerDeg;
 
@@ -175,8 +185,10 @@ Expected<SyntheticScene> generateSyntheticViews(const SyntheticFeatureOptions& o
     const Eigen::Vector3d ray_dir = ray.normalized();
     const double dist = o.min_distance_m + uniform(rng) * (o.max_distance_m - o.min_distance_m);
     const Eigen::Vector3d centre = ray_dir * dist;
-    const Eigen::Vector3d tilt_axis = expSO3(ray_dir * uniform(rng) * 2 * M_PI) * anyPerpendicular(ray_dir);
-    const Eigen::Vector3d z = expSO3(tilt_axis * uniform(rng) * o.max_tilt_deg * kRadPerDeg) * ray_dir;
+    const Eigen::Vector3d tilt_axis =
+        expSO3(ray_dir * uniform(rng) * 2 * M_PI) * anyPerpendicular(ray_dir);
+    const Eigen::Vector3d z =
+        expSO3(tilt_axis * uniform(rng) * o.max_tilt_deg * kRadPerDeg) * ray_dir;
     Eigen::Vector3d x = (Eigen::Vector3d::UnitX() - z * z.x()).normalized();
     const double spin = (45.0 + (2 * uniform(rng) - 1) * o.diamond_jitter_deg) * kRadPerDeg;
     x = expSO3(z * spin) * x;
@@ -185,7 +197,8 @@ Expected<SyntheticScene> generateSyntheticViews(const SyntheticFeatureOptions& o
     camera_T_board.linear().col(0) = x;
     camera_T_board.linear().col(1) = y;
     camera_T_board.linear().col(2) = z;
-    camera_T_board.translation() = centre - camera_T_board.linear() * Eigen::Vector3d(w / 2, h / 2, 0);
+    camera_T_board.translation() =
+        centre - camera_T_board.linear() * Eigen::Vector3d(w / 2, h / 2, 0);
 
     // Camera: all corners inside the image.
     std::array<Eigen::Vector2d, 4> px;
@@ -195,8 +208,8 @@ Expected<SyntheticScene> generateSyntheticViews(const SyntheticFeatureOptions& o
       if (pc.z() <= 0) visible = false;
       const Eigen::Vector3d uv = K * (pc / pc.z());
       px[i] = uv.head<2>();
-      if (px[i].x() < kImageMarginPx || px[i].y() < kImageMarginPx || px[i].x() > o.image_width - kImageMarginPx ||
-          px[i].y() > o.image_height - kImageMarginPx)
+      if (px[i].x() < kImageMarginPx || px[i].y() < kImageMarginPx ||
+          px[i].x() > o.image_width - kImageMarginPx || px[i].y() > o.image_height - kImageMarginPx)
         visible = false;
     }
     if (!visible) continue;
@@ -206,7 +219,8 @@ Expected<SyntheticScene> generateSyntheticViews(const SyntheticFeatureOptions& o
     for (int i = 0; i < 4; ++i) {
       lc[i] = lidar_T_board * board_corners[i];
       const double elev = std::atan2(lc[i].z(), lc[i].head<2>().norm());
-      if (std::abs(elev) > half_fov - kLidarFovMarginDeg * kRadPerDeg || lc[i].x() <= 0) visible = false;
+      if (std::abs(elev) > half_fov - kLidarFovMarginDeg * kRadPerDeg || lc[i].x() <= 0)
+        visible = false;
     }
     if (!visible) continue;
 
@@ -226,8 +240,10 @@ Expected<SyntheticScene> generateSyntheticViews(const SyntheticFeatureOptions& o
     int left_corner = 0, right_corner = 0;
     for (int i = 0; i < 4; ++i) {
       const double a = std::remainder(std::atan2(lc[i].y(), lc[i].x()) - az_centre, 2 * M_PI);
-      const double al = std::remainder(std::atan2(lc[left_corner].y(), lc[left_corner].x()) - az_centre, 2 * M_PI);
-      const double ar = std::remainder(std::atan2(lc[right_corner].y(), lc[right_corner].x()) - az_centre, 2 * M_PI);
+      const double al = std::remainder(
+          std::atan2(lc[left_corner].y(), lc[left_corner].x()) - az_centre, 2 * M_PI);
+      const double ar = std::remainder(
+          std::atan2(lc[right_corner].y(), lc[right_corner].x()) - az_centre, 2 * M_PI);
       if (a > al) left_corner = i;
       if (a < ar) right_corner = i;
     }
@@ -241,14 +257,16 @@ Expected<SyntheticScene> generateSyntheticViews(const SyntheticFeatureOptions& o
     lidar.stamp = view.id;
     const double phase = uniform(rng) * step;
     const double az_grid0 = az_centre + phase;
-    const int m_lo = static_cast<int>(std::floor(az_min / step)) - 1, m_hi = static_cast<int>(std::ceil(az_max / step)) + 1;
+    const int m_lo = static_cast<int>(std::floor(az_min / step)) - 1,
+              m_hi = static_cast<int>(std::ceil(az_max / step)) + 1;
     Points3 board_points;
     for (int ring = 0; ring < o.lidar_rings; ++ring) {
       const double elev = -half_fov + 2 * half_fov * ring / (o.lidar_rings - 1);
       Points3 ring_points;  // in increasing azimuth
       for (int m = m_lo; m <= m_hi; ++m) {
         const double az = az_grid0 + m * step;
-        const Eigen::Vector3d d(std::cos(elev) * std::cos(az), std::cos(elev) * std::sin(az), std::sin(elev));
+        const Eigen::Vector3d d(std::cos(elev) * std::cos(az), std::cos(elev) * std::sin(az),
+                                std::sin(elev));
         const double denom = nL.dot(d);
         if (std::abs(denom) < 1e-9) continue;
         const double range = dL / denom;
@@ -277,18 +295,20 @@ Expected<SyntheticScene> generateSyntheticViews(const SyntheticFeatureOptions& o
     lidar.found = true;
     for (int j = 0; j < kNumEdges; ++j) {
       lidar.edge_valid[j] = static_cast<int>(lidar.edge_points[j].size()) >= kMinEdgePoints;
-      if (lidar.edge_valid[j]) fitLine(lidar.edge_points[j], &lidar.edge_line_point[j], &lidar.edge_line_direction[j]);
+      if (lidar.edge_valid[j])
+        fitLine(lidar.edge_points[j], &lidar.edge_line_point[j], &lidar.edge_line_direction[j]);
     }
     for (int j = 0; j < kNumEdges; ++j) {
       const int k = (j + 1) % kNumEdges;
       if (lidar.edge_valid[j] && lidar.edge_valid[k])
-        lidar.corners[j] = closestPoint(lidar.edge_line_point[j], lidar.edge_line_direction[j], lidar.edge_line_point[k],
-                                        lidar.edge_line_direction[k]);
+        lidar.corners[j] = closestPoint(lidar.edge_line_point[j], lidar.edge_line_direction[j],
+                                        lidar.edge_line_point[k], lidar.edge_line_direction[k]);
     }
     if (lidar.allEdgesValid())
-      lidar.measured_size_m = Eigen::Vector2d(
-          0.5 * ((lidar.corners[3] - lidar.corners[0]).norm() + (lidar.corners[2] - lidar.corners[1]).norm()),
-          0.5 * ((lidar.corners[1] - lidar.corners[0]).norm() + (lidar.corners[3] - lidar.corners[2]).norm()));
+      lidar.measured_size_m = Eigen::Vector2d(0.5 * ((lidar.corners[3] - lidar.corners[0]).norm() +
+                                                     (lidar.corners[2] - lidar.corners[1]).norm()),
+                                              0.5 * ((lidar.corners[1] - lidar.corners[0]).norm() +
+                                                     (lidar.corners[3] - lidar.corners[2]).norm()));
 
     // Camera: corners named top/right/bottom/left in the image; edge j runs from corner j-1 to j.
     CameraBoardFeatures& cam = view.camera;
@@ -315,19 +335,21 @@ Expected<SyntheticScene> generateSyntheticViews(const SyntheticFeatureOptions& o
       cam.edge_lines[j] = lineThrough(an, bn, pcentre.head<2>());
       cam.edge_valid[j] = true;
     }
-    for (int j = 0; j < kNumEdges; ++j) cam.corners_px[j] = intersect(cam.edge_lines[j], cam.edge_lines[(j + 1) % 4]);
+    for (int j = 0; j < kNumEdges; ++j)
+      cam.corners_px[j] = intersect(cam.edge_lines[j], cam.edge_lines[(j + 1) % 4]);
     // Camera plane: what PnP with the declared board size gives (translation scales), plus noise.
     Eigen::Isometry3d declared = camera_T_board;
     declared.translation() *= o.declared_size_factor;
     Eigen::Vector3d n = camera_T_board.linear().col(2);
     const Eigen::Vector3d tilt_dir = anyPerpendicular(n);
-    n = expSO3(expSO3(n * uniform(rng) * 2 * M_PI) * tilt_dir * o.camera_plane_normal_noise_deg * kRadPerDeg *
-               normal(rng)) *
+    n = expSO3(expSO3(n * uniform(rng) * 2 * M_PI) * tilt_dir * o.camera_plane_normal_noise_deg *
+               kRadPerDeg * normal(rng)) *
         n;
     cam.camera_T_board = declared;
     cam.plane.normal = n.normalized();
-    cam.plane.offset = cam.plane.normal.dot(declared.linear() * Eigen::Vector3d(w / 2, h / 2, 0) * o.declared_size_factor +
-                                           declared.translation()) +
+    cam.plane.offset = cam.plane.normal.dot(declared.linear() * Eigen::Vector3d(w / 2, h / 2, 0) *
+                                                o.declared_size_factor +
+                                            declared.translation()) +
                        o.camera_plane_offset_noise_m * normal(rng);
     if (o.camera_plane_from_pnp) {
       // corners_px[j] is the image corner named[j] (edges j and j + 1 meet there).

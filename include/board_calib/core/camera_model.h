@@ -18,8 +18,8 @@ Expected<DistortionModel> parseDistortionModel(const std::string& name);
 
 /// ROS-free mirror of the parts of sensor_msgs/CameraInfo the core needs.
 struct CameraIntrinsics {
-  int width = 0;   ///< px
-  int height = 0;  ///< px
+  int width = 0;                          ///< px
+  int height = 0;                         ///< px
   double fx = 0, fy = 0, cx = 0, cy = 0;  ///< px
   DistortionModel model = DistortionModel::kNone;
   /// plumb_bob: k1 k2 p1 p2 [k3]; rational_polynomial: k1 k2 p1 p2 k3 k4 k5 k6;
@@ -29,8 +29,8 @@ struct CameraIntrinsics {
 
 /// Same calibration (a camera model built for one serves the other).
 inline bool operator==(const CameraIntrinsics& a, const CameraIntrinsics& b) {
-  return a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy && a.cx == b.cx &&
-         a.cy == b.cy && a.model == b.model && a.coeffs == b.coeffs;
+  return a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy &&
+         a.cx == b.cx && a.cy == b.cy && a.model == b.model && a.coeffs == b.coeffs;
 }
 inline bool operator!=(const CameraIntrinsics& a, const CameraIntrinsics& b) { return !(a == b); }
 
@@ -119,7 +119,8 @@ void CameraModel::distortNormalized(const T& x, const T& y, T* xd, T* yd) const 
       }
       const T r = sqrt(r2);
       const T theta = atan(r), t2 = theta * theta, t4 = t2 * t2, t6 = t4 * t2, t8 = t4 * t4;
-      const T theta_d = theta * (T(1) + T(k_[0]) * t2 + T(k_[1]) * t4 + T(k_[2]) * t6 + T(k_[3]) * t8);
+      const T theta_d =
+          theta * (T(1) + T(k_[0]) * t2 + T(k_[1]) * t4 + T(k_[2]) * t6 + T(k_[3]) * t8);
       const T scale = theta_d / r;
       *xd = x * scale;
       *yd = y * scale;

@@ -12,27 +12,30 @@ namespace board_calib {
 
 struct LidarBoardFeatures {
   std::string frame_id;
-  double stamp = 0.0;          ///< s
+  double stamp = 0.0;  ///< s
   bool found = false;
-  std::string reason;          ///< why not found, or doubts about a found board
-  Plane plane;                 ///< LiDAR frame
-  double plane_rms_m = 0.0;    ///< RMS distance of inliers to the plane
-  Points3 board_points;        ///< inliers on the board, LiDAR frame, m
+  std::string reason;                          ///< why not found, or doubts about a found board
+  Plane plane;                                 ///< LiDAR frame
+  double plane_rms_m = 0.0;                    ///< RMS distance of inliers to the plane
+  Points3 board_points;                        ///< inliers on the board, LiDAR frame, m
   std::array<Points3, kNumEdges> edge_points;  ///< per-scan-line extremes assigned to each edge
   std::array<bool, kNumEdges> edge_valid{};    ///< enough edge points and a consistent line fit
   std::array<Eigen::Vector3d, kNumEdges> edge_line_point;      ///< a point on each fitted edge line
   std::array<Eigen::Vector3d, kNumEdges> edge_line_direction;  ///< unit direction of each edge line
-  std::array<Eigen::Vector3d, kNumEdges> corners;  ///< edge-line intersections (valid if both edges are)
+  std::array<Eigen::Vector3d, kNumEdges>
+      corners;  ///< edge-line intersections (valid if both edges are)
   Eigen::Vector2d measured_size_m = Eigen::Vector2d::Zero();  ///< side lengths from the corners
 
-  bool allEdgesValid() const { return edge_valid[0] && edge_valid[1] && edge_valid[2] && edge_valid[3]; }
+  bool allEdgesValid() const {
+    return edge_valid[0] && edge_valid[1] && edge_valid[2] && edge_valid[3];
+  }
 };
 
 /// One pattern point (checkerboard corner or AprilTag corner) seen in the image.
 struct PatternObservation {
-  int id = 0;                        ///< checkerboard: corner index; AprilTag: tag_id * 4 + corner
-  Eigen::Vector3d board_point;       ///< board frame, m
-  Eigen::Vector2d pixel;             ///< undistorted pixel
+  int id = 0;                   ///< checkerboard: corner index; AprilTag: tag_id * 4 + corner
+  Eigen::Vector3d board_point;  ///< board frame, m
+  Eigen::Vector2d pixel;        ///< undistorted pixel
 };
 
 struct CameraBoardFeatures {
@@ -40,8 +43,9 @@ struct CameraBoardFeatures {
   double stamp = 0.0;  ///< s
   bool found = false;
   std::string reason;
-  Eigen::Matrix3d K = Eigen::Matrix3d::Identity();  ///< intrinsics of the undistorted pixel coordinates
-  int image_width = 0, image_height = 0;            ///< px
+  Eigen::Matrix3d K =
+      Eigen::Matrix3d::Identity();        ///< intrinsics of the undistorted pixel coordinates
+  int image_width = 0, image_height = 0;  ///< px
   Eigen::Isometry3d camera_T_board = Eigen::Isometry3d::Identity();
   Plane plane;  ///< camera frame
   /// Lines a*u + b*v + c = 0 in undistorted pixels, a^2 + b^2 = 1, (a, b) the outward normal
@@ -52,7 +56,9 @@ struct CameraBoardFeatures {
   std::vector<PatternObservation> pattern;
   double reprojection_rms_px = 0.0;
 
-  bool allEdgesValid() const { return edge_valid[0] && edge_valid[1] && edge_valid[2] && edge_valid[3]; }
+  bool allEdgesValid() const {
+    return edge_valid[0] && edge_valid[1] && edge_valid[2] && edge_valid[3];
+  }
 };
 
 /// One board pose seen by one camera and one LiDAR.

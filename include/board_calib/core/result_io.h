@@ -39,8 +39,8 @@ struct ResultFile {
   std::string lidar_frame;
   Eigen::Isometry3d camera_T_lidar = Eigen::Isometry3d::Identity();  ///< p_camera = T * p_lidar
   int views_used = 0;
-  std::string verdict;          ///< good | doubtful | failed (empty: not judged, e.g. ground truth)
-  std::string verdict_reason;   ///< one line
+  std::string verdict;         ///< good | doubtful | failed (empty: not judged, e.g. ground truth)
+  std::string verdict_reason;  ///< one line
   std::vector<int> views_to_check;
   std::optional<double> mlre_px;
   std::optional<PoseStddev> stddev;
@@ -55,7 +55,8 @@ struct ResultFile {
 
 std::string resultToYaml(const ResultFile& result);
 Status writeResultFile(const std::string& path, const ResultFile& result);
-/// Where a failed result goes for inspection: "x.yaml" -> "x.failed.yaml" (never the good file's name).
+/// Where a failed result goes for inspection: "x.yaml" -> "x.failed.yaml" (never the good file's
+/// name).
 std::string failedResultPath(const std::string& path);
 Expected<ResultFile> parseResult(const std::string& yaml_text);
 Expected<ResultFile> loadResultFile(const std::string& path);

@@ -14,19 +14,20 @@ enum class TargetType { kPlain, kCheckerboard, kAprilTagGrid };
 const char* targetTypeName(TargetType type);
 
 struct CheckerboardPattern {
-  int cols = 0;             ///< inner corners along board x
-  int rows = 0;             ///< inner corners along board y
-  double square = 0.0;      ///< m
-  Eigen::Vector2d origin = Eigen::Vector2d::Zero();  ///< first inner corner from the top-left outer corner, m
+  int cols = 0;         ///< inner corners along board x
+  int rows = 0;         ///< inner corners along board y
+  double square = 0.0;  ///< m
+  Eigen::Vector2d origin =
+      Eigen::Vector2d::Zero();  ///< first inner corner from the top-left outer corner, m
 };
 
 struct AprilTagGridPattern {
   std::string family = "tag36h11";
   int cols = 0;
   int rows = 0;
-  double tag_size = 0.0;    ///< outer black edge length, m
-  double spacing = 0.0;     ///< gap between neighbouring tags, m
-  int first_id = 0;         ///< id of the top-left tag; ids run row-major
+  double tag_size = 0.0;                             ///< outer black edge length, m
+  double spacing = 0.0;                              ///< gap between neighbouring tags, m
+  int first_id = 0;                                  ///< id of the top-left tag; ids run row-major
   Eigen::Vector2d origin = Eigen::Vector2d::Zero();  ///< top-left corner of the top-left tag, m
 };
 

@@ -9,8 +9,10 @@
 namespace board_calib {
 
 /// From translation (m) and quaternion (x, y, z, w); the quaternion is normalised.
-Eigen::Isometry3d makeTransform(const Eigen::Vector3d& translation, const Eigen::Vector4d& quat_xyzw);
-Eigen::Isometry3d makeTransform(const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation);
+Eigen::Isometry3d makeTransform(const Eigen::Vector3d& translation,
+                                const Eigen::Vector4d& quat_xyzw);
+Eigen::Isometry3d makeTransform(const Eigen::Matrix3d& rotation,
+                                const Eigen::Vector3d& translation);
 /// Quaternion as (x, y, z, w) with w >= 0.
 Eigen::Vector4d quaternionXyzw(const Eigen::Isometry3d& transform);
 /// The 4x4 matrix row-major (16 numbers).
@@ -31,8 +33,8 @@ Eigen::Vector3d logSO3(const Eigen::Matrix3d& rotation);
 
 /// A perturbation drawn as a rotation vector ~ N(0, sigma_rot_rad) per axis and a
 /// translation ~ N(0, sigma_trans_m) per axis, applied as T_perturbed = delta * T.
-Eigen::Isometry3d perturb(const Eigen::Isometry3d& transform, double sigma_rot_rad, double sigma_trans_m,
-                          std::mt19937& rng);
+Eigen::Isometry3d perturb(const Eigen::Isometry3d& transform, double sigma_rot_rad,
+                          double sigma_trans_m, std::mt19937& rng);
 
 constexpr double kDegPerRad = 57.29577951308232;
 constexpr double kRadPerDeg = 1.0 / kDegPerRad;

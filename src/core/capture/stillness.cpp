@@ -1,5 +1,5 @@
-#include <board_calib/core/common/format.h>
 #include <board_calib/core/capture/stillness.h>
+#include <board_calib/core/common/format.h>
 
 #include <algorithm>
 #include <cmath>
@@ -56,12 +56,15 @@ BoardSample boardSampleOf(const CameraBoardFeatures& f, const Target* target) {
 }
 
 std::string StillnessOptions::validate() const {
-  if (!(window_s > 0.0) || !std::isfinite(window_s) || window_s > 10.0) return "still window must be in (0, 10] s";
+  if (!(window_s > 0.0) || !std::isfinite(window_s) || window_s > 10.0)
+    return "still window must be in (0, 10] s";
   if (min_frames < 1 || min_frames > 1000) return "still frames must be in [1, 1000]";
   if (!(max_translation_m > 0.0) || !std::isfinite(max_translation_m))
     return "still max translation must be a finite value > 0";
-  if (!(max_rotation_deg > 0.0) || !std::isfinite(max_rotation_deg)) return "still max rotation must be a finite value > 0";
-  if (!(noise_factor >= 0.0) || !std::isfinite(noise_factor)) return "still noise factor must be finite and >= 0";
+  if (!(max_rotation_deg > 0.0) || !std::isfinite(max_rotation_deg))
+    return "still max rotation must be a finite value > 0";
+  if (!(noise_factor >= 0.0) || !std::isfinite(noise_factor))
+    return "still noise factor must be finite and >= 0";
   if (!(snapshot_interval_s > 0.0) || !std::isfinite(snapshot_interval_s))
     return "snapshot interval must be a finite value > 0";
   return {};
@@ -162,20 +165,24 @@ StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, d
           o.max_translation_m + o.noise_factor * std::hypot(x.centre_sigma_m, ref->centre_sigma_m);
       const double turn = angleRad(x.normal, ref->normal);
       const double turn_tol =
-          o.max_rotation_deg / kDegPerRadian + o.noise_factor * std::hypot(x.normal_sigma_rad, ref->normal_sigma_rad);
+          o.max_rotation_deg / kDegPerRadian +
+          o.noise_factor * std::hypot(x.normal_sigma_rad, ref->normal_sigma_rad);
       if (move > move_tol || turn > turn_tol) {
         j.state = StillState::kMoving;
-        j.why = "board moving: " + streams[s].name + " saw it move " + formatFixed(move * 100, 1) + " cm, turn " +
-                formatFixed(turn * kDegPerRadian, 1) + " deg within " + formatFixed(o.window_s, 2) + " s of the image (allowed " +
-                formatFixed(move_tol * 100, 1) + " cm, " + formatFixed(turn_tol * kDegPerRadian, 1) + " deg)";
+        j.why = "board moving: " + streams[s].name + " saw it move " + formatFixed(move * 100, 1) +
+                " cm, turn " + formatFixed(turn * kDegPerRadian, 1) + " deg within " +
+                formatFixed(o.window_s, 2) + " s of the image (allowed " +
+                formatFixed(move_tol * 100, 1) + " cm, " +
+                formatFixed(turn_tol * kDegPerRadian, 1) + " deg)";
         return j;
       }
     }
     // Lost in most of the window: the board left the view (or was never there).
     if (missing > 0 && missing >= count) {
       j.state = StillState::kNoBoard;
-      j.why = streams[s].name + " lost the board in " + std::to_string(missing) + " of " + std::to_string(missing + count) +
-              " frames within " + formatFixed(o.window_s, 2) + " s of the image";
+      j.why = streams[s].name + " lost the board in " + std::to_string(missing) + " of " +
+              std::to_string(missing + count) + " frames within " + formatFixed(o.window_s, 2) +
+              " s of the image";
       return j;
     }
     if (static_cast<int>(s) == j.fastest_stream) {
@@ -183,16 +190,18 @@ StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, d
       // Frames on both sides: the board was still across the moment, not only up to it.
       if (count < o.min_frames || before == 0 || after == 0) {
         j.state = StillState::kTooFewFrames;
-        j.why = streams[s].name + " (the fastest stream, " + formatFixed(fastest_interval * 1e3, 0) + " ms between frames) has " +
-                std::to_string(count) + " frame(s) within " + formatFixed(o.window_s, 2) + " s of the image (" +
-                std::to_string(before) + " before, " + std::to_string(after) + " after; need " +
-                std::to_string(o.min_frames) + " spanning it)";
+        j.why = streams[s].name + " (the fastest stream, " +
+                formatFixed(fastest_interval * 1e3, 0) + " ms between frames) has " +
+                std::to_string(count) + " frame(s) within " + formatFixed(o.window_s, 2) +
+                " s of the image (" + std::to_string(before) + " before, " + std::to_string(after) +
+                " after; need " + std::to_string(o.min_frames) + " spanning it)";
         return j;
       }
     }
   }
   j.state = StillState::kStill;
-  j.why = "board still for +-" + formatFixed(o.window_s, 2) + " s (" + std::to_string(j.fastest_frames) + " " +
+  j.why = "board still for +-" + formatFixed(o.window_s, 2) + " s (" +
+          std::to_string(j.fastest_frames) + " " +
           streams[static_cast<size_t>(j.fastest_stream)].name + " frames)";
   return j;
 }

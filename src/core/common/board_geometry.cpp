@@ -11,7 +11,8 @@ Eigen::Vector3d boardPoint(const LidarBoardFeatures& f) {
       sum += p;
       ++count;
     }
-  const Eigen::Vector3d c = count > 0 ? Eigen::Vector3d(sum / count) : Eigen::Vector3d(f.plane.offset * f.plane.normal);
+  const Eigen::Vector3d c =
+      count > 0 ? Eigen::Vector3d(sum / count) : Eigen::Vector3d(f.plane.offset * f.plane.normal);
   return c - f.plane.signedDistance(c) * f.plane.normal;
 }
 
@@ -40,8 +41,8 @@ Eigen::Vector3d boardPoint(const CameraBoardFeatures& f) {
   return c - f.plane.signedDistance(c) * f.plane.normal;
 }
 
-double planeGapM(const Plane& in_a, const Eigen::Vector3d& point_a, const Plane& in_b, const Eigen::Vector3d& point_b,
-                 const Eigen::Isometry3d& a_T_b) {
+double planeGapM(const Plane& in_a, const Eigen::Vector3d& point_a, const Plane& in_b,
+                 const Eigen::Vector3d& point_b, const Eigen::Isometry3d& a_T_b) {
   const Eigen::Vector3d rnb = a_T_b.linear() * in_b.normal;
   const Eigen::Vector3d p = 0.5 * (point_a + a_T_b * point_b);
   return (in_a.normal.dot(p) - in_a.offset) - (rnb.dot(p - a_T_b.translation()) - in_b.offset);

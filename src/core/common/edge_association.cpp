@@ -22,7 +22,8 @@ struct Score {
   double cost = 0.0;
 };
 
-Score scoreOf(const std::array<int, kNumEdges>& perm, const std::array<std::array<double, kNumEdges>, kNumEdges>& cost) {
+Score scoreOf(const std::array<int, kNumEdges>& perm,
+              const std::array<std::array<double, kNumEdges>, kNumEdges>& cost) {
   Score s;
   for (int j = 0; j < kNumEdges; ++j)
     if (std::isfinite(cost[j][perm[j]])) {
@@ -34,8 +35,9 @@ Score scoreOf(const std::array<int, kNumEdges>& perm, const std::array<std::arra
 
 }  // namespace
 
-double edgeLineDistancePx(const Eigen::Matrix3d& K, const CameraBoardFeatures& image, int image_edge,
-                          const Points3& lidar_points, const Eigen::Isometry3d& camera_T_lidar, int* count) {
+double edgeLineDistancePx(const Eigen::Matrix3d& K, const CameraBoardFeatures& image,
+                          int image_edge, const Points3& lidar_points,
+                          const Eigen::Isometry3d& camera_T_lidar, int* count) {
   const Eigen::Vector3d& l = image.edge_lines[image_edge];
   const double norm = l.head<2>().norm();
   double sum = 0.0;
@@ -50,8 +52,8 @@ double edgeLineDistancePx(const Eigen::Matrix3d& K, const CameraBoardFeatures& i
 }
 
 EdgeAssociation associateEdges(const Eigen::Matrix3d& K, const CameraBoardFeatures& image,
-                               const LidarBoardFeatures& lidar, const Eigen::Isometry3d& camera_T_lidar,
-                               int min_lidar_points) {
+                               const LidarBoardFeatures& lidar,
+                               const Eigen::Isometry3d& camera_T_lidar, int min_lidar_points) {
   std::array<std::array<double, kNumEdges>, kNumEdges> cost;  // [image edge][LiDAR edge]
   for (int j = 0; j < kNumEdges; ++j)
     for (int k = 0; k < kNumEdges; ++k) {
@@ -68,7 +70,8 @@ EdgeAssociation associateEdges(const Eigen::Matrix3d& K, const CameraBoardFeatur
   Score best_score = named_score;
   do {
     const Score s = scoreOf(perm, cost);
-    if (s.matched > best_score.matched || (s.matched == best_score.matched && s.cost < best_score.cost)) {
+    if (s.matched > best_score.matched ||
+        (s.matched == best_score.matched && s.cost < best_score.cost)) {
       best = perm;
       best_score = s;
     }

@@ -13,13 +13,16 @@ namespace {
 
 constexpr int kSubPixIterations = 40;
 constexpr double kSubPixEpsilon = 0.001;  // px
-constexpr double kSubPixWindowFraction = 0.4;  // of the smallest corner spacing: the window must stay in one square
+constexpr double kSubPixWindowFraction =
+    0.4;  // of the smallest corner spacing: the window must stay in one square
 
 // Reorders OpenCV's corners so that they match Target::checkerboardCorners(): right-handed in the
 // image (board x right, y down seen from the printed face) and board x as close to image +u as
 // possible (the pattern's 180° symmetry, and 90° for square patterns, cannot be told otherwise).
 std::vector<cv::Point2f> orient(const std::vector<cv::Point2f>& c, int cols, int rows) {
-  auto at = [&](const std::vector<cv::Point2f>& v, int col, int row) { return v[row * cols + col]; };
+  auto at = [&](const std::vector<cv::Point2f>& v, int col, int row) {
+    return v[row * cols + col];
+  };
   std::vector<cv::Point2f> v = c;
   const cv::Point2f x_axis = at(v, cols - 1, 0) - at(v, 0, 0);
   const cv::Point2f y_axis = at(v, 0, rows - 1) - at(v, 0, 0);
@@ -58,18 +61,22 @@ void detectCheckerboard(const cv::Mat& gray, const CameraModel& camera, const Ta
   ImageDetectionDetails& d = out->details;
   const int cols = target.checkerboard.cols, rows = target.checkerboard.rows;
   const cv::Size pattern(cols, rows);
-  const int flags = cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_FAST_CHECK;
+  const int flags =
+      cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_FAST_CHECK;
   std::vector<cv::Point2f> corners;
   bool found = false;
   if (gray.cols > o.fast_check_width_px) {
     const double scale = static_cast<double>(gray.cols) / o.fast_check_width_px;
     cv::Mat small;
-    cv::resize(gray, small, cv::Size(o.fast_check_width_px, static_cast<int>(std::lround(gray.rows / scale))), 0, 0,
-               cv::INTER_AREA);
-    const double sx = static_cast<double>(gray.cols) / small.cols, sy = static_cast<double>(gray.rows) / small.rows;
+    cv::resize(gray, small,
+               cv::Size(o.fast_check_width_px, static_cast<int>(std::lround(gray.rows / scale))), 0,
+               0, cv::INTER_AREA);
+    const double sx = static_cast<double>(gray.cols) / small.cols,
+                 sy = static_cast<double>(gray.rows) / small.rows;
     found = cv::findChessboardCorners(small, pattern, corners, flags);
     if (found)
-      for (auto& p : corners) p = cv::Point2f(float((p.x + 0.5) * sx - 0.5), float((p.y + 0.5) * sy - 0.5));
+      for (auto& p : corners)
+        p = cv::Point2f(float((p.x + 0.5) * sx - 0.5), float((p.y + 0.5) * sy - 0.5));
   }
   // Small boards vanish in the downscaled image: fall back to full resolution (still fast-checked).
   if (!found) found = cv::findChessboardCorners(gray, pattern, corners, flags);
@@ -82,12 +89,16 @@ void detectCheckerboard(const cv::Mat& gray, const CameraModel& camera, const Ta
   for (int r = 0; r < rows; ++r)
     for (int k = 0; k < cols; ++k) {
       const cv::Point2f p = corners[r * cols + k];
-      if (k + 1 < cols) min_spacing = std::min<double>(min_spacing, cv::norm(corners[r * cols + k + 1] - p));
-      if (r + 1 < rows) min_spacing = std::min<double>(min_spacing, cv::norm(corners[(r + 1) * cols + k] - p));
+      if (k + 1 < cols)
+        min_spacing = std::min<double>(min_spacing, cv::norm(corners[r * cols + k + 1] - p));
+      if (r + 1 < rows)
+        min_spacing = std::min<double>(min_spacing, cv::norm(corners[(r + 1) * cols + k] - p));
     }
-  const int win = std::max(2, std::min(o.subpix_window_px, static_cast<int>(kSubPixWindowFraction * min_spacing)));
+  const int win = std::max(
+      2, std::min(o.subpix_window_px, static_cast<int>(kSubPixWindowFraction * min_spacing)));
   cv::cornerSubPix(gray, corners, cv::Size(win, win), cv::Size(-1, -1),
-                   cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, kSubPixIterations, kSubPixEpsilon));
+                   cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT,
+                                    kSubPixIterations, kSubPixEpsilon));
   const Points3 board = target.checkerboardCorners();
   Points2 undist;
   for (size_t i = 0; i < corners.size(); ++i) {
@@ -95,7 +106,8 @@ void detectCheckerboard(const cv::Mat& gray, const CameraModel& camera, const Ta
     d.pattern_raw.push_back(raw);
     undist.push_back(camera.undistortPixel(raw));
   }
-  const double size_px = std::max((undist[cols - 1] - undist[0]).norm(), (undist[(rows - 1) * cols] - undist[0]).norm());
+  const double size_px = std::max((undist[cols - 1] - undist[0]).norm(),
+                                  (undist[(rows - 1) * cols] - undist[0]).norm());
   if (size_px < o.min_board_size_px) {
     f.reason = cv::format("board too small: pattern spans %.0f px", size_px);
     return;
@@ -105,7 +117,8 @@ void detectCheckerboard(const cv::Mat& gray, const CameraModel& camera, const Ta
     f.reason = pose.reason;
     return;
   }
-  for (size_t i = 0; i < undist.size(); ++i) f.pattern.push_back({static_cast<int>(i), board[i], undist[i]});
+  for (size_t i = 0; i < undist.size(); ++i)
+    f.pattern.push_back({static_cast<int>(i), board[i], undist[i]});
   f.camera_T_board = pose.camera_T_board;
   f.plane = planeFromPose(pose.camera_T_board);
   f.reprojection_rms_px = pose.rms_px;

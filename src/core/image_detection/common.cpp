@@ -30,7 +30,8 @@ double angleDiff(double a, double b) {
 
 }  // namespace
 
-PoseFit fitPose(const Points3& board_points, const Points2& pixels, const Eigen::Matrix3d& K, double sigma_floor_px) {
+PoseFit fitPose(const Points3& board_points, const Points2& pixels, const Eigen::Matrix3d& K,
+                double sigma_floor_px) {
   PoseFit fit;
   if (board_points.size() != pixels.size() || board_points.size() < 4) {
     fit.reason = "PnP degenerate: " + std::to_string(board_points.size()) + " points (need >= 4)";
@@ -42,7 +43,8 @@ PoseFit fitPose(const Points3& board_points, const Points2& pixels, const Eigen:
     object.emplace_back(board_points[i].x(), board_points[i].y(), board_points[i].z());
     image.emplace_back(pixels[i].x(), pixels[i].y());
   }
-  cv::Matx33d camera_matrix(K(0, 0), K(0, 1), K(0, 2), K(1, 0), K(1, 1), K(1, 2), K(2, 0), K(2, 1), K(2, 2));
+  cv::Matx33d camera_matrix(K(0, 0), K(0, 1), K(0, 2), K(1, 0), K(1, 1), K(1, 2), K(2, 0), K(2, 1),
+                            K(2, 2));
   cv::Mat no_distortion;
   cv::Mat rvec, tvec;
   bool solved = false;
@@ -50,10 +52,12 @@ PoseFit fitPose(const Points3& board_points, const Points2& pixels, const Eigen:
     // IPPE gives both planar solutions; refine each (LM) and keep the better one: with few,
     // extrapolated points (plain board corners) the first IPPE branch is not always the best.
     std::vector<cv::Mat> rvecs, tvecs;
-    cv::solvePnPGeneric(object, image, camera_matrix, no_distortion, rvecs, tvecs, false, cv::SOLVEPNP_IPPE);
+    cv::solvePnPGeneric(object, image, camera_matrix, no_distortion, rvecs, tvecs, false,
+                        cv::SOLVEPNP_IPPE);
     double best = std::numeric_limits<double>::max();
     for (size_t k = 0; k < rvecs.size(); ++k) {
-      if (!cv::checkRange(rvecs[k]) || !cv::checkRange(tvecs[k]) || tvecs[k].at<double>(2) <= 0) continue;
+      if (!cv::checkRange(rvecs[k]) || !cv::checkRange(tvecs[k]) || tvecs[k].at<double>(2) <= 0)
+        continue;
       cv::solvePnPRefineLM(object, image, camera_matrix, no_distortion, rvecs[k], tvecs[k]);
       std::vector<cv::Point2d> proj;
       cv::projectPoints(object, rvecs[k], tvecs[k], camera_matrix, no_distortion, proj);
@@ -79,7 +83,8 @@ PoseFit fitPose(const Points3& board_points, const Points2& pixels, const Eigen:
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) rotation(r, c) = R(r, c);
   fit.camera_T_board.linear() = rotation;
-  fit.camera_T_board.translation() = Eigen::Vector3d(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
+  fit.camera_T_board.translation() =
+      Eigen::Vector3d(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
   if (fit.camera_T_board.translation().z() <= 0) {
     fit.reason = "PnP degenerate: board behind the camera";
     return fit;
@@ -125,7 +130,8 @@ Plane planeFromPose(const Eigen::Isometry3d& camera_T_board) {
   return plane;
 }
 
-std::vector<int> nameEdges(const std::vector<double>& angles, const std::vector<double>& weights, bool cyclic) {
+std::vector<int> nameEdges(const std::vector<double>& angles, const std::vector<double>& weights,
+                           bool cyclic) {
   const int n = static_cast<int>(angles.size());
   std::vector<int> names(n, -1);
   if (cyclic && n == kNumEdges) {
@@ -133,7 +139,8 @@ std::vector<int> nameEdges(const std::vector<double>& angles, const std::vector<
     double best_cost = std::numeric_limits<double>::max();
     for (int shift = 0; shift < kNumEdges; ++shift) {
       double cost = 0;
-      for (int k = 0; k < n; ++k) cost += std::pow(angleDiff(angles[k], kIdealAngle[(k + shift) % kNumEdges]), 2);
+      for (int k = 0; k < n; ++k)
+        cost += std::pow(angleDiff(angles[k], kIdealAngle[(k + shift) % kNumEdges]), 2);
       if (cost < best_cost) {
         best_cost = cost;
         best_shift = shift;
@@ -147,7 +154,9 @@ std::vector<int> nameEdges(const std::vector<double>& angles, const std::vector<
   for (int k = 0; k < n; ++k) {
     int best = 0;
     for (int j = 1; j < kNumEdges; ++j)
-      if (std::abs(angleDiff(angles[k], kIdealAngle[j])) < std::abs(angleDiff(angles[k], kIdealAngle[best]))) best = j;
+      if (std::abs(angleDiff(angles[k], kIdealAngle[j])) <
+          std::abs(angleDiff(angles[k], kIdealAngle[best])))
+        best = j;
     if (owner[best] < 0 || weights[k] > weights[owner[best]]) owner[best] = k;
   }
   for (int j = 0; j < kNumEdges; ++j)
@@ -170,7 +179,8 @@ int rotatedNamingShift(const std::array<Eigen::Vector3d, kNumEdges>& lines) {
 
 bool intersectLines(const Eigen::Vector3d& l1, const Eigen::Vector3d& l2, Eigen::Vector2d* point) {
   const Eigen::Vector3d x = l1.cross(l2);
-  // |x.z| = |sin| of the angle between unit-normal lines; below ~0.06 deg the corner is ill-defined.
+  // |x.z| = |sin| of the angle between unit-normal lines; below ~0.06 deg the corner is
+  // ill-defined.
   if (std::abs(x.z()) < 1e-3) return false;
   *point = x.head<2>() / x.z();
   return true;
@@ -219,7 +229,8 @@ double estimateNoiseSigma(const cv::Mat& gray) {
     const uchar* b = gray.ptr<uchar>(y);
     const uchar* c = gray.ptr<uchar>(y + 1);
     for (int x = 1; x + 1 < gray.cols; ++x) {
-      const int r = a[x - 1] - 2 * a[x] + a[x + 1] - 2 * (b[x - 1] + b[x + 1]) + 4 * b[x] + c[x - 1] - 2 * c[x] + c[x + 1];
+      const int r = a[x - 1] - 2 * a[x] + a[x + 1] - 2 * (b[x - 1] + b[x + 1]) + 4 * b[x] +
+                    c[x - 1] - 2 * c[x] + c[x + 1];
       ++histogram[std::abs(r)];
       ++count;
     }
@@ -229,7 +240,8 @@ double estimateNoiseSigma(const cv::Mat& gray) {
   for (int v = 0; v <= kMaxResponse; ++v) {
     if (seen + histogram[v] >= count / 2) {
       // Interpolate inside the bin (integer responses): a clean image has most responses at 0.
-      const double within = histogram[v] > 0 ? static_cast<double>(count / 2 - seen) / histogram[v] : 0.0;
+      const double within =
+          histogram[v] > 0 ? static_cast<double>(count / 2 - seen) / histogram[v] : 0.0;
       const double lower = v > 0 ? v - 0.5 : 0.0, width = v > 0 ? 1.0 : 0.5;  // bin of |r| = v
       return (lower + within * width) / (0.6745 * 6.0);
     }
@@ -247,7 +259,8 @@ cv::Mat toGray(const cv::Mat& image) {
 
 }  // namespace image_detection
 
-Eigen::Vector3d lineThrough(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const Eigen::Vector2d& inside) {
+Eigen::Vector3d lineThrough(const Eigen::Vector2d& p, const Eigen::Vector2d& q,
+                            const Eigen::Vector2d& inside) {
   Eigen::Vector2d d = q - p;
   Eigen::Vector2d n(-d.y(), d.x());
   n.normalize();
@@ -261,12 +274,14 @@ Eigen::Vector3d lineThrough(const Eigen::Vector2d& p, const Eigen::Vector2d& q, 
 
 namespace {
 
-const cv::Scalar kEdgeColors[kNumEdges] = {{0, 0, 255}, {0, 200, 255}, {255, 0, 255}, {255, 128, 0}};
+const cv::Scalar kEdgeColors[kNumEdges] = {
+    {0, 0, 255}, {0, 200, 255}, {255, 0, 255}, {255, 128, 0}};
 constexpr int kDrawShift = 4;  // fixed-point bits for sub-pixel drawing
 constexpr double kDrawScale = 1 << kDrawShift;
 
 cv::Point fixedPoint(const Eigen::Vector2d& p) {
-  return {static_cast<int>(std::lround(p.x() * kDrawScale)), static_cast<int>(std::lround(p.y() * kDrawScale))};
+  return {static_cast<int>(std::lround(p.x() * kDrawScale)),
+          static_cast<int>(std::lround(p.y() * kDrawScale))};
 }
 
 // Draws an undistorted-pixel segment as the curve it is in the raw image.
@@ -280,12 +295,12 @@ void drawUndistortedSegment(cv::Mat* img, const CameraModel& camera, const Eigen
     if (std::abs(r.x()) > 4 * img->cols || std::abs(r.y()) > 4 * img->rows) continue;
     pts.push_back(fixedPoint(r));
   }
-  if (pts.size() >= 2)
-    cv::polylines(*img, pts, false, color, thickness, cv::LINE_AA, kDrawShift);
+  if (pts.size() >= 2) cv::polylines(*img, pts, false, color, thickness, cv::LINE_AA, kDrawShift);
 }
 
 // Clips an undistorted line to the image's undistorted bounding box (with margin) for drawing.
-bool clipLine(const Eigen::Vector3d& l, const CameraModel& camera, Eigen::Vector2d* a, Eigen::Vector2d* b) {
+bool clipLine(const Eigen::Vector3d& l, const CameraModel& camera, Eigen::Vector2d* a,
+              Eigen::Vector2d* b) {
   const double w = camera.width(), h = camera.height(), m = 0.25 * std::max(w, h);
   std::vector<Eigen::Vector2d> hits;
   for (double u : {-m, w + m})
@@ -306,7 +321,8 @@ bool clipLine(const Eigen::Vector3d& l, const CameraModel& camera, Eigen::Vector
 
 }  // namespace
 
-cv::Mat drawImageDetection(const cv::Mat& image, const CameraModel& camera, const ImageDetection& det) {
+cv::Mat drawImageDetection(const cv::Mat& image, const CameraModel& camera,
+                           const ImageDetection& det) {
   cv::Mat out;
   if (image.channels() == 1)
     cv::cvtColor(image, out, cv::COLOR_GRAY2BGR);
@@ -314,21 +330,25 @@ cv::Mat drawImageDetection(const cv::Mat& image, const CameraModel& camera, cons
     out = image.clone();
   const CameraBoardFeatures& f = det.features;
   const int thick = std::max(1, out.cols / 800);
-  // Plain board: line segments (thin grey) and the quadrilaterals tried (thin blue), under the result.
+  // Plain board: line segments (thin grey) and the quadrilaterals tried (thin blue), under the
+  // result.
   for (const auto& s : det.details.segments_raw)
     cv::line(out, fixedPoint(s[0]), fixedPoint(s[1]), {160, 160, 160}, 1, cv::LINE_AA, kDrawShift);
   if (det.details.line_segments > 0)
-    cv::putText(out,
-                cv::format("noise %.1f, %d segments, %d lines, %d quadrilaterals", det.details.noise_sigma,
-                           det.details.line_segments, det.details.straight_lines, det.details.line_quads),
-                cv::Point(10, out.rows - 12 * thick), cv::FONT_HERSHEY_SIMPLEX, 0.5 * thick, {255, 80, 0}, thick);
+    cv::putText(
+        out,
+        cv::format("noise %.1f, %d segments, %d lines, %d quadrilaterals", det.details.noise_sigma,
+                   det.details.line_segments, det.details.straight_lines, det.details.line_quads),
+        cv::Point(10, out.rows - 12 * thick), cv::FONT_HERSHEY_SIMPLEX, 0.5 * thick, {255, 80, 0},
+        thick);
   for (size_t h = 0; h < det.details.hypotheses_px.size(); ++h) {
     const auto& c = det.details.hypotheses_px[h];
-    for (int j = 0; j < kNumEdges; ++j) drawUndistortedSegment(&out, camera, c[j], c[(j + 1) % 4], {255, 80, 0}, 1);
+    for (int j = 0; j < kNumEdges; ++j)
+      drawUndistortedSegment(&out, camera, c[j], c[(j + 1) % 4], {255, 80, 0}, 1);
     if (h < det.details.hypothesis_reasons.size())
       cv::putText(out, std::to_string(h) + " " + det.details.hypothesis_reasons[h],
-                  cv::Point(10, 30 * thick + static_cast<int>(h + 1) * 18 * thick), cv::FONT_HERSHEY_SIMPLEX,
-                  0.45 * thick, {255, 80, 0}, thick);
+                  cv::Point(10, 30 * thick + static_cast<int>(h + 1) * 18 * thick),
+                  cv::FONT_HERSHEY_SIMPLEX, 0.45 * thick, {255, 80, 0}, thick);
   }
   if (det.details.outline_raw.size() >= 2) {
     std::vector<cv::Point> outline;
@@ -337,7 +357,8 @@ cv::Mat drawImageDetection(const cv::Mat& image, const CameraModel& camera, cons
   }
   for (int j = 0; j < kNumEdges; ++j) {
     for (const auto& p : det.details.edge_points_raw[j])
-      cv::circle(out, fixedPoint(p), 1 << kDrawShift, {0, 255, 0}, cv::FILLED, cv::LINE_AA, kDrawShift);
+      cv::circle(out, fixedPoint(p), 1 << kDrawShift, {0, 255, 0}, cv::FILLED, cv::LINE_AA,
+                 kDrawShift);
     if (!f.edge_valid[j]) continue;
     Eigen::Vector2d a, b;
     if (f.edge_valid[(j + 3) % 4] && f.edge_valid[(j + 1) % 4]) {
@@ -347,14 +368,16 @@ cv::Mat drawImageDetection(const cv::Mat& image, const CameraModel& camera, cons
       continue;
     }
     drawUndistortedSegment(&out, camera, a, b, kEdgeColors[j], thick);
-    const Eigen::Vector2d mid = camera.distortPixel(0.5 * (a + b)) - 30.0 * f.edge_lines[j].head<2>();
-    cv::putText(out, edgeName(j), cv::Point(int(mid.x()), int(mid.y())), cv::FONT_HERSHEY_SIMPLEX, 0.6 * thick,
-                kEdgeColors[j], thick);
+    const Eigen::Vector2d mid =
+        camera.distortPixel(0.5 * (a + b)) - 30.0 * f.edge_lines[j].head<2>();
+    cv::putText(out, edgeName(j), cv::Point(int(mid.x()), int(mid.y())), cv::FONT_HERSHEY_SIMPLEX,
+                0.6 * thick, kEdgeColors[j], thick);
   }
   for (int j = 0; j < kNumEdges; ++j)
     if (f.edge_valid[j] && f.edge_valid[(j + 1) % 4]) {
       const Eigen::Vector2d r = camera.distortPixel(f.corners_px[j]);
-      cv::circle(out, fixedPoint(r), 6 << kDrawShift, {255, 255, 0}, thick, cv::LINE_AA, kDrawShift);
+      cv::circle(out, fixedPoint(r), 6 << kDrawShift, {255, 255, 0}, thick, cv::LINE_AA,
+                 kDrawShift);
     }
   for (const auto& p : det.details.pattern_raw)
     cv::circle(out, fixedPoint(p), 3 << kDrawShift, {0, 0, 255}, 1, cv::LINE_AA, kDrawShift);
@@ -374,11 +397,13 @@ cv::Mat drawImageDetection(const cv::Mat& image, const CameraModel& camera, cons
       for (int a = 0; a < 3; ++a) {
         Eigen::Vector2d pa;
         if (camera.project(Eigen::Vector3d(o + len * f.camera_T_board.linear().col(a)), &pa))
-          cv::line(out, fixedPoint(po), fixedPoint(pa), colors[a], thick + 1, cv::LINE_AA, kDrawShift);
+          cv::line(out, fixedPoint(po), fixedPoint(pa), colors[a], thick + 1, cv::LINE_AA,
+                   kDrawShift);
       }
     }
   }
-  const std::string status = f.found ? "found, rms " + cv::format("%.2f px", f.reprojection_rms_px) : f.reason;
+  const std::string status =
+      f.found ? "found, rms " + cv::format("%.2f px", f.reprojection_rms_px) : f.reason;
   cv::putText(out, status, cv::Point(10, 30 * thick), cv::FONT_HERSHEY_SIMPLEX, 0.7 * thick,
               f.found ? cv::Scalar(0, 255, 0) : cv::Scalar(0, 0, 255), thick);
   return out;

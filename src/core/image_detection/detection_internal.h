@@ -20,15 +20,18 @@ struct PoseFit {
 
 /// PnP on coplanar board points (z = 0) seen at undistorted pixels: IPPE, then Levenberg-Marquardt
 /// when there are more than four points; covariance from the projection Jacobian.
-PoseFit fitPose(const Points3& board_points, const Points2& pixels, const Eigen::Matrix3d& K, double sigma_floor_px);
+PoseFit fitPose(const Points3& board_points, const Points2& pixels, const Eigen::Matrix3d& K,
+                double sigma_floor_px);
 
 /// Board plane in the camera frame from the pose: normal = board +z (away from the camera).
 Plane planeFromPose(const Eigen::Isometry3d& camera_T_board);
 
 /// Names edges by their outward normal angle (atan2(b, a), image v down). `angles` are in
 /// clockwise image order when `cyclic` (then a cyclic shift is chosen); otherwise each edge gets
-/// the nearest name and ties keep the edge with the larger weight. Returns the name per input, -1 if dropped.
-std::vector<int> nameEdges(const std::vector<double>& angles, const std::vector<double>& weights, bool cyclic);
+/// the nearest name and ties keep the edge with the larger weight. Returns the name per input, -1
+/// if dropped.
+std::vector<int> nameEdges(const std::vector<double>& angles, const std::vector<double>& weights,
+                           bool cyclic);
 
 /// For named edges (UL, UR, LR, LL), the cyclic shift by one name (1 or 3) that stays closer to a
 /// diamond: renaming edge (k + shift) % 4 as k is the other way a rectangular board may be held.
@@ -48,13 +51,14 @@ struct QuadHypothesis {
   std::array<Eigen::Vector2d, 4> corners;
   std::array<double, 4> support{};  ///< px of line segments along each side
   std::array<double, 4> visible{};  ///< px of each side inside the image
-  double score = 0;                 ///< segment support along the sides minus support past the corners
-  double size_px = 0;               ///< mean side length
+  double score = 0;    ///< segment support along the sides minus support past the corners
+  double size_px = 0;  ///< mean side length
 };
 
 /// What the line stage saw (counts for reasons, segments for the debug image).
 struct LineEvidence {
-  std::vector<std::array<Eigen::Vector2d, 2>> segments_raw;  ///< LSD segments, raw full-resolution px
+  std::vector<std::array<Eigen::Vector2d, 2>>
+      segments_raw;  ///< LSD segments, raw full-resolution px
   int segments = 0, lines = 0, quads = 0;
 };
 
@@ -62,18 +66,21 @@ struct LineEvidence {
 /// best first, at most options.max_line_hypotheses, every side partly inside the image.
 /// With `expected`, only quadrilaterals whose corners all lie near the expected ones compete.
 std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
-                                               const ImageBoardDetectorOptions& options, LineEvidence* evidence,
+                                               const ImageBoardDetectorOptions& options,
+                                               LineEvidence* evidence,
                                                const ExpectedBoard* expected = nullptr);
 
 /// Largest distance from a corner to its nearest expected corner (undistorted px).
-double worstCornerOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners, const ExpectedBoard& expected);
+double worstCornerOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners,
+                         const ExpectedBoard& expected);
 
 /// True if an undistorted pixel lies inside the image (culled by its ray first: no fold-back).
 bool visibleUndistorted(const CameraModel& camera, const Eigen::Vector2d& u, double margin);
 
 /// Part of the undistorted segment p-q inside the image (sampled), false if none.
-bool visibleSideInterval(const CameraModel& camera, const Eigen::Vector2d& p, const Eigen::Vector2d& q, double margin,
-                         Eigen::Vector2d* a, Eigen::Vector2d* b);
+bool visibleSideInterval(const CameraModel& camera, const Eigen::Vector2d& p,
+                         const Eigen::Vector2d& q, double margin, Eigen::Vector2d* a,
+                         Eigen::Vector2d* b);
 
 /// Standard deviation of the image noise (grey levels), robust to edges and texture: median
 /// absolute response of the Laplacian-difference mask of Immerkaer (1996), on every other row.

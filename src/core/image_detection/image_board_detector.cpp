@@ -11,20 +11,24 @@
 namespace board_calib {
 
 namespace {
-// libapriltag puts pixel centres at integer + 0.5 (libapriltag convention); OpenCV and CameraModel at integers.
+// libapriltag puts pixel centres at integer + 0.5 (libapriltag convention); OpenCV and CameraModel
+// at integers.
 constexpr double kAprilTagPixelOffset = 0.5;
-constexpr int kMaxHammingSupported = 2;  // tag36h11 with 3 bits corrected needs a huge table and gives false ids
+constexpr int kMaxHammingSupported =
+    2;  // tag36h11 with 3 bits corrected needs a huge table and gives false ids
 }  // namespace
 
 std::string ImageBoardDetectorOptions::validate() const {
   if (segmentation_width_px < 64) return "segmentation_width_px must be >= 64";
-  if (!(min_board_area_fraction > 0 && min_board_area_fraction < 1)) return "min_board_area_fraction must be in (0, 1)";
+  if (!(min_board_area_fraction > 0 && min_board_area_fraction < 1))
+    return "min_board_area_fraction must be in (0, 1)";
   if (!(min_solidity > 0 && min_solidity <= 1)) return "min_solidity must be in (0, 1]";
   if (!(max_flat_gradient > 0)) return "max_flat_gradient must be > 0";
   if (!(max_interior_texture > 0)) return "max_interior_texture must be > 0";
   if (max_board_candidates < 1) return "max_board_candidates must be >= 1";
   if (!(border_margin_px >= 0)) return "border_margin_px must be >= 0";
-  if (!(coarse_search_px >= fine_search_px && fine_search_px >= 1)) return "need coarse_search_px >= fine_search_px >= 1";
+  if (!(coarse_search_px >= fine_search_px && fine_search_px >= 1))
+    return "need coarse_search_px >= fine_search_px >= 1";
   if (!(sample_step_px >= 0.5)) return "sample_step_px must be >= 0.5";
   if (!(corner_exclusion_px >= 0)) return "corner_exclusion_px must be >= 0";
   if (!(min_edge_contrast > 0)) return "min_edge_contrast must be > 0";
@@ -37,17 +41,21 @@ std::string ImageBoardDetectorOptions::validate() const {
   if (!(tag_decimate >= 1)) return "tag_decimate must be >= 1";
   if (!(tag_sigma >= 0)) return "tag_sigma must be >= 0";
   if (tag_threads < 1) return "tag_threads must be >= 1";
-  if (tag_max_hamming < 0 || tag_max_hamming > kMaxHammingSupported) return "tag_max_hamming must be in [0, 2]";
+  if (tag_max_hamming < 0 || tag_max_hamming > kMaxHammingSupported)
+    return "tag_max_hamming must be in [0, 2]";
   if (min_tags < 1) return "min_tags must be >= 1";
   if (!(min_board_size_px > 0)) return "min_board_size_px must be > 0";
   if (!(max_reprojection_rms_px > 0)) return "max_reprojection_rms_px must be > 0";
   if (!(max_plain_corner_rms_px > 0)) return "max_plain_corner_rms_px must be > 0";
   if (!(max_plain_corner_rms_fraction > 0)) return "max_plain_corner_rms_fraction must be > 0";
   if (!(edge_snr >= 0)) return "edge_snr must be >= 0";
-  if (!(min_side_coverage > 0 && min_side_coverage <= 1)) return "min_side_coverage must be in (0, 1]";
-  if (line_detection_width_px != 0 && line_detection_width_px < 64) return "line_detection_width_px must be 0 (off) or >= 64";
+  if (!(min_side_coverage > 0 && min_side_coverage <= 1))
+    return "min_side_coverage must be in (0, 1]";
+  if (line_detection_width_px != 0 && line_detection_width_px < 64)
+    return "line_detection_width_px must be 0 (off) or >= 64";
   if (max_line_hypotheses < 0) return "max_line_hypotheses must be >= 0";
-  if (!(max_board_tilt_deg > 0 && max_board_tilt_deg < 90)) return "max_board_tilt_deg must be in (0, 90)";
+  if (!(max_board_tilt_deg > 0 && max_board_tilt_deg < 90))
+    return "max_board_tilt_deg must be in (0, 90)";
   if (!(max_board_distance_m > 0)) return "max_board_distance_m must be > 0";
   if (!(pixel_sigma_px > 0)) return "pixel_sigma_px must be > 0";
   return {};
@@ -68,8 +76,10 @@ struct ImageBoardDetector::Impl {
   void detectAprilTags(const cv::Mat& gray, const CameraModel& camera, ImageDetection* out);
 };
 
-Expected<ImageBoardDetector> ImageBoardDetector::create(const Target& target, const ImageBoardDetectorOptions& options) {
-  if (const std::string why = target.validate(); !why.empty()) return Expected<ImageBoardDetector>::failure("target: " + why);
+Expected<ImageBoardDetector> ImageBoardDetector::create(const Target& target,
+                                                        const ImageBoardDetectorOptions& options) {
+  if (const std::string why = target.validate(); !why.empty())
+    return Expected<ImageBoardDetector>::failure("target: " + why);
   if (const std::string why = options.validate(); !why.empty())
     return Expected<ImageBoardDetector>::failure("options: " + why);
   ImageBoardDetector det;
@@ -78,14 +88,16 @@ Expected<ImageBoardDetector> ImageBoardDetector::create(const Target& target, co
   det.impl_->options = options;
   if (target.type == TargetType::kAprilTagGrid) {
     if (target.apriltag_grid.family != "tag36h11")
-      return Expected<ImageBoardDetector>::failure("target: AprilTag family '" + target.apriltag_grid.family +
+      return Expected<ImageBoardDetector>::failure("target: AprilTag family '" +
+                                                   target.apriltag_grid.family +
                                                    "' not supported (only tag36h11)");
     for (const auto& t : target.aprilTagCorners()) det.impl_->tags[t.id] = t;
     det.impl_->family = tag36h11_create();
     det.impl_->detector = apriltag_detector_create();
     if (!det.impl_->family || !det.impl_->detector)
       return Expected<ImageBoardDetector>::failure("libapriltag: could not create the detector");
-    apriltag_detector_add_family_bits(det.impl_->detector, det.impl_->family, options.tag_max_hamming);
+    apriltag_detector_add_family_bits(det.impl_->detector, det.impl_->family,
+                                      options.tag_max_hamming);
     det.impl_->detector->quad_decimate = static_cast<float>(options.tag_decimate);
     det.impl_->detector->quad_sigma = static_cast<float>(options.tag_sigma);
     det.impl_->detector->nthreads = options.tag_threads;
@@ -119,7 +131,8 @@ ImageDetection ImageBoardDetector::detectNear(const cv::Mat& image, const Camera
   return run(image, camera, &expected);
 }
 
-ImageDetection ImageBoardDetector::run(const cv::Mat& image, const CameraModel& camera, const ExpectedBoard* expected) {
+ImageDetection ImageBoardDetector::run(const cv::Mat& image, const CameraModel& camera,
+                                       const ExpectedBoard* expected) {
   const auto t0 = std::chrono::steady_clock::now();
   ImageDetection out;
   CameraBoardFeatures& f = out.features;
@@ -129,8 +142,9 @@ ImageDetection ImageBoardDetector::run(const cv::Mat& image, const CameraModel& 
   if (image.empty()) {
     f.reason = "empty image";
   } else if (image.depth() != CV_8U || (image.channels() != 1 && image.channels() != 3)) {
-    f.reason = "unsupported image type (need bgr8 or mono8), got " + std::to_string(image.channels()) +
-               " channel(s) of depth " + std::to_string(image.depth());
+    f.reason = "unsupported image type (need bgr8 or mono8), got " +
+               std::to_string(image.channels()) + " channel(s) of depth " +
+               std::to_string(image.depth());
   } else if (image.cols != camera.width() || image.rows != camera.height()) {
     f.reason = "image " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
                " does not match the camera model " + std::to_string(camera.width()) + "x" +
@@ -147,9 +161,7 @@ ImageDetection ImageBoardDetector::run(const cv::Mat& image, const CameraModel& 
         case TargetType::kCheckerboard:
           image_detection::detectCheckerboard(gray, camera, impl_->target, impl_->options, &out);
           break;
-        case TargetType::kAprilTagGrid:
-          impl_->detectAprilTags(gray, camera, &out);
-          break;
+        case TargetType::kAprilTagGrid: impl_->detectAprilTags(gray, camera, &out); break;
       }
     } catch (const cv::Exception& e) {
       out = ImageDetection{};
@@ -160,15 +172,18 @@ ImageDetection ImageBoardDetector::run(const cv::Mat& image, const CameraModel& 
     }
   }
   if (!f.found && f.reason.empty()) f.reason = "board not found";
-  out.details.time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  out.details.time_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }
 
-void ImageBoardDetector::Impl::detectAprilTags(const cv::Mat& gray_in, const CameraModel& camera, ImageDetection* out) {
+void ImageBoardDetector::Impl::detectAprilTags(const cv::Mat& gray_in, const CameraModel& camera,
+                                               ImageDetection* out) {
   CameraBoardFeatures& f = out->features;
   ImageDetectionDetails& d = out->details;
   const cv::Mat gray = gray_in.isContinuous() ? gray_in : gray_in.clone();
-  image_u8_t im{gray.cols, gray.rows, static_cast<int32_t>(gray.step[0]), const_cast<uint8_t*>(gray.ptr<uint8_t>())};
+  image_u8_t im{gray.cols, gray.rows, static_cast<int32_t>(gray.step[0]),
+                const_cast<uint8_t*>(gray.ptr<uint8_t>())};
   zarray_t* detections = apriltag_detector_detect(detector, &im);
   Points3 board;
   Points2 undist;
@@ -185,7 +200,8 @@ void ImageBoardDetector::Impl::detectAprilTags(const cv::Mat& gray_in, const Cam
     }
     std::array<Eigen::Vector2d, 4> raw;
     for (int k = 0; k < 4; ++k) {
-      raw[k] = Eigen::Vector2d(det->p[k][0] - kAprilTagPixelOffset, det->p[k][1] - kAprilTagPixelOffset);
+      raw[k] =
+          Eigen::Vector2d(det->p[k][0] - kAprilTagPixelOffset, det->p[k][1] - kAprilTagPixelOffset);
       board.push_back(it->second.corners[k]);
       undist.push_back(camera.undistortPixel(raw[k]));
       ids.push_back(det->id * 4 + k);
@@ -197,20 +213,24 @@ void ImageBoardDetector::Impl::detectAprilTags(const cv::Mat& gray_in, const Cam
   apriltag_detections_destroy(detections);
   const int found_tags = static_cast<int>(d.tag_ids.size());
   if (found_tags == 0) {
-    f.reason = d.rejected_tags > 0 ? "wrong ids: tags " + wrong_ids + " are not on the grid" : "board not found: no AprilTag";
+    f.reason = d.rejected_tags > 0 ? "wrong ids: tags " + wrong_ids + " are not on the grid"
+                                   : "board not found: no AprilTag";
     return;
   }
   if (found_tags < options.min_tags) {
-    f.reason = "board not found: " + std::to_string(found_tags) + " tag(s), need " + std::to_string(options.min_tags);
+    f.reason = "board not found: " + std::to_string(found_tags) + " tag(s), need " +
+               std::to_string(options.min_tags);
     return;
   }
   double size_px = 0;
-  for (size_t i = 1; i < undist.size(); ++i) size_px = std::max(size_px, (undist[i] - undist[0]).norm());
+  for (size_t i = 1; i < undist.size(); ++i)
+    size_px = std::max(size_px, (undist[i] - undist[0]).norm());
   if (size_px < options.min_board_size_px) {
     f.reason = cv::format("board too small: tags span %.0f px", size_px);
     return;
   }
-  const image_detection::PoseFit pose = image_detection::fitPose(board, undist, f.K, options.pixel_sigma_px);
+  const image_detection::PoseFit pose =
+      image_detection::fitPose(board, undist, f.K, options.pixel_sigma_px);
   if (!pose.ok) {
     f.reason = pose.reason;
     return;

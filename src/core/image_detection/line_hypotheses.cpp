@@ -17,28 +17,36 @@ namespace board_calib {
 namespace image_detection {
 namespace {
 
-constexpr double kMinSegmentPx = 5.0;           // LSD-scale px: shorter segments are texture, not edges
-constexpr double kSegmentEndSigmaPx = 0.7;      // LSD-scale px, endpoint noise of a segment
-constexpr double kMergeSigmas = 3.0;            // angle tolerance of a merge, in endpoint-noise sigmas
-constexpr double kMinMergeAngleRad = 0.02;      // ~1 deg: floor of that tolerance (long segments)
-constexpr double kMaxMergeAngleRad = 0.10;      // ~6 deg: cap (short segments)
-constexpr double kMergeOffsetPx = 3.5;          // full-res px: a held board bows ~3 px
-constexpr int kMaxLines = 80;                   // longest merged lines kept (a floor or ceiling has many longer than the board)
-constexpr size_t kMaxQuads = 20000;             // quadrilaterals scored (bounds the time in line-rich scenes)
-constexpr double kMaxOppositeAngleRad = 0.70;   // ~40 deg: opposite sides converge under perspective
-constexpr double kMinCornerSin = 0.42;          // ~25 deg: adjacent sides meet at a real angle
-constexpr double kMaxCornerGapFraction = 0.9;   // gap between a line's support and its corner, of the support extent
-constexpr double kCornerToleranceFraction = 0.03;  // of the side length: support this close to a corner counts
-constexpr double kOvershootWeight = 0.5;        // support continuing past a corner counts against a side
-constexpr double kGapWeight = 1.0;              // a visible stretch of a side without segments counts against it
-constexpr double kMinSideSupportFraction = 0.12;   // of the whole side (corners may lie far outside the image)
-constexpr double kDuplicateCornerFraction = 0.05;  // quads whose corners agree to this fraction of their size are one
-constexpr int kVisibilitySamples = 24;          // samples along a side to measure its visible part
+constexpr double kMinSegmentPx = 5.0;       // LSD-scale px: shorter segments are texture, not edges
+constexpr double kSegmentEndSigmaPx = 0.7;  // LSD-scale px, endpoint noise of a segment
+constexpr double kMergeSigmas = 3.0;        // angle tolerance of a merge, in endpoint-noise sigmas
+constexpr double kMinMergeAngleRad = 0.02;  // ~1 deg: floor of that tolerance (long segments)
+constexpr double kMaxMergeAngleRad = 0.10;  // ~6 deg: cap (short segments)
+constexpr double kMergeOffsetPx = 3.5;      // full-res px: a held board bows ~3 px
+constexpr int kMaxLines =
+    80;  // longest merged lines kept (a floor or ceiling has many longer than the board)
+constexpr size_t kMaxQuads = 20000;  // quadrilaterals scored (bounds the time in line-rich scenes)
+constexpr double kMaxOppositeAngleRad = 0.70;  // ~40 deg: opposite sides converge under perspective
+constexpr double kMinCornerSin = 0.42;         // ~25 deg: adjacent sides meet at a real angle
+constexpr double kMaxCornerGapFraction =
+    0.9;  // gap between a line's support and its corner, of the support extent
+constexpr double kCornerToleranceFraction =
+    0.03;  // of the side length: support this close to a corner counts
+constexpr double kOvershootWeight = 0.5;  // support continuing past a corner counts against a side
+constexpr double kGapWeight =
+    1.0;  // a visible stretch of a side without segments counts against it
+constexpr double kMinSideSupportFraction =
+    0.12;  // of the whole side (corners may lie far outside the image)
+constexpr double kDuplicateCornerFraction =
+    0.05;  // quads whose corners agree to this fraction of their size are one
+constexpr int kVisibilitySamples = 24;  // samples along a side to measure its visible part
 // LSD misses weak stretches the gradient search still finds: segments need only cover this share
 // of the side coverage required of the refined edge.
 constexpr double kLineCoverageShare = 0.5;
 
-double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return a.x() * b.y() - a.y() * b.x(); }
+double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  return a.x() * b.y() - a.y() * b.x();
+}
 
 struct Member {
   Eigen::Vector2d a, b;
@@ -97,7 +105,8 @@ struct MergedLine {
   // Support inside [lo, hi] along the line.
   double supportWithin(double lo, double hi) const {
     double s = 0;
-    for (const auto& iv : intervals) s += std::max(0.0, std::min(hi, iv.second) - std::max(lo, iv.first));
+    for (const auto& iv : intervals)
+      s += std::max(0.0, std::min(hi, iv.second) - std::max(lo, iv.first));
     return s;
   }
 
@@ -134,7 +143,8 @@ double clippedLength(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const c
   const Eigen::Vector2d d = q - p;
   double t0 = 0, t1 = 1;
   const double pk[4] = {-d.x(), d.x(), -d.y(), d.y()};
-  const double qk[4] = {p.x() - box.x, box.x + box.width - p.x(), p.y() - box.y, box.y + box.height - p.y()};
+  const double qk[4] = {p.x() - box.x, box.x + box.width - p.x(), p.y() - box.y,
+                        box.y + box.height - p.y()};
   for (int k = 0; k < 4; ++k) {
     if (pk[k] == 0) {
       if (qk[k] < 0) return 0;
@@ -157,11 +167,13 @@ double angleBetweenLines(const Eigen::Vector2d& d1, const Eigen::Vector2d& d2) {
 
 bool visibleUndistorted(const CameraModel& camera, const Eigen::Vector2d& u, double margin) {
   const Eigen::Matrix3d K = camera.K();
-  return camera.isVisible(Eigen::Vector3d((u.x() - K(0, 2)) / K(0, 0), (u.y() - K(1, 2)) / K(1, 1), 1.0), margin);
+  return camera.isVisible(
+      Eigen::Vector3d((u.x() - K(0, 2)) / K(0, 0), (u.y() - K(1, 2)) / K(1, 1), 1.0), margin);
 }
 
-bool visibleSideInterval(const CameraModel& camera, const Eigen::Vector2d& p, const Eigen::Vector2d& q, double margin,
-                         Eigen::Vector2d* a, Eigen::Vector2d* b) {
+bool visibleSideInterval(const CameraModel& camera, const Eigen::Vector2d& p,
+                         const Eigen::Vector2d& q, double margin, Eigen::Vector2d* a,
+                         Eigen::Vector2d* b) {
   int first = -1, last = -1;
   for (int i = 0; i <= kVisibilitySamples; ++i) {
     const Eigen::Vector2d x = p + (q - p) * (static_cast<double>(i) / kVisibilitySamples);
@@ -173,13 +185,15 @@ bool visibleSideInterval(const CameraModel& camera, const Eigen::Vector2d& p, co
   // Widen by half a sample step towards the invisible neighbours (the edge refinement skips
   // samples outside the image anyway).
   const double step = 1.0 / kVisibilitySamples;
-  const double s0 = first > 0 ? (first - 0.5) * step : 0.0, s1 = last < kVisibilitySamples ? (last + 0.5) * step : 1.0;
+  const double s0 = first > 0 ? (first - 0.5) * step : 0.0,
+               s1 = last < kVisibilitySamples ? (last + 0.5) * step : 1.0;
   *a = p + (q - p) * s0;
   *b = p + (q - p) * s1;
   return true;
 }
 
-double worstCornerOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners, const ExpectedBoard& expected) {
+double worstCornerOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners,
+                         const ExpectedBoard& expected) {
   double worst = 0;
   for (const auto& c : corners) {
     double nearest = std::numeric_limits<double>::infinity();
@@ -190,7 +204,8 @@ double worstCornerOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners, 
 }
 
 std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
-                                               const ImageBoardDetectorOptions& o, LineEvidence* evidence,
+                                               const ImageBoardDetectorOptions& o,
+                                               LineEvidence* evidence,
                                                const ExpectedBoard* expected) {
   std::vector<QuadHypothesis> quads;
   if (o.line_detection_width_px <= 0) return quads;
@@ -198,14 +213,17 @@ std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const Camera
   cv::Mat small;
   if (scale > 1.0)
     cv::resize(gray, small,
-               cv::Size(static_cast<int>(std::lround(gray.cols / scale)), static_cast<int>(std::lround(gray.rows / scale))),
+               cv::Size(static_cast<int>(std::lround(gray.cols / scale)),
+                        static_cast<int>(std::lround(gray.rows / scale))),
                0, 0, cv::INTER_AREA);
   else
     small = gray;
-  const double sx = static_cast<double>(gray.cols) / small.cols, sy = static_cast<double>(gray.rows) / small.rows;
+  const double sx = static_cast<double>(gray.cols) / small.cols,
+               sy = static_cast<double>(gray.rows) / small.rows;
   // LSD with its own a-contrario false-detection control; no internal rescale (done above, by
   // area averaging, which also lowers the noise).
-  const cv::Ptr<cv::LineSegmentDetector> lsd = cv::createLineSegmentDetector(cv::LSD_REFINE_NONE, 1.0);
+  const cv::Ptr<cv::LineSegmentDetector> lsd =
+      cv::createLineSegmentDetector(cv::LSD_REFINE_NONE, 1.0);
   std::vector<cv::Vec4f> raw_segments;
   lsd->detect(small, raw_segments);
 
@@ -221,7 +239,8 @@ std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const Camera
     if (m.length > 0) segments.push_back(m);
   }
   if (evidence) evidence->segments = static_cast<int>(segments.size());
-  std::sort(segments.begin(), segments.end(), [](const Member& x, const Member& y) { return x.length > y.length; });
+  std::sort(segments.begin(), segments.end(),
+            [](const Member& x, const Member& y) { return x.length > y.length; });
 
   // Greedy merge, longest first: a segment joins a line when its direction agrees within its own
   // endpoint noise and both its ends lie within the bow of a held board.
@@ -230,8 +249,8 @@ std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const Camera
   const double max_offset = std::max(kMergeOffsetPx, 2.0 * end_sigma);
   for (const Member& s : segments) {
     const Eigen::Vector2d d = (s.b - s.a) / s.length;
-    const double angle_tol =
-        std::clamp(kMergeSigmas * std::sqrt(2.0) * end_sigma / s.length, kMinMergeAngleRad, kMaxMergeAngleRad);
+    const double angle_tol = std::clamp(kMergeSigmas * std::sqrt(2.0) * end_sigma / s.length,
+                                        kMinMergeAngleRad, kMaxMergeAngleRad);
     MergedLine* host = nullptr;
     for (auto& l : lines) {
       if (angleBetweenLines(d, l.dir) > angle_tol) continue;
@@ -252,9 +271,11 @@ std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const Camera
     }
   }
   const double min_support = std::max(o.min_edge_length_px, 0.5 * o.min_board_size_px);
-  lines.erase(std::remove_if(lines.begin(), lines.end(), [&](const MergedLine& l) { return l.support < min_support; }),
+  lines.erase(std::remove_if(lines.begin(), lines.end(),
+                             [&](const MergedLine& l) { return l.support < min_support; }),
               lines.end());
-  std::sort(lines.begin(), lines.end(), [](const MergedLine& x, const MergedLine& y) { return x.support > y.support; });
+  std::sort(lines.begin(), lines.end(),
+            [](const MergedLine& x, const MergedLine& y) { return x.support > y.support; });
   if (lines.size() > static_cast<size_t>(kMaxLines)) lines.resize(kMaxLines);
   if (evidence) evidence->lines = static_cast<int>(lines.size());
   const int n = static_cast<int>(lines.size());
@@ -263,7 +284,8 @@ std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const Camera
   // Corner of lines i and j when it is plausible: a real angle, and near both lines' support or
   // outside the image (corners of a board held close often are).
   std::vector<std::vector<char>> adjacent(n, std::vector<char>(n, 0));
-  std::vector<std::vector<Eigen::Vector2d>> corner(n, std::vector<Eigen::Vector2d>(n, Eigen::Vector2d::Zero()));
+  std::vector<std::vector<Eigen::Vector2d>> corner(
+      n, std::vector<Eigen::Vector2d>(n, Eigen::Vector2d::Zero()));
   for (int i = 0; i < n; ++i)
     for (int j = i + 1; j < n; ++j) {
       const double s = std::abs(cross2(lines[i].dir, lines[j].dir));
@@ -282,7 +304,9 @@ std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const Camera
       corner[i][j] = corner[j][i] = c;
     }
 
-  auto parallel = [&](int i, int k) { return angleBetweenLines(lines[i].dir, lines[k].dir) <= kMaxOppositeAngleRad; };
+  auto parallel = [&](int i, int k) {
+    return angleBetweenLines(lines[i].dir, lines[k].dir) <= kMaxOppositeAngleRad;
+  };
   const cv::Rect2d ubox = undistortedBounds(camera);
   std::vector<std::vector<int>> neighbours(n);
   for (int i = 0; i < n; ++i)
@@ -325,7 +349,8 @@ std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const Camera
             const double tol = kCornerToleranceFraction * side;
             const double inside = l.supportWithin(std::min(tp, tr) - tol, std::max(tp, tr) + tol);
             const double overshoot = l.support - inside;
-            if (inside < kMinSideSupportFraction * side && inside < o.min_edge_length_px) ok = false;
+            if (inside < kMinSideSupportFraction * side && inside < o.min_edge_length_px)
+              ok = false;
             // A board shows its edge along most of each visible side: unsupported stretches count
             // against a quadrilateral as much as supported ones count for it.
             const double gap = std::max(0.0, clippedLength(p, r, ubox) - inside);
@@ -342,7 +367,8 @@ std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const Camera
         }
       }
     }
-  std::sort(quads.begin(), quads.end(), [](const QuadHypothesis& x, const QuadHypothesis& y) { return x.score > y.score; });
+  std::sort(quads.begin(), quads.end(),
+            [](const QuadHypothesis& x, const QuadHypothesis& y) { return x.score > y.score; });
   if (evidence) evidence->quads = static_cast<int>(quads.size());
   // Visible support: the fraction of each side inside the image that carries segments; a board
   // shows its edges along most of every visible side. Keep the best distinct quadrilaterals.

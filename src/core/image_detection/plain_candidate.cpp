@@ -12,12 +12,14 @@ namespace board_calib {
 namespace image_detection {
 namespace {
 
-constexpr double kCornerMatchPx = 1e-6;    // a clipped side end this close to its corner is the corner
+constexpr double kCornerMatchPx =
+    1e-6;  // a clipped side end this close to its corner is the corner
 constexpr double kSquareTolerance = 0.01;  // boards whose width and height differ less are square
 
 // Names and refines the sides; returns the number of valid edges (support filled).
-int refineSides(const cv::Mat& gray, const CameraModel& camera, const ImageBoardDetectorOptions& o, const Hypothesis& h,
-                double min_gradient, ImageDetection* out, CandidateSupport* support) {
+int refineSides(const cv::Mat& gray, const CameraModel& camera, const ImageBoardDetectorOptions& o,
+                const Hypothesis& h, double min_gradient, ImageDetection* out,
+                CandidateSupport* support) {
   CameraBoardFeatures& f = out->features;
   ImageDetectionDetails& d = out->details;
   const std::vector<CoarseEdge>& sides = h.sides;
@@ -26,8 +28,10 @@ int refineSides(const cv::Mat& gray, const CameraModel& camera, const ImageBoard
     angles.push_back(s.angle);
     weights.push_back(s.length);
   }
-  const std::vector<int> names = nameEdges(angles, weights, sides.size() == static_cast<size_t>(kNumEdges));
-  for (int j = 0; j < kNumEdges; ++j) d.edge_reason[j] = "not in the outline (outside the image or along its border)";
+  const std::vector<int> names =
+      nameEdges(angles, weights, sides.size() == static_cast<size_t>(kNumEdges));
+  for (int j = 0; j < kNumEdges; ++j)
+    d.edge_reason[j] = "not in the outline (outside the image or along its border)";
   for (size_t k = 0; k < sides.size(); ++k) {
     const int j = names[k];
     if (j < 0) continue;
@@ -73,7 +77,9 @@ PoseFit boardPose(const Target& target, const ImageBoardDetectorOptions& o, Imag
   const Points3 obj(outer.begin(), outer.end());
   const Points2 img(f.corners_px.begin(), f.corners_px.end());
   PoseFit pose = fitPose(obj, img, f.K, o.pixel_sigma_px);
-  if (std::abs(target.width - target.height) <= kSquareTolerance * std::max(target.width, target.height)) return pose;
+  if (std::abs(target.width - target.height) <=
+      kSquareTolerance * std::max(target.width, target.height))
+    return pose;
   // A rectangular board held near upright (or turned by ~45 deg) is as close to a diamond with
   // its width on the upper right side as on the upper left: the naming one step round that
   // fits the declared width and height better decides (names shift cyclically, the image
@@ -99,8 +105,8 @@ PoseFit boardPose(const Target& target, const ImageBoardDetectorOptions& o, Imag
 }
 
 // The pose must fit the declared size and put the board at a plausible distance and tilt.
-bool plausiblePose(const Target& target, const ImageBoardDetectorOptions& o, const PoseFit& pose, double perimeter,
-                   ImageDetection* out) {
+bool plausiblePose(const Target& target, const ImageBoardDetectorOptions& o, const PoseFit& pose,
+                   double perimeter, ImageDetection* out) {
   CameraBoardFeatures& f = out->features;
   ImageDetectionDetails& d = out->details;
   if (!pose.ok) {
@@ -113,22 +119,25 @@ bool plausiblePose(const Target& target, const ImageBoardDetectorOptions& o, con
   d.pattern_errors_px = pose.errors_px;
   d.pose_covariance = pose.covariance;
   // Corner misfit grows with the board in the image (flex, a slightly wrong declared size).
-  const double max_rms = std::min(o.max_plain_corner_rms_px, o.max_plain_corner_rms_fraction * perimeter / kNumEdges);
+  const double max_rms =
+      std::min(o.max_plain_corner_rms_px, o.max_plain_corner_rms_fraction * perimeter / kNumEdges);
   if (pose.rms_px > max_rms) {
-    f.reason = cv::format("corners do not fit a %.3f x %.3f m board (rms %.2f px > %.2f)", target.width, target.height,
-                          pose.rms_px, max_rms);
+    f.reason = cv::format("corners do not fit a %.3f x %.3f m board (rms %.2f px > %.2f)",
+                          target.width, target.height, pose.rms_px, max_rms);
     return false;
   }
   const Eigen::Vector3d centre = pose.camera_T_board * target.center();
   const double tilt_deg =
       std::acos(std::min(1.0, std::abs(f.plane.normal.dot(centre.normalized())))) * 180.0 / M_PI;
   if (centre.norm() > o.max_board_distance_m) {
-    f.reason = cv::format("a %.3f x %.3f m board would be %.1f m away (max %.1f m): another rectangle", target.width,
-                          target.height, centre.norm(), o.max_board_distance_m);
+    f.reason =
+        cv::format("a %.3f x %.3f m board would be %.1f m away (max %.1f m): another rectangle",
+                   target.width, target.height, centre.norm(), o.max_board_distance_m);
     return false;
   }
   if (tilt_deg > o.max_board_tilt_deg) {
-    f.reason = cv::format("board turned %.0f deg from the line of sight (max %.0f)", tilt_deg, o.max_board_tilt_deg);
+    f.reason = cv::format("board turned %.0f deg from the line of sight (max %.0f)", tilt_deg,
+                          o.max_board_tilt_deg);
     return false;
   }
   return true;
@@ -136,7 +145,8 @@ bool plausiblePose(const Target& target, const ImageBoardDetectorOptions& o, con
 
 }  // namespace
 
-Hypothesis fromQuad(const QuadHypothesis& q, const CameraModel& camera, const ImageBoardDetectorOptions& o) {
+Hypothesis fromQuad(const QuadHypothesis& q, const CameraModel& camera,
+                    const ImageBoardDetectorOptions& o) {
   Hypothesis h;
   h.source = "lines";
   h.inside_u = 0.25 * (q.corners[0] + q.corners[1] + q.corners[2] + q.corners[3]);
@@ -171,27 +181,31 @@ Hypothesis fromQuad(const QuadHypothesis& q, const CameraModel& camera, const Im
   return h;
 }
 
-bool fitCandidate(const cv::Mat& gray, const CameraModel& camera, const Target& target, const ImageBoardDetectorOptions& o,
-                  const Hypothesis& h, double min_gradient, ImageDetection* out, CandidateSupport* support) {
+bool fitCandidate(const cv::Mat& gray, const CameraModel& camera, const Target& target,
+                  const ImageBoardDetectorOptions& o, const Hypothesis& h, double min_gradient,
+                  ImageDetection* out, CandidateSupport* support) {
   CameraBoardFeatures& f = out->features;
   ImageDetectionDetails& d = out->details;
   *support = CandidateSupport{};
   d.outline_raw = h.outline_raw;
   if (h.sides.size() < 2) {
-    f.reason = "board not found: " + std::to_string(h.sides.size()) + " straight board edge(s) in the outline";
+    f.reason = "board not found: " + std::to_string(h.sides.size()) +
+               " straight board edge(s) in the outline";
     return false;
   }
   const int valid = refineSides(gray, camera, o, h, min_gradient, out, support);
   for (int j = 0; j < kNumEdges; ++j)
     if (f.edge_valid[j] && f.edge_valid[(j + 1) % 4] &&
         !intersectLines(f.edge_lines[j], f.edge_lines[(j + 1) % 4], &f.corners_px[j])) {
-      f.reason = std::string("board not found: edges ") + edgeName(j) + " and " + edgeName((j + 1) % 4) + " are parallel";
+      f.reason = std::string("board not found: edges ") + edgeName(j) + " and " +
+                 edgeName((j + 1) % 4) + " are parallel";
       return false;
     }
   if (valid < kNumEdges) {
     std::string why;
     for (int j = 0; j < kNumEdges; ++j)
-      if (!f.edge_valid[j]) why += std::string(why.empty() ? "" : "; ") + edgeName(j) + ": " + d.edge_reason[j];
+      if (!f.edge_valid[j])
+        why += std::string(why.empty() ? "" : "; ") + edgeName(j) + ": " + d.edge_reason[j];
     f.reason = "board edges missing (" + std::to_string(valid) + " of 4 valid): " + why;
     return false;
   }

@@ -15,10 +15,13 @@ namespace board_calib {
 namespace image_detection {
 namespace {
 
-constexpr double kCleanBoardCoverage = 0.9;  // a region board this well evidenced on every side needs no line search
-// The edge gradient is a difference of two samples 1 px apart: its noise is sqrt(2) x the pixel noise.
+constexpr double kCleanBoardCoverage =
+    0.9;  // a region board this well evidenced on every side needs no line search
+// The edge gradient is a difference of two samples 1 px apart: its noise is sqrt(2) x the pixel
+// noise.
 constexpr double kGradientNoiseGain = 1.41421356;
-constexpr double kDuplicateHypothesisFraction = 0.05;  // of the board size: hypotheses this close are one
+constexpr double kDuplicateHypothesisFraction =
+    0.05;  // of the board size: hypotheses this close are one
 
 // Every hypothesis tried; the accepted one with the most edge support wins. When none is a board,
 // the attempt that got furthest (most valid edges, then the more edge support) gives the reason.
@@ -39,7 +42,8 @@ struct HypothesisSearch {
     double worst = 0, size = 0;
     for (int s = 0; s < kNumEdges; ++s) {
       double nearest = 1e18;
-      for (int t = 0; t < kNumEdges; ++t) nearest = std::min(nearest, (corners[s] - board[t]).norm());
+      for (int t = 0; t < kNumEdges; ++t)
+        nearest = std::min(nearest, (corners[s] - board[t]).norm());
       worst = std::max(worst, nearest);
       size += (board[(s + 1) % 4] - board[s]).norm() / kNumEdges;
     }
@@ -74,7 +78,8 @@ cv::Mat downscale(const cv::Mat& gray, double width_px) {
   if (scale <= 1.0) return gray;
   cv::Mat small;
   cv::resize(gray, small,
-             cv::Size(static_cast<int>(std::lround(gray.cols / scale)), static_cast<int>(std::lround(gray.rows / scale))),
+             cv::Size(static_cast<int>(std::lround(gray.cols / scale)),
+                      static_cast<int>(std::lround(gray.rows / scale))),
              0, 0, cv::INTER_AREA);
   return small;
 }
@@ -82,11 +87,13 @@ cv::Mat downscale(const cv::Mat& gray, double width_px) {
 // Inside the expected board (or within its tolerance of it): a region hypothesis's centre.
 bool nearExpected(const Eigen::Vector2d& point, const ExpectedBoard& expected) {
   std::vector<cv::Point2f> polygon;
-  for (const auto& c : expected.corners_px) polygon.emplace_back(static_cast<float>(c.x()), static_cast<float>(c.y()));
+  for (const auto& c : expected.corners_px)
+    polygon.emplace_back(static_cast<float>(c.x()), static_cast<float>(c.y()));
   std::vector<cv::Point2f> hull;
   cv::convexHull(polygon, hull);
-  return cv::pointPolygonTest(hull, cv::Point2f(static_cast<float>(point.x()), static_cast<float>(point.y())), true) >=
-         -expected.tolerance_px;
+  return cv::pointPolygonTest(
+             hull, cv::Point2f(static_cast<float>(point.x()), static_cast<float>(point.y())),
+             true) >= -expected.tolerance_px;
 }
 
 // A board that the prior does not put there is another rectangle.
@@ -95,31 +102,36 @@ void checkExpected(const ExpectedBoard& expected, ImageDetection* attempt) {
   const double off = worstCornerOffset(f.corners_px, expected);
   if (off <= expected.tolerance_px) return;
   f.found = false;
-  f.reason = cv::format("a board %.0f px from where the prior extrinsic puts it (tolerance %.0f px)", off,
-                        expected.tolerance_px);
+  f.reason =
+      cv::format("a board %.0f px from where the prior extrinsic puts it (tolerance %.0f px)", off,
+                 expected.tolerance_px);
 }
 
 }  // namespace
 
 void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& target,
-                 const ImageBoardDetectorOptions& o, ImageDetection* out, const ExpectedBoard* expected) {
+                 const ImageBoardDetectorOptions& o, ImageDetection* out,
+                 const ExpectedBoard* expected) {
   const cv::Mat small = downscale(gray, o.segmentation_width_px);
   const double sx = static_cast<double>(gray.cols) / small.cols;
   // Edge pixels must stand out of this image's own noise (sensor, compression, texture).
   const double noise = estimateNoiseSigma(gray);
-  const double min_gradient = std::max(o.min_edge_contrast, o.edge_snr * kGradientNoiseGain * noise);
+  const double min_gradient =
+      std::max(o.min_edge_contrast, o.edge_snr * kGradientNoiseGain * noise);
   out->details.noise_sigma = noise;
 
   // Hypotheses: regions (best score first, then openings of the rejected ones) and quadrilaterals
   // of long straight edges. None is a gate for the others.
   Segmentation seg = segmentBoard(small, o);
   std::vector<Hypothesis> hypotheses;
-  for (size_t i = 0; i < seg.candidates.size() && i < static_cast<size_t>(o.max_board_candidates); ++i)
+  for (size_t i = 0; i < seg.candidates.size() && i < static_cast<size_t>(o.max_board_candidates);
+       ++i)
     hypotheses.push_back(fromRegion(seg.candidates[i], sx, small.size(), camera, o));
   const size_t first_regions = hypotheses.size();
   const std::string region_reason = seg.reason();
   proposeOpenedRegions(small.size(), o, &seg);
-  for (size_t i = 0; i < seg.candidates.size() && i < static_cast<size_t>(o.max_board_candidates); ++i)
+  for (size_t i = 0; i < seg.candidates.size() && i < static_cast<size_t>(o.max_board_candidates);
+       ++i)
     hypotheses.push_back(fromRegion(seg.candidates[i], sx, small.size(), camera, o));
   const size_t regions = hypotheses.size();
   LineEvidence evidence;
@@ -135,7 +147,8 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
       for (const auto& q : quads) hypotheses.push_back(fromQuad(q, camera, o));
     }
     if (i >= hypotheses.size()) break;
-    if (i >= first_regions && i < regions && search.found()) continue;  // openings only when no region was the board
+    if (i >= first_regions && i < regions && search.found())
+      continue;  // openings only when no region was the board
     // The edge support of a hypothesis cannot exceed the length of its sides: skip those that
     // cannot beat the board already accepted.
     double bound = 0;
@@ -145,7 +158,8 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     if (expected && i < regions && !nearExpected(hypotheses[i].inside_u, *expected)) continue;
     ImageDetection attempt = fresh;
     CandidateSupport support;
-    bool is_board = fitCandidate(gray, camera, target, o, hypotheses[i], min_gradient, &attempt, &support);
+    bool is_board =
+        fitCandidate(gray, camera, target, o, hypotheses[i], min_gradient, &attempt, &support);
     if (is_board && expected) {
       checkExpected(*expected, &attempt);
       is_board = attempt.features.found;
@@ -158,11 +172,12 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
   } else if (search.best_valid >= 0) {
     *out = std::move(search.best_miss);
   } else {
-    out->features.reason = hypotheses.empty() && evidence.lines < kNumEdges
-                               ? region_reason + cv::format("; %d straight lines from %d segments (need 4)",
-                                                            evidence.lines, evidence.segments)
-                               : region_reason + cv::format("; no quadrilateral of straight edges among %d lines",
-                                                            evidence.lines);
+    out->features.reason =
+        hypotheses.empty() && evidence.lines < kNumEdges
+            ? region_reason + cv::format("; %d straight lines from %d segments (need 4)",
+                                         evidence.lines, evidence.segments)
+            : region_reason +
+                  cv::format("; no quadrilateral of straight edges among %d lines", evidence.lines);
   }
   out->details.segments_raw = std::move(evidence.segments_raw);
   out->details.line_segments = evidence.segments;

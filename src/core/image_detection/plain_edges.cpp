@@ -12,31 +12,38 @@ namespace board_calib {
 namespace image_detection {
 namespace {
 
-constexpr double kProfileStepPx = 0.5;      // spacing of intensity samples along the edge normal
-constexpr double kWeakPeakFraction = 0.3;   // a gradient peak below this fraction of the median is an outlier
+constexpr double kProfileStepPx = 0.5;  // spacing of intensity samples along the edge normal
+constexpr double kWeakPeakFraction =
+    0.3;  // a gradient peak below this fraction of the median is an outlier
 constexpr double kMadToSigma = 1.4826;
 constexpr int kFinePasses = 2;
 constexpr int kRobustIterations = 3;
-constexpr double kRobustSigmas = 3.0;       // inlier band of the refit, in robust sigmas
+constexpr double kRobustSigmas = 3.0;                 // inlier band of the refit, in robust sigmas
 constexpr double kMaxCornerExclusionFraction = 0.15;  // of a side, skipped at each end
-constexpr double kMaxSamplesPerSide = 240;  // more add nothing to a line fit (errors ~1/sqrt(n) are already ~0.02 px)
-constexpr double kPolarityWindowSteps = 8;      // edge polarity is a majority over +-this many samples ...
-constexpr double kPolarityWindowFraction = 0.1;  // ... or this fraction of the side, whichever is longer
+constexpr double kMaxSamplesPerSide =
+    240;  // more add nothing to a line fit (errors ~1/sqrt(n) are already ~0.02 px)
+constexpr double kPolarityWindowSteps =
+    8;  // edge polarity is a majority over +-this many samples ...
+constexpr double kPolarityWindowFraction =
+    0.1;  // ... or this fraction of the side, whichever is longer
 
 double sampleBilinear(const cv::Mat& gray, double x, double y) {
   const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
   const double fx = x - x0, fy = y - y0;
   const uchar* r0 = gray.ptr<uchar>(y0);
   const uchar* r1 = gray.ptr<uchar>(y0 + 1);
-  return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x0 + 1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]);
+  return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x0 + 1]) +
+         fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]);
 }
 
 bool insideImage(const cv::Mat& gray, const Eigen::Vector2d& p, double margin) {
-  return p.x() >= margin && p.y() >= margin && p.x() <= gray.cols - 1 - margin && p.y() <= gray.rows - 1 - margin;
+  return p.x() >= margin && p.y() >= margin && p.x() <= gray.cols - 1 - margin &&
+         p.y() <= gray.rows - 1 - margin;
 }
 
 // Total least squares line through points (undistorted px).
-Eigen::Vector3d fitLine(const Points2& pts, const std::vector<bool>& use, const Eigen::Vector2d& inside) {
+Eigen::Vector3d fitLine(const Points2& pts, const std::vector<bool>& use,
+                        const Eigen::Vector2d& inside) {
   Eigen::Vector2d mean = Eigen::Vector2d::Zero();
   int n = 0;
   for (size_t i = 0; i < pts.size(); ++i)
@@ -82,8 +89,8 @@ struct EdgeSamples {
 
 // Strongest gradient of the wanted polarity (0: either) in one intensity profile across the edge;
 // false when none stands out of the noise. `offset` is in profile steps from the centre.
-bool profilePeak(const std::vector<double>& profile, double polarity, double min_gradient, double* offset,
-                 double* strength, int* sign) {
+bool profilePeak(const std::vector<double>& profile, double polarity, double min_gradient,
+                 double* offset, double* strength, int* sign) {
   const int steps = static_cast<int>(profile.size() / 2);
   int best_k = 0;
   double best_g = 0;
@@ -97,7 +104,8 @@ bool profilePeak(const std::vector<double>& profile, double polarity, double min
       best_k = k;
     }
   }
-  if (best_k <= 1 || best_k + 2 >= static_cast<int>(profile.size()) || best_g < min_gradient) return false;
+  if (best_k <= 1 || best_k + 2 >= static_cast<int>(profile.size()) || best_g < min_gradient)
+    return false;
   const double gm = g[best_k - 1], g0 = g[best_k], gp = g[best_k + 1];
   const double denom = gm - 2 * g0 + gp;
   const double delta = denom < 0 ? std::clamp(0.5 * (gm - gp) / denom, -0.5, 0.5) : 0.0;
@@ -108,8 +116,9 @@ bool profilePeak(const std::vector<double>& profile, double polarity, double min
 }
 
 EdgeSamples searchPeaks(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse,
-                        const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& n, double half,
-                        const LocalPolarity* polarity, const ImageBoardDetectorOptions& o, double min_gradient) {
+                        const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                        const Eigen::Vector2d& n, double half, const LocalPolarity* polarity,
+                        const ImageBoardDetectorOptions& o, double min_gradient) {
   EdgeSamples s;
   const int steps = static_cast<int>(std::ceil(half / kProfileStepPx)) + 1;
   const double len = (b - a).norm();
@@ -127,7 +136,8 @@ EdgeSamples searchPeaks(const cv::Mat& gray, const CameraModel& camera, const Co
     const Eigen::Vector2d x = camera.distortPixel(xu);
     Eigen::Vector2d d = camera.distortPixel(xu + n) - x;
     d.normalize();
-    if (!insideImage(gray, x - (half + kProfileStepPx) * d, 1.0) || !insideImage(gray, x + (half + kProfileStepPx) * d, 1.0))
+    if (!insideImage(gray, x - (half + kProfileStepPx) * d, 1.0) ||
+        !insideImage(gray, x + (half + kProfileStepPx) * d, 1.0))
       continue;
     ++s.positions;
     for (int k = -steps; k <= steps; ++k) {
@@ -150,7 +160,8 @@ EdgeSamples searchPeaks(const cv::Mat& gray, const CameraModel& camera, const Co
 
 // Robust line through the peaks (weak peaks out, MAD band never tighter than the configured
 // inlier distance); fills the fit's line, inliers, rms, span and coverage.
-void fitPeaks(const EdgeSamples& s, const Eigen::Vector2d& inside_u, const ImageBoardDetectorOptions& o, EdgeFit* fit) {
+void fitPeaks(const EdgeSamples& s, const Eigen::Vector2d& inside_u,
+              const ImageBoardDetectorOptions& o, EdgeFit* fit) {
   std::vector<double> sorted = s.strength;
   std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
   const double median_strength = sorted[sorted.size() / 2];
@@ -165,7 +176,8 @@ void fitPeaks(const EdgeSamples& s, const Eigen::Vector2d& inside_u, const Image
       if (use[i]) res.push_back(std::abs(line.head<2>().dot(s.pts_u[i]) + line.z()));
     if (res.empty()) break;
     std::nth_element(res.begin(), res.begin() + res.size() / 2, res.end());
-    const double thr = std::max(o.edge_inlier_px, kRobustSigmas * kMadToSigma * res[res.size() / 2]);
+    const double thr =
+        std::max(o.edge_inlier_px, kRobustSigmas * kMadToSigma * res[res.size() / 2]);
     for (size_t i = 0; i < n; ++i)
       use[i] = s.strength[i] >= kWeakPeakFraction * median_strength &&
                std::abs(line.head<2>().dot(s.pts_u[i]) + line.z()) <= thr;
@@ -192,8 +204,9 @@ void fitPeaks(const EdgeSamples& s, const Eigen::Vector2d& inside_u, const Image
 
 }  // namespace
 
-EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse, const Eigen::Vector2d& inside_u,
-                   const ImageBoardDetectorOptions& o, double min_gradient) {
+EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse,
+                   const Eigen::Vector2d& inside_u, const ImageBoardDetectorOptions& o,
+                   double min_gradient) {
   EdgeFit fit;
   Eigen::Vector2d a = camera.undistortPixel(coarse.a), b = camera.undistortPixel(coarse.b);
   fit.line = lineThrough(a, b, inside_u);
@@ -204,14 +217,17 @@ EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseE
     // Project the segment ends onto the current line.
     a = a - (n.dot(a) + fit.line.z()) * n;
     b = b - (n.dot(b) + fit.line.z()) * n;
-    EdgeSamples s = searchPeaks(gray, camera, coarse, a, b, n, half, pass == 0 ? nullptr : &polarity, o, min_gradient);
+    EdgeSamples s = searchPeaks(gray, camera, coarse, a, b, n, half,
+                                pass == 0 ? nullptr : &polarity, o, min_gradient);
     if (pass == 0) {
       polarity.t = s.ts;
       polarity.sum.assign(1, 0);
       for (int sgn : s.signs) polarity.sum.push_back(polarity.sum.back() + sgn);
-      polarity.window = std::max(kPolarityWindowSteps * s.step, kPolarityWindowFraction * (b - a).norm());
+      polarity.window =
+          std::max(kPolarityWindowSteps * s.step, kPolarityWindowFraction * (b - a).norm());
       for (size_t i = 0; i < s.signs.size(); ++i)
-        if (s.signs[i] * polarity.at(s.ts[i]) < 0) s.strength[i] = 0;  // against its stretch: clutter
+        if (s.signs[i] * polarity.at(s.ts[i]) < 0)
+          s.strength[i] = 0;  // against its stretch: clutter
     }
     if (static_cast<int>(s.pts_u.size()) < o.min_edge_points) {
       fit.reason = "too few edge pixels (" + std::to_string(s.pts_u.size()) + ")";
@@ -226,8 +242,8 @@ EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseE
   if (fit.span < o.min_edge_length_px) {
     fit.reason = cv::format("visible edge too short (%.0f px)", fit.span);
   } else if (fit.coverage < o.min_side_coverage) {
-    fit.reason = cv::format("edge seen along %.0f %% of its visible length (need %.0f %%)", 100 * fit.coverage,
-                            100 * o.min_side_coverage);
+    fit.reason = cv::format("edge seen along %.0f %% of its visible length (need %.0f %%)",
+                            100 * fit.coverage, 100 * o.min_side_coverage);
   } else if (fit.rms > o.max_edge_rms_px) {
     fit.reason = cv::format("edge not straight (rms %.2f px)", fit.rms);
   } else {

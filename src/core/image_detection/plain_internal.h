@@ -21,16 +21,18 @@ struct RegionCandidate {
 /// Board region proposals on the downscaled image.
 struct Segmentation {
   cv::Mat blurred;
-  std::vector<RegionCandidate> candidates;            ///< board-like regions, best first
-  std::vector<std::vector<cv::Point>> rejected;       ///< large regions that are not board-like
+  std::vector<RegionCandidate> candidates;       ///< board-like regions, best first
+  std::vector<std::vector<cv::Point>> rejected;  ///< large regions that are not board-like
   int proposals = 0;
   std::string last_rejection = "no region large enough";
   double min_area = 0;
 
   std::string reason() const {
-    return proposals == 0 ? "board not found: no region large enough" : "board not found: " + last_rejection;
+    return proposals == 0 ? "board not found: no region large enough"
+                          : "board not found: " + last_rejection;
   }
-  void add(const std::vector<cv::Point>& contour, const ImageBoardDetectorOptions& o, bool keep_rejected);
+  void add(const std::vector<cv::Point>& contour, const ImageBoardDetectorOptions& o,
+           bool keep_rejected);
   void sort();
 };
 
@@ -42,10 +44,12 @@ void proposeOpenedRegions(cv::Size size, const ImageBoardDetectorOptions& o, Seg
 
 /// One straight side of a hypothesis.
 struct CoarseEdge {
-  Eigen::Vector2d a = Eigen::Vector2d::Zero(), b = Eigen::Vector2d::Zero();  ///< raw full-resolution px
-  double angle = 0;   ///< outward normal angle, rad
-  double length = 0;  ///< px; 0 marks a stretch along the image border
-  bool a_corner = true, b_corner = true;  ///< an end at a board corner (not where the image cuts the side)
+  Eigen::Vector2d a = Eigen::Vector2d::Zero(),
+                  b = Eigen::Vector2d::Zero();  ///< raw full-resolution px
+  double angle = 0;                             ///< outward normal angle, rad
+  double length = 0;                            ///< px; 0 marks a stretch along the image border
+  bool a_corner = true,
+       b_corner = true;  ///< an end at a board corner (not where the image cuts the side)
 };
 
 /// One board hypothesis: its straight sides (raw px; in cyclic order when there are four) and a
@@ -57,9 +61,10 @@ struct Hypothesis {
   const char* source = "";
 };
 
-Hypothesis fromRegion(const RegionCandidate& board, double sx, cv::Size small_size, const CameraModel& camera,
-                      const ImageBoardDetectorOptions& o);
-Hypothesis fromQuad(const QuadHypothesis& q, const CameraModel& camera, const ImageBoardDetectorOptions& o);
+Hypothesis fromRegion(const RegionCandidate& board, double sx, cv::Size small_size,
+                      const CameraModel& camera, const ImageBoardDetectorOptions& o);
+Hypothesis fromQuad(const QuadHypothesis& q, const CameraModel& camera,
+                    const ImageBoardDetectorOptions& o);
 
 /// One side refined at full resolution.
 struct EdgeFit {
@@ -74,18 +79,21 @@ struct EdgeFit {
 };
 
 /// Sub-pixel gradient peaks along the edge normal, a robust line through them (undistorted px).
-EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse, const Eigen::Vector2d& inside_u,
-                   const ImageBoardDetectorOptions& o, double min_gradient);
+EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse,
+                   const Eigen::Vector2d& inside_u, const ImageBoardDetectorOptions& o,
+                   double min_gradient);
 
-/// Edge support of a fitted hypothesis: px of edge samples along the sides, and the lowest side coverage.
+/// Edge support of a fitted hypothesis: px of edge samples along the sides, and the lowest side
+/// coverage.
 struct CandidateSupport {
   double score = 0;
   double min_coverage = 0;
 };
 
 /// Fits edges, corners and pose to one hypothesis; false (reason in out) when it is not a board.
-bool fitCandidate(const cv::Mat& gray, const CameraModel& camera, const Target& target, const ImageBoardDetectorOptions& o,
-                  const Hypothesis& h, double min_gradient, ImageDetection* out, CandidateSupport* support);
+bool fitCandidate(const cv::Mat& gray, const CameraModel& camera, const Target& target,
+                  const ImageBoardDetectorOptions& o, const Hypothesis& h, double min_gradient,
+                  ImageDetection* out, CandidateSupport* support);
 
 }  // namespace image_detection
 }  // namespace board_calib

@@ -13,17 +13,19 @@ namespace board_calib {
 namespace image_detection {
 namespace {
 
-constexpr double kMergeAngleRad = 0.14;     // ~8 deg: consecutive outline segments this close are one edge
-constexpr double kPolygonEpsilon = 0.01;    // outline simplification, fraction of the perimeter
-constexpr int kFlatOpeningPx = 11;          // downscaled px, opening of the flat-area proposals
+constexpr double kMergeAngleRad =
+    0.14;  // ~8 deg: consecutive outline segments this close are one edge
+constexpr double kPolygonEpsilon = 0.01;  // outline simplification, fraction of the perimeter
+constexpr int kFlatOpeningPx = 11;        // downscaled px, opening of the flat-area proposals
 // Openings of a rejected region, fractions of its inradius (a board touching the ceiling band
 // merges with it; the band is thinner than the board).
 constexpr double kOpeningInradiusFractions[] = {0.33, 0.5};
 
 // Scores one proposed region: a board is large, convex and uniform, and differs from its
 // surroundings. Returns false (with the rejection) when it is not board-like.
-bool scoreRegion(const std::vector<cv::Point>& contour, const cv::Mat& blurred, const ImageBoardDetectorOptions& o,
-                 RegionCandidate* candidate, std::string* rejection) {
+bool scoreRegion(const std::vector<cv::Point>& contour, const cv::Mat& blurred,
+                 const ImageBoardDetectorOptions& o, RegionCandidate* candidate,
+                 std::string* rejection) {
   static const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5));
   const double area = cv::contourArea(contour);
   std::vector<cv::Point> hull;
@@ -35,10 +37,11 @@ bool scoreRegion(const std::vector<cv::Point>& contour, const cv::Mat& blurred, 
   }
   const cv::Rect box = cv::boundingRect(hull);
   const int pad = 8;
-  const cv::Rect roi = (box + cv::Size(2 * pad, 2 * pad) - cv::Point(pad, pad)) & cv::Rect(0, 0, blurred.cols, blurred.rows);
+  const cv::Rect roi = (box + cv::Size(2 * pad, 2 * pad) - cv::Point(pad, pad)) &
+                       cv::Rect(0, 0, blurred.cols, blurred.rows);
   cv::Mat region = cv::Mat::zeros(roi.size(), CV_8U);
-  cv::drawContours(region, std::vector<std::vector<cv::Point>>{contour}, 0, 255, cv::FILLED, cv::LINE_8, cv::noArray(),
-                   INT_MAX, -roi.tl());
+  cv::drawContours(region, std::vector<std::vector<cv::Point>>{contour}, 0, 255, cv::FILLED,
+                   cv::LINE_8, cv::noArray(), INT_MAX, -roi.tl());
   cv::Mat interior, around;
   cv::erode(region, interior, kernel, cv::Point(-1, -1), 2);
   cv::dilate(region, around, kernel, cv::Point(-1, -1), 3);
@@ -54,7 +57,8 @@ bool scoreRegion(const std::vector<cv::Point>& contour, const cv::Mat& blurred, 
   const double contrast = cv::mean(diff, around)[0];
   const double texture = std_in[0] / std::max(1.0, contrast);
   if (texture > o.max_interior_texture) {
-    *rejection = cv::format("region not uniform (texture %.2f > %.2f)", texture, o.max_interior_texture);
+    *rejection =
+        cv::format("region not uniform (texture %.2f > %.2f)", texture, o.max_interior_texture);
     return false;
   }
   candidate->score = area * std::pow(solidity, 4) / (1.0 + texture);
@@ -64,7 +68,8 @@ bool scoreRegion(const std::vector<cv::Point>& contour, const cv::Mat& blurred, 
 
 // Openings of one region by discs of kOpeningInradiusFractions x its inradius (distance
 // transforms: fast for any radius); returns the remaining parts large enough to be a board.
-std::vector<std::vector<cv::Point>> openRegion(const std::vector<cv::Point>& contour, cv::Size size, double min_area) {
+std::vector<std::vector<cv::Point>> openRegion(const std::vector<cv::Point>& contour, cv::Size size,
+                                               double min_area) {
   std::vector<std::vector<cv::Point>> parts;
   cv::Mat mask = cv::Mat::zeros(size, CV_8U);
   cv::drawContours(mask, std::vector<std::vector<cv::Point>>{contour}, 0, 255, cv::FILLED);
@@ -88,7 +93,8 @@ std::vector<std::vector<cv::Point>> openRegion(const std::vector<cv::Point>& con
 
 }  // namespace
 
-void Segmentation::add(const std::vector<cv::Point>& contour, const ImageBoardDetectorOptions& o, bool keep_rejected) {
+void Segmentation::add(const std::vector<cv::Point>& contour, const ImageBoardDetectorOptions& o,
+                       bool keep_rejected) {
   ++proposals;
   RegionCandidate c;
   if (scoreRegion(contour, blurred, o, &c, &last_rejection))
@@ -116,7 +122,8 @@ Segmentation segmentBoard(const cv::Mat& small, const ImageBoardDetectorOptions&
   seg.min_area = o.min_board_area_fraction * small.total();
   // Flat areas leak into the background through short stretches of low-contrast edge: a larger
   // opening cuts those bridges (the board is far wider than them).
-  const cv::Mat wide_kernel = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(kFlatOpeningPx, kFlatOpeningPx));
+  const cv::Mat wide_kernel =
+      cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(kFlatOpeningPx, kFlatOpeningPx));
   for (const cv::Mat& proposal : {bright, cv::Mat(255 - bright), flat}) {
     const bool is_flat = proposal.data == flat.data;
     cv::Mat mask;
@@ -147,13 +154,16 @@ void proposeOpenedRegions(cv::Size size, const ImageBoardDetectorOptions& o, Seg
 namespace {
 
 // Splits the hull of the board region into straight sides, dropping those along the image border.
-std::vector<CoarseEdge> coarseEdges(const std::vector<cv::Point>& hull, double scale, cv::Size small_size,
-                                    const ImageBoardDetectorOptions& o, Eigen::Vector2d* centroid) {
+std::vector<CoarseEdge> coarseEdges(const std::vector<cv::Point>& hull, double scale,
+                                    cv::Size small_size, const ImageBoardDetectorOptions& o,
+                                    Eigen::Vector2d* centroid) {
   std::vector<cv::Point> poly;
   cv::approxPolyDP(hull, poly, kPolygonEpsilon * cv::arcLength(hull, true), true);
   const cv::Moments m = cv::moments(hull);
   const Eigen::Vector2d c_small(m.m10 / m.m00, m.m01 / m.m00);
-  auto toFull = [scale](const Eigen::Vector2d& p) { return Eigen::Vector2d((p.array() + 0.5) * scale - 0.5); };
+  auto toFull = [scale](const Eigen::Vector2d& p) {
+    return Eigen::Vector2d((p.array() + 0.5) * scale - 0.5);
+  };
   *centroid = toFull(c_small);
   const double border = o.border_margin_px / scale + 1.5;  // small px; the opening erodes ~1 px
   auto onBorder = [&](const cv::Point& p, int side) {
@@ -198,7 +208,8 @@ std::vector<CoarseEdge> coarseEdges(const std::vector<cv::Point>& hull, double s
     merged.push_back(s);
   }
   if (merged.size() > 1 && merged.front().length > 0 && merged.back().length > 0 &&
-      std::abs(std::remainder(merged.front().angle - merged.back().angle, 2 * M_PI)) < kMergeAngleRad) {
+      std::abs(std::remainder(merged.front().angle - merged.back().angle, 2 * M_PI)) <
+          kMergeAngleRad) {
     merged.back().b = merged.front().b;
     merged.back().length = (merged.back().b - merged.back().a).norm();
     merged.erase(merged.begin());
@@ -207,8 +218,9 @@ std::vector<CoarseEdge> coarseEdges(const std::vector<cv::Point>& hull, double s
   for (const auto& e : merged)
     if (e.length >= o.min_edge_length_px) out.push_back(e);
   while (out.size() > static_cast<size_t>(kNumEdges)) {
-    auto shortest = std::min_element(out.begin(), out.end(),
-                                     [](const CoarseEdge& x, const CoarseEdge& y) { return x.length < y.length; });
+    auto shortest = std::min_element(
+        out.begin(), out.end(),
+        [](const CoarseEdge& x, const CoarseEdge& y) { return x.length < y.length; });
     out.erase(shortest);
   }
   return out;
@@ -216,11 +228,12 @@ std::vector<CoarseEdge> coarseEdges(const std::vector<cv::Point>& hull, double s
 
 }  // namespace
 
-Hypothesis fromRegion(const RegionCandidate& board, double sx, cv::Size small_size, const CameraModel& camera,
-                      const ImageBoardDetectorOptions& o) {
+Hypothesis fromRegion(const RegionCandidate& board, double sx, cv::Size small_size,
+                      const CameraModel& camera, const ImageBoardDetectorOptions& o) {
   Hypothesis h;
   h.source = "region";
-  for (const auto& p : board.contour) h.outline_raw.emplace_back((p.x + 0.5) * sx - 0.5, (p.y + 0.5) * sx - 0.5);
+  for (const auto& p : board.contour)
+    h.outline_raw.emplace_back((p.x + 0.5) * sx - 0.5, (p.y + 0.5) * sx - 0.5);
   Eigen::Vector2d centroid;
   h.sides = coarseEdges(board.contour, sx, small_size, o, &centroid);
   h.inside_u = camera.undistortPixel(centroid);

@@ -28,7 +28,8 @@ int64_t packVoxel(int64_t ix, int64_t iy, int64_t iz) {
 
 std::string BackgroundModelOptions::validate() const {
   if (!(range_margin_m > 0.0)) return "range_margin_m must be > 0";
-  if (!(azimuth_bin_deg > 0.0 && azimuth_bin_deg <= 10.0)) return "azimuth_bin_deg must be in (0, 10]";
+  if (!(azimuth_bin_deg > 0.0 && azimuth_bin_deg <= 10.0))
+    return "azimuth_bin_deg must be in (0, 10]";
   if (!(voxel_size_m > 0.0)) return "voxel_size_m must be > 0";
   if (!(min_range_m >= 0.0)) return "min_range_m must be >= 0";
   return {};
@@ -53,7 +54,8 @@ struct BackgroundModel::Impl {
   }
   int64_t voxelKey(const LidarPoint& p, int dx = 0, int dy = 0, int dz = 0) const {
     const double s = options.voxel_size_m;
-    return packVoxel(static_cast<int64_t>(std::floor(p.x / s)) + dx, static_cast<int64_t>(std::floor(p.y / s)) + dy,
+    return packVoxel(static_cast<int64_t>(std::floor(p.x / s)) + dx,
+                     static_cast<int64_t>(std::floor(p.y / s)) + dy,
                      static_cast<int64_t>(std::floor(p.z / s)) + dz);
   }
   bool isReturn(const LidarPoint& p) const {
@@ -90,11 +92,13 @@ Status BackgroundModel::addFrame(const LidarCloud& cloud) {
   else if (cloud.has_ring)
     layout = Layout::kRingAzimuth;
   if (m.layout != Layout::kNone && layout != m.layout)
-    return Status::failure("background frame layout differs from the captured ones (clear the model first)");
+    return Status::failure(
+        "background frame layout differs from the captured ones (clear the model first)");
   if (layout == Layout::kRangeImage && m.layout == Layout::kRangeImage &&
       (cloud.width != m.width || cloud.height != m.height))
-    return Status::failure("background frame is " + std::to_string(cloud.width) + "x" + std::to_string(cloud.height) +
-                           ", the model " + std::to_string(m.width) + "x" + std::to_string(m.height));
+    return Status::failure("background frame is " + std::to_string(cloud.width) + "x" +
+                           std::to_string(cloud.height) + ", the model " + std::to_string(m.width) +
+                           "x" + std::to_string(m.height));
   if (m.layout == Layout::kNone && layout == Layout::kRangeImage) {
     m.width = cloud.width;
     m.height = cloud.height;
@@ -126,8 +130,9 @@ std::vector<uint8_t> BackgroundModel::foregroundMask(const LidarCloud& cloud) co
   std::vector<uint8_t> mask(cloud.points.size(), 1);
   if (m.frames == 0) return mask;
   const float margin = static_cast<float>(m.options.range_margin_m);
-  const bool same_image = m.layout == Layout::kRangeImage && cloud.organized() && cloud.width == m.width &&
-                          cloud.height == m.height && cloud.points.size() == m.min_range.size();
+  const bool same_image = m.layout == Layout::kRangeImage && cloud.organized() &&
+                          cloud.width == m.width && cloud.height == m.height &&
+                          cloud.points.size() == m.min_range.size();
   for (size_t i = 0; i < cloud.points.size(); ++i) {
     const auto& p = cloud.points[i];
     if (!m.isReturn(p)) {
@@ -140,14 +145,16 @@ std::vector<uint8_t> BackgroundModel::foregroundMask(const LidarCloud& cloud) co
     } else if (m.layout == Layout::kRingAzimuth && p.ring >= 0) {
       const auto it = m.ring_azimuth.find(m.ringAzimuthKey(p));
       mask[i] = it == m.ring_azimuth.end() || r < it->second - margin;
-    } else if (m.layout == Layout::kVoxels || m.layout == Layout::kRingAzimuth || m.layout == Layout::kRangeImage) {
+    } else if (m.layout == Layout::kVoxels || m.layout == Layout::kRingAzimuth ||
+               m.layout == Layout::kRangeImage) {
       // Without a matching layout fall back on occupancy of the neighbourhood: only possible
       // with voxels, so a mismatched range image / ring model keeps everything.
       if (m.layout != Layout::kVoxels) continue;
       bool occupied = false;
       for (int dx = -1; dx <= 1 && !occupied; ++dx)
         for (int dy = -1; dy <= 1 && !occupied; ++dy)
-          for (int dz = -1; dz <= 1 && !occupied; ++dz) occupied = m.voxels.count(m.voxelKey(p, dx, dy, dz)) > 0;
+          for (int dz = -1; dz <= 1 && !occupied; ++dz)
+            occupied = m.voxels.count(m.voxelKey(p, dx, dy, dz)) > 0;
       mask[i] = !occupied;
     }
   }

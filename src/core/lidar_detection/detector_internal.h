@@ -42,8 +42,9 @@ constexpr double kSameBoardDistanceM = 0.5;
 constexpr double kMadToSigma = 1.4826;
 constexpr double kRobustBandSigmas = 2.5;
 constexpr double kMinRobustBandM = 0.005;
-constexpr double kAdaptiveBandSigmas = 3.0;   // plane inlier band in robust sigmas
-constexpr double kMaxAdaptiveBandFactor = 2.0;  // the band grows to at most this times the threshold
+constexpr double kAdaptiveBandSigmas = 3.0;  // plane inlier band in robust sigmas
+constexpr double kMaxAdaptiveBandFactor =
+    2.0;  // the band grows to at most this times the threshold
 // The plane refit after the edges keeps points this far inside the edge lines (drops the
 // mixed returns of the rim and anything touching the board from outside).
 constexpr double kRimExclusionM = 0.02;
@@ -59,8 +60,8 @@ inline std::string fmt(const char* format, double a, double b = 0, double c = 0,
 }
 
 inline int64_t voxelKey(int64_t ix, int64_t iy, int64_t iz) {
-  return ((ix + kVoxelIndexOffset) << (2 * kVoxelIndexBits)) | ((iy + kVoxelIndexOffset) << kVoxelIndexBits) |
-         (iz + kVoxelIndexOffset);
+  return ((ix + kVoxelIndexOffset) << (2 * kVoxelIndexBits)) |
+         ((iy + kVoxelIndexOffset) << kVoxelIndexBits) | (iz + kVoxelIndexOffset);
 }
 
 struct Voxel {
@@ -97,7 +98,8 @@ inline double wrapAngle(double a) {
   return a;
 }
 
-inline LidarBoardDetection failure(LidarBoardDetection d, LidarDetectionCode code, const std::string& reason) {
+inline LidarBoardDetection failure(LidarBoardDetection d, LidarDetectionCode code,
+                                   const std::string& reason) {
   d.code = code;
   d.features.found = false;
   d.features.reason = reason;
@@ -133,7 +135,8 @@ struct RefinedPlane {
 
 // Fewest returns of a sparse candidate: a few on each of the lines it needs.
 constexpr int kSparsePointsPerLine = 4;
-constexpr double kSparseLineGapVoxels = 0.5;  // segments where lines are farther apart than this many voxels
+constexpr double kSparseLineGapVoxels =
+    0.5;  // segments where lines are farther apart than this many voxels
 constexpr double kSparseMinWidthRatio = 0.8;  // of the widest chord a board's middle line must show
 
 // Stage 1: valid points (finite, in range, in the ROI, not background).
@@ -143,30 +146,36 @@ std::vector<ValidPoint> validPoints(const LidarCloud& cloud, const LidarBoardDet
 VoxelGrid buildVoxels(const std::vector<ValidPoint>& pts, double size);
 std::vector<Region> growPlanarRegions(VoxelGrid& g, const LidarBoardDetectorOptions& o);
 bool makePlaneFrame(const Eigen::Vector3d& normal, const Eigen::Vector3d& point, PlaneFrame* f);
-Candidate scoreRegion(const Region& r, int region_id, const VoxelGrid& g, const std::vector<ValidPoint>& pts,
-                      const Target& target, const LidarBoardDetectorOptions& o);
+Candidate scoreRegion(const Region& r, int region_id, const VoxelGrid& g,
+                      const std::vector<ValidPoint>& pts, const Target& target,
+                      const LidarBoardDetectorOptions& o);
 int sparseMinPoints(const LidarBoardDetectorOptions& o);
 /// Candidates from scan-line segments where the lines are too far apart for the voxels;
 /// appended to `regions` and `candidates` unless a voxel candidate already covers them.
-void addSparseCandidates(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const VoxelGrid& grid,
-                         const Target& target, const LidarBoardDetectorOptions& options, std::vector<Region>* regions,
+void addSparseCandidates(const LidarCloud& cloud, const std::vector<ValidPoint>& pts,
+                         const VoxelGrid& grid, const Target& target,
+                         const LidarBoardDetectorOptions& options, std::vector<Region>* regions,
                          std::vector<Candidate>* candidates);
 // Stage 3: plane refinement (RANSAC seeded from the region, least squares on the inliers).
 RefinedPlane refinePlane(const std::vector<int>& region_points, const std::vector<int>& gathered,
-                         const std::vector<ValidPoint>& pts, const LidarBoardDetectorOptions& o, std::mt19937& rng);
+                         const std::vector<ValidPoint>& pts, const LidarBoardDetectorOptions& o,
+                         std::mt19937& rng);
 /// Points of a region and of its neighbouring voxels that belong to no other large plane.
 void gatherRegionPoints(const std::vector<Region>& regions, int region_id, const VoxelGrid& grid,
                         const LidarBoardDetectorOptions& options, std::vector<int>* region_points,
                         std::vector<int>* gathered);
 // Stage 4: scan lines and edges.
-std::vector<int> scanLines(const LidarCloud& cloud, const std::vector<int>& board, const std::vector<ValidPoint>& pts,
-                           const LidarBoardDetectorOptions& o, std::string* source);
-/// Sparse boards: the declared rectangle fitted to the per-line extremes; false when it does not fit.
-bool extractEdgesByRectangle(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const std::vector<int>& board,
-                             const Target& target, const LidarBoardDetectorOptions& o, LidarBoardDetection* det);
-void extractEdges(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const std::vector<int>& board,
-                  const Target& target, const LidarBoardDetectorOptions& o, std::mt19937& rng,
-                  LidarBoardDetection* det);
+std::vector<int> scanLines(const LidarCloud& cloud, const std::vector<int>& board,
+                           const std::vector<ValidPoint>& pts, const LidarBoardDetectorOptions& o,
+                           std::string* source);
+/// Sparse boards: the declared rectangle fitted to the per-line extremes; false when it does not
+/// fit.
+bool extractEdgesByRectangle(const LidarCloud& cloud, const std::vector<ValidPoint>& pts,
+                             const std::vector<int>& board, const Target& target,
+                             const LidarBoardDetectorOptions& o, LidarBoardDetection* det);
+void extractEdges(const LidarCloud& cloud, const std::vector<ValidPoint>& pts,
+                  const std::vector<int>& board, const Target& target,
+                  const LidarBoardDetectorOptions& o, std::mt19937& rng, LidarBoardDetection* det);
 
 // History of a stateful detector: whether a board-like candidate sits at a static place, and
 // whether two unknown places are ambiguous whatever their support.
@@ -176,7 +185,8 @@ struct History {
 };
 
 /// The detector's stages on one cloud; `history` may be null (single-cloud rules).
-LidarBoardDetection detectImpl(const LidarCloud& cloud, const Target& target, const LidarBoardDetectorOptions& options,
+LidarBoardDetection detectImpl(const LidarCloud& cloud, const Target& target,
+                               const LidarBoardDetectorOptions& options,
                                const BackgroundModel* background, const History* history);
 
 }  // namespace lidar_detail

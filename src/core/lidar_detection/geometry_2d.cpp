@@ -77,7 +77,8 @@ Eigen::Vector2d minAreaRectangle(const Points2& hull) {
     if (e.norm() < 1e-12) continue;
     e.normalize();
     const Eigen::Vector2d f(-e.y(), e.x());
-    double min_e = std::numeric_limits<double>::infinity(), max_e = -min_e, min_f = min_e, max_f = -min_e;
+    double min_e = std::numeric_limits<double>::infinity(), max_e = -min_e, min_f = min_e,
+           max_f = -min_e;
     for (const auto& p : hull) {
       min_e = std::min(min_e, p.dot(e));
       max_e = std::max(max_e, p.dot(e));
@@ -93,7 +94,8 @@ Eigen::Vector2d minAreaRectangle(const Points2& hull) {
   return best;
 }
 
-LineFit2D fitLineRobust(const Points2& points, double inlier_threshold, int iterations, std::mt19937& rng) {
+LineFit2D fitLineRobust(const Points2& points, double inlier_threshold, int iterations,
+                        std::mt19937& rng) {
   LineFit2D fit;
   const int n = static_cast<int>(points.size());
   if (n < 2) return fit;
@@ -151,7 +153,8 @@ LineFit2D fitLineRobust(const Points2& points, double inlier_threshold, int iter
     refined[i] = fit.distance(points[i]) < inlier_threshold;
     count += refined[i];
   }
-  if (count >= 2 && leastSquaresLine(points, refined, &fit.point, &fit.direction)) best_inliers = refined;
+  if (count >= 2 && leastSquaresLine(points, refined, &fit.point, &fit.direction))
+    best_inliers = refined;
   fit.inlier = best_inliers;
   fit.num_inliers = 0;
   double sum_sq = 0.0;

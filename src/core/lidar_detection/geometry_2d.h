@@ -27,7 +27,9 @@ struct PlaneStats {
     sum += o.sum;
     scatter += o.scatter;
   }
-  Eigen::Vector3d mean() const { return n > 0 ? Eigen::Vector3d(sum / n) : Eigen::Vector3d::Zero(); }
+  Eigen::Vector3d mean() const {
+    return n > 0 ? Eigen::Vector3d(sum / n) : Eigen::Vector3d::Zero();
+  }
   Eigen::Matrix3d covariance() const {
     if (n == 0) return Eigen::Matrix3d::Zero();
     const Eigen::Vector3d c = mean();
@@ -61,7 +63,6 @@ double polygonArea(const Points2& polygon);
 /// Minimum-area enclosing rectangle of a convex polygon: sides (larger first), m.
 Eigen::Vector2d minAreaRectangle(const Points2& hull);
 
-
 /// A 2D line fitted robustly (RANSAC on pairs, then least squares on the inliers).
 struct LineFit2D {
   bool ok = false;
@@ -75,7 +76,8 @@ struct LineFit2D {
     return std::abs(d.x() * direction.y() - d.y() * direction.x());
   }
 };
-LineFit2D fitLineRobust(const Points2& points, double inlier_threshold, int iterations, std::mt19937& rng);
+LineFit2D fitLineRobust(const Points2& points, double inlier_threshold, int iterations,
+                        std::mt19937& rng);
 
 /// Intersection of two 2D lines; false when (nearly) parallel.
 bool intersectLines(const LineFit2D& a, const LineFit2D& b, Eigen::Vector2d* out);

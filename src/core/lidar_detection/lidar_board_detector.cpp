@@ -14,8 +14,8 @@ namespace lidar_detail {
 namespace {
 
 // Options, target and cloud usable; false with the failure in det.
-bool checkInputs(const LidarCloud& cloud, const Target& target, const LidarBoardDetectorOptions& options,
-                 LidarBoardDetection* det) {
+bool checkInputs(const LidarCloud& cloud, const Target& target,
+                 const LidarBoardDetectorOptions& options, LidarBoardDetection* det) {
   auto& f = det->features;
   f.frame_id = cloud.frame_id;
   f.stamp = cloud.stamp;
@@ -26,9 +26,11 @@ bool checkInputs(const LidarCloud& cloud, const Target& target, const LidarBoard
   }
   const std::string bad_options = options.validate();
   if (!bad_options.empty())
-    *det = failure(std::move(*det), LidarDetectionCode::kInvalidOptions, "invalid detector options: " + bad_options);
+    *det = failure(std::move(*det), LidarDetectionCode::kInvalidOptions,
+                   "invalid detector options: " + bad_options);
   else if (const std::string bad_target = target.validate(); !bad_target.empty())
-    *det = failure(std::move(*det), LidarDetectionCode::kInvalidTarget, "invalid target: " + bad_target);
+    *det = failure(std::move(*det), LidarDetectionCode::kInvalidTarget,
+                   "invalid target: " + bad_target);
   else if (cloud.points.empty())
     *det = failure(std::move(*det), LidarDetectionCode::kEmptyCloud, "empty cloud (0 points)");
   else
@@ -38,7 +40,8 @@ bool checkInputs(const LidarCloud& cloud, const Target& target, const LidarBoard
 
 // History: board-like candidates at static places are background. When no moving one is left,
 // says so (the board is what moves) and returns false.
-bool dropStatic(const History& history, std::vector<Candidate>* candidates, LidarBoardDetection* det) {
+bool dropStatic(const History& history, std::vector<Candidate>* candidates,
+                LidarBoardDetection* det) {
   int accepted = 0, dropped = 0;
   for (auto& c : *candidates) {
     if (c.info.score < 0) continue;
@@ -49,29 +52,32 @@ bool dropStatic(const History& history, std::vector<Candidate>* candidates, Lida
     ++dropped;
   }
   if (dropped == 0) return true;
-  std::stable_sort(candidates->begin(), candidates->end(), [](const Candidate& a, const Candidate& b) {
-    return (a.info.score >= 0) > (b.info.score >= 0);
-  });
+  std::stable_sort(candidates->begin(), candidates->end(),
+                   [](const Candidate& a, const Candidate& b) {
+                     return (a.info.score >= 0) > (b.info.score >= 0);
+                   });
   if (dropped < accepted) return true;
   for (const auto& c : *candidates) det->candidates.push_back(c.info);
   const auto& a = candidates->front().info.centroid;
-  *det = failure(std::move(*det), LidarDetectionCode::kAmbiguous,
-                 "only static board-like planes (" + std::to_string(dropped) + ", nearest at " +
-                     fmt("(%.2f, %.2f, %.2f) m): they stayed put over the session, the board is what moves", a.x(),
-                         a.y(), a.z()));
+  *det = failure(
+      std::move(*det), LidarDetectionCode::kAmbiguous,
+      "only static board-like planes (" + std::to_string(dropped) + ", nearest at " +
+          fmt("(%.2f, %.2f, %.2f) m): they stayed put over the session, the board is what moves",
+              a.x(), a.y(), a.z()));
   return false;
 }
 
 // The best candidate must be board-like and, unless told otherwise, clearly ahead of any other
 // board-like plane elsewhere.
-bool chooseBest(const std::vector<Candidate>& candidates, const Target& target, const LidarBoardDetectorOptions& options,
-                const History* history, LidarBoardDetection* det) {
+bool chooseBest(const std::vector<Candidate>& candidates, const Target& target,
+                const LidarBoardDetectorOptions& options, const History* history,
+                LidarBoardDetection* det) {
   const Candidate& best = candidates.front();
   if (best.info.score < 0) {
     const auto& c = best.info;
     *det = failure(std::move(*det), LidarDetectionCode::kWrongSize,
-                   "no board-sized plane: largest planar region (" + std::to_string(c.num_points) + " points at " +
-                       fmt("%.1f m) is ", c.centroid.norm()) + c.rejected_because +
+                   "no board-sized plane: largest planar region (" + std::to_string(c.num_points) +
+                       " points at " + fmt("%.1f m) is ", c.centroid.norm()) + c.rejected_because +
                        fmt("; declared %.3f x %.3f m", target.width, target.height));
     return false;
   }
@@ -81,9 +87,11 @@ bool chooseBest(const std::vector<Candidate>& candidates, const Target& target, 
       (candidates[1].info.centroid - best.info.centroid).norm() > kSameBoardDistanceM) {
     const auto& a = best.info.centroid;
     const auto& b = candidates[1].info.centroid;
-    *det = failure(std::move(*det), LidarDetectionCode::kAmbiguous,
-                   "ambiguous: two board-like planes, at " + fmt("(%.2f, %.2f, %.2f)", a.x(), a.y(), a.z()) + " and " +
-                       fmt("(%.2f, %.2f, %.2f) m; set an ROI or capture a background", b.x(), b.y(), b.z()));
+    *det = failure(
+        std::move(*det), LidarDetectionCode::kAmbiguous,
+        "ambiguous: two board-like planes, at " + fmt("(%.2f, %.2f, %.2f)", a.x(), a.y(), a.z()) +
+            " and " +
+            fmt("(%.2f, %.2f, %.2f) m; set an ROI or capture a background", b.x(), b.y(), b.z()));
     return false;
   }
   return true;
@@ -92,10 +100,10 @@ bool chooseBest(const std::vector<Candidate>& candidates, const Target& target, 
 // Second pass: whatever touches the board near its plane (a body, an arm) lies outside the
 // quadrilateral of the four edges. Drops it, refits the plane and finds the edges again; returns
 // `det` when that gives nothing better.
-LidarBoardDetection refineWithoutTouching(const LidarCloud& cloud, const std::vector<ValidPoint>& pts,
-                                          const RefinedPlane& refined, const Target& target,
-                                          const LidarBoardDetectorOptions& options, int min_points, std::mt19937& rng,
-                                          const LidarBoardDetection& before_edges, LidarBoardDetection det) {
+LidarBoardDetection refineWithoutTouching(
+    const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const RefinedPlane& refined,
+    const Target& target, const LidarBoardDetectorOptions& options, int min_points,
+    std::mt19937& rng, const LidarBoardDetection& before_edges, LidarBoardDetection det) {
   const auto& f = det.features;
   const Eigen::Vector3d centre = 0.25 * (f.corners[0] + f.corners[1] + f.corners[2] + f.corners[3]);
   std::array<Eigen::Vector3d, kNumEdges> outward;
@@ -120,7 +128,8 @@ LidarBoardDetection refineWithoutTouching(const LidarCloud& cloud, const std::ve
   double sum_sq = 0.0;
   for (int i : refined.inliers) {
     const double r = plane.signedDistance(pts[i].p);
-    if (std::abs(r) >= options.plane_distance_threshold_m || outside(pts[i].p) >= options.edge_inlier_threshold_m)
+    if (std::abs(r) >= options.plane_distance_threshold_m ||
+        outside(pts[i].p) >= options.edge_inlier_threshold_m)
       continue;
     board.push_back(i);
     sum_sq += r * r;
@@ -135,7 +144,8 @@ LidarBoardDetection refineWithoutTouching(const LidarCloud& cloud, const std::ve
 }
 
 // Candidates of one cloud, best first: planar voxel regions, then scan-line segments.
-std::vector<Candidate> findCandidates(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const Target& target,
+std::vector<Candidate> findCandidates(const LidarCloud& cloud, const std::vector<ValidPoint>& pts,
+                                      const Target& target,
                                       const LidarBoardDetectorOptions& options, VoxelGrid* grid,
                                       std::vector<Region>* regions) {
   *grid = buildVoxels(pts, options.voxel_size_m);
@@ -143,9 +153,11 @@ std::vector<Candidate> findCandidates(const LidarCloud& cloud, const std::vector
   std::vector<Candidate> candidates;
   for (size_t r = 0; r < regions->size(); ++r) {
     if ((*regions)[r].stats.n < options.min_board_points) continue;  // not worth reporting
-    candidates.push_back(scoreRegion((*regions)[r], static_cast<int>(r), *grid, pts, target, options));
+    candidates.push_back(
+        scoreRegion((*regions)[r], static_cast<int>(r), *grid, pts, target, options));
   }
-  if (options.sparse_candidates) addSparseCandidates(cloud, pts, *grid, target, options, regions, &candidates);
+  if (options.sparse_candidates)
+    addSparseCandidates(cloud, pts, *grid, target, options, regions, &candidates);
   std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
     const bool pa = a.info.score >= 0, pb = b.info.score >= 0;
     if (pa != pb) return pa;
@@ -157,7 +169,8 @@ std::vector<Candidate> findCandidates(const LidarCloud& cloud, const std::vector
 
 }  // namespace
 
-LidarBoardDetection detectImpl(const LidarCloud& cloud, const Target& target, const LidarBoardDetectorOptions& options,
+LidarBoardDetection detectImpl(const LidarCloud& cloud, const Target& target,
+                               const LidarBoardDetectorOptions& options,
                                const BackgroundModel* background, const History* history) {
   LidarBoardDetection det;
   if (!checkInputs(cloud, target, options, &det)) return det;
@@ -165,7 +178,8 @@ LidarBoardDetection detectImpl(const LidarCloud& cloud, const Target& target, co
   const std::vector<ValidPoint> pts = validPoints(cloud, options, background);
   det.num_valid_points = static_cast<int>(pts.size());
   if (pts.size() < 3) {
-    std::string why = "no valid returns among " + std::to_string(cloud.points.size()) + " points (NaN, zero or out of " +
+    std::string why = "no valid returns among " + std::to_string(cloud.points.size()) +
+                      " points (NaN, zero or out of " +
                       fmt("%.1f..%.1f m", options.min_range_m, options.max_range_m) + ")";
     if (options.use_roi) why += ", or outside the ROI";
     if (background && !background->empty()) why += ", or background";
@@ -177,8 +191,8 @@ LidarBoardDetection detectImpl(const LidarCloud& cloud, const Target& target, co
   std::vector<Candidate> candidates = findCandidates(cloud, pts, target, options, &grid, &regions);
   if (candidates.empty())
     return failure(std::move(det), LidarDetectionCode::kNoPlane,
-                   "no planar region with at least " + std::to_string(options.min_board_points) + " points among " +
-                       std::to_string(pts.size()) + " valid points");
+                   "no planar region with at least " + std::to_string(options.min_board_points) +
+                       " points among " + std::to_string(pts.size()) + " valid points");
   if (history && history->is_static && !dropStatic(*history, &candidates, &det)) return det;
   for (const auto& c : candidates) det.candidates.push_back(c.info);
   if (!chooseBest(candidates, target, options, history, &det)) return det;
@@ -201,7 +215,8 @@ LidarBoardDetection detectImpl(const LidarCloud& cloud, const Target& target, co
   for (int i : refined.inliers) f.board_points.push_back(pts[i].p);
   extractEdges(cloud, pts, refined.inliers, target, options, rng, &det);
   if (!det.features.allEdgesValid()) return det;
-  return refineWithoutTouching(cloud, pts, refined, target, options, min_points, rng, before_edges, std::move(det));
+  return refineWithoutTouching(cloud, pts, refined, target, options, min_points, rng, before_edges,
+                               std::move(det));
 }
 
 }  // namespace lidar_detail
@@ -212,7 +227,8 @@ using lidar_detail::kRadPerDeg;
 std::string LidarBoardDetectorOptions::validate() const {
   if (!(min_range_m >= 0.0)) return "min_range_m must be >= 0";
   if (!(max_range_m > min_range_m)) return "max_range_m must be > min_range_m";
-  if (use_roi && !(roi.min.array() < roi.max.array()).all()) return "roi.min must be < roi.max on every axis";
+  if (use_roi && !(roi.min.array() < roi.max.array()).all())
+    return "roi.min must be < roi.max on every axis";
   if (!(voxel_size_m > 0.01 && voxel_size_m < 5.0)) return "voxel_size_m must be in (0.01, 5) m";
   if (min_voxel_points < 1) return "min_voxel_points must be >= 1";
   if (!(max_voxel_thickness_m > 0.0)) return "max_voxel_thickness_m must be > 0";
@@ -225,7 +241,8 @@ std::string LidarBoardDetectorOptions::validate() const {
   if (!(max_size_ratio >= 1.0)) return "max_size_ratio must be >= 1";
   if (!(min_fill_ratio >= 0.0 && min_fill_ratio <= 1.0)) return "min_fill_ratio must be in [0, 1]";
   if (!(max_candidate_rms_m > 0.0)) return "max_candidate_rms_m must be > 0";
-  if (!(ambiguity_ratio > 0.0 && ambiguity_ratio <= 1.0)) return "ambiguity_ratio must be in (0, 1]";
+  if (!(ambiguity_ratio > 0.0 && ambiguity_ratio <= 1.0))
+    return "ambiguity_ratio must be in (0, 1]";
   if (!(plane_distance_threshold_m > 0.0)) return "plane_distance_threshold_m must be > 0";
   if (ransac_iterations < 1) return "ransac_iterations must be >= 1";
   if (!(elevation_gap_deg > 0.0)) return "elevation_gap_deg must be > 0";
@@ -236,18 +253,22 @@ std::string LidarBoardDetectorOptions::validate() const {
   if (!(max_corner_angle_error_deg > 0.0 && max_corner_angle_error_deg < 90.0))
     return "max_corner_angle_error_deg must be in (0, 90)";
   if (!(size_doubt_ratio >= 0.0)) return "size_doubt_ratio must be >= 0";
-  if (!(beam_divergence_deg >= 0.0 && beam_divergence_deg < 5.0)) return "beam_divergence_deg must be in [0, 5)";
+  if (!(beam_divergence_deg >= 0.0 && beam_divergence_deg < 5.0))
+    return "beam_divergence_deg must be in [0, 5)";
   if (min_scan_lines < 3) return "min_scan_lines must be >= 3 (two lines give no edges)";
   if (!(range_noise_m >= 0.0 && range_noise_m < 1.0)) return "range_noise_m must be in [0, 1) m";
-  if (!(sparse_size_slack >= 0.0 && sparse_size_slack <= 0.5)) return "sparse_size_slack must be in [0, 0.5]";
+  if (!(sparse_size_slack >= 0.0 && sparse_size_slack <= 0.5))
+    return "sparse_size_slack must be in [0, 0.5]";
   return {};
 }
 
 std::string StaticMemoryOptions::validate() const {
   if (!(place_radius_m > 0.0)) return "place_radius_m must be > 0";
-  if (!(max_normal_angle_deg > 0.0 && max_normal_angle_deg <= 90.0)) return "max_normal_angle_deg must be in (0, 90]";
+  if (!(max_normal_angle_deg > 0.0 && max_normal_angle_deg <= 90.0))
+    return "max_normal_angle_deg must be in (0, 90]";
   if (!(static_after_s > 0.0)) return "static_after_s must be > 0";
-  if (!(min_seen_fraction >= 0.0 && min_seen_fraction <= 1.0)) return "min_seen_fraction must be in [0, 1]";
+  if (!(min_seen_fraction >= 0.0 && min_seen_fraction <= 1.0))
+    return "min_seen_fraction must be in [0, 1]";
   if (!(forget_after_s > 0.0)) return "forget_after_s must be > 0";
   return {};
 }
@@ -268,7 +289,8 @@ const char* lidarDetectionCodeName(LidarDetectionCode code) {
 }
 
 LidarBoardDetection detectLidarBoard(const LidarCloud& cloud, const Target& target,
-                                     const LidarBoardDetectorOptions& options, const BackgroundModel* background) {
+                                     const LidarBoardDetectorOptions& options,
+                                     const BackgroundModel* background) {
   return lidar_detail::detectImpl(cloud, target, options, background, nullptr);
 }
 

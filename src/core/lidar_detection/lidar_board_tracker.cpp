@@ -9,7 +9,8 @@ namespace board_calib {
 using lidar_detail::failure;
 using lidar_detail::kRadPerDeg;
 
-LidarBoardTracker::LidarBoardTracker(Target target, LidarBoardDetectorOptions detector, StaticMemoryOptions memory)
+LidarBoardTracker::LidarBoardTracker(Target target, LidarBoardDetectorOptions detector,
+                                     StaticMemoryOptions memory)
     : target_(std::move(target)), detector_(std::move(detector)), memory_(memory) {}
 
 void LidarBoardTracker::reset() {
@@ -44,11 +45,13 @@ int LidarBoardTracker::match(const LidarBoardCandidate& c) const {
   return best;
 }
 
-LidarBoardDetection LidarBoardTracker::detect(const LidarCloud& cloud, const BackgroundModel* background) {
+LidarBoardDetection LidarBoardTracker::detect(const LidarCloud& cloud,
+                                              const BackgroundModel* background) {
   if (!memory_.validate().empty()) {
     LidarBoardDetection det = detectLidarBoard(cloud, target_, detector_, background);
     if (det.features.found) return det;
-    return failure(std::move(det), LidarDetectionCode::kInvalidOptions, "invalid static memory options: " + memory_.validate());
+    return failure(std::move(det), LidarDetectionCode::kInvalidOptions,
+                   "invalid static memory options: " + memory_.validate());
   }
   if (cloud.stamp < last_stamp_) reset();  // a replay started over
   last_stamp_ = cloud.stamp;
@@ -59,7 +62,8 @@ LidarBoardDetection LidarBoardTracker::detect(const LidarCloud& cloud, const Bac
     const int k = match(c);
     return k >= 0 && isStatic(places_[static_cast<size_t>(k)]);
   };
-  LidarBoardDetection det = lidar_detail::detectImpl(cloud, target_, detector_, background, &history);
+  LidarBoardDetection det =
+      lidar_detail::detectImpl(cloud, target_, detector_, background, &history);
   // Remember every board-like candidate of this cloud (accepted, or dropped as static).
   for (const auto& c : det.candidates) {
     if (c.score < 0 && c.rejected_because.rfind("static", 0) != 0) continue;
@@ -81,7 +85,9 @@ LidarBoardDetection LidarBoardTracker::detect(const LidarCloud& cloud, const Bac
     }
   }
   places_.erase(std::remove_if(places_.begin(), places_.end(),
-                               [&](const Place& p) { return cloud.stamp - p.last_s > memory_.forget_after_s; }),
+                               [&](const Place& p) {
+                                 return cloud.stamp - p.last_s > memory_.forget_after_s;
+                               }),
                 places_.end());
   return det;
 }

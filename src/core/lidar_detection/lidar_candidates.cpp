@@ -119,7 +119,9 @@ std::vector<Region> growPlanarRegions(VoxelGrid& g, const LidarBoardDetectorOpti
             if (offset > o.max_voxel_offset_m || thickness > o.max_voxel_thickness_m) continue;
             // A voxel with a reliable normal of its own must agree (a body touching the board
             // at a shallow angle stays out).
-            if (nv.stats.n >= o.min_voxel_points && fits[q].eigenvalues[1] > min_spread_sq && std::abs(fits[q].normal().dot(n)) < min_normal_cos) continue;
+            if (nv.stats.n >= o.min_voxel_points && fits[q].eigenvalues[1] > min_spread_sq &&
+                std::abs(fits[q].normal().dot(n)) < min_normal_cos)
+              continue;
             g.voxels[q].region = id;
             r.voxels.push_back(q);
             r.stats.add(nv.stats);
@@ -136,7 +138,6 @@ std::vector<Region> growPlanarRegions(VoxelGrid& g, const LidarBoardDetectorOpti
   return regions;
 }
 
-
 bool makePlaneFrame(const Eigen::Vector3d& normal, const Eigen::Vector3d& point, PlaneFrame* f) {
   f->n = normal;
   f->origin = point;
@@ -151,8 +152,9 @@ bool makePlaneFrame(const Eigen::Vector3d& normal, const Eigen::Vector3d& point,
   return good;
 }
 
-Candidate scoreRegion(const Region& r, int region_id, const VoxelGrid& g, const std::vector<ValidPoint>& pts,
-                      const Target& target, const LidarBoardDetectorOptions& o) {
+Candidate scoreRegion(const Region& r, int region_id, const VoxelGrid& g,
+                      const std::vector<ValidPoint>& pts, const Target& target,
+                      const LidarBoardDetectorOptions& o) {
   Candidate c;
   c.region = region_id;
   auto& info = c.info;
@@ -204,28 +206,34 @@ Candidate scoreRegion(const Region& r, int region_id, const VoxelGrid& g, const 
   };
   auto sizeOk = [&](const Eigen::Vector2d& sides) {
     const double rb = sides.x() / big_side, rs = sides.y() / small_side;
-    return rb >= o.min_size_ratio && rs >= o.min_size_ratio && rb <= o.max_size_ratio && rs <= o.max_size_ratio;
+    return rb >= o.min_size_ratio && rs >= o.min_size_ratio && rb <= o.max_size_ratio &&
+           rs <= o.max_size_ratio;
   };
   const bool moments_ok = sizeOk(moments), hull_ok = sizeOk(hull_rect);
-  info.rectangle_m = (hull_ok && (!moments_ok || sizeError(hull_rect) <= sizeError(moments))) ? hull_rect : moments;
+  info.rectangle_m = (hull_ok && (!moments_ok || sizeError(hull_rect) <= sizeError(moments)))
+                         ? hull_rect
+                         : moments;
   if (!moments_ok && !hull_ok) {
-    const bool large = hull_rect.x() > o.max_size_ratio * big_side || hull_rect.y() > o.max_size_ratio * small_side;
+    const bool large = hull_rect.x() > o.max_size_ratio * big_side ||
+                       hull_rect.y() > o.max_size_ratio * small_side;
     info.rectangle_m = hull_rect;
-    info.rejected_because = fmt(large ? "too large (%.2f x %.2f m)" : "too small (%.2f x %.2f m)", hull_rect.x(),
-                                hull_rect.y());
+    info.rejected_because = fmt(large ? "too large (%.2f x %.2f m)" : "too small (%.2f x %.2f m)",
+                                hull_rect.x(), hull_rect.y());
     return c;
   }
   if (info.fill_ratio < o.min_fill_ratio) {
-    info.rejected_because = fmt("not rectangular enough (hull fills %.0f%% of the board)", 100 * info.fill_ratio);
+    info.rejected_because =
+        fmt("not rectangular enough (hull fills %.0f%% of the board)", 100 * info.fill_ratio);
     return c;
   }
   if (info.rms_m > o.max_candidate_rms_m) {
     info.rejected_because = fmt("not flat (RMS %.3f m)", info.rms_m);
     return c;
   }
-  const double shape_error = sizeError(info.rectangle_m) +
-                             kFillWeight * std::abs(std::log(std::max(info.fill_ratio, kMinFillForLog))) +
-                             kRmsWeight * info.rms_m / o.max_candidate_rms_m;
+  const double shape_error =
+      sizeError(info.rectangle_m) +
+      kFillWeight * std::abs(std::log(std::max(info.fill_ratio, kMinFillForLog))) +
+      kRmsWeight * info.rms_m / o.max_candidate_rms_m;
   // Support: the held board is near the sensor and densely sampled, so point count weighs as
   // much as shape (a far board-sized door or cabinet has a tenth of its points).
   info.score = info.num_points * std::exp(-kShapeErrorScale * shape_error);
@@ -242,8 +250,8 @@ int sparseMinPoints(const LidarBoardDetectorOptions& o) {
 // up to one column step (plus the beam's bloom) beyond each line's extremes. It must fit inside
 // the declared board (plus those tolerances and the range noise) and, with them, be able to
 // reach the board's smaller side in both directions.
-Candidate scoreSparse(const Region& r, int region_id, const std::vector<ValidPoint>& pts, const Target& target,
-                      const LidarBoardDetectorOptions& o) {
+Candidate scoreSparse(const Region& r, int region_id, const std::vector<ValidPoint>& pts,
+                      const Target& target, const LidarBoardDetectorOptions& o) {
   Candidate c;
   c.region = region_id;
   auto& info = c.info;
@@ -260,7 +268,8 @@ Candidate scoreSparse(const Region& r, int region_id, const std::vector<ValidPoi
   info.rms_m = std::sqrt(fit.eigenvalues[0]);
   info.score = -1.0;
   if (r.lines < o.min_scan_lines) {
-    info.rejected_because = "seen by " + std::to_string(r.lines) + " scan lines (need " + std::to_string(o.min_scan_lines) + ")";
+    info.rejected_because = "seen by " + std::to_string(r.lines) + " scan lines (need " +
+                            std::to_string(o.min_scan_lines) + ")";
     return c;
   }
   if (info.rms_m > o.max_candidate_rms_m) {
@@ -269,7 +278,8 @@ Candidate scoreSparse(const Region& r, int region_id, const std::vector<ValidPoi
   }
   // Cheap first: the covariance's extent (a uniform segment of length a has variance a^2/12).
   const double extent = std::sqrt(kUniformSideFromVariance * fit.eigenvalues[2]);
-  if (extent > kPrefilterExtentFactor * (1.0 + o.sparse_size_slack) * std::max(target.width, target.height)) {
+  if (extent > kPrefilterExtentFactor * (1.0 + o.sparse_size_slack) *
+                   std::max(target.width, target.height)) {
     info.rectangle_m = {extent, std::sqrt(kUniformSideFromVariance * fit.eigenvalues[1])};
     info.rejected_because = fmt("far too large (about %.2f m across)", extent);
     return c;
@@ -294,10 +304,12 @@ Candidate scoreSparse(const Region& r, int region_id, const std::vector<ValidPoi
   // whatever the roll: a body or a post under the board is narrower.
   const double small_side = std::min(target.width, target.height);
   const double up = hi.y() - lo.y() + 2.0 * line_m, across = hi.x() - lo.x() + 2.0 * column_m;
-  if (up < o.min_size_ratio * small_side || across < kSparseMinWidthRatio * std::max(0.0, small_side - 0.5 * line_m)) {
+  if (up < o.min_size_ratio * small_side ||
+      across < kSparseMinWidthRatio * std::max(0.0, small_side - 0.5 * line_m)) {
     info.rectangle_m = hi - lo;
-    info.rejected_because = fmt("too small: %.2f m high, %.2f m wide with the sampling gaps (%.2f m between lines)",
-                                hi.y() - lo.y(), hi.x() - lo.x(), line_m);
+    info.rejected_because =
+        fmt("too small: %.2f m high, %.2f m wide with the sampling gaps (%.2f m between lines)",
+            hi.y() - lo.y(), hi.x() - lo.x(), line_m);
     return c;
   }
   const Points2 hull = lidar_detail::convexHull(projected);
@@ -305,21 +317,25 @@ Candidate scoreSparse(const Region& r, int region_id, const std::vector<ValidPoi
   info.rectangle_m = lidar_detail::minAreaRectangle(hull);
   const double slack = 1.0 + o.sparse_size_slack;
   // Only the hull decides whether the points fit inside.
-  const auto inside = lidar_detail::fitRectangle(hull, {}, {}, slack * target.width, slack * target.height, tolerance);
+  const auto inside = lidar_detail::fitRectangle(hull, {}, {}, slack * target.width,
+                                                 slack * target.height, tolerance);
   if (!inside.ok) {
-    info.rejected_because = fmt("too large: %.2f x %.2f m does not fit in the board (sampling %.2f m across, %.2f m "
-                                "between lines)",
-                                info.rectangle_m.x(), info.rectangle_m.y(), column_m, line_m);
+    info.rejected_because =
+        fmt("too large: %.2f x %.2f m does not fit in the board (sampling %.2f m across, %.2f m "
+            "between lines)",
+            info.rectangle_m.x(), info.rectangle_m.y(), column_m, line_m);
     return c;
   }
-  info.score = info.num_points * std::exp(-kShapeErrorScale * kRmsWeight * info.rms_m / o.max_candidate_rms_m);
+  info.score = info.num_points *
+               std::exp(-kShapeErrorScale * kRmsWeight * info.rms_m / o.max_candidate_rms_m);
   return c;
 }
 
 // Far boards: scan lines spaced wider than a voxel leave no planar voxel; grow planes from
 // scan-line segments instead. A board the voxels already found is not added twice.
-void addSparseCandidates(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const VoxelGrid& grid,
-                         const Target& target, const LidarBoardDetectorOptions& options, std::vector<Region>* regions,
+void addSparseCandidates(const LidarCloud& cloud, const std::vector<ValidPoint>& pts,
+                         const VoxelGrid& grid, const Target& target,
+                         const LidarBoardDetectorOptions& options, std::vector<Region>* regions,
                          std::vector<Candidate>* candidates) {
   std::vector<int> cloud_index(pts.size());
   std::vector<Eigen::Vector3d> xyz(pts.size());
@@ -328,25 +344,28 @@ void addSparseCandidates(const LidarCloud& cloud, const std::vector<ValidPoint>&
     xyz[i] = pts[i].p;
   }
   std::string source;
-  const std::vector<int> all_lines =
-      lidar_detail::scanLinesOf(cloud, cloud_index, xyz, options.elevation_gap_deg * kRadPerDeg, &source);
+  const std::vector<int> all_lines = lidar_detail::scanLinesOf(
+      cloud, cloud_index, xyz, options.elevation_gap_deg * kRadPerDeg, &source);
   // Points the voxels already explain (floor, walls: larger than the board; boards they
   // accepted) need no second look: the segments run on the rest, which keeps this cheap.
   std::vector<uint8_t> explained(regions->size(), 0);
   const double big_side = std::max(target.width, target.height);
   for (const auto& c : *candidates)
-    explained[static_cast<size_t>(c.region)] = c.info.score >= 0 || c.info.rectangle_m.x() > options.max_size_ratio * big_side;
+    explained[static_cast<size_t>(c.region)] =
+        c.info.score >= 0 || c.info.rectangle_m.x() > options.max_size_ratio * big_side;
   std::vector<uint8_t> skip(pts.size(), 0);
   for (const auto& v : grid.voxels)
     if (v.region >= 0 && explained[static_cast<size_t>(v.region)])
-      for (int j = 0; j < v.count; ++j) skip[static_cast<size_t>(grid.sorted_points[v.first + j])] = 1;
+      for (int j = 0; j < v.count; ++j)
+        skip[static_cast<size_t>(grid.sorted_points[v.first + j])] = 1;
   // Only where the lines are too far apart for the voxels (fewer than two lines in a voxel's
   // height can seed no plane) do the segments add anything.
   const std::vector<double> gap = lidar_detail::lineGaps(xyz, all_lines);
   std::vector<int> subset;  // indices into pts, in cloud order (lines come in firing order)
   subset.reserve(pts.size());
   for (size_t i = 0; i < pts.size(); ++i)
-    if (!skip[i] && xyz[i].norm() * gap[static_cast<size_t>(all_lines[i])] > kSparseLineGapVoxels * options.voxel_size_m)
+    if (!skip[i] && xyz[i].norm() * gap[static_cast<size_t>(all_lines[i])] >
+                        kSparseLineGapVoxels * options.voxel_size_m)
       subset.push_back(static_cast<int>(i));
   xyz.resize(subset.size());
   std::vector<int> line(subset.size());
@@ -355,7 +374,8 @@ void addSparseCandidates(const LidarCloud& cloud, const std::vector<ValidPoint>&
     line[k] = all_lines[static_cast<size_t>(subset[k])];
   }
   lidar_detail::SegmentOptions so;
-  so.max_length_m = (1.0 + options.sparse_size_slack) * std::hypot(target.width, target.height) + options.voxel_size_m;
+  so.max_length_m = (1.0 + options.sparse_size_slack) * std::hypot(target.width, target.height) +
+                    options.voxel_size_m;
   so.max_rms_m = options.max_candidate_rms_m;
   so.plane_band_m = options.max_voxel_offset_m;
   so.range_noise_m = options.range_noise_m;
@@ -374,7 +394,8 @@ void addSparseCandidates(const LidarCloud& cloud, const std::vector<ValidPoint>&
     Candidate c = scoreSparse(r, static_cast<int>(regions->size()), pts, target, options);
     bool known = false;
     for (const auto& other : *candidates)
-      known = known || (other.info.score >= 0 && (other.info.centroid - c.info.centroid).norm() < kSameBoardDistanceM);
+      known = known || (other.info.score >= 0 &&
+                        (other.info.centroid - c.info.centroid).norm() < kSameBoardDistanceM);
     if (known) continue;
     std::unordered_set<int> voxels;
     for (int i : sr.points) {

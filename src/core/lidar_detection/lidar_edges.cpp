@@ -22,7 +22,8 @@ struct SideFit {
 // Splits the extremes of one side (left or right) into an upper and a lower edge and fits both.
 // `outward` is -1 for the left side (smaller u), +1 for the right side.
 // Sum of squared distances of points to their total-least-squares line.
-double lineResidual(const Points2& pts, const std::vector<size_t>& order, size_t begin, size_t end) {
+double lineResidual(const Points2& pts, const std::vector<size_t>& order, size_t begin,
+                    size_t end) {
   Eigen::Vector2d mean = Eigen::Vector2d::Zero();
   for (size_t k = begin; k < end; ++k) mean += pts[order[k]];
   mean /= static_cast<double>(end - begin);
@@ -36,19 +37,21 @@ double lineResidual(const Points2& pts, const std::vector<size_t>& order, size_t
 
 // `search_split`: instead of taking the most outward point as the corner (a hand at the corner
 // can fool it), split the extremes, ordered top to bottom, where two lines fit best.
-SideFit fitSide(const Points2& side, double outward, const LidarBoardDetectorOptions& o, std::mt19937& rng,
-                bool search_split = false) {
+SideFit fitSide(const Points2& side, double outward, const LidarBoardDetectorOptions& o,
+                std::mt19937& rng, bool search_split = false) {
   SideFit s;
   if (side.size() < 2) return s;
   std::vector<int> label(side.size(), -1);  // 0 upper, 1 lower
   if (search_split && side.size() >= 4) {
     std::vector<size_t> order(side.size());
     std::iota(order.begin(), order.end(), 0);
-    std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return side[a].y() > side[b].y(); });
+    std::sort(order.begin(), order.end(),
+              [&](size_t a, size_t b) { return side[a].y() > side[b].y(); });
     double best = std::numeric_limits<double>::infinity();
     size_t split = 2;
     for (size_t k = 2; k + 2 <= order.size(); ++k) {
-      const double cost = lineResidual(side, order, 0, k) + lineResidual(side, order, k, order.size());
+      const double cost =
+          lineResidual(side, order, 0, k) + lineResidual(side, order, k, order.size());
       if (cost < best) {
         best = cost;
         split = k;
@@ -80,8 +83,9 @@ SideFit fitSide(const Points2& side, double outward, const LidarBoardDetectorOpt
       const double du = s.upper.distance(side[i]), dl = s.lower.distance(side[i]);
       int l = du < dl ? 0 : 1;
       // Beyond the corner along v the nearer line can be the wrong one: keep the geometric side.
-      if (meet) l = side[i].y() > x.y() ? (du < 3 * o.edge_inlier_threshold_m || du < dl ? 0 : 1)
-                                        : (dl < 3 * o.edge_inlier_threshold_m || dl < du ? 1 : 0);
+      if (meet)
+        l = side[i].y() > x.y() ? (du < 3 * o.edge_inlier_threshold_m || du < dl ? 0 : 1)
+                                : (dl < 3 * o.edge_inlier_threshold_m || dl < du ? 1 : 0);
       if (l != label[i]) {
         label[i] = l;
         changed = true;
@@ -113,14 +117,15 @@ SideFit fitSide(const Points2& side, double outward, const LidarBoardDetectorOpt
 // The extreme returns of every scan line on the board (left = larger azimuth, seen from the
 // sensor), projected into the board plane, with each line's direction and sample spacing.
 struct SideExtremes {
-  std::vector<int> left_pts, right_pts;  // indices into the valid points
-  Points2 left2, right2;                 // in-plane positions
-  Points2 left_dir, right_dir;           // the scan line's in-plane direction
+  std::vector<int> left_pts, right_pts;     // indices into the valid points
+  Points2 left2, right2;                    // in-plane positions
+  Points2 left_dir, right_dir;              // the scan line's in-plane direction
   std::vector<double> left_gap, right_gap;  // its mean spacing between samples
 };
 
-SideExtremes sideExtremes(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const std::vector<int>& board,
-                          const LidarBoardDetectorOptions& o, const PlaneFrame& frame, const Eigen::Vector3d& centroid,
+SideExtremes sideExtremes(const LidarCloud& cloud, const std::vector<ValidPoint>& pts,
+                          const std::vector<int>& board, const LidarBoardDetectorOptions& o,
+                          const PlaneFrame& frame, const Eigen::Vector3d& centroid,
                           LidarBoardDetection* det) {
   SideExtremes x;
   auto& left_pts = x.left_pts;
@@ -135,7 +140,8 @@ SideExtremes sideExtremes(const LidarCloud& cloud, const std::vector<ValidPoint>
   struct Extremes {
     int count = 0;
     int left = -1, right = -1;
-    double left_az = -std::numeric_limits<double>::infinity(), right_az = std::numeric_limits<double>::infinity();
+    double left_az = -std::numeric_limits<double>::infinity(),
+           right_az = std::numeric_limits<double>::infinity();
   };
   std::unordered_map<int, Extremes> per_line;
   for (size_t k = 0; k < board.size(); ++k) {
@@ -158,7 +164,8 @@ SideExtremes sideExtremes(const LidarCloud& cloud, const std::vector<ValidPoint>
     ++det->num_scan_lines;
     left_pts.push_back(kv.second.left);
     right_pts.push_back(kv.second.right);
-    const Eigen::Vector2d span = frame.project(pts[kv.second.right].p) - frame.project(pts[kv.second.left].p);
+    const Eigen::Vector2d span =
+        frame.project(pts[kv.second.right].p) - frame.project(pts[kv.second.left].p);
     const double gap = span.norm() / (kv.second.count - 1);
     left_dir.push_back(span.normalized());
     right_dir.push_back(span.normalized());
@@ -176,8 +183,8 @@ struct TwoSides {
 
 // Upper and lower edge of each side; the split search where the corners are not right angles,
 // then the sampling bias (extremes lie inside the true edge) corrected.
-TwoSides fitSides(const SideExtremes& x, const LidarBoardDetectorOptions& o, const Eigen::Vector3d& centroid,
-                  std::mt19937& rng) {
+TwoSides fitSides(const SideExtremes& x, const LidarBoardDetectorOptions& o,
+                  const Eigen::Vector3d& centroid, std::mt19937& rng) {
   const Points2& left2 = x.left2;
   const Points2& right2 = x.right2;
   const auto& left_gap = x.left_gap;
@@ -190,7 +197,8 @@ TwoSides fitSides(const SideExtremes& x, const LidarBoardDetectorOptions& o, con
   if (!left_gap.empty()) {
     std::vector<double> gaps = left_gap;
     std::nth_element(gaps.begin(), gaps.begin() + gaps.size() / 2, gaps.end());
-    edge_options.edge_inlier_threshold_m = std::max(o.edge_inlier_threshold_m, gaps[gaps.size() / 2]);
+    edge_options.edge_inlier_threshold_m =
+        std::max(o.edge_inlier_threshold_m, gaps[gaps.size() / 2]);
   }
   SideFit left = fitSide(left2, -1.0, edge_options, rng);
   SideFit right = fitSide(right2, +1.0, edge_options, rng);
@@ -202,7 +210,8 @@ TwoSides fitSides(const SideExtremes& x, const LidarBoardDetectorOptions& o, con
       const LineFit2D& a = *ls[j];
       const LineFit2D& b = *ls[(j + 1) % kNumEdges];
       if (!a.ok || !b.ok) return false;
-      const double angle = std::acos(std::min(1.0, std::abs(a.direction.dot(b.direction)))) / kRadPerDeg;
+      const double angle =
+          std::acos(std::min(1.0, std::abs(a.direction.dot(b.direction)))) / kRadPerDeg;
       if (std::abs(90.0 - angle) > o.max_corner_angle_error_deg) return false;
     }
     return true;
@@ -231,7 +240,8 @@ TwoSides fitSides(const SideExtremes& x, const LidarBoardDetectorOptions& o, con
       Eigen::Vector2d normal(-l.direction.y(), l.direction.x());
       if (normal.dot(l.point) < 0) normal = -normal;  // away from the board centre (the origin)
       double shift = 0.0;
-      for (int m : members) shift += std::max(0.0, 0.5 * gaps[m] - bloom) * std::abs(dirs[m].dot(normal));
+      for (int m : members)
+        shift += std::max(0.0, 0.5 * gaps[m] - bloom) * std::abs(dirs[m].dot(normal));
       l.point += normal * (shift / members.size());
     };
     shiftOut(left.upper, left.upper_members, left_dir, left_gap);
@@ -246,17 +256,20 @@ TwoSides fitSides(const SideExtremes& x, const LidarBoardDetectorOptions& o, con
 // The four edges (UL, UR, LR, LL) and corners from the two sides; false with the reason when
 // they are inconsistent or rejected.
 bool writeEdges(const SideExtremes& x, const TwoSides& sides, const std::vector<ValidPoint>& pts,
-                const LidarBoardDetectorOptions& o, const PlaneFrame& frame, LidarBoardFeatures* features) {
+                const LidarBoardDetectorOptions& o, const PlaneFrame& frame,
+                LidarBoardFeatures* features) {
   auto& f = *features;
   const SideFit& left = sides.left;
   const SideFit& right = sides.right;
   const auto& left_pts = x.left_pts;
   const auto& right_pts = x.right_pts;
   // Edge order: UL, UR, LR, LL.
-  const std::array<const LineFit2D*, kNumEdges> lines = {&left.upper, &right.upper, &right.lower, &left.lower};
-  const std::array<const std::vector<int>*, kNumEdges> members = {&left.upper_members, &right.upper_members,
-                                                                   &right.lower_members, &left.lower_members};
-  const std::array<const std::vector<int>*, kNumEdges> side_pts = {&left_pts, &right_pts, &right_pts, &left_pts};
+  const std::array<const LineFit2D*, kNumEdges> lines = {&left.upper, &right.upper, &right.lower,
+                                                         &left.lower};
+  const std::array<const std::vector<int>*, kNumEdges> members = {
+      &left.upper_members, &right.upper_members, &right.lower_members, &left.lower_members};
+  const std::array<const std::vector<int>*, kNumEdges> side_pts = {&left_pts, &right_pts,
+                                                                   &right_pts, &left_pts};
   std::string edge_problems;
   for (int j = 0; j < kNumEdges; ++j) {
     f.edge_points[j].clear();
@@ -270,7 +283,8 @@ bool writeEdges(const SideExtremes& x, const TwoSides& sides, const std::vector<
                                               : fmt("line fit RMS %.3f m", l.rms));
     }
     f.edge_line_point[j] = frame.lift(l.point);
-    f.edge_line_direction[j] = (frame.lift(l.point + l.direction) - frame.lift(l.point)).normalized();
+    f.edge_line_direction[j] =
+        (frame.lift(l.point + l.direction) - frame.lift(l.point)).normalized();
   }
   // Corners j = edge j x edge j+1.
   std::array<bool, kNumEdges> corner_ok{};
@@ -283,9 +297,12 @@ bool writeEdges(const SideExtremes& x, const TwoSides& sides, const std::vector<
     corner_ok[j] = intersectLines(*lines[j], *lines[k], &corner2[j]);
     if (!corner_ok[j]) continue;
     f.corners[j] = frame.lift(corner2[j]);
-    const double angle = std::acos(std::min(1.0, std::abs(lines[j]->direction.dot(lines[k]->direction)))) / kRadPerDeg;
+    const double angle =
+        std::acos(std::min(1.0, std::abs(lines[j]->direction.dot(lines[k]->direction)))) /
+        kRadPerDeg;
     if (std::abs(90.0 - angle) > o.max_corner_angle_error_deg)
-      angle_problems += std::string(" ") + kCornerNames[j] + fmt(" corner meets at %.0f deg", angle);
+      angle_problems +=
+          std::string(" ") + kCornerNames[j] + fmt(" corner meets at %.0f deg", angle);
   }
   // Line points and directions from the corners when both ends exist: edge j runs from corner
   // j-1 to corner j (clockwise as the sensor sees it).
@@ -315,7 +332,8 @@ bool writeEdges(const SideExtremes& x, const TwoSides& sides, const std::vector<
 }
 
 // Measured size against the declared one.
-void checkSize(const Target& target, const LidarBoardDetectorOptions& o, LidarBoardFeatures* features) {
+void checkSize(const Target& target, const LidarBoardDetectorOptions& o,
+               LidarBoardFeatures* features) {
   auto& f = *features;
   // Sides: UL (left-top) and LR (right-bottom) are opposite, as are UR and LL.
   const double ul = (f.corners[0] - f.corners[3]).norm(), ur = (f.corners[1] - f.corners[0]).norm();
@@ -325,20 +343,21 @@ void checkSize(const Target& target, const LidarBoardDetectorOptions& o, LidarBo
   const bool direct = std::abs(s1 - w) + std::abs(s2 - h) <= std::abs(s1 - h) + std::abs(s2 - w);
   f.measured_size_m = direct ? Eigen::Vector2d(s1, s2) : Eigen::Vector2d(s2, s1);
   const double rw = f.measured_size_m.x() / w, rh = f.measured_size_m.y() / h;
-  if (rw < o.min_size_ratio || rh < o.min_size_ratio || rw > o.max_size_ratio || rh > o.max_size_ratio) {
+  if (rw < o.min_size_ratio || rh < o.min_size_ratio || rw > o.max_size_ratio ||
+      rh > o.max_size_ratio) {
     for (int j = 0; j < kNumEdges; ++j) f.edge_valid[j] = false;
-    f.reason = "edges inconsistent: " +
-               fmt("corners span %.3f x %.3f m, declared %.3f x %.3f m", f.measured_size_m.x(),
-                   f.measured_size_m.y(), w, h);
+    f.reason = "edges inconsistent: " + fmt("corners span %.3f x %.3f m, declared %.3f x %.3f m",
+                                            f.measured_size_m.x(), f.measured_size_m.y(), w, h);
     return;
   }
   if (std::abs(rw - 1.0) > o.size_doubt_ratio || std::abs(rh - 1.0) > o.size_doubt_ratio)
-    f.reason = fmt("measured %.3f x %.3f m, declared %.3f x %.3f m", f.measured_size_m.x(), f.measured_size_m.y(), w,
-                   h);
+    f.reason = fmt("measured %.3f x %.3f m, declared %.3f x %.3f m", f.measured_size_m.x(),
+                   f.measured_size_m.y(), w, h);
 }
 
-void extractEdgesByLines(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const std::vector<int>& board,
-                         const Target& target, const LidarBoardDetectorOptions& o, std::mt19937& rng,
+void extractEdgesByLines(const LidarCloud& cloud, const std::vector<ValidPoint>& pts,
+                         const std::vector<int>& board, const Target& target,
+                         const LidarBoardDetectorOptions& o, std::mt19937& rng,
                          LidarBoardDetection* det) {
   auto& f = det->features;
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
@@ -360,14 +379,17 @@ void extractEdgesByLines(const LidarCloud& cloud, const std::vector<ValidPoint>&
 
 // Stage 4: scan lines and edges.
 // ------------------------------------------------------------------------------------------
-std::vector<int> scanLines(const LidarCloud& cloud, const std::vector<int>& board, const std::vector<ValidPoint>& pts,
-                           const LidarBoardDetectorOptions& o, std::string* source) {
+std::vector<int> scanLines(const LidarCloud& cloud, const std::vector<int>& board,
+                           const std::vector<ValidPoint>& pts, const LidarBoardDetectorOptions& o,
+                           std::string* source) {
   std::vector<int> line(board.size(), -1);
   bool rings_ok = cloud.has_ring;
-  for (size_t k = 0; k < board.size() && rings_ok; ++k) rings_ok = cloud.points[pts[board[k]].cloud_index].ring >= 0;
+  for (size_t k = 0; k < board.size() && rings_ok; ++k)
+    rings_ok = cloud.points[pts[board[k]].cloud_index].ring >= 0;
   if (rings_ok) {
     *source = "ring";
-    for (size_t k = 0; k < board.size(); ++k) line[k] = cloud.points[pts[board[k]].cloud_index].ring;
+    for (size_t k = 0; k < board.size(); ++k)
+      line[k] = cloud.points[pts[board[k]].cloud_index].ring;
     return line;
   }
   if (cloud.organized() && cloud.width > 0) {
@@ -392,10 +414,9 @@ std::vector<int> scanLines(const LidarCloud& cloud, const std::vector<int>& boar
   return line;
 }
 
-
-void extractEdges(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const std::vector<int>& board,
-                  const Target& target, const LidarBoardDetectorOptions& o, std::mt19937& rng,
-                  LidarBoardDetection* det) {
+void extractEdges(const LidarCloud& cloud, const std::vector<ValidPoint>& pts,
+                  const std::vector<int>& board, const Target& target,
+                  const LidarBoardDetectorOptions& o, std::mt19937& rng, LidarBoardDetection* det) {
   const LidarBoardDetection before = *det;
   extractEdgesByLines(cloud, pts, board, target, o, rng, det);
   if (det->features.allEdgesValid() || !o.sparse_candidates) return;

@@ -11,7 +11,8 @@ namespace board_calib {
 namespace lidar_detail {
 
 RefinedPlane refinePlane(const std::vector<int>& region_points, const std::vector<int>& gathered,
-                         const std::vector<ValidPoint>& pts, const LidarBoardDetectorOptions& o, std::mt19937& rng) {
+                         const std::vector<ValidPoint>& pts, const LidarBoardDetectorOptions& o,
+                         std::mt19937& rng) {
   RefinedPlane best;
   const double thr = o.plane_distance_threshold_m;
   std::uniform_int_distribution<size_t> pick(0, region_points.size() - 1);
@@ -53,7 +54,8 @@ RefinedPlane refinePlane(const std::vector<int>& region_points, const std::vecto
     // RMS, not MAD: a flexing board's rim sits in the tails that the band must reach.
     double sum_sq = 0.0;
     for (int i : inliers) sum_sq += std::pow(best_n.dot(pts[i].p) - best_d, 2);
-    band_m = std::clamp(kAdaptiveBandSigmas * std::sqrt(sum_sq / inliers.size()), thr, kMaxAdaptiveBandFactor * thr);
+    band_m = std::clamp(kAdaptiveBandSigmas * std::sqrt(sum_sq / inliers.size()), thr,
+                        kMaxAdaptiveBandFactor * thr);
     best.inliers = std::move(inliers);
   }
   // Robust scale of the residuals: a tighter band drops mixed returns at the board's rim (they
@@ -108,7 +110,9 @@ void gatherRegionPoints(const std::vector<Region>& regions, int region_id, const
   for (int vi : gathered_voxels) {
     const Voxel& v = grid.voxels[vi];
     // Only voxels that belong to no other large plane (walls behind the board stay out).
-    if (v.region >= 0 && v.region != region_id && regions[v.region].stats.n >= options.min_board_points) continue;
+    if (v.region >= 0 && v.region != region_id &&
+        regions[v.region].stats.n >= options.min_board_points)
+      continue;
     for (int j = 0; j < v.count; ++j) gathered->push_back(grid.sorted_points[v.first + j]);
   }
 }

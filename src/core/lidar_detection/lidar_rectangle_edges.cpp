@@ -16,8 +16,9 @@ namespace lidar_detail {
 // moved out by its expected inset (half a column step minus the beam's bloom, along the scan
 // line), with every board point inside; its sides are the edges, the extremes each side owns
 // its edge points.
-bool extractEdgesByRectangle(const LidarCloud& cloud, const std::vector<ValidPoint>& pts, const std::vector<int>& board,
-                             const Target& target, const LidarBoardDetectorOptions& o, LidarBoardDetection* det) {
+bool extractEdgesByRectangle(const LidarCloud& cloud, const std::vector<ValidPoint>& pts,
+                             const std::vector<int>& board, const Target& target,
+                             const LidarBoardDetectorOptions& o, LidarBoardDetection* det) {
   auto& f = det->features;
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   for (int i : board) centroid += pts[i].p;
@@ -30,11 +31,13 @@ bool extractEdgesByRectangle(const LidarCloud& cloud, const std::vector<ValidPoi
   const double center_azimuth = std::atan2(centroid.y(), centroid.x());
   struct Extremes {
     int count = 0, left = -1, right = -1;
-    double left_az = -std::numeric_limits<double>::infinity(), right_az = std::numeric_limits<double>::infinity();
+    double left_az = -std::numeric_limits<double>::infinity(),
+           right_az = std::numeric_limits<double>::infinity();
   };
   std::map<int, Extremes> per_line;
   for (size_t k = 0; k < board.size(); ++k) {
-    const double az = wrapAngle(std::atan2(pts[board[k]].p.y(), pts[board[k]].p.x()) - center_azimuth);
+    const double az =
+        wrapAngle(std::atan2(pts[board[k]].p.y(), pts[board[k]].p.x()) - center_azimuth);
     Extremes& e = per_line[line[k]];
     ++e.count;
     if (az > e.left_az) {
@@ -72,10 +75,11 @@ bool extractEdgesByRectangle(const LidarCloud& cloud, const std::vector<ValidPoi
   const double column_m = gap_sum / lines;
   // Extremes scatter within a column step of the outline; the range noise moves them in-plane
   // only on tilted boards, the beam's bloom adds to the outside.
-  const double tolerance = std::max(o.edge_inlier_threshold_m, column_m + 2.0 * bloom + 3.0 * o.range_noise_m);
+  const double tolerance =
+      std::max(o.edge_inlier_threshold_m, column_m + 2.0 * bloom + 3.0 * o.range_noise_m);
   // Only the hull matters for "every board point inside".
-  const auto fit = lidar_detail::fitRectangle(lidar_detail::convexHull(board2), extremes, insets, target.width,
-                                              target.height, tolerance);
+  const auto fit = lidar_detail::fitRectangle(lidar_detail::convexHull(board2), extremes, insets,
+                                              target.width, target.height, tolerance);
   if (!fit.ok || fit.rms_m > tolerance || fit.worst_outside_m > tolerance) return false;
   // Sides: outward normals of the four sides; UL is the one nearest to up-left (135 deg), then
   // clockwise UR, LR, LL.
@@ -115,7 +119,9 @@ bool extractEdgesByRectangle(const LidarCloud& cloud, const std::vector<ValidPoi
   for (int j = 0; j < kNumEdges; ++j) {
     f.edge_valid[j] = true;
     f.edge_line_point[j] = frame.lift(lines2[j].point);
-    f.edge_line_direction[j] = (frame.lift(lines2[j].point + lines2[j].direction) - frame.lift(lines2[j].point)).normalized();
+    f.edge_line_direction[j] =
+        (frame.lift(lines2[j].point + lines2[j].direction) - frame.lift(lines2[j].point))
+            .normalized();
     // Corner j = edge j x edge j+1: the end of side j shared with side j+1 (clockwise).
     const int k = side_of_edge[j];
     f.corners[j] = frame.lift(a[k]);
@@ -123,8 +129,9 @@ bool extractEdgesByRectangle(const LidarCloud& cloud, const std::vector<ValidPoi
   det->num_scan_lines = lines;
   det->scan_line_source = source;
   f.measured_size_m = Eigen::Vector2d(target.width, target.height);
-  f.reason = fmt("edges from the declared %.3f x %.3f m rectangle fitted to %.0f scan lines (RMS %.3f m)", target.width,
-                 target.height, lines, fit.rms_m);
+  f.reason =
+      fmt("edges from the declared %.3f x %.3f m rectangle fitted to %.0f scan lines (RMS %.3f m)",
+          target.width, target.height, lines, fit.rms_m);
   return true;
 }
 

@@ -12,15 +12,19 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kElevationBinsPerGap = 3.0;  // histogram bins per elevation gap
-constexpr double kMaxGapSteps = 4.0;          // missing returns (dropouts) a run bridges, in column steps
-constexpr double kMaxRangeSlope = 3.0;        // range change per arc length within a run (surfaces to ~70 deg grazing)
-constexpr double kJumpSigmas = 4.0;           // range noise never splits a run
-constexpr double kLinkMarginSteps = 2.0;      // azimuth overlap margin between segments of adjacent lines
+constexpr double kMaxGapSteps = 4.0;  // missing returns (dropouts) a run bridges, in column steps
+constexpr double kMaxRangeSlope =
+    3.0;  // range change per arc length within a run (surfaces to ~70 deg grazing)
+constexpr double kJumpSigmas = 4.0;  // range noise never splits a run
+constexpr double kLinkMarginSteps =
+    2.0;  // azimuth overlap margin between segments of adjacent lines
 constexpr double kAngleStepCoarse = kPi / 180.0;  // rectangle fit: 1 deg, then refined
 constexpr double kAngleStepFine = kPi / 1800.0;
 constexpr int kAssignRounds = 4;
 constexpr double kMinInPlaneFraction = 0.7;
-constexpr double kUntrimmedRmsFactor = 4.0;   // seed triples: untrimmed RMS bound before the trimmed fit   // of a segment's points within the band of a region's plane
+constexpr double kUntrimmedRmsFactor =
+    4.0;  // seed triples: untrimmed RMS bound before the trimmed fit   // of a segment's points
+          // within the band of a region's plane
 
 double median(std::vector<double> v) {
   if (v.empty()) return 0.0;
@@ -40,7 +44,8 @@ struct Segment {
 // Renumber line ids bottom-up by their mean elevation (rings and rows come in either order).
 void rankByElevation(const std::vector<Eigen::Vector3d>& points, std::vector<int>* line) {
   if (line->empty()) return;
-  const int lo = *std::min_element(line->begin(), line->end()), hi = *std::max_element(line->begin(), line->end());
+  const int lo = *std::min_element(line->begin(), line->end()),
+            hi = *std::max_element(line->begin(), line->end());
   std::vector<std::pair<double, int>> sums(static_cast<size_t>(hi - lo + 1), {0.0, 0});
   // One point per line in every few gives its elevation well enough (beams are fixed).
   constexpr size_t kStride = 7;
@@ -61,7 +66,8 @@ void rankByElevation(const std::vector<Eigen::Vector3d>& points, std::vector<int
     if (sums[k].second > 0) order.emplace_back(sums[k].first / sums[k].second, static_cast<int>(k));
   std::sort(order.begin(), order.end());
   std::vector<int> rank(sums.size(), 0);
-  for (size_t k = 0; k < order.size(); ++k) rank[static_cast<size_t>(order[k].second)] = static_cast<int>(k);
+  for (size_t k = 0; k < order.size(); ++k)
+    rank[static_cast<size_t>(order[k].second)] = static_cast<int>(k);
   for (auto& l : *line) l = rank[static_cast<size_t>(l - lo)];
 }
 
@@ -82,12 +88,14 @@ void sortByAzimuth(std::vector<std::pair<double, int>>* pts) {
     }
   }
   if (down <= 1) {  // ascending with at most one wrap
-    if (down == 1 && v.front().first >= v.back().first) std::rotate(v.begin(), v.begin() + static_cast<long>(wrap_down), v.end());
+    if (down == 1 && v.front().first >= v.back().first)
+      std::rotate(v.begin(), v.begin() + static_cast<long>(wrap_down), v.end());
     if (down == 0 || v.front().first >= v.back().first || std::is_sorted(v.begin(), v.end())) {
       if (std::is_sorted(v.begin(), v.end())) return;
     }
   } else if (up <= 1) {  // descending with at most one wrap
-    if (up == 1 && v.front().first <= v.back().first) std::rotate(v.begin(), v.begin() + static_cast<long>(wrap_up), v.end());
+    if (up == 1 && v.front().first <= v.back().first)
+      std::rotate(v.begin(), v.begin() + static_cast<long>(wrap_up), v.end());
     std::reverse(v.begin(), v.end());
     if (std::is_sorted(v.begin(), v.end())) return;
   }
@@ -101,7 +109,8 @@ std::vector<int> scanLinesOf(const LidarCloud& cloud, const std::vector<int>& cl
                              std::string* source) {
   std::vector<int> line(points.size(), 0);
   bool rings = cloud.has_ring;
-  for (size_t i = 0; i < points.size() && rings; ++i) rings = cloud.points[cloud_index[i]].ring >= 0;
+  for (size_t i = 0; i < points.size() && rings; ++i)
+    rings = cloud.points[cloud_index[i]].ring >= 0;
   if (rings || (cloud.organized() && cloud.width > 0)) {
     *source = rings ? "ring" : "row";
     for (size_t i = 0; i < points.size(); ++i)
@@ -131,21 +140,24 @@ std::vector<int> scanLinesOf(const LidarCloud& cloud, const std::vector<int>& cl
   return line;
 }
 
-std::vector<double> lineGaps(const std::vector<Eigen::Vector3d>& points, const std::vector<int>& line) {
+std::vector<double> lineGaps(const std::vector<Eigen::Vector3d>& points,
+                             const std::vector<int>& line) {
   if (points.empty()) return {};
   const int lines = *std::max_element(line.begin(), line.end()) + 1;
   std::vector<double> sum(static_cast<size_t>(lines), 0.0), gap(static_cast<size_t>(lines), kPi);
   std::vector<int> n(static_cast<size_t>(lines), 0);
   constexpr size_t kStride = 7;  // beams have fixed elevations: a sample suffices
   for (size_t i = 0; i < points.size(); i += (n[static_cast<size_t>(line[i])] < 3 ? 1 : kStride)) {
-    sum[static_cast<size_t>(line[i])] += std::atan2(points[i].z(), std::hypot(points[i].x(), points[i].y()));
+    sum[static_cast<size_t>(line[i])] +=
+        std::atan2(points[i].z(), std::hypot(points[i].x(), points[i].y()));
     ++n[static_cast<size_t>(line[i])];
   }
   int prev = -1;
   for (int l = 0; l < lines; ++l) {
     if (!n[static_cast<size_t>(l)]) continue;
     if (prev >= 0) {
-      const double g = sum[static_cast<size_t>(l)] / n[static_cast<size_t>(l)] - sum[static_cast<size_t>(prev)] / n[static_cast<size_t>(prev)];
+      const double g = sum[static_cast<size_t>(l)] / n[static_cast<size_t>(l)] -
+                       sum[static_cast<size_t>(prev)] / n[static_cast<size_t>(prev)];
       gap[static_cast<size_t>(l)] = std::min(gap[static_cast<size_t>(l)], g);
       gap[static_cast<size_t>(prev)] = std::min(gap[static_cast<size_t>(prev)], g);
     }
@@ -154,15 +166,16 @@ std::vector<double> lineGaps(const std::vector<Eigen::Vector3d>& points, const s
   return gap;
 }
 
-std::vector<SegmentRegion> segmentRegions(const std::vector<Eigen::Vector3d>& points, const std::vector<int>& line,
-                                          const SegmentOptions& o) {
+std::vector<SegmentRegion> segmentRegions(const std::vector<Eigen::Vector3d>& points,
+                                          const std::vector<int>& line, const SegmentOptions& o) {
   std::vector<SegmentRegion> out;
   if (points.empty()) return out;
   const int lines = *std::max_element(line.begin(), line.end()) + 1;
   // Points of each line in azimuth order.
   std::vector<std::vector<std::pair<double, int>>> by_line(static_cast<size_t>(lines));
   for (size_t i = 0; i < points.size(); ++i)
-    by_line[static_cast<size_t>(line[i])].emplace_back(std::atan2(points[i].y(), points[i].x()), static_cast<int>(i));
+    by_line[static_cast<size_t>(line[i])].emplace_back(std::atan2(points[i].y(), points[i].x()),
+                                                       static_cast<int>(i));
   std::vector<Segment> segments;
   std::vector<std::vector<int>> segments_of_line(static_cast<size_t>(lines));
   std::vector<double> line_elevation(static_cast<size_t>(lines), 0.0);
@@ -178,7 +191,8 @@ std::vector<SegmentRegion> segmentRegions(const std::vector<Eigen::Vector3d>& po
       if (pts[k].first > pts[k - 1].first) steps.push_back(pts[k].first - pts[k - 1].first);
     const double step = std::max(median(steps), 1e-5);
     std::vector<double> range(pts.size());
-    for (size_t k = 0; k < pts.size(); ++k) range[k] = points[static_cast<size_t>(pts[k].second)].norm();
+    for (size_t k = 0; k < pts.size(); ++k)
+      range[k] = points[static_cast<size_t>(pts[k].second)].norm();
     size_t begin = 0;
     for (size_t k = 1; k <= pts.size(); ++k) {
       bool split = k == pts.size();
@@ -198,12 +212,14 @@ std::vector<SegmentRegion> segmentRegions(const std::vector<Eigen::Vector3d>& po
         const double daz = std::abs(pts[static_cast<size_t>(outside)].first - pts[inside].first);
         return daz > kMaxGapSteps * step || range[static_cast<size_t>(outside)] > range[inside];
       };
-      const bool front = farther(begin, static_cast<long>(begin) - 1) && farther(end - 1, static_cast<long>(end));
+      const bool front =
+          farther(begin, static_cast<long>(begin) - 1) && farther(end - 1, static_cast<long>(end));
       if (n >= 2 && front) {
         // Width across the view: the chord would miss a whole ring on the ground (it closes on
         // itself) and a path length sums the range noise.
         const double az_span = pts[end - 1].first - pts[begin].first;
-        const double chord = 2.0 * std::min(range[begin], range[end - 1]) * std::sin(0.5 * std::min(az_span, kPi));
+        const double chord =
+            2.0 * std::min(range[begin], range[end - 1]) * std::sin(0.5 * std::min(az_span, kPi));
         if (az_span < kPi && chord <= o.max_length_m) {
           {
             Segment seg;
@@ -266,7 +282,8 @@ std::vector<SegmentRegion> segmentRegions(const std::vector<Eigen::Vector3d>& po
   std::vector<int> order(segments.size());
   std::iota(order.begin(), order.end(), 0);
   std::sort(order.begin(), order.end(), [&](int a, int b) {
-    return segments[static_cast<size_t>(a)].points.size() > segments[static_cast<size_t>(b)].points.size();
+    return segments[static_cast<size_t>(a)].points.size() >
+           segments[static_cast<size_t>(b)].points.size();
   });
   for (int s : order) {
     if (segments[static_cast<size_t>(s)].region >= 0) continue;
@@ -287,7 +304,8 @@ std::vector<SegmentRegion> segmentRegions(const std::vector<Eigen::Vector3d>& po
         const PlaneFit f = trimmedFit(triple);
         const double rms = std::sqrt(f.eigenvalues[0]);
         if (rms < best_rms && rms <= o.max_rms_m &&
-            std::all_of(triple.begin(), triple.end(), [&](int k) { return fitsPlane(segments[static_cast<size_t>(k)], f); })) {
+            std::all_of(triple.begin(), triple.end(),
+                        [&](int k) { return fitsPlane(segments[static_cast<size_t>(k)], f); })) {
           best_rms = rms;
           seed = triple;
         }
@@ -348,15 +366,19 @@ std::vector<SegmentRegion> segmentRegions(const std::vector<Eigen::Vector3d>& po
   return out;
 }
 
-RectangleFit fitRectangle(const Points2& board, const Points2& extremes, const std::vector<double>& insets,
-                          double width, double height, double inside_tol_m) {
+RectangleFit fitRectangle(const Points2& board, const Points2& extremes,
+                          const std::vector<double>& insets, double width, double height,
+                          double inside_tol_m) {
   RectangleFit best;
   double best_cost = std::numeric_limits<double>::infinity();
   if (board.empty()) return best;
   auto evaluate = [&](double angle, RectangleFit* fit) {
     const double c = std::cos(angle), s = std::sin(angle);
-    auto rot = [&](const Eigen::Vector2d& p) { return Eigen::Vector2d(c * p.x() + s * p.y(), -s * p.x() + c * p.y()); };
-    Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+    auto rot = [&](const Eigen::Vector2d& p) {
+      return Eigen::Vector2d(c * p.x() + s * p.y(), -s * p.x() + c * p.y());
+    };
+    Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity()),
+                    hi = -lo;
     for (const auto& p : board) {
       const Eigen::Vector2d q = rot(p);
       lo = lo.cwiseMin(q);
@@ -389,7 +411,7 @@ RectangleFit fitRectangle(const Points2& board, const Points2& extremes, const s
         const double residual = d[side] - inset;
         cost += residual * residual;
         // The centre coordinate that puts this extreme exactly at its inset.
-        const double want = side == 0 ? q.x() + inset - half.x()
+        const double want = side == 0   ? q.x() + inset - half.x()
                             : side == 1 ? q.x() - inset + half.x()
                             : side == 2 ? q.y() + inset - half.y()
                                         : q.y() - inset + half.y();
@@ -412,7 +434,8 @@ RectangleFit fitRectangle(const Points2& board, const Points2& extremes, const s
       }
       fit->worst_outside_m = worst;
       const double sx[4] = {1, -1, -1, 1}, sy[4] = {1, 1, -1, -1};
-      for (int j = 0; j < 4; ++j) fit->corners[j] = back * (centre + Eigen::Vector2d(sx[j] * half.x(), sy[j] * half.y()));
+      for (int j = 0; j < 4; ++j)
+        fit->corners[j] = back * (centre + Eigen::Vector2d(sx[j] * half.x(), sy[j] * half.y()));
     }
     return cost;
   };
@@ -425,7 +448,8 @@ RectangleFit fitRectangle(const Points2& board, const Points2& extremes, const s
     }
   }
   if (!std::isfinite(best_cost)) return best;
-  for (double a = best_angle - kAngleStepCoarse; a <= best_angle + kAngleStepCoarse; a += kAngleStepFine) {
+  for (double a = best_angle - kAngleStepCoarse; a <= best_angle + kAngleStepCoarse;
+       a += kAngleStepFine) {
     const double cost = evaluate(a, nullptr);
     if (cost < best_cost) {
       best_cost = cost;

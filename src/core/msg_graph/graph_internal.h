@@ -20,11 +20,12 @@ namespace board_calib {
 namespace multi_sensor {
 namespace graph_detail {
 
-constexpr double kUnitTolerance = 1e-3;   // |n| - 1 accepted for a plane normal
-constexpr double kMinCornerDepthM = 1e-3; // corner terms reject steps putting a corner behind
+constexpr double kUnitTolerance = 1e-3;    // |n| - 1 accepted for a plane normal
+constexpr double kMinCornerDepthM = 1e-3;  // corner terms reject steps putting a corner behind
 constexpr double kSqrtHalf = 0.70710678118654752;
 constexpr int kMinSensors = 2;
-constexpr double kRotationPerQuaternionTangent = 2.0;  // EigenQuaternionManifold: rotation vector = 2 d
+constexpr double kRotationPerQuaternionTangent =
+    2.0;  // EigenQuaternionManifold: rotation vector = 2 d
 
 constexpr int kPoseDim = 6;  // tangent size of a pose: rotation vector, translation
 
@@ -85,7 +86,8 @@ struct BoardPose {
     for (int i = 0; i < 3; ++i) x[4 + i] = T.translation()(i);
   }
 };
-using BoardManifold = ceres::ProductManifold<ceres::EigenQuaternionManifold, ceres::EuclideanManifold<3>>;
+using BoardManifold =
+    ceres::ProductManifold<ceres::EigenQuaternionManifold, ceres::EuclideanManifold<3>>;
 
 // Pair sigmas: normal per component (the RMS angle spreads over two components), offset.
 double pairNormalSigmaComponent(const Sigmas& a, const Sigmas& b);
@@ -95,8 +97,8 @@ double pairOffsetSigma(const Sigmas& a, const Sigmas& b);
 struct PlanePairError {
   double angle_rad = 0.0, offset_m = 0.0, whitened = 0.0;
 };
-PlanePairError planePairError(const Obs& oa, const Obs& ob, const Eigen::Isometry3d& a_T_b, const Sigmas& sa,
-                              const Sigmas& sb);
+PlanePairError planePairError(const Obs& oa, const Obs& ob, const Eigen::Isometry3d& a_T_b,
+                              const Sigmas& sa, const Sigmas& sb);
 
 double median(std::vector<double> v);
 
@@ -105,15 +107,21 @@ class Graph {
  public:
   Graph(const MsgProblem& problem, const MsgGraphOptions& options, std::vector<Sigmas> sigmas,
         std::vector<std::vector<Obs>> obs)
-      : problem_(problem), options_(options), sigmas_(std::move(sigmas)), obs_(std::move(obs)),
-        n_(static_cast<int>(problem.sensors.size())), poses_(n_), boards_(problem.poses.size()) {}
+      : problem_(problem),
+        options_(options),
+        sigmas_(std::move(sigmas)),
+        obs_(std::move(obs)),
+        n_(static_cast<int>(problem.sensors.size())),
+        poses_(n_),
+        boards_(problem.poses.size()) {}
 
   std::vector<Pose7>& poses() { return poses_; }
   std::vector<std::vector<Obs>>& observations() { return obs_; }
 
   // Board poses with corner terms: >= 2 active cameras with enough pattern points.
   std::vector<int> cornerCameras(size_t p) const;
-  // Image line matched to each LiDAR edge of (camera c, LiDAR l) at board pose p; -1 when unmatched.
+  // Image line matched to each LiDAR edge of (camera c, LiDAR l) at board pose p; -1 when
+  // unmatched.
   std::array<int, kNumEdges> matchedLines(size_t p, int c, int l) const;
 
   struct StageResult {
@@ -128,12 +136,15 @@ class Graph {
 
   // Whitened per-term magnitudes of each active observation, for rejection and statistics.
   // Fills `entries[p][s]` with one value per partner term (and one for the corners).
-  void observationErrors(std::vector<std::vector<std::vector<double>>>* entries, GraphResiduals* stats);
+  void observationErrors(std::vector<std::vector<std::vector<double>>>* entries,
+                         GraphResiduals* stats);
 
  private:
   static Eigen::Vector3d lineNormal(const CameraBoardFeatures& cam, int j);
-  void addPlaneTerms(size_t p, const std::set<int>& corner_set, RobustLoss loss, ceres::Problem* problem);
-  void addCornerTerms(size_t p, const std::vector<int>& cams, RobustLoss loss, ceres::Problem* problem);
+  void addPlaneTerms(size_t p, const std::set<int>& corner_set, RobustLoss loss,
+                     ceres::Problem* problem);
+  void addCornerTerms(size_t p, const std::vector<int>& cams, RobustLoss loss,
+                      ceres::Problem* problem);
   void addLineTerms(size_t p, ceres::Problem* problem, RobustLoss loss, double scale);
 
   const MsgProblem& problem_;
@@ -149,15 +160,18 @@ class Graph {
 // --- Stages of solveMsgGraph (pairwise_links.cpp unless noted) ---
 
 // The problem's structure; empty when usable.
-std::string checkProblem(const MsgProblem& problem, const std::optional<std::vector<Eigen::Isometry3d>>& initial);
+std::string checkProblem(const MsgProblem& problem,
+                         const std::optional<std::vector<Eigen::Isometry3d>>& initial);
 // Sigmas of a sensor: its spec, else the options' default for its kind.
 Sigmas resolveSigmas(const SensorSpec& spec, const MsgGraphOptions& o);
 // Usable observations [pose][sensor]; a note counts the skipped ones.
-std::vector<std::vector<Obs>> collectObservations(const MsgProblem& problem, std::vector<std::string>* notes);
+std::vector<std::vector<Obs>> collectObservations(const MsgProblem& problem,
+                                                  std::vector<std::string>* notes);
 // Pairwise links of every sensor pair (twice when the sensor noise is estimated: the second
 // pass gates with it); `sigmas` receives the estimates.
-void solveLinks(const MsgProblem& problem, const MsgGraphOptions& options, const std::vector<std::vector<Obs>>& obs,
-                std::vector<Sigmas>* sigmas, MsgSolution* sol);
+void solveLinks(const MsgProblem& problem, const MsgGraphOptions& options,
+                const std::vector<std::vector<Obs>>& obs, std::vector<Sigmas>* sigmas,
+                MsgSolution* sol);
 // Initial poses along a maximum spanning tree of the links from the reference; false (and
 // sol->reason) when the graph is disconnected.
 bool spanningTreeInit(const MsgProblem& problem, const MsgGraphOptions& options, MsgSolution* sol,
@@ -168,11 +182,12 @@ void loopErrors(int n, MsgSolution* sol);
 // graph_results.cpp: the sensors' estimates (false and sol->reason when a sensor keeps too few
 // board poses), their joint covariance, the camera <- LiDAR pairs, links against the graph.
 bool fillSensors(const MsgProblem& problem, const MsgGraphOptions& options, Graph& graph,
-                 const std::vector<Sigmas>& sigmas, const std::vector<Eigen::Isometry3d>& init, MsgSolution* sol);
+                 const std::vector<Sigmas>& sigmas, const std::vector<Eigen::Isometry3d>& init,
+                 MsgSolution* sol);
 void poseCovariance(const MsgGraphOptions& options, Graph& graph, MsgSolution* sol);
 void pairEstimates(MsgSolution* sol);
-void finalNotes(const MsgProblem& problem, const MsgGraphOptions& options, const std::vector<Sigmas>& sigmas,
-                MsgSolution* sol);
+void finalNotes(const MsgProblem& problem, const MsgGraphOptions& options,
+                const std::vector<Sigmas>& sigmas, MsgSolution* sol);
 Matrix6d relativeCovarianceOf(const MsgSolution& sol, int a, int b);
 
 }  // namespace graph_detail

@@ -2,9 +2,9 @@
 // the Ceres solve of one stage, and the per-observation errors for outlier rejection.
 #include "graph_internal.h"
 
+#include <board_calib/core/common/board_geometry.h>
 #include <board_calib/core/common/ceres_helpers.h>
 #include <board_calib/core/common/edge_association.h>
-#include <board_calib/core/common/board_geometry.h>
 #include <board_calib/core/transform.h>
 
 #include <algorithm>
@@ -26,8 +26,8 @@ double pairOffsetSigma(const Sigmas& a, const Sigmas& b) {
   return std::sqrt(a.offset_m * a.offset_m + b.offset_m * b.offset_m);
 }
 
-PlanePairError planePairError(const Obs& oa, const Obs& ob, const Eigen::Isometry3d& a_T_b, const Sigmas& sa,
-                              const Sigmas& sb) {
+PlanePairError planePairError(const Obs& oa, const Obs& ob, const Eigen::Isometry3d& a_T_b,
+                              const Sigmas& sa, const Sigmas& sb) {
   PlanePairError e;
   const Plane& pa = oa.plane;
   const Eigen::Vector3d rnb = a_T_b.linear() * ob.plane.normal;
@@ -56,7 +56,8 @@ std::vector<int> Graph::cornerCameras(size_t p) const {
   if (!options_.use_corner_terms) return cams;
   for (int s = 0; s < n_; ++s) {
     const Obs& o = obs_[p][s];
-    if (o.active && o.camera && static_cast<int>(o.camera->pattern.size()) >= options_.min_shared_corners)
+    if (o.active && o.camera &&
+        static_cast<int>(o.camera->pattern.size()) >= options_.min_shared_corners)
       cams.push_back(s);
   }
   if (cams.size() < 2) cams.clear();
@@ -68,7 +69,8 @@ std::vector<int> Graph::cornerCameras(size_t p) const {
 // overlay pair them); -1 when unmatched.
 std::array<int, kNumEdges> Graph::matchedLines(size_t p, int c, int l) const {
   const Eigen::Isometry3d c_T_l = poses_[c].iso().inverse() * poses_[l].iso();
-  const EdgeAssociation a = associateEdges(*obs_[p][c].camera, *obs_[p][l].lidar, c_T_l, options_.min_edge_points);
+  const EdgeAssociation a =
+      associateEdges(*obs_[p][c].camera, *obs_[p][l].lidar, c_T_l, options_.min_edge_points);
   std::array<int, kNumEdges> match;
   match.fill(-1);
   for (int j = 0; j < kNumEdges; ++j)
@@ -79,28 +81,33 @@ std::array<int, kNumEdges> Graph::matchedLines(size_t p, int c, int l) const {
 // Plane pairs of board pose p (camera pairs tied by corners are left to the corner terms).
 // With K sensors on a board pose each plane enters K - 1 pairs: K(K-1)/2 pair terms carry the
 // information of K - 1 independent ones, so each is inflated by sqrt(K / 2).
-void Graph::addPlaneTerms(size_t p, const std::set<int>& corner_set, RobustLoss loss, ceres::Problem* problem) {
+void Graph::addPlaneTerms(size_t p, const std::set<int>& corner_set, RobustLoss loss,
+                          ceres::Problem* problem) {
   int active = 0;
   for (int s = 0; s < n_; ++s) active += obs_[p][s].active ? 1 : 0;
-  const double inflate = options_.balance_plane_pairs ? std::sqrt(std::max(1.0, 0.5 * active)) : 1.0;
+  const double inflate =
+      options_.balance_plane_pairs ? std::sqrt(std::max(1.0, 0.5 * active)) : 1.0;
   for (int a = 0; a < n_; ++a) {
     if (!obs_[p][a].active) continue;
     for (int b = a + 1; b < n_; ++b) {
       if (!obs_[p][b].active) continue;
       if (corner_set.count(a) && corner_set.count(b)) continue;
       problem->AddResidualBlock(
-          detail::PlanePairCost::Create(obs_[p][a].plane.normal, obs_[p][a].plane.offset, obs_[p][a].point,
-                                        obs_[p][b].plane.normal, obs_[p][b].plane.offset, obs_[p][b].point,
+          detail::PlanePairCost::Create(obs_[p][a].plane.normal, obs_[p][a].plane.offset,
+                                        obs_[p][a].point, obs_[p][b].plane.normal,
+                                        obs_[p][b].plane.offset, obs_[p][b].point,
                                         inflate * pairNormalSigmaComponent(sigmas_[a], sigmas_[b]),
                                         inflate * pairOffsetSigma(sigmas_[a], sigmas_[b])),
-          ceres_common::makeLoss(loss, options_.loss_scale_sigma), poses_[a].q, poses_[a].t, poses_[b].q, poses_[b].t);
+          ceres_common::makeLoss(loss, options_.loss_scale_sigma), poses_[a].q, poses_[a].t,
+          poses_[b].q, poses_[b].t);
     }
   }
 }
 
 // Corner terms of board pose p: a free board pose, started from the camera with the most
 // corners, and every corner of every camera in `cams` reprojected through it.
-void Graph::addCornerTerms(size_t p, const std::vector<int>& cams, RobustLoss loss, ceres::Problem* problem) {
+void Graph::addCornerTerms(size_t p, const std::vector<int>& cams, RobustLoss loss,
+                           ceres::Problem* problem) {
   int best = cams.front();
   for (int c : cams)
     if (obs_[p][c].camera->pattern.size() > obs_[p][best].camera->pattern.size()) best = c;
@@ -109,9 +116,10 @@ void Graph::addCornerTerms(size_t p, const std::vector<int>& cams, RobustLoss lo
   for (int c : cams) {
     const CameraBoardFeatures& cam = *obs_[p][c].camera;
     for (const auto& corner : cam.pattern)
-      problem->AddResidualBlock(
-          detail::CornerCost::Create(corner.board_point, corner.pixel, cam.K, sigmas_[c].pixel_px, kMinCornerDepthM),
-          ceres_common::makeLoss(loss, options_.loss_scale_sigma), poses_[c].q, poses_[c].t, boards_[p].x);
+      problem->AddResidualBlock(detail::CornerCost::Create(corner.board_point, corner.pixel, cam.K,
+                                                           sigmas_[c].pixel_px, kMinCornerDepthM),
+                                ceres_common::makeLoss(loss, options_.loss_scale_sigma),
+                                poses_[c].q, poses_[c].t, boards_[p].x);
   }
 }
 
@@ -130,7 +138,8 @@ Graph::StageResult Graph::solve(bool planes_only, int reference, bool keep_probl
       addCornerTerms(p, cams, loss, problem.get());
       board_blocks.push_back(boards_[p].x);
     }
-    if (!planes_only && options_.use_line_terms) addLineTerms(p, problem.get(), loss, options_.loss_scale_sigma);
+    if (!planes_only && options_.use_line_terms)
+      addLineTerms(p, problem.get(), loss, options_.loss_scale_sigma);
   }
   problem->SetParameterBlockConstant(poses_[reference].q);
   problem->SetParameterBlockConstant(poses_[reference].t);
@@ -165,7 +174,8 @@ Graph::StageResult Graph::solve(bool planes_only, int reference, bool keep_probl
 
 // Whitened per-term magnitudes of each active observation, for rejection and statistics.
 // Fills `entries[p][s]` with one value per partner term (and one for the corners).
-void Graph::observationErrors(std::vector<std::vector<std::vector<double>>>* entries, GraphResiduals* stats) {
+void Graph::observationErrors(std::vector<std::vector<std::vector<double>>>* entries,
+                              GraphResiduals* stats) {
   entries->assign(obs_.size(), std::vector<std::vector<double>>(n_));
   GraphResiduals g;
   double n_sq = 0, d_sq = 0, c_sq = 0, l_sq = 0;
@@ -177,7 +187,8 @@ void Graph::observationErrors(std::vector<std::vector<std::vector<double>>>* ent
       for (int b = a + 1; b < n_; ++b) {
         if (!obs_[p][b].active) continue;
         const Eigen::Isometry3d a_T_b = poses_[a].iso().inverse() * poses_[b].iso();
-        const PlanePairError e = planePairError(obs_[p][a], obs_[p][b], a_T_b, sigmas_[a], sigmas_[b]);
+        const PlanePairError e =
+            planePairError(obs_[p][a], obs_[p][b], a_T_b, sigmas_[a], sigmas_[b]);
         (*entries)[p][a].push_back(e.whitened);
         (*entries)[p][b].push_back(e.whitened);
         if (corner_set.count(a) && corner_set.count(b)) continue;  // not a graph term
@@ -251,8 +262,9 @@ void Graph::addLineTerms(size_t p, ceres::Problem* problem, RobustLoss loss, dou
         const double sigma = std::sqrt(sigmas_[l].edge_m * sigmas_[l].edge_m + line_m * line_m);
         const double w = 1.0 / (sigma * std::sqrt(static_cast<double>(lid.edge_points[e].size())));
         for (const auto& q : lid.edge_points[e])
-          problem->AddResidualBlock(detail::LineCost::Create(q, N, w), ceres_common::makeLoss(loss, scale), poses_[c].q,
-                                    poses_[c].t, poses_[l].q, poses_[l].t);
+          problem->AddResidualBlock(detail::LineCost::Create(q, N, w),
+                                    ceres_common::makeLoss(loss, scale), poses_[c].q, poses_[c].t,
+                                    poses_[l].q, poses_[l].t);
       }
     }
   }

@@ -26,7 +26,8 @@ Matrix6d relativeCovarianceOf(const MsgSolution& sol, int a, int b) {
   const Eigen::Vector3d d = Tb.translation() - Ta.translation();
   Eigen::Matrix3d d_cross;
   d_cross << 0.0, -d.z(), d.y(), d.z(), 0.0, -d.x(), -d.y(), d.x(), 0.0;
-  Eigen::Matrix<double, kPoseDim, 2 * kPoseDim> J = Eigen::Matrix<double, kPoseDim, 2 * kPoseDim>::Zero();
+  Eigen::Matrix<double, kPoseDim, 2 * kPoseDim> J =
+      Eigen::Matrix<double, kPoseDim, 2 * kPoseDim>::Zero();
   J.block<3, 3>(0, 0) = -RaT;
   J.block<3, 3>(3, 0) = RaT * d_cross;
   J.block<3, 3>(3, 3) = -RaT;
@@ -35,15 +36,19 @@ Matrix6d relativeCovarianceOf(const MsgSolution& sol, int a, int b) {
   Eigen::Matrix<double, 2 * kPoseDim, 2 * kPoseDim> joint;
   const Eigen::MatrixXd& P = sol.pose_covariance;
   joint.block<kPoseDim, kPoseDim>(0, 0) = P.block<kPoseDim, kPoseDim>(kPoseDim * a, kPoseDim * a);
-  joint.block<kPoseDim, kPoseDim>(0, kPoseDim) = P.block<kPoseDim, kPoseDim>(kPoseDim * a, kPoseDim * b);
-  joint.block<kPoseDim, kPoseDim>(kPoseDim, 0) = P.block<kPoseDim, kPoseDim>(kPoseDim * b, kPoseDim * a);
-  joint.block<kPoseDim, kPoseDim>(kPoseDim, kPoseDim) = P.block<kPoseDim, kPoseDim>(kPoseDim * b, kPoseDim * b);
+  joint.block<kPoseDim, kPoseDim>(0, kPoseDim) =
+      P.block<kPoseDim, kPoseDim>(kPoseDim * a, kPoseDim * b);
+  joint.block<kPoseDim, kPoseDim>(kPoseDim, 0) =
+      P.block<kPoseDim, kPoseDim>(kPoseDim * b, kPoseDim * a);
+  joint.block<kPoseDim, kPoseDim>(kPoseDim, kPoseDim) =
+      P.block<kPoseDim, kPoseDim>(kPoseDim * b, kPoseDim * b);
   const Matrix6d C = J * joint * J.transpose();
   return 0.5 * (C + C.transpose());
 }
 
 bool fillSensors(const MsgProblem& problem, const MsgGraphOptions& options, Graph& graph,
-                 const std::vector<Sigmas>& sigmas, const std::vector<Eigen::Isometry3d>& init, MsgSolution* sol) {
+                 const std::vector<Sigmas>& sigmas, const std::vector<Eigen::Isometry3d>& init,
+                 MsgSolution* sol) {
   const int n = static_cast<int>(problem.sensors.size());
   const auto& o = graph.observations();
   sol->sensors.resize(n);
@@ -67,8 +72,8 @@ bool fillSensors(const MsgProblem& problem, const MsgGraphOptions& options, Grap
     e.edge_sigma_m = sigmas[s].edge_m;
     if (e.observations < options.min_shared_views) {
       sol->reason = "sensor '" + e.frame + "' keeps only " + std::to_string(e.observations) +
-                   " board pose(s) shared with another sensor after outlier rejection (< " +
-                   std::to_string(options.min_shared_views) + ")";
+                    " board pose(s) shared with another sensor after outlier rejection (< " +
+                    std::to_string(options.min_shared_views) + ")";
       return false;
     }
   }
@@ -107,16 +112,20 @@ void poseCovariance(const MsgGraphOptions& options, Graph& graph, MsgSolution* s
     sol->pose_covariance = Eigen::MatrixXd::Zero(kPoseDim * n, kPoseDim * n);
     for (size_t i = 0; i < block_sensor.size(); ++i)
       for (size_t j = 0; j < block_sensor.size(); ++j)
-        sol->pose_covariance.block<kPoseDim, kPoseDim>(kPoseDim * block_sensor[i], kPoseDim * block_sensor[j]) =
+        sol->pose_covariance.block<kPoseDim, kPoseDim>(kPoseDim * block_sensor[i],
+                                                       kPoseDim * block_sensor[j]) =
             scaled.block<kPoseDim, kPoseDim>(kPoseDim * i, kPoseDim * j);
     for (int s = 0; s < n; ++s) {
       if (s == ref) continue;
-      sol->sensors[s].covariance = sol->pose_covariance.block<kPoseDim, kPoseDim>(kPoseDim * s, kPoseDim * s);
+      sol->sensors[s].covariance =
+          sol->pose_covariance.block<kPoseDim, kPoseDim>(kPoseDim * s, kPoseDim * s);
       sol->sensors[s].stddev = stddevFromCovariance(sol->sensors[s].covariance);
     }
     sol->notes.push_back(
-        "1-sigma figures follow from the sensors' noise sigmas (given or estimated); errors shared by every board pose "
-        "(e.g. a LiDAR's ring range offsets, wrong intrinsics) are not in them: read them as a lower bound");
+        "1-sigma figures follow from the sensors' noise sigmas (given or estimated); errors shared "
+        "by every board pose "
+        "(e.g. a LiDAR's ring range offsets, wrong intrinsics) are not in them: read them as a "
+        "lower bound");
   } else {
     sol->notes.push_back("covariance not available: the graph is rank deficient at the solution");
     for (int s = 0; s < n; ++s)
@@ -134,7 +143,8 @@ void pairEstimates(MsgSolution* sol) {
       PairEstimate pair;
       pair.camera = c;
       pair.lidar = l;
-      pair.camera_T_lidar = sol->sensors[c].reference_T_sensor.inverse() * sol->sensors[l].reference_T_sensor;
+      pair.camera_T_lidar =
+          sol->sensors[c].reference_T_sensor.inverse() * sol->sensors[l].reference_T_sensor;
       if (sol->pose_covariance.size() > 0) {
         pair.covariance = relativeCovarianceOf(*sol, c, l);
         pair.stddev = stddevFromCovariance(pair.covariance);
@@ -146,25 +156,28 @@ void pairEstimates(MsgSolution* sol) {
 }
 
 // Pairwise links against the graph, noisier-than-configured sensors, rejections.
-void finalNotes(const MsgProblem& problem, const MsgGraphOptions& options, const std::vector<Sigmas>& sigmas,
-                MsgSolution* sol) {
+void finalNotes(const MsgProblem& problem, const MsgGraphOptions& options,
+                const std::vector<Sigmas>& sigmas, MsgSolution* sol) {
   const int n = static_cast<int>(problem.sensors.size());
   for (auto& link : sol->links) {
     if (!link.success) continue;
-    const Eigen::Isometry3d g = sol->sensors[link.a].reference_T_sensor.inverse() * sol->sensors[link.b].reference_T_sensor;
+    const Eigen::Isometry3d g =
+        sol->sensors[link.a].reference_T_sensor.inverse() * sol->sensors[link.b].reference_T_sensor;
     link.graph_rotation_diff_deg = rotationErrorDeg(g, link.a_T_b);
     link.graph_translation_diff_mm = 1000.0 * translationErrorM(g, link.a_T_b);
   }
   for (int s = 0; s < n; ++s) {
     const Sigmas given = resolveSigmas(problem.sensors[s], options);
     if (sigmas[s].normal_rad > 2.0 * given.normal_rad || sigmas[s].offset_m > 2.0 * given.offset_m)
-      sol->notes.push_back("sensor '" + problem.sensors[s].frame + "' is noisier than configured (plane normal " +
-                          formatFixed(sigmas[s].normal_rad * kDegPerRad) + " deg, offset " + formatFixed(1000.0 * sigmas[s].offset_m, 1) +
-                          " mm): down-weighted");
+      sol->notes.push_back("sensor '" + problem.sensors[s].frame +
+                           "' is noisier than configured (plane normal " +
+                           formatFixed(sigmas[s].normal_rad * kDegPerRad) + " deg, offset " +
+                           formatFixed(1000.0 * sigmas[s].offset_m, 1) + " mm): down-weighted");
   }
   if (!sol->rejected.empty())
-    sol->notes.push_back(std::to_string(sol->rejected.size()) + " observation(s) rejected as outliers (> " +
-                        formatFixed(options.outlier_gate_sigma, 1) + " sigma)");
+    sol->notes.push_back(std::to_string(sol->rejected.size()) +
+                         " observation(s) rejected as outliers (> " +
+                         formatFixed(options.outlier_gate_sigma, 1) + " sigma)");
 }
 
 }  // namespace graph_detail
@@ -173,19 +186,25 @@ using graph_detail::kPoseDim;
 
 Expected<Eigen::Isometry3d> sensorTSensor(const MsgSolution& solution, int a, int b) {
   const int n = static_cast<int>(solution.sensors.size());
-  if (!solution.success) return Expected<Eigen::Isometry3d>::failure("the graph solve did not succeed: " + solution.reason);
+  if (!solution.success)
+    return Expected<Eigen::Isometry3d>::failure("the graph solve did not succeed: " +
+                                                solution.reason);
   if (a < 0 || b < 0 || a >= n || b >= n)
-    return Expected<Eigen::Isometry3d>::failure("sensor index out of range (0.." + std::to_string(n - 1) + ")");
+    return Expected<Eigen::Isometry3d>::failure("sensor index out of range (0.." +
+                                                std::to_string(n - 1) + ")");
   return Expected<Eigen::Isometry3d>(solution.sensors[a].reference_T_sensor.inverse() *
                                      solution.sensors[b].reference_T_sensor);
 }
 
 Expected<Matrix6d> relativeCovariance(const MsgSolution& solution, int a, int b) {
   const int n = static_cast<int>(solution.sensors.size());
-  if (!solution.success) return Expected<Matrix6d>::failure("the graph solve did not succeed: " + solution.reason);
+  if (!solution.success)
+    return Expected<Matrix6d>::failure("the graph solve did not succeed: " + solution.reason);
   if (a < 0 || b < 0 || a >= n || b >= n)
-    return Expected<Matrix6d>::failure("sensor index out of range (0.." + std::to_string(n - 1) + ")");
-  if (solution.pose_covariance.rows() != kPoseDim * n || solution.pose_covariance.cols() != kPoseDim * n)
+    return Expected<Matrix6d>::failure("sensor index out of range (0.." + std::to_string(n - 1) +
+                                       ")");
+  if (solution.pose_covariance.rows() != kPoseDim * n ||
+      solution.pose_covariance.cols() != kPoseDim * n)
     return Expected<Matrix6d>::failure("the solution carries no pose covariance");
   return Expected<Matrix6d>(graph_detail::relativeCovarianceOf(solution, a, b));
 }
@@ -194,7 +213,8 @@ Expected<StereoConsistency> stereoConsistency(const MsgSolution& solution, int c
                                               const Eigen::Isometry3d& known_camera1_T_camera2) {
   auto T = sensorTSensor(solution, camera1, camera2);
   if (!T) return Expected<StereoConsistency>::failure(T.error());
-  if (solution.sensors[camera1].kind != SensorKind::kCamera || solution.sensors[camera2].kind != SensorKind::kCamera)
+  if (solution.sensors[camera1].kind != SensorKind::kCamera ||
+      solution.sensors[camera2].kind != SensorKind::kCamera)
     return Expected<StereoConsistency>::failure("the stereo check needs two cameras");
   if (!known_camera1_T_camera2.matrix().allFinite())
     return Expected<StereoConsistency>::failure("the known stereo extrinsic is not finite");
@@ -210,7 +230,8 @@ std::optional<double> pairMlrePx(const MsgProblem& problem, int camera, int lida
   for (const auto& pose : problem.poses) {
     const auto c = pose.cameras.find(camera);
     const auto l = pose.lidars.find(lidar);
-    if (c == pose.cameras.end() || l == pose.lidars.end() || !c->second.found || !l->second.found) continue;
+    if (c == pose.cameras.end() || l == pose.lidars.end() || !c->second.found || !l->second.found)
+      continue;
     View v;
     v.id = pose.id;
     v.camera = c->second;
@@ -230,7 +251,8 @@ ResultFile msgResultFile(const MsgProblem& problem, const MsgSolution& solution)
   }
   r.reference_frame = solution.sensors[solution.reference_sensor].frame;
   r.views_used = solution.poses_used;
-  for (const auto& s : solution.sensors) r.sensors.push_back({s.frame, sensorKindName(s.kind), s.reference_T_sensor});
+  for (const auto& s : solution.sensors)
+    r.sensors.push_back({s.frame, sensorKindName(s.kind), s.reference_T_sensor});
   for (const PairEstimate& pair : solution.pairs) {
     PairEntry e;
     e.camera_frame = solution.sensors[pair.camera].frame;
@@ -253,7 +275,8 @@ ResultFile msgResultFile(const MsgProblem& problem, const MsgSolution& solution)
   r.quality["loops"] = static_cast<double>(solution.loops.size());
   r.quality["plane_normal_rms_deg"] = solution.residuals.normal_rms_deg;
   r.quality["plane_offset_rms_mm"] = solution.residuals.offset_rms_mm;
-  if (solution.residuals.corner_terms) r.quality["corner_rms_px"] = solution.residuals.corner_rms_px;
+  if (solution.residuals.corner_terms)
+    r.quality["corner_rms_px"] = solution.residuals.corner_rms_px;
   if (solution.residuals.line_terms) r.quality["line_rms_mm"] = solution.residuals.line_rms_mm;
   r.quality["rejected_observations"] = static_cast<double>(solution.rejected.size());
   r.quality["final_cost"] = solution.final_cost;

@@ -26,13 +26,21 @@ using Vec3 = Eigen::Matrix<T, 3, 1>;
 // compared at the origin, where each plane's normal error is multiplied by the board distance).
 class PlanePairCost {
  public:
-  PlanePairCost(const Eigen::Vector3d& n_a, double d_a, const Eigen::Vector3d& c_a, const Eigen::Vector3d& n_b,
-                double d_b, const Eigen::Vector3d& c_b, double sigma_n, double sigma_d)
-      : n_a_(n_a), n_b_(n_b), c_a_(c_a), c_b_(c_b), d_a_(d_a), d_b_(d_b), inv_sigma_n_(1.0 / sigma_n),
+  PlanePairCost(const Eigen::Vector3d& n_a, double d_a, const Eigen::Vector3d& c_a,
+                const Eigen::Vector3d& n_b, double d_b, const Eigen::Vector3d& c_b, double sigma_n,
+                double sigma_d)
+      : n_a_(n_a),
+        n_b_(n_b),
+        c_a_(c_a),
+        c_b_(c_b),
+        d_a_(d_a),
+        d_b_(d_b),
+        inv_sigma_n_(1.0 / sigma_n),
         inv_sigma_d_(1.0 / sigma_d) {}
 
   template <typename T>
-  bool operator()(const T* const qa, const T* const ta, const T* const qb, const T* const tb, T* r) const {
+  bool operator()(const T* const qa, const T* const ta, const T* const qb, const T* const tb,
+                  T* r) const {
     const Eigen::Map<const Eigen::Quaternion<T>> q_a(qa), q_b(qb);
     const Eigen::Map<const Vec3<T>> t_a(ta), t_b(tb);
     const Vec3<T> na = q_a * n_a_.cast<T>();
@@ -46,8 +54,9 @@ class PlanePairCost {
     return true;
   }
 
-  static ceres::CostFunction* Create(const Eigen::Vector3d& n_a, double d_a, const Eigen::Vector3d& c_a,
-                                     const Eigen::Vector3d& n_b, double d_b, const Eigen::Vector3d& c_b, double sigma_n,
+  static ceres::CostFunction* Create(const Eigen::Vector3d& n_a, double d_a,
+                                     const Eigen::Vector3d& c_a, const Eigen::Vector3d& n_b,
+                                     double d_b, const Eigen::Vector3d& c_b, double sigma_n,
                                      double sigma_d) {
     return new ceres::AutoDiffCostFunction<PlanePairCost, 4, 4, 3, 4, 3>(
         new PlanePairCost(n_a, d_a, c_a, n_b, d_b, c_b, sigma_n, sigma_d));
@@ -65,10 +74,17 @@ class PlanePairCost {
 // Corners of several cameras sharing one board pose tie the cameras (a bundle adjustment).
 class CornerCost {
  public:
-  CornerCost(const Eigen::Vector3d& board_point, const Eigen::Vector2d& pixel, const Eigen::Matrix3d& K,
-             double sigma_px, double min_depth_m)
-      : X_(board_point), u_(pixel), fx_(K(0, 0)), fy_(K(1, 1)), cx_(K(0, 2)), cy_(K(1, 2)), skew_(K(0, 1)),
-        inv_sigma_(1.0 / sigma_px), min_depth_(min_depth_m) {}
+  CornerCost(const Eigen::Vector3d& board_point, const Eigen::Vector2d& pixel,
+             const Eigen::Matrix3d& K, double sigma_px, double min_depth_m)
+      : X_(board_point),
+        u_(pixel),
+        fx_(K(0, 0)),
+        fy_(K(1, 1)),
+        cx_(K(0, 2)),
+        cy_(K(1, 2)),
+        skew_(K(0, 1)),
+        inv_sigma_(1.0 / sigma_px),
+        min_depth_(min_depth_m) {}
 
   template <typename T>
   bool operator()(const T* const qc, const T* const tc, const T* const board, T* r) const {
@@ -82,8 +98,9 @@ class CornerCost {
     return true;
   }
 
-  static ceres::CostFunction* Create(const Eigen::Vector3d& board_point, const Eigen::Vector2d& pixel,
-                                     const Eigen::Matrix3d& K, double sigma_px, double min_depth_m) {
+  static ceres::CostFunction* Create(const Eigen::Vector3d& board_point,
+                                     const Eigen::Vector2d& pixel, const Eigen::Matrix3d& K,
+                                     double sigma_px, double min_depth_m) {
     return new ceres::AutoDiffCostFunction<CornerCost, 2, 4, 3, 7>(
         new CornerCost(board_point, pixel, K, sigma_px, min_depth_m));
   }
@@ -105,7 +122,8 @@ class LineCost {
       : Q_(lidar_point), N_(plane_normal), w_(weight) {}
 
   template <typename T>
-  bool operator()(const T* const qc, const T* const tc, const T* const ql, const T* const tl, T* r) const {
+  bool operator()(const T* const qc, const T* const tc, const T* const ql, const T* const tl,
+                  T* r) const {
     const Eigen::Map<const Eigen::Quaternion<T>> q_c(qc), q_l(ql);
     const Eigen::Map<const Vec3<T>> t_c(tc), t_l(tl);
     const Vec3<T> p = q_c.conjugate() * (q_l * Q_.cast<T>() + t_l - t_c);
@@ -113,9 +131,10 @@ class LineCost {
     return true;
   }
 
-  static ceres::CostFunction* Create(const Eigen::Vector3d& lidar_point, const Eigen::Vector3d& plane_normal,
-                                     double weight) {
-    return new ceres::AutoDiffCostFunction<LineCost, 1, 4, 3, 4, 3>(new LineCost(lidar_point, plane_normal, weight));
+  static ceres::CostFunction* Create(const Eigen::Vector3d& lidar_point,
+                                     const Eigen::Vector3d& plane_normal, double weight) {
+    return new ceres::AutoDiffCostFunction<LineCost, 1, 4, 3, 4, 3>(
+        new LineCost(lidar_point, plane_normal, weight));
   }
 
  private:

@@ -14,7 +14,8 @@ namespace {
 
 // Global solve: squared-loss plane stage, then every term with the robust loss, then
 // reject-and-resolve rounds. False (and sol->reason) when a solve fails.
-bool globalSolve(const MsgProblem& problem, const MsgGraphOptions& options, Graph* graph, MsgSolution* sol) {
+bool globalSolve(const MsgProblem& problem, const MsgGraphOptions& options, Graph* graph,
+                 MsgSolution* sol) {
   const int n = static_cast<int>(problem.sensors.size());
   const int ref = problem.reference_sensor;
   const auto graph_start = Clock::now();
@@ -56,17 +57,20 @@ bool globalSolve(const MsgProblem& problem, const MsgGraphOptions& options, Grap
 
 }  // namespace
 
-const char* sensorKindName(SensorKind kind) { return kind == SensorKind::kCamera ? "camera" : "lidar"; }
+const char* sensorKindName(SensorKind kind) {
+  return kind == SensorKind::kCamera ? "camera" : "lidar";
+}
 
 std::string MsgGraphOptions::validate() const {
-  for (double v : {camera_normal_sigma_deg, camera_offset_sigma_m, camera_pixel_sigma_px, lidar_normal_sigma_deg,
-                   lidar_offset_sigma_m, lidar_edge_sigma_m})
+  for (double v : {camera_normal_sigma_deg, camera_offset_sigma_m, camera_pixel_sigma_px,
+                   lidar_normal_sigma_deg, lidar_offset_sigma_m, lidar_edge_sigma_m})
     if (!(v > 0) || !std::isfinite(v)) return "every default sigma must be > 0";
   if (!(noise_estimate_max_ratio >= 1.0)) return "noise_estimate_max_ratio must be >= 1";
   if (min_shared_corners < 3) return "min_shared_corners must be >= 3";
   if (min_edge_points < 2) return "min_edge_points must be >= 2";
   if (!(loss_scale_sigma > 0)) return "loss_scale_sigma must be > 0";
-  if (min_shared_views < 3) return "min_shared_views must be >= 3 (plane-to-plane needs three non-coplanar planes)";
+  if (min_shared_views < 3)
+    return "min_shared_views must be >= 3 (plane-to-plane needs three non-coplanar planes)";
   if (!(outlier_gate_sigma > 0)) return "outlier_gate_sigma must be > 0";
   if (outlier_rounds < 0) return "outlier_rounds must be >= 0";
   if (max_iterations < 1) return "max_iterations must be >= 1";
@@ -77,8 +81,9 @@ std::string MsgGraphOptions::validate() const {
   return "";
 }
 
-MsgSolution solveMsgGraph(const MsgProblem& problem, const MsgGraphOptions& options,
-                          const std::optional<std::vector<Eigen::Isometry3d>>& initial_reference_T_sensor) {
+MsgSolution solveMsgGraph(
+    const MsgProblem& problem, const MsgGraphOptions& options,
+    const std::optional<std::vector<Eigen::Isometry3d>>& initial_reference_T_sensor) {
   const auto start = Clock::now();
   MsgSolution sol;
   sol.reference_sensor = problem.reference_sensor;
@@ -112,7 +117,8 @@ MsgSolution solveMsgGraph(const MsgProblem& problem, const MsgGraphOptions& opti
 
   Graph graph(problem, options, sigmas, std::move(obs));
   for (int s = 0; s < n; ++s) graph.poses()[s].set(init[s]);
-  if (!globalSolve(problem, options, &graph, &sol) || !fillSensors(problem, options, graph, sigmas, init, &sol)) {
+  if (!globalSolve(problem, options, &graph, &sol) ||
+      !fillSensors(problem, options, graph, sigmas, init, &sol)) {
     sol.solve_time_ms = msSince(start);
     return sol;
   }

@@ -18,8 +18,8 @@ namespace graph_detail {
 namespace {
 
 bool validPlane(const Plane& p) {
-  return p.normal.allFinite() && std::isfinite(p.offset) && std::abs(p.normal.norm() - 1.0) <= kUnitTolerance &&
-         p.offset > 0.0;
+  return p.normal.allFinite() && std::isfinite(p.offset) &&
+         std::abs(p.normal.norm() - 1.0) <= kUnitTolerance && p.offset > 0.0;
 }
 
 // Pairwise plane-to-plane solve of one pair with gating of its correspondences by the pair's
@@ -65,13 +65,15 @@ void solvePair(const std::vector<std::vector<Obs>>& obs, const Sigmas& sa, const
     std::vector<PlaneCorrespondence> kept;
     std::vector<BoardPointPair> kept_points;
     for (size_t k = 0; k < used.size(); ++k) {
-      const Obs oa{true, used[k].in_a, used_points[k].in_a}, ob{true, used[k].in_b, used_points[k].in_b};
+      const Obs oa{true, used[k].in_a, used_points[k].in_a},
+          ob{true, used[k].in_b, used_points[k].in_b};
       if (planePairError(oa, ob, sol.a_T_b, sa, sb).whitened <= options.outlier_gate_sigma) {
         kept.push_back(used[k]);
         kept_points.push_back(used_points[k]);
       }
     }
-    if (kept.size() == used.size() || static_cast<int>(kept.size()) < options.min_shared_views) break;
+    if (kept.size() == used.size() || static_cast<int>(kept.size()) < options.min_shared_views)
+      break;
     used = kept;
     used_points = kept_points;
     sol = solvePlaneToPlane(used, used_points, so, sol.a_T_b);
@@ -87,7 +89,8 @@ void solvePair(const std::vector<std::vector<Obs>>& obs, const Sigmas& sa, const
 
 // Three-cornered hat: var(pair ab) = var(a) + var(b), least squares over all successful links.
 // Returns false when the links do not determine every sensor's variance (no odd cycle).
-bool estimateVariances(const std::vector<PairLink>& links, int n, bool normal, std::vector<double>* var) {
+bool estimateVariances(const std::vector<PairLink>& links, int n, bool normal,
+                       std::vector<double>* var) {
   std::vector<const PairLink*> ok;
   for (const auto& l : links)
     if (l.success) ok.push_back(&l);
@@ -115,29 +118,35 @@ std::string checkProblem(const MsgProblem& problem,
   const int n = static_cast<int>(problem.sensors.size());
   if (n < kMinSensors) return "the graph needs >= 2 sensors, got " + std::to_string(n);
   if (problem.reference_sensor < 0 || problem.reference_sensor >= n)
-    return "reference_sensor " + std::to_string(problem.reference_sensor) + " is not a sensor index (0.." +
-           std::to_string(n - 1) + ")";
+    return "reference_sensor " + std::to_string(problem.reference_sensor) +
+           " is not a sensor index (0.." + std::to_string(n - 1) + ")";
   std::set<std::string> frames;
   for (int s = 0; s < n; ++s) {
     const auto& spec = problem.sensors[s];
     if (spec.frame.empty()) return "sensor " + std::to_string(s) + " has no frame name";
     if (!frames.insert(spec.frame).second) return "frame '" + spec.frame + "' names two sensors";
-    for (double v : {spec.normal_sigma_deg, spec.offset_sigma_m, spec.pixel_sigma_px, spec.edge_sigma_m})
+    for (double v :
+         {spec.normal_sigma_deg, spec.offset_sigma_m, spec.pixel_sigma_px, spec.edge_sigma_m})
       if (!std::isfinite(v)) return "sensor '" + spec.frame + "' has a non-finite sigma";
   }
   std::set<int> ids;
   for (const auto& pose : problem.poses) {
-    if (!ids.insert(pose.id).second) return "board pose id " + std::to_string(pose.id) + " appears twice";
+    if (!ids.insert(pose.id).second)
+      return "board pose id " + std::to_string(pose.id) + " appears twice";
     for (const auto& [s, f] : pose.cameras) {
       (void)f;
-      if (s < 0 || s >= n) return "board pose " + std::to_string(pose.id) + " has a camera observation of unknown sensor " + std::to_string(s);
+      if (s < 0 || s >= n)
+        return "board pose " + std::to_string(pose.id) +
+               " has a camera observation of unknown sensor " + std::to_string(s);
       if (problem.sensors[s].kind != SensorKind::kCamera)
         return "board pose " + std::to_string(pose.id) + ": sensor '" + problem.sensors[s].frame +
                "' is a LiDAR but has a camera observation";
     }
     for (const auto& [s, f] : pose.lidars) {
       (void)f;
-      if (s < 0 || s >= n) return "board pose " + std::to_string(pose.id) + " has a LiDAR observation of unknown sensor " + std::to_string(s);
+      if (s < 0 || s >= n)
+        return "board pose " + std::to_string(pose.id) +
+               " has a LiDAR observation of unknown sensor " + std::to_string(s);
       if (problem.sensors[s].kind != SensorKind::kLidar)
         return "board pose " + std::to_string(pose.id) + ": sensor '" + problem.sensors[s].frame +
                "' is a camera but has a LiDAR observation";
@@ -145,7 +154,8 @@ std::string checkProblem(const MsgProblem& problem,
   }
   if (initial) {
     if (static_cast<int>(initial->size()) != n)
-      return "the initial guess has " + std::to_string(initial->size()) + " poses for " + std::to_string(n) + " sensors";
+      return "the initial guess has " + std::to_string(initial->size()) + " poses for " +
+             std::to_string(n) + " sensors";
     for (const auto& T : *initial)
       if (!T.matrix().allFinite()) return "the initial guess is not finite";
   }
@@ -155,16 +165,19 @@ std::string checkProblem(const MsgProblem& problem,
 Sigmas resolveSigmas(const SensorSpec& spec, const MsgGraphOptions& o) {
   const bool cam = spec.kind == SensorKind::kCamera;
   Sigmas s;
-  s.normal_rad = (spec.normal_sigma_deg > 0 ? spec.normal_sigma_deg
-                                             : (cam ? o.camera_normal_sigma_deg : o.lidar_normal_sigma_deg)) *
-                 kRadPerDeg;
-  s.offset_m = spec.offset_sigma_m > 0 ? spec.offset_sigma_m : (cam ? o.camera_offset_sigma_m : o.lidar_offset_sigma_m);
+  s.normal_rad =
+      (spec.normal_sigma_deg > 0 ? spec.normal_sigma_deg
+                                 : (cam ? o.camera_normal_sigma_deg : o.lidar_normal_sigma_deg)) *
+      kRadPerDeg;
+  s.offset_m = spec.offset_sigma_m > 0 ? spec.offset_sigma_m
+                                       : (cam ? o.camera_offset_sigma_m : o.lidar_offset_sigma_m);
   s.pixel_px = spec.pixel_sigma_px > 0 ? spec.pixel_sigma_px : o.camera_pixel_sigma_px;
   s.edge_m = spec.edge_sigma_m > 0 ? spec.edge_sigma_m : o.lidar_edge_sigma_m;
   return s;
 }
 
-std::vector<std::vector<Obs>> collectObservations(const MsgProblem& problem, std::vector<std::string>* notes) {
+std::vector<std::vector<Obs>> collectObservations(const MsgProblem& problem,
+                                                  std::vector<std::string>* notes) {
   const int n = static_cast<int>(problem.sensors.size());
   std::vector<std::vector<Obs>> obs(problem.poses.size(), std::vector<Obs>(n));
   int skipped = 0;
@@ -187,12 +200,14 @@ std::vector<std::vector<Obs>> collectObservations(const MsgProblem& problem, std
   }
   if (skipped > 0)
     notes->push_back(std::to_string(skipped) +
-                        " observation(s) skipped: board not found, or a non-finite / non-unit / behind-the-sensor plane");
+                     " observation(s) skipped: board not found, or a non-finite / non-unit / "
+                     "behind-the-sensor plane");
   return obs;
 }
 
-void solveLinks(const MsgProblem& problem, const MsgGraphOptions& options, const std::vector<std::vector<Obs>>& obs,
-                std::vector<Sigmas>* sigmas, MsgSolution* sol) {
+void solveLinks(const MsgProblem& problem, const MsgGraphOptions& options,
+                const std::vector<std::vector<Obs>>& obs, std::vector<Sigmas>* sigmas,
+                MsgSolution* sol) {
   const int n = static_cast<int>(problem.sensors.size());
   for (int a = 0; a < n; ++a)
     for (int b = a + 1; b < n; ++b) {
@@ -203,19 +218,23 @@ void solveLinks(const MsgProblem& problem, const MsgGraphOptions& options, const
     }
   const int passes = options.estimate_sensor_noise ? 2 : 1;
   for (int pass = 0; pass < passes; ++pass) {
-    for (auto& link : sol->links) solvePair(obs, (*sigmas)[link.a], (*sigmas)[link.b], options, &link);
+    for (auto& link : sol->links)
+      solvePair(obs, (*sigmas)[link.a], (*sigmas)[link.b], options, &link);
     if (pass + 1 == passes) break;
     std::vector<double> var_n, var_d;
-    if (!estimateVariances(sol->links, n, true, &var_n) || !estimateVariances(sol->links, n, false, &var_d)) {
-      sol->notes.push_back("sensor noise not estimated: the pairwise links contain no odd cycle; given sigmas used");
+    if (!estimateVariances(sol->links, n, true, &var_n) ||
+        !estimateVariances(sol->links, n, false, &var_d)) {
+      sol->notes.push_back(
+          "sensor noise not estimated: the pairwise links contain no odd cycle; given sigmas used");
       break;
     }
     for (int s = 0; s < n; ++s) {
       const Sigmas given = resolveSigmas(problem.sensors[s], options);
       const double r = options.noise_estimate_max_ratio;
-      (*sigmas)[s].normal_rad =
-          std::clamp(std::sqrt(std::max(var_n[s], 0.0)), given.normal_rad / r, given.normal_rad * r);
-      (*sigmas)[s].offset_m = std::clamp(std::sqrt(std::max(var_d[s], 0.0)), given.offset_m / r, given.offset_m * r);
+      (*sigmas)[s].normal_rad = std::clamp(std::sqrt(std::max(var_n[s], 0.0)), given.normal_rad / r,
+                                           given.normal_rad * r);
+      (*sigmas)[s].offset_m =
+          std::clamp(std::sqrt(std::max(var_d[s], 0.0)), given.offset_m / r, given.offset_m * r);
     }
   }
 }
@@ -257,10 +276,12 @@ bool spanningTreeInit(const MsgProblem& problem, const MsgGraphOptions& options,
     for (const auto& link : sol->links)
       if (!link.success && link.shared_views > 0 &&
           (parent[link.a] == -2) != (parent[link.b] == -2))
-        why += "; " + problem.sensors[link.a].frame + "<->" + problem.sensors[link.b].frame + ": " + link.reason;
-    sol->reason = "the sensor graph is disconnected: " + list + " cannot be reached from the reference '" +
-                 problem.sensors[ref].frame + "' (a link needs >= " + std::to_string(options.min_shared_views) +
-                 " shared board poses and a successful plane-to-plane solve)" + why;
+        why += "; " + problem.sensors[link.a].frame + "<->" + problem.sensors[link.b].frame + ": " +
+               link.reason;
+    sol->reason = "the sensor graph is disconnected: " + list +
+                  " cannot be reached from the reference '" + problem.sensors[ref].frame +
+                  "' (a link needs >= " + std::to_string(options.min_shared_views) +
+                  " shared board poses and a successful plane-to-plane solve)" + why;
     return false;
   }
   return true;

@@ -19,35 +19,43 @@ struct Event {
 }  // namespace
 
 std::string GroupingOptions::validate() const {
-  if (!(stamp_tolerance_s >= 0) || !std::isfinite(stamp_tolerance_s)) return "stamp_tolerance_s must be >= 0";
+  if (!(stamp_tolerance_s >= 0) || !std::isfinite(stamp_tolerance_s))
+    return "stamp_tolerance_s must be >= 0";
   if (min_sensors < 2) return "min_sensors must be >= 2 (a board pose links sensors)";
   return "";
 }
 
-Expected<GroupingReport> groupByStamp(const std::vector<SensorSpec>& sensors,
-                                      const std::map<int, std::vector<CameraBoardFeatures>>& cameras,
-                                      const std::map<int, std::vector<LidarBoardFeatures>>& lidars,
-                                      const GroupingOptions& options) {
+Expected<GroupingReport> groupByStamp(
+    const std::vector<SensorSpec>& sensors,
+    const std::map<int, std::vector<CameraBoardFeatures>>& cameras,
+    const std::map<int, std::vector<LidarBoardFeatures>>& lidars, const GroupingOptions& options) {
   using Result = Expected<GroupingReport>;
   const std::string invalid = options.validate();
   if (!invalid.empty()) return Result::failure("invalid grouping options: " + invalid);
   const int n = static_cast<int>(sensors.size());
   std::vector<Event> events;
   for (const auto& [s, stream] : cameras) {
-    if (s < 0 || s >= n) return Result::failure("camera stream keyed to unknown sensor " + std::to_string(s));
+    if (s < 0 || s >= n)
+      return Result::failure("camera stream keyed to unknown sensor " + std::to_string(s));
     if (sensors[s].kind != SensorKind::kCamera)
-      return Result::failure("sensor '" + sensors[s].frame + "' is a LiDAR but has a camera stream");
+      return Result::failure("sensor '" + sensors[s].frame +
+                             "' is a LiDAR but has a camera stream");
     for (size_t i = 0; i < stream.size(); ++i)
-      if (stream[i].found && std::isfinite(stream[i].stamp)) events.push_back({stream[i].stamp, s, true, i});
+      if (stream[i].found && std::isfinite(stream[i].stamp))
+        events.push_back({stream[i].stamp, s, true, i});
   }
   for (const auto& [s, stream] : lidars) {
-    if (s < 0 || s >= n) return Result::failure("LiDAR stream keyed to unknown sensor " + std::to_string(s));
+    if (s < 0 || s >= n)
+      return Result::failure("LiDAR stream keyed to unknown sensor " + std::to_string(s));
     if (sensors[s].kind != SensorKind::kLidar)
-      return Result::failure("sensor '" + sensors[s].frame + "' is a camera but has a LiDAR stream");
+      return Result::failure("sensor '" + sensors[s].frame +
+                             "' is a camera but has a LiDAR stream");
     for (size_t i = 0; i < stream.size(); ++i)
-      if (stream[i].found && std::isfinite(stream[i].stamp)) events.push_back({stream[i].stamp, s, false, i});
+      if (stream[i].found && std::isfinite(stream[i].stamp))
+        events.push_back({stream[i].stamp, s, false, i});
   }
-  std::stable_sort(events.begin(), events.end(), [](const Event& a, const Event& b) { return a.stamp < b.stamp; });
+  std::stable_sort(events.begin(), events.end(),
+                   [](const Event& a, const Event& b) { return a.stamp < b.stamp; });
   GroupingReport report;
   report.features_in = static_cast<int>(events.size());
   size_t begin = 0;
@@ -71,8 +79,10 @@ Expected<GroupingReport> groupByStamp(const std::vector<SensorSpec>& sensors,
       BoardPoseObservation pose;
       pose.id = static_cast<int>(report.poses.size());
       for (const auto& [s, e] : best) {
-        if (e->camera) pose.cameras[s] = cameras.at(s)[e->index];
-        else pose.lidars[s] = lidars.at(s)[e->index];
+        if (e->camera)
+          pose.cameras[s] = cameras.at(s)[e->index];
+        else
+          pose.lidars[s] = lidars.at(s)[e->index];
       }
       report.features_used += static_cast<int>(best.size());
       report.poses.push_back(std::move(pose));

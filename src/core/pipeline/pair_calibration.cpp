@@ -10,7 +10,8 @@ namespace {
 constexpr double kRotationTolerance = 1e-6;  // |R^T R - I| of a usable guess
 
 bool isRotation(const Eigen::Matrix3d& R) {
-  return R.allFinite() && (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() < kRotationTolerance &&
+  return R.allFinite() &&
+         (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() < kRotationTolerance &&
          R.determinant() > 0;
 }
 
@@ -30,9 +31,10 @@ Expected<std::vector<Method>> parseMethods(const std::string& name) {
   return std::vector<Method>{*m};
 }
 
-PairCalibration calibratePair(const std::vector<View>& views, const std::vector<Method>& methods, const Target& target,
-                              const std::string& camera_frame, const std::string& lidar_frame,
-                              const PairCalibrationOptions& options, const std::optional<Eigen::Isometry3d>& guess) {
+PairCalibration calibratePair(const std::vector<View>& views, const std::vector<Method>& methods,
+                              const Target& target, const std::string& camera_frame,
+                              const std::string& lidar_frame, const PairCalibrationOptions& options,
+                              const std::optional<Eigen::Isometry3d>& guess) {
   PairCalibration out;
   auto failAll = [&](const std::string& why) {
     out.verdict = Verdict::kFailed;
@@ -64,8 +66,11 @@ PairCalibration calibratePair(const std::vector<View>& views, const std::vector<
     CalibrationSolution sol = calibrate(out.used_views, m, options.solver, start);
     std::function<CalibrationSolution(const std::vector<View>&)> refit;
     if (options.cross_validate)
-      refit = [&, m](const std::vector<View>& subset) { return calibrate(subset, m, fold_options, start); };
-    verdicts.push_back(judgeSolution(sol, out.used_views, target, out.consistency, refit, options.verdict));
+      refit = [&, m](const std::vector<View>& subset) {
+        return calibrate(subset, m, fold_options, start);
+      };
+    verdicts.push_back(
+        judgeSolution(sol, out.used_views, target, out.consistency, refit, options.verdict));
     solutions.push_back(std::move(sol));
   }
   judgeMethodAgreement(solutions, &verdicts, options.verdict);
@@ -109,15 +114,18 @@ std::string verdictSummary(const PairCalibration& run) {
     }
     for (const auto& d : chosen->verdict.details) s << "  - " << d << "\n";
   } else {
-    for (const auto& r : run.runs) s << "  " << methodName(r.solution.method) << ": " << r.verdict.reason << "\n";
+    for (const auto& r : run.runs)
+      s << "  " << methodName(r.solution.method) << ": " << r.verdict.reason << "\n";
   }
   switch (run.verdict) {
     case Verdict::kGood: s << "  next: use it (the result file and static TF carry it)\n"; break;
     case Verdict::kDoubtful:
-      s << "  next: look at the named views (report overlays), drop bad ones or add views, then solve again\n";
+      s << "  next: look at the named views (report overlays), drop bad ones or add views, then "
+           "solve again\n";
       break;
     case Verdict::kFailed:
-      s << "  next: do not use this result; fix the cause above (views, board, sync, target) and collect again\n";
+      s << "  next: do not use this result; fix the cause above (views, board, sync, target) and "
+           "collect again\n";
       break;
   }
   return s.str();

@@ -14,18 +14,22 @@ namespace {
 
 constexpr int kOverlayJpegQuality = 85;
 
-std::string reportMarkdown(const PairCalibration& run, const PairSession& session, const PairReportInputs& in,
+std::string reportMarkdown(const PairCalibration& run, const PairSession& session,
+                           const PairReportInputs& in,
                            const std::vector<CalibrationSolution>& solutions) {
   const ResultFile& result = run.result;
   std::ostringstream md;
-  md << "# board_calib report\n\n" << in.source << "\n\ncamera frame `" << result.camera_frame << "`, LiDAR frame `"
+  md << "# board_calib report\n\n"
+     << in.source << "\n\ncamera frame `" << result.camera_frame << "`, LiDAR frame `"
      << result.lidar_frame << "`, " << session.views().size() << " views\n\n";
   if (!in.detection.empty()) md << in.detection << "\n\n";
-  md << "## Verdict: " << verdictName(run.verdict) << "\n\n```\n" << verdictSummary(run) << "```\n\n";
+  md << "## Verdict: " << verdictName(run.verdict) << "\n\n```\n"
+     << verdictSummary(run) << "```\n\n";
   md << "## Result\n\n```\n";
   for (const auto& s : solutions) md << solutionSummary(s);
   md << "```\n\n";
-  if (solutions.size() > 1) md << "## Methods side by side\n\n" << comparisonTable(solutions) << "\n";
+  if (solutions.size() > 1)
+    md << "## Methods side by side\n\n" << comparisonTable(solutions) << "\n";
   if (!result.notes.empty()) {
     md << "## Findings\n\n";
     for (const auto& n : result.notes) md << "* " << n << "\n";
@@ -34,33 +38,44 @@ std::string reportMarkdown(const PairCalibration& run, const PairSession& sessio
   md << "## Views\n\n";
   for (const auto& sv : session.views()) md << "* view " << sv.view.id << ": " << sv.why << "\n";
   const CalibrationSolution& shown = run.shownRun().solution;
-  md << "\n## Per-view residuals (" << methodName(shown.method) << ")\n\n" << perViewTable(shown) << "\n";
+  md << "\n## Per-view residuals (" << methodName(shown.method) << ")\n\n"
+     << perViewTable(shown) << "\n";
   const CoverageReport cov = session.coverage();
-  md << "## Coverage\n\ntilt span " << cov.tilt_span_deg << " deg, range " << cov.range_min_m << "-" << cov.range_max_m
-     << " m, image coverage " << cov.image_coverage * 100 << " %\n\n";
+  md << "## Coverage\n\ntilt span " << cov.tilt_span_deg << " deg, range " << cov.range_min_m << "-"
+     << cov.range_max_m << " m, image coverage " << cov.image_coverage * 100 << " %\n\n";
   for (const auto& a : cov.advice) md << "* " << a << "\n";
   return md.str();
 }
 
 }  // namespace
 
-Status writePairReport(const std::string& dir, const PairCalibration& run, const PairSession& session,
-                       const PairReportInputs& in) {
-  if (run.runs.empty()) return Status::failure("nothing to report: no method was run (" + run.reason + ")");
+Status writePairReport(const std::string& dir, const PairCalibration& run,
+                       const PairSession& session, const PairReportInputs& in) {
+  if (run.runs.empty())
+    return Status::failure("nothing to report: no method was run (" + run.reason + ")");
   std::error_code error;
   std::filesystem::create_directories(dir, error);
-  if (error) return Status::failure("cannot create report folder '" + dir + "': " + error.message());
+  if (error)
+    return Status::failure("cannot create report folder '" + dir + "': " + error.message());
   std::vector<CalibrationSolution> solutions;
   for (const auto& r : run.runs) solutions.push_back(r.solution);
   const ResultFile& result = run.result;
   const std::string child = in.child_frame.empty() ? result.camera_frame : in.child_frame;
 
-  if (Status st = writeFileAtomic(dir + "/report.md", reportMarkdown(run, session, in, solutions)); !st) return st;
-  if (Status st = writeResultFile(dir + (run.failed() ? "/result.failed.yaml" : "/result.yaml"), result); !st) return st;
+  if (Status st = writeFileAtomic(dir + "/report.md", reportMarkdown(run, session, in, solutions));
+      !st)
+    return st;
+  if (Status st =
+          writeResultFile(dir + (run.failed() ? "/result.failed.yaml" : "/result.yaml"), result);
+      !st)
+    return st;
   if (!run.failed()) {  // no ready-to-use snippet of a failed calibration
-    if (Status st = writeFileAtomic(dir + "/static_transform.launch", staticTransformLaunchSnippet(result, child)); !st)
+    if (Status st = writeFileAtomic(dir + "/static_transform.launch",
+                                    staticTransformLaunchSnippet(result, child));
+        !st)
       return st;
-    if (Status st = writeFileAtomic(dir + "/urdf_joint.xml", urdfJointSnippet(result, child)); !st) return st;
+    if (Status st = writeFileAtomic(dir + "/urdf_joint.xml", urdfJointSnippet(result, child)); !st)
+      return st;
   }
   if (Status st = session.save(dir + "/session.yaml"); !st) return st;
 
@@ -72,10 +87,12 @@ Status writePairReport(const std::string& dir, const PairCalibration& run, const
       const auto cloud = in.view_clouds->find(sv.view.id);
       if (img == in.view_images->end() || cloud == in.view_clouds->end()) continue;
       cv::Mat canvas = img->second.clone();
-      if (auto projected = projectCloud(cloud->second, *in.camera, shown.camera_T_lidar, ProjectionOptions{}))
+      if (auto projected =
+              projectCloud(cloud->second, *in.camera, shown.camera_T_lidar, ProjectionOptions{}))
         (void)drawProjectedCloud(*projected, OverlayOptions{}, &canvas);
       EdgeCheckOptions edge_options;
-      if (auto check = checkProjectedEdges(sv.view.lidar, sv.view.camera, *in.camera, shown.camera_T_lidar, edge_options))
+      if (auto check = checkProjectedEdges(sv.view.lidar, sv.view.camera, *in.camera,
+                                           shown.camera_T_lidar, edge_options))
         (void)drawEdgeCheck(sv.view.camera, *check, *in.camera, edge_options, &canvas);
       const std::string path = dir + "/overlay_view_" + std::to_string(sv.view.id) + ".jpg";
       if (!cv::imwrite(path, canvas, {cv::IMWRITE_JPEG_QUALITY, kOverlayJpegQuality}))

@@ -10,7 +10,8 @@ namespace {
 constexpr double kFrameMarginS = 0.5;  // s, raw frames kept beyond the still window
 
 double elapsedMs(std::chrono::steady_clock::time_point since) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - since).count();
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - since)
+      .count();
 }
 
 }  // namespace
@@ -48,15 +49,18 @@ struct CalibrationPipeline::Impl {
   // first images only once later frames show the rates).
   template <typename Frames>
   void trimFrames(Frames& frames) {
-    const double keep_s = options.session.still_window_s + options.session.sync_tolerance_s + kFrameMarginS;
+    const double keep_s =
+        options.session.still_window_s + options.session.sync_tolerance_s + kFrameMarginS;
     double cutoff = frames.back().first - keep_s;
-    if (const auto pending = session.oldestPendingStamp()) cutoff = std::min(cutoff, *pending - keep_s);
-    while (frames.size() > 1 &&
-           (static_cast<int>(frames.size()) > options.frame_history || frames.front().first < cutoff))
+    if (const auto pending = session.oldestPendingStamp())
+      cutoff = std::min(cutoff, *pending - keep_s);
+    while (frames.size() > 1 && (static_cast<int>(frames.size()) > options.frame_history ||
+                                 frames.front().first < cutoff))
       frames.pop_front();
   }
 
-  std::map<int, std::pair<double, double>> view_frame_stamps;  // view id -> (image, cloud) stamps kept
+  std::map<int, std::pair<double, double>>
+      view_frame_stamps;  // view id -> (image, cloud) stamps kept
 
   // Every view whose frames are not kept yet (or were replaced by a better frame of its hold).
   void keepAccepted(const SessionEvent& event) {
@@ -74,11 +78,15 @@ struct CalibrationPipeline::Impl {
   }
 };
 
-Expected<CalibrationPipeline> CalibrationPipeline::create(const Target& target, const PipelineOptions& options) {
-  if (auto why = options.validate(); !why.empty()) return Expected<CalibrationPipeline>::failure(why);
-  if (auto why = target.validate(); !why.empty()) return Expected<CalibrationPipeline>::failure("target: " + why);
+Expected<CalibrationPipeline> CalibrationPipeline::create(const Target& target,
+                                                          const PipelineOptions& options) {
+  if (auto why = options.validate(); !why.empty())
+    return Expected<CalibrationPipeline>::failure(why);
+  if (auto why = target.validate(); !why.empty())
+    return Expected<CalibrationPipeline>::failure("target: " + why);
   auto detector = ImageBoardDetector::create(target, options.image);
-  if (!detector) return Expected<CalibrationPipeline>::failure("image detector: " + detector.error());
+  if (!detector)
+    return Expected<CalibrationPipeline>::failure("image detector: " + detector.error());
   CalibrationPipeline p;
   p.impl_ = std::make_unique<Impl>(target, options, std::move(*detector));
   return p;
@@ -112,8 +120,10 @@ FrameOutcome CalibrationPipeline::addImage(const cv::Mat& image, const CameraInt
   det.features.stamp = stamp;
   out.board_found = det.features.found;
   out.detection = det.features.reason;
-  if (det.features.found) ++d.stats.images_with_board;
-  else d.stats.image_failures[det.features.reason]++;
+  if (det.features.found)
+    ++d.stats.images_with_board;
+  else
+    d.stats.image_failures[det.features.reason]++;
   if (d.options.keep_view_frames) {
     d.recent_images.emplace_back(stamp, image);
     d.trimFrames(d.recent_images);
@@ -128,15 +138,18 @@ FrameOutcome CalibrationPipeline::addCloud(const LidarCloud& cloud) {
   FrameOutcome out;
   ++d.stats.clouds;
   const auto start = std::chrono::steady_clock::now();
-  LidarBoardDetection det = d.tracker ? d.tracker->detect(cloud) : detectLidarBoard(cloud, d.target, d.options.lidar);
+  LidarBoardDetection det =
+      d.tracker ? d.tracker->detect(cloud) : detectLidarBoard(cloud, d.target, d.options.lidar);
   out.detect_ms = elapsedMs(start);
   d.stats.cloud_ms += out.detect_ms;
   det.features.frame_id = cloud.frame_id;
   det.features.stamp = cloud.stamp;
   out.board_found = det.features.found;
   out.detection = det.features.reason;
-  if (det.features.found) ++d.stats.clouds_with_board;
-  else d.stats.cloud_failures[std::string(lidarDetectionCodeName(det.code))]++;
+  if (det.features.found)
+    ++d.stats.clouds_with_board;
+  else
+    d.stats.cloud_failures[std::string(lidarDetectionCodeName(det.code))]++;
   if (d.options.keep_view_frames) {
     d.recent_clouds.emplace_back(cloud.stamp, cloud);
     d.trimFrames(d.recent_clouds);
@@ -157,7 +170,11 @@ const PairSession& CalibrationPipeline::session() const { return impl_->session;
 const PipelineStats& CalibrationPipeline::stats() const { return impl_->stats; }
 const Target& CalibrationPipeline::target() const { return impl_->target; }
 const std::map<int, cv::Mat>& CalibrationPipeline::viewImages() const { return impl_->view_images; }
-const std::map<int, LidarCloud>& CalibrationPipeline::viewClouds() const { return impl_->view_clouds; }
-const CameraModel* CalibrationPipeline::cameraModel() const { return impl_->camera ? &*impl_->camera : nullptr; }
+const std::map<int, LidarCloud>& CalibrationPipeline::viewClouds() const {
+  return impl_->view_clouds;
+}
+const CameraModel* CalibrationPipeline::cameraModel() const {
+  return impl_->camera ? &*impl_->camera : nullptr;
+}
 
 }  // namespace board_calib

@@ -24,7 +24,8 @@ std::vector<View> pairViews(const MsgProblem& problem, int camera, int lidar) {
   for (const auto& pose : problem.poses) {
     const auto c = pose.cameras.find(camera);
     const auto l = pose.lidars.find(lidar);
-    if (c == pose.cameras.end() || l == pose.lidars.end() || !c->second.found || !l->second.found) continue;
+    if (c == pose.cameras.end() || l == pose.lidars.end() || !c->second.found || !l->second.found)
+      continue;
     View v;
     v.id = pose.id;
     v.camera = c->second;
@@ -38,7 +39,8 @@ std::vector<std::pair<int, int>> cameraLidarPairs(const MsgProblem& problem) {
   std::vector<std::pair<int, int>> pairs;
   for (size_t c = 0; c < problem.sensors.size(); ++c)
     for (size_t l = 0; l < problem.sensors.size(); ++l)
-      if (problem.sensors[c].kind == multi_sensor::SensorKind::kCamera && problem.sensors[l].kind == multi_sensor::SensorKind::kLidar)
+      if (problem.sensors[c].kind == multi_sensor::SensorKind::kCamera &&
+          problem.sensors[l].kind == multi_sensor::SensorKind::kLidar)
         pairs.emplace_back(static_cast<int>(c), static_cast<int>(l));
   return pairs;
 }
@@ -46,9 +48,11 @@ std::vector<std::pair<int, int>> cameraLidarPairs(const MsgProblem& problem) {
 // Consistency per camera <- LiDAR pair; an observation inconsistent in more than half of the
 // pairs it takes part in (both sensors of a lone pair) is removed from its pose: the sensor
 // that saw another object, or a moving board, is outvoted by the others.
-MsgProblem withoutInconsistent(const MsgProblem& problem, const Target& target, const ConsistencyOptions& options,
+MsgProblem withoutInconsistent(const MsgProblem& problem, const Target& target,
+                               const ConsistencyOptions& options,
                                std::vector<std::string>* left_out) {
-  std::map<std::pair<int, int>, std::pair<int, int>> votes;  // (pose, sensor) -> (inconsistent, checked)
+  std::map<std::pair<int, int>, std::pair<int, int>>
+      votes;  // (pose, sensor) -> (inconsistent, checked)
   std::map<std::pair<int, int>, std::string> why;
   for (const auto& [c, l] : cameraLidarPairs(problem)) {
     const std::vector<View> views = pairViews(problem, c, l);
@@ -61,7 +65,8 @@ MsgProblem withoutInconsistent(const MsgProblem& problem, const Target& target, 
         ++vote.second;
         if (!v.consistent) {
           ++vote.first;
-          why[{v.view_id, sensor}] = problem.sensors[c].frame + " <- " + problem.sensors[l].frame + ": " + v.reason;
+          why[{v.view_id, sensor}] =
+              problem.sensors[c].frame + " <- " + problem.sensors[l].frame + ": " + v.reason;
         }
       }
     }
@@ -73,11 +78,13 @@ MsgProblem withoutInconsistent(const MsgProblem& problem, const Target& target, 
       if (it == votes.end() || 2 * it->second.first <= it->second.second) continue;
       pose.cameras.erase(static_cast<int>(k));
       pose.lidars.erase(static_cast<int>(k));
-      left_out->push_back("pose " + std::to_string(pose.id) + ", " + out.sensors[k].frame + " left out (" +
-                          why[it->first] + ")");
+      left_out->push_back("pose " + std::to_string(pose.id) + ", " + out.sensors[k].frame +
+                          " left out (" + why[it->first] + ")");
     }
   out.poses.erase(std::remove_if(out.poses.begin(), out.poses.end(),
-                                 [](const BoardPoseObservation& p) { return p.cameras.size() + p.lidars.size() < 2; }),
+                                 [](const BoardPoseObservation& p) {
+                                   return p.cameras.size() + p.lidars.size() < 2;
+                                 }),
                   out.poses.end());
   return out;
 }
@@ -94,13 +101,15 @@ CalibrationSolution pairSolution(const std::vector<View>& views, const Eigen::Is
   if (auto rms = planeRmsM(views, T)) s.plane_rms_mm = *rms * 1e3;
   s.covariance = covariance ? *covariance : Matrix6d::Zero();
   s.stddev = stddevFromCovariance(s.covariance);
-  s.observability.well_conditioned = true;  // the graph's covariance carries it; judged by the sigma tests
+  s.observability.well_conditioned =
+      true;  // the graph's covariance carries it; judged by the sigma tests
   for (const auto& v : views) {
     ViewResidual r;
     r.view_id = v.id;
     r.used = true;
     r.mlre_px = viewLineReprojectionErrorPx(v, T);
-    for (int j = 0; j < kNumEdges; ++j) r.edges[static_cast<size_t>(j)].mlre_px = edgeLineReprojectionErrorPx(v, j, T);
+    for (int j = 0; j < kNumEdges; ++j)
+      r.edges[static_cast<size_t>(j)].mlre_px = edgeLineReprojectionErrorPx(v, j, T);
     s.views.push_back(r);
   }
   return s;
@@ -109,10 +118,12 @@ CalibrationSolution pairSolution(const std::vector<View>& views, const Eigen::Is
 // The graph solved without some poses, once per set left out (pairs sharing poses share solves).
 class FoldSolver {
  public:
-  FoldSolver(const MsgProblem& problem, const multi_sensor::MsgGraphOptions& options) : problem_(problem), options_(options) {
+  FoldSolver(const MsgProblem& problem, const multi_sensor::MsgGraphOptions& options)
+      : problem_(problem), options_(options) {
     options_.compute_covariance = false;
   }
-  CalibrationSolution pair(const std::vector<View>& train, const std::vector<View>& all, int camera, int lidar) {
+  CalibrationSolution pair(const std::vector<View>& train, const std::vector<View>& all, int camera,
+                           int lidar) {
     std::set<int> kept;
     for (const auto& v : train) kept.insert(v.id);
     std::set<int> left;
@@ -121,9 +132,10 @@ class FoldSolver {
     auto it = cache_.find(left);
     if (it == cache_.end()) {
       MsgProblem fold = problem_;
-      fold.poses.erase(std::remove_if(fold.poses.begin(), fold.poses.end(),
-                                      [&](const BoardPoseObservation& p) { return left.count(p.id) > 0; }),
-                       fold.poses.end());
+      fold.poses.erase(
+          std::remove_if(fold.poses.begin(), fold.poses.end(),
+                         [&](const BoardPoseObservation& p) { return left.count(p.id) > 0; }),
+          fold.poses.end());
       it = cache_.emplace(left, multi_sensor::solveMsgGraph(fold, options_)).first;
     }
     CalibrationSolution s;
@@ -131,8 +143,10 @@ class FoldSolver {
     const auto T = it->second.success ? multi_sensor::sensorTSensor(it->second, camera, lidar)
                                       : Expected<Eigen::Isometry3d>::failure(it->second.reason);
     s.success = static_cast<bool>(T);
-    if (T) s.camera_T_lidar = *T;
-    else s.reason = T.error();
+    if (T)
+      s.camera_T_lidar = *T;
+    else
+      s.reason = T.error();
     return s;
   }
 
@@ -144,8 +158,9 @@ class FoldSolver {
 
 // Loop closure of the pairwise estimates and the known extrinsics, against the graph's own
 // uncertainty. Returns the worst verdict of these checks; findings go to `findings`.
-Verdict judgeRigChecks(const MsgSolution& sol, const RigConfig& rig, const std::vector<RigPairRun>& pairs,
-                       const RigCalibrationOptions& o, std::vector<std::string>* findings) {
+Verdict judgeRigChecks(const MsgSolution& sol, const RigConfig& rig,
+                       const std::vector<RigPairRun>& pairs, const RigCalibrationOptions& o,
+                       std::vector<std::string>* findings) {
   Verdict worst = Verdict::kGood;
   double sigma_rot = 0.0, sigma_trans = 0.0;
   for (const auto& p : pairs) {
@@ -156,23 +171,30 @@ Verdict judgeRigChecks(const MsgSolution& sol, const RigConfig& rig, const std::
   const double loop_trans = std::max(o.min_loop_translation_m, o.loop_sigmas * sigma_trans);
   if (sol.loop_rotation_max_deg > loop_rot || sol.loop_translation_max_mm * 1e-3 > loop_trans) {
     worst = Verdict::kDoubtful;
-    findings->push_back("the pairwise estimates do not close their loops: up to " + formatFixed(sol.loop_rotation_max_deg, 2) +
-                        " deg / " + formatFixed(sol.loop_translation_max_mm, 1) + " mm (allowed " + formatFixed(loop_rot, 2) +
-                        " deg / " + formatFixed(loop_trans * 1e3, 1) + " mm): a sensor's views disagree with the others'");
+    findings->push_back("the pairwise estimates do not close their loops: up to " +
+                        formatFixed(sol.loop_rotation_max_deg, 2) + " deg / " +
+                        formatFixed(sol.loop_translation_max_mm, 1) + " mm (allowed " +
+                        formatFixed(loop_rot, 2) + " deg / " + formatFixed(loop_trans * 1e3, 1) +
+                        " mm): a sensor's views disagree with the others'");
   }
   for (const auto& known : rig.known_extrinsics) {
     const int a = rig.sensorIndex(known.a), b = rig.sensorIndex(known.b);
-    if (a < 0 || b < 0 || a >= static_cast<int>(sol.sensors.size()) || b >= static_cast<int>(sol.sensors.size())) continue;
+    if (a < 0 || b < 0 || a >= static_cast<int>(sol.sensors.size()) ||
+        b >= static_cast<int>(sol.sensors.size()))
+      continue;
     const auto consistency = multi_sensor::stereoConsistency(sol, a, b, known.a_T_b);
     if (!consistency) continue;
     const auto cov = multi_sensor::relativeCovariance(sol, a, b);
     const PoseStddev sd = cov ? stddevFromCovariance(*cov) : PoseStddev{};
     const double rot_tol = o.known_floor_rotation_deg + o.known_sigmas * sd.rotation_deg.norm();
     const double trans_tol = o.known_floor_translation_m + o.known_sigmas * sd.translation_m.norm();
-    const std::string text = known.a + " <- " + known.b + " against the known extrinsic: " +
-                             formatFixed(consistency->rotation_deg, 3) + " deg / " + formatFixed(consistency->translation_mm, 1) +
-                             " mm (allowed " + formatFixed(rot_tol, 3) + " deg / " + formatFixed(trans_tol * 1e3, 1) + " mm)";
-    const bool off = consistency->rotation_deg > rot_tol || consistency->translation_mm * 1e-3 > trans_tol;
+    const std::string text =
+        known.a + " <- " + known.b +
+        " against the known extrinsic: " + formatFixed(consistency->rotation_deg, 3) + " deg / " +
+        formatFixed(consistency->translation_mm, 1) + " mm (allowed " + formatFixed(rot_tol, 3) +
+        " deg / " + formatFixed(trans_tol * 1e3, 1) + " mm)";
+    const bool off =
+        consistency->rotation_deg > rot_tol || consistency->translation_mm * 1e-3 > trans_tol;
     findings->push_back(text);
     if (off) worst = Verdict::kDoubtful;
   }
@@ -203,9 +225,10 @@ std::string RigCalibrationOptions::validate() const {
   if (auto why = graph.validate(); !why.empty()) return "graph: " + why;
   if (auto why = consistency.validate(); !why.empty()) return "consistency: " + why;
   if (auto why = verdict.validate(); !why.empty()) return "verdict: " + why;
-  for (double v : {loop_sigmas, min_loop_rotation_deg, min_loop_translation_m, known_sigmas, known_floor_rotation_deg,
-                   known_floor_translation_m})
-    if (!std::isfinite(v) || !(v > 0)) return "loop and known-extrinsic tolerances must be finite and > 0";
+  for (double v : {loop_sigmas, min_loop_rotation_deg, min_loop_translation_m, known_sigmas,
+                   known_floor_rotation_deg, known_floor_translation_m})
+    if (!std::isfinite(v) || !(v > 0))
+      return "loop and known-extrinsic tolerances must be finite and > 0";
   return {};
 }
 
@@ -222,7 +245,8 @@ RigCalibration calibrateRig(const MsgProblem& problem, const RigConfig& rig, con
     return run;
   };
   if (auto why = options.validate(); !why.empty()) return fail("invalid options: " + why);
-  if (problem.poses.empty()) return fail("no board poses: hold the board still where at least two sensors see it");
+  if (problem.poses.empty())
+    return fail("no board poses: hold the board still where at least two sensors see it");
   run.problem = withoutInconsistent(problem, target, options.consistency, &run.left_out);
   run.solution = multi_sensor::solveMsgGraph(run.problem, options.graph);
   if (!run.solution.success) return fail("MSG graph failed: " + run.solution.reason);
@@ -239,11 +263,14 @@ RigCalibration calibrateRig(const MsgProblem& problem, const RigConfig& rig, con
     const std::vector<View> views = pairViews(run.problem, est.camera, est.lidar);
     p.consistency = checkViewConsistency(views, target, options.consistency);
     p.views = p.consistency.ok ? consistentViews(views, p.consistency) : views;
-    p.solution = pairSolution(p.views, est.camera_T_lidar,
-                              est.has_covariance ? std::optional<Matrix6d>(est.covariance) : std::nullopt);
+    p.solution =
+        pairSolution(p.views, est.camera_T_lidar,
+                     est.has_covariance ? std::optional<Matrix6d>(est.covariance) : std::nullopt);
     std::function<CalibrationSolution(const std::vector<View>&)> refit;
     if (options.cross_validate)
-      refit = [&](const std::vector<View>& train) { return folds.pair(train, p.views, est.camera, est.lidar); };
+      refit = [&](const std::vector<View>& train) {
+        return folds.pair(train, p.views, est.camera, est.lidar);
+      };
     p.verdict = judgeSolution(p.solution, p.views, target, p.consistency, refit, options.verdict);
     to_check.insert(p.verdict.views_to_check.begin(), p.verdict.views_to_check.end());
     run.pairs.push_back(std::move(p));
@@ -252,10 +279,12 @@ RigCalibration calibrateRig(const MsgProblem& problem, const RigConfig& rig, con
   const RigPairRun* worst = nullptr;
   for (const auto& p : run.pairs)
     if (!worst || rank(p.verdict.verdict) > rank(worst->verdict.verdict)) worst = &p;
-  const Verdict rig_checks = judgeRigChecks(run.solution, rig, run.pairs, options, &run.rig_findings);
+  const Verdict rig_checks =
+      judgeRigChecks(run.solution, rig, run.pairs, options, &run.rig_findings);
   run.verdict = worst ? worst->verdict.verdict : Verdict::kFailed;
-  run.reason = worst ? worst->camera_frame + " <- " + worst->lidar_frame + ": " + worst->verdict.reason
-                     : "the rig has no camera <- LiDAR pair to judge";
+  run.reason =
+      worst ? worst->camera_frame + " <- " + worst->lidar_frame + ": " + worst->verdict.reason
+            : "the rig has no camera <- LiDAR pair to judge";
   if (rank(rig_checks) > rank(run.verdict)) {
     run.verdict = rig_checks;
     run.reason = run.rig_findings.front();
@@ -271,11 +300,12 @@ std::string rigVerdictSummary(const RigCalibration& run) {
   std::transform(upper.begin(), upper.end(), upper.begin(), ::toupper);
   s << "VERDICT: " << upper << " - " << run.reason << "\n";
   s << "  board poses: " << run.problem.poses.size() << " solved";
-  if (!run.left_out.empty()) s << ", " << run.left_out.size() << " observation(s) left out as inconsistent";
+  if (!run.left_out.empty())
+    s << ", " << run.left_out.size() << " observation(s) left out as inconsistent";
   s << "\n";
   for (const auto& p : run.pairs) {
-    s << "  " << p.camera_frame << " <- " << p.lidar_frame << ": " << verdictName(p.verdict.verdict) << " - "
-      << p.verdict.reason << "\n";
+    s << "  " << p.camera_frame << " <- " << p.lidar_frame << ": " << verdictName(p.verdict.verdict)
+      << " - " << p.verdict.reason << "\n";
     for (const auto& d : p.verdict.details) s << "    - " << d << "\n";
   }
   for (const auto& f : run.rig_findings) s << "  rig: " << f << "\n";
@@ -288,10 +318,12 @@ std::string rigVerdictSummary(const RigCalibration& run) {
   switch (run.verdict) {
     case Verdict::kGood: s << "  next: use it (the result file and static TF carry it)\n"; break;
     case Verdict::kDoubtful:
-      s << "  next: look at the named poses and pairs, drop bad poses or add poses, then solve again\n";
+      s << "  next: look at the named poses and pairs, drop bad poses or add poses, then solve "
+           "again\n";
       break;
     case Verdict::kFailed:
-      s << "  next: do not use this result; fix the cause above (poses, board, sync, sensors) and collect again\n";
+      s << "  next: do not use this result; fix the cause above (poses, board, sync, sensors) and "
+           "collect again\n";
       break;
   }
   return s.str();

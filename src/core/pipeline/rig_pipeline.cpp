@@ -11,7 +11,9 @@ SessionEvent rejected(const std::string& why) { return {SessionEvent::Kind::kRej
 
 }  // namespace
 
-const char* rigCaptureName(RigCapture capture) { return capture == RigCapture::kAll ? "all" : "still"; }
+const char* rigCaptureName(RigCapture capture) {
+  return capture == RigCapture::kAll ? "all" : "still";
+}
 
 Expected<RigCapture> parseRigCapture(const std::string& name) {
   if (name == "still") return RigCapture::kStill;
@@ -55,14 +57,18 @@ struct RigPipeline::Impl {
     RigSensorStats& s = stats[static_cast<size_t>(sensor)];
     if (s.frame_id == s.name && !frame_id.empty()) s.frame_id = frame_id;
     ++s.frames;
-    if (found) ++s.found;
-    else s.failures[reason.empty() ? "board not found" : reason]++;
+    if (found)
+      ++s.found;
+    else
+      s.failures[reason.empty() ? "board not found" : reason]++;
   }
 };
 
-Expected<RigPipeline> RigPipeline::create(const RigConfig& rig, const Target& target, const RigPipelineOptions& options) {
+Expected<RigPipeline> RigPipeline::create(const RigConfig& rig, const Target& target,
+                                          const RigPipelineOptions& options) {
   if (auto why = rig.validate(); !why.empty()) return Expected<RigPipeline>::failure("rig: " + why);
-  if (auto why = target.validate(); !why.empty()) return Expected<RigPipeline>::failure("target: " + why);
+  if (auto why = target.validate(); !why.empty())
+    return Expected<RigPipeline>::failure("target: " + why);
   if (auto why = options.validate(); !why.empty()) return Expected<RigPipeline>::failure(why);
   RigPipeline p;
   p.impl_ = std::make_unique<Impl>(rig, target, options);
@@ -79,8 +85,9 @@ RigPipeline::RigPipeline(RigPipeline&&) noexcept = default;
 RigPipeline& RigPipeline::operator=(RigPipeline&&) noexcept = default;
 RigPipeline::~RigPipeline() = default;
 
-SessionEvent RigPipeline::addImage(int camera, const cv::Mat& image, const CameraIntrinsics& intrinsics,
-                                   const std::string& frame_id, double stamp) {
+SessionEvent RigPipeline::addImage(int camera, const cv::Mat& image,
+                                   const CameraIntrinsics& intrinsics, const std::string& frame_id,
+                                   double stamp) {
   Impl& d = *impl_;
   if (camera < 0 || camera >= static_cast<int>(d.cameras.size()))
     return rejected("image for camera " + std::to_string(camera) + ", which the rig does not have");
@@ -107,13 +114,15 @@ SessionEvent RigPipeline::addCloud(int lidar, const LidarCloud& cloud) {
   LidarBoardDetection det = detectLidarBoard(cloud, d.target, d.options.lidar);
   det.features.stamp = cloud.stamp;
   if (det.features.frame_id.empty()) det.features.frame_id = cloud.frame_id;
-  if (!det.features.found && det.features.reason.empty()) det.features.reason = lidarDetectionCodeName(det.code);
+  if (!det.features.found && det.features.reason.empty())
+    det.features.reason = lidarDetectionCodeName(det.code);
   return addLidarFeatures(static_cast<int>(d.rig.cameras.size()) + lidar, det.features);
 }
 
 SessionEvent RigPipeline::addCameraFeatures(int sensor, const CameraBoardFeatures& f) {
   Impl& d = *impl_;
-  if (sensor < 0 || sensor >= static_cast<int>(d.stats.size())) return d.session.addCamera(sensor, f);
+  if (sensor < 0 || sensor >= static_cast<int>(d.stats.size()))
+    return d.session.addCamera(sensor, f);
   d.count(sensor, f.frame_id, f.found, f.reason);
   if (d.options.capture == RigCapture::kAll) {
     if (f.found) d.camera_features[sensor].push_back(f);
@@ -124,7 +133,8 @@ SessionEvent RigPipeline::addCameraFeatures(int sensor, const CameraBoardFeature
 
 SessionEvent RigPipeline::addLidarFeatures(int sensor, const LidarBoardFeatures& f) {
   Impl& d = *impl_;
-  if (sensor < 0 || sensor >= static_cast<int>(d.stats.size())) return d.session.addLidar(sensor, f);
+  if (sensor < 0 || sensor >= static_cast<int>(d.stats.size()))
+    return d.session.addLidar(sensor, f);
   d.count(sensor, f.frame_id, f.found, f.reason);
   if (d.options.capture == RigCapture::kAll) {
     if (f.found) d.lidar_features[sensor].push_back(f);
@@ -145,7 +155,8 @@ Expected<multi_sensor::MsgProblem> RigPipeline::problem() const {
   p.reference_sensor = reference;
   multi_sensor::GroupingOptions grouping;
   grouping.stamp_tolerance_s = d.options.session.stamp_tolerance_s;
-  auto grouped = multi_sensor::groupByStamp(p.sensors, d.camera_features, d.lidar_features, grouping);
+  auto grouped =
+      multi_sensor::groupByStamp(p.sensors, d.camera_features, d.lidar_features, grouping);
   if (!grouped) return Expected<multi_sensor::MsgProblem>::failure("grouping: " + grouped.error());
   p.poses = grouped->poses;
   return p;

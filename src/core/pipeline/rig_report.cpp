@@ -47,7 +47,8 @@ ViewResidual viewResidual(const View& v, const Eigen::Isometry3d& T) {
   return vr;
 }
 
-CalibrationSolution evaluatePair(const std::vector<View>& views, const PairEntry& pair, const multi_sensor::PairEstimate* est,
+CalibrationSolution evaluatePair(const std::vector<View>& views, const PairEntry& pair,
+                                 const multi_sensor::PairEstimate* est,
                                  const multi_sensor::MsgSolution& s) {
   CalibrationSolution e;
   e.method = Method::kMsgPair;
@@ -67,21 +68,26 @@ CalibrationSolution evaluatePair(const std::vector<View>& views, const PairEntry
     e.covariance = est->covariance;
     e.stddev = est->stddev;
   }
-  e.notes.push_back("judged at the rig graph's camera_T_lidar (MSG-Cal over every sensor), not a pair solve");
+  e.notes.push_back(
+      "judged at the rig graph's camera_T_lidar (MSG-Cal over every sensor), not a pair solve");
   return e;
 }
 
 std::string pairTable(const std::vector<RigPairEvaluation>& pairs) {
   std::ostringstream md;
-  md << std::fixed << "| camera <- LiDAR | shared poses | MLRE px | plane RMS mm | 1 sigma t mm (max) | "
+  md << std::fixed
+     << "| camera <- LiDAR | shared poses | MLRE px | plane RMS mm | 1 sigma t mm (max) | "
      << "1 sigma r deg (max) | page |\n|---|---|---|---|---|---|---|\n";
   for (const auto& p : pairs) {
     const auto& e = p.evaluation;
     md << "| " << p.camera_frame << " <- " << p.lidar_frame << " | " << p.views.size() << " | ";
-    if (e.mlre_px) md << std::setprecision(2) << *e.mlre_px;
-    else md << "n/a";
-    md << " | " << std::setprecision(1) << e.plane_rms_mm << " | " << 1000.0 * e.stddev.translation_m.maxCoeff()
-       << " | " << std::setprecision(3) << e.stddev.rotation_deg.maxCoeff() << " | [" << p.folder << "](" << p.folder
+    if (e.mlre_px)
+      md << std::setprecision(2) << *e.mlre_px;
+    else
+      md << "n/a";
+    md << " | " << std::setprecision(1) << e.plane_rms_mm << " | "
+       << 1000.0 * e.stddev.translation_m.maxCoeff() << " | " << std::setprecision(3)
+       << e.stddev.rotation_deg.maxCoeff() << " | [" << p.folder << "](" << p.folder
        << "/report.md) |\n";
   }
   return md.str();
@@ -93,16 +99,17 @@ std::string graphDetails(const multi_sensor::MsgSolution& s) {
   if (!s.rejected.empty()) {
     md << "\n## Rejected observations\n\n";
     for (const auto& r : s.rejected)
-      md << "* pose " << r.pose_id << ", sensor `" << s.sensors[r.sensor].frame << "`: median " << std::setprecision(1)
-         << r.median_whitened << " sigma\n";
+      md << "* pose " << r.pose_id << ", sensor `" << s.sensors[r.sensor].frame << "`: median "
+         << std::setprecision(1) << r.median_whitened << " sigma\n";
   }
-  md << "\n## Pairwise links\n\n| a | b | shared | used | rot diff to graph (deg) | trans diff (mm) | tree | note |\n"
+  md << "\n## Pairwise links\n\n| a | b | shared | used | rot diff to graph (deg) | trans diff "
+        "(mm) | tree | note |\n"
      << "|---|---|---|---|---|---|---|---|\n";
   for (const auto& l : s.links)
-    md << "| " << s.sensors[l.a].frame << " | " << s.sensors[l.b].frame << " | " << l.shared_views << " | "
-       << l.views_used << " | " << std::setprecision(3) << l.graph_rotation_diff_deg << " | " << std::setprecision(1)
-       << l.graph_translation_diff_mm << " | " << (l.in_spanning_tree ? "yes" : "") << " | "
-       << (l.success ? "" : l.reason) << " |\n";
+    md << "| " << s.sensors[l.a].frame << " | " << s.sensors[l.b].frame << " | " << l.shared_views
+       << " | " << l.views_used << " | " << std::setprecision(3) << l.graph_rotation_diff_deg
+       << " | " << std::setprecision(1) << l.graph_translation_diff_mm << " | "
+       << (l.in_spanning_tree ? "yes" : "") << " | " << (l.success ? "" : l.reason) << " |\n";
   return md.str();
 }
 
@@ -124,10 +131,11 @@ std::string pairSummary(const RigPairEvaluation& p) {
     o << "MLRE                             n/a (no edge seen by both)\n";
   o << "plane RMS                        " << std::setprecision(1) << e.plane_rms_mm
     << " mm  (LiDAR board points to the camera's board plane; includes the LiDAR's range noise)\n";
-  o << "1 sigma translation [mm]         " << std::setprecision(2) << 1e3 * e.stddev.translation_m.x() << " "
-    << 1e3 * e.stddev.translation_m.y() << " " << 1e3 * e.stddev.translation_m.z() << "\n";
-  o << "1 sigma rotation [deg]           " << std::setprecision(3) << e.stddev.rotation_deg.x() << " "
-    << e.stddev.rotation_deg.y() << " " << e.stddev.rotation_deg.z() << "\n";
+  o << "1 sigma translation [mm]         " << std::setprecision(2)
+    << 1e3 * e.stddev.translation_m.x() << " " << 1e3 * e.stddev.translation_m.y() << " "
+    << 1e3 * e.stddev.translation_m.z() << "\n";
+  o << "1 sigma rotation [deg]           " << std::setprecision(3) << e.stddev.rotation_deg.x()
+    << " " << e.stddev.rotation_deg.y() << " " << e.stddev.rotation_deg.z() << "\n";
   for (const auto& n : e.notes) o << "note: " << n << "\n";
   return o.str();
 }
@@ -135,9 +143,11 @@ std::string pairSummary(const RigPairEvaluation& p) {
 Status writePairPage(const std::string& dir, const RigPairEvaluation& p, const PlotOptions& plots) {
   std::error_code error;
   std::filesystem::create_directories(dir, error);
-  if (error) return Status::failure("cannot create report folder '" + dir + "': " + error.message());
+  if (error)
+    return Status::failure("cannot create report folder '" + dir + "': " + error.message());
   std::ostringstream md;
-  md << "# " << p.camera_frame << " <- " << p.lidar_frame << " (MSG-Cal rig pair)\n\n[rig report](../report.md)\n\n";
+  md << "# " << p.camera_frame << " <- " << p.lidar_frame
+     << " (MSG-Cal rig pair)\n\n[rig report](../report.md)\n\n";
   md << "```\n" << pairSummary(p) << "```\n\n";
   if (p.evaluation.success) {
     const auto figures = writeReportFigures(dir, p.views, {p.evaluation}, 0, plots);
@@ -150,7 +160,8 @@ Status writePairPage(const std::string& dir, const RigPairEvaluation& p, const P
 
 }  // namespace
 
-std::vector<RigPairEvaluation> evaluateRigPairs(const multi_sensor::MsgProblem& problem, const multi_sensor::MsgSolution& solution,
+std::vector<RigPairEvaluation> evaluateRigPairs(const multi_sensor::MsgProblem& problem,
+                                                const multi_sensor::MsgSolution& solution,
                                                 const ResultFile& result) {
   std::vector<RigPairEvaluation> out;
   for (size_t i = 0; i < result.pairs.size(); ++i) {
@@ -164,23 +175,29 @@ std::vector<RigPairEvaluation> evaluateRigPairs(const multi_sensor::MsgProblem& 
     for (const auto& pose : problem.poses) {
       const auto cam = pose.cameras.find(c);
       const auto lid = pose.lidars.find(l);
-      if (cam == pose.cameras.end() || lid == pose.lidars.end() || !cam->second.found || !lid->second.found) continue;
+      if (cam == pose.cameras.end() || lid == pose.lidars.end() || !cam->second.found ||
+          !lid->second.found)
+        continue;
       p.views.push_back(View{pose.id, lid->second, cam->second});
     }
     // msgResultFile keeps the solution's pair order.
-    const multi_sensor::PairEstimate* est = i < solution.pairs.size() ? &solution.pairs[i] : nullptr;
+    const multi_sensor::PairEstimate* est =
+        i < solution.pairs.size() ? &solution.pairs[i] : nullptr;
     p.evaluation = evaluatePair(p.views, pair, est, solution);
     out.push_back(std::move(p));
   }
   return out;
 }
 
-Status writeRigReport(const std::string& dir, const RigConfig& rig, const multi_sensor::MsgProblem& problem,
-                      const multi_sensor::MsgSolution& solution, const ResultFile& result, const RigReportInputs& inputs) {
+Status writeRigReport(const std::string& dir, const RigConfig& rig,
+                      const multi_sensor::MsgProblem& problem,
+                      const multi_sensor::MsgSolution& solution, const ResultFile& result,
+                      const RigReportInputs& inputs) {
   if (const std::string why = inputs.plots.validate(); !why.empty()) return Status::failure(why);
   std::error_code error;
   std::filesystem::create_directories(dir, error);
-  if (error) return Status::failure("cannot create report folder '" + dir + "': " + error.message());
+  if (error)
+    return Status::failure("cannot create report folder '" + dir + "': " + error.message());
   const std::vector<RigPairEvaluation> pairs = evaluateRigPairs(problem, solution, result);
   for (const auto& p : pairs)
     if (const Status st = writePairPage(dir + "/" + p.folder, p, inputs.plots); !st) return st;
@@ -191,9 +208,12 @@ Status writeRigReport(const std::string& dir, const RigConfig& rig, const multi_
   md << "## Input\n\n";
   for (const auto& line : inputs.input_lines) md << "* " << line << "\n";
   md << "* " << problem.poses.size() << " board poses seen by two or more sensors\n\n";
-  md << "## Result\n\n```\n" << rigSolutionSummary(rig, solution, result) << inputs.extra_result_text << "```\n\n";
-  md << "## Camera <- LiDAR pairs\n\nEvery pair judged at the graph's pose on the board poses both sensors saw; "
-        "each page has the pair report's figures (per-edge MLRE with outliers, pose coverage) and per-view "
+  md << "## Result\n\n```\n"
+     << rigSolutionSummary(rig, solution, result) << inputs.extra_result_text << "```\n\n";
+  md << "## Camera <- LiDAR pairs\n\nEvery pair judged at the graph's pose on the board poses both "
+        "sensors saw; "
+        "each page has the pair report's figures (per-edge MLRE with outliers, pose coverage) and "
+        "per-view "
         "residuals.\n\n"
      << pairTable(pairs);
   md << graphDetails(solution);

@@ -28,15 +28,20 @@ double lineDistancePx(const Eigen::Vector3d& line, const Eigen::Vector2d& u) {
 
 std::string EdgeCheckOptions::validate() const {
   std::ostringstream why;
-  if (!(residual_scale_px > 0.0)) why << "residual_scale_px must be > 0";
-  else if (point_radius_px < 0 || point_radius_px > 50) why << "point_radius_px must be in [0, 50]";
-  else if (line_style.thickness_px < 1) why << "line_style.thickness_px must be >= 1";
-  else if (!(line_style.sample_step_px > 0.0)) why << "line_style.sample_step_px must be > 0";
+  if (!(residual_scale_px > 0.0))
+    why << "residual_scale_px must be > 0";
+  else if (point_radius_px < 0 || point_radius_px > 50)
+    why << "point_radius_px must be in [0, 50]";
+  else if (line_style.thickness_px < 1)
+    why << "line_style.thickness_px must be >= 1";
+  else if (!(line_style.sample_step_px > 0.0))
+    why << "line_style.sample_step_px must be > 0";
   return why.str();
 }
 
-Expected<EdgeCheck> checkProjectedEdges(const LidarBoardFeatures& lidar, const CameraBoardFeatures& image,
-                                        const CameraModel& camera, const Eigen::Isometry3d& camera_T_lidar,
+Expected<EdgeCheck> checkProjectedEdges(const LidarBoardFeatures& lidar,
+                                        const CameraBoardFeatures& image, const CameraModel& camera,
+                                        const Eigen::Isometry3d& camera_T_lidar,
                                         const EdgeCheckOptions& options) {
   const std::string why = options.validate();
   if (!why.empty()) return Expected<EdgeCheck>::failure("edge check options: " + why);
@@ -94,13 +99,15 @@ Expected<EdgeCheck> checkProjectedEdges(const LidarBoardFeatures& lidar, const C
     sum += edge_sum;
   }
   if (check.num_points == 0)
-    return Expected<EdgeCheck>::failure("no LiDAR edge point projects in front of the camera with this extrinsic");
+    return Expected<EdgeCheck>::failure(
+        "no LiDAR edge point projects in front of the camera with this extrinsic");
   check.mlre_px = sum / check.num_points;
   return check;
 }
 
-Status drawEdgeCheck(const CameraBoardFeatures& image, const EdgeCheck& check, const CameraModel& camera,
-                     const EdgeCheckOptions& options, cv::Mat* bgr_image) {
+Status drawEdgeCheck(const CameraBoardFeatures& image, const EdgeCheck& check,
+                     const CameraModel& camera, const EdgeCheckOptions& options,
+                     cv::Mat* bgr_image) {
   const std::string why = options.validate();
   if (!why.empty()) return Status::failure("edge check options: " + why);
   if (bgr_image == nullptr || bgr_image->empty()) return Status::failure("image is empty");
@@ -108,7 +115,8 @@ Status drawEdgeCheck(const CameraBoardFeatures& image, const EdgeCheck& check, c
   if (bgr_image->type() != CV_8UC3) return Status::failure("image must be 8-bit mono or bgr");
 
   for (int k = 0; k < kNumEdges; ++k)
-    if (image.edge_valid[k]) drawUndistortedLine(image.edge_lines[k], camera, options.line_style, bgr_image);
+    if (image.edge_valid[k])
+      drawUndistortedLine(image.edge_lines[k], camera, options.line_style, bgr_image);
 
   for (int j = 0; j < kNumEdges; ++j) {
     for (const EdgePointCheck& p : check.points[j]) {
@@ -130,10 +138,10 @@ Status drawEdgeCheck(const CameraBoardFeatures& image, const EdgeCheck& check, c
     text << "MLRE " << check.mlre_px << " px (" << check.num_points << " pts)";
     const cv::Point origin(kTextMarginPx, kTextMarginPx + kTextBaselinePx);
     // Dark outline keeps the text readable on bright boards.
-    cv::putText(*bgr_image, text.str(), origin, cv::FONT_HERSHEY_SIMPLEX, kTextScale, cv::Scalar(0, 0, 0),
-                kTextThickness + 3, cv::LINE_AA);
-    cv::putText(*bgr_image, text.str(), origin, cv::FONT_HERSHEY_SIMPLEX, kTextScale, cv::Scalar(255, 255, 255),
-                kTextThickness, cv::LINE_AA);
+    cv::putText(*bgr_image, text.str(), origin, cv::FONT_HERSHEY_SIMPLEX, kTextScale,
+                cv::Scalar(0, 0, 0), kTextThickness + 3, cv::LINE_AA);
+    cv::putText(*bgr_image, text.str(), origin, cv::FONT_HERSHEY_SIMPLEX, kTextScale,
+                cv::Scalar(255, 255, 255), kTextThickness, cv::LINE_AA);
   }
   return Status::success();
 }

@@ -20,7 +20,8 @@ constexpr double kAutoIntensityLow = 0.02;
 constexpr double kAutoIntensityHigh = 0.98;
 
 bool validPoint(const LidarPoint& p) {
-  return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) && (p.x != 0.f || p.y != 0.f || p.z != 0.f);
+  return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) &&
+         (p.x != 0.f || p.y != 0.f || p.z != 0.f);
 }
 
 Status toBgr(cv::Mat* image) {
@@ -32,7 +33,8 @@ Status toBgr(cv::Mat* image) {
     *image = bgr;
     return Status::success();
   }
-  return Status::failure("image must be 8-bit mono or bgr (OpenCV type " + std::to_string(image->type()) + ")");
+  return Status::failure("image must be 8-bit mono or bgr (OpenCV type " +
+                         std::to_string(image->type()) + ")");
 }
 
 // Offsets of a filled disc of the given radius.
@@ -66,32 +68,43 @@ Expected<ColorMode> parseColorMode(const std::string& name) {
   if (name == "depth") return ColorMode::kDepth;
   if (name == "intensity") return ColorMode::kIntensity;
   if (name == "flat") return ColorMode::kFlat;
-  return Expected<ColorMode>::failure("unknown colour mode '" + name + "' (depth, intensity, flat)");
+  return Expected<ColorMode>::failure("unknown colour mode '" + name +
+                                      "' (depth, intensity, flat)");
 }
 
 std::string ProjectionOptions::validate() const {
   std::ostringstream why;
-  if (!(min_depth_m >= 0.0) || !std::isfinite(min_depth_m)) why << "min_depth_m must be >= 0";
-  else if (!(max_depth_m > min_depth_m) || !std::isfinite(max_depth_m)) why << "max_depth_m must exceed min_depth_m";
-  else if (zbuffer_cell_px < 0) why << "zbuffer_cell_px must be >= 0 (0 disables occlusion culling)";
-  else if (!(occlusion_tolerance_m >= 0.0)) why << "occlusion_tolerance_m must be >= 0";
-  else if (!(margin_px >= 0.0)) why << "margin_px must be >= 0";
+  if (!(min_depth_m >= 0.0) || !std::isfinite(min_depth_m))
+    why << "min_depth_m must be >= 0";
+  else if (!(max_depth_m > min_depth_m) || !std::isfinite(max_depth_m))
+    why << "max_depth_m must exceed min_depth_m";
+  else if (zbuffer_cell_px < 0)
+    why << "zbuffer_cell_px must be >= 0 (0 disables occlusion culling)";
+  else if (!(occlusion_tolerance_m >= 0.0))
+    why << "occlusion_tolerance_m must be >= 0";
+  else if (!(margin_px >= 0.0))
+    why << "margin_px must be >= 0";
   return why.str();
 }
 
 std::string OverlayOptions::validate() const {
   std::ostringstream why;
-  if (!(depth_max_m > depth_min_m)) why << "depth_max_m must exceed depth_min_m";
-  else if (point_radius_px < 0 || point_radius_px > 50) why << "point_radius_px must be in [0, 50]";
-  else if (!(alpha >= 0.0 && alpha <= 1.0)) why << "alpha must be in [0, 1]";
-  else if (!std::isfinite(intensity_min) || !std::isfinite(intensity_max)) why << "intensity scale must be finite";
+  if (!(depth_max_m > depth_min_m))
+    why << "depth_max_m must exceed depth_min_m";
+  else if (point_radius_px < 0 || point_radius_px > 50)
+    why << "point_radius_px must be in [0, 50]";
+  else if (!(alpha >= 0.0 && alpha <= 1.0))
+    why << "alpha must be in [0, 1]";
+  else if (!std::isfinite(intensity_min) || !std::isfinite(intensity_max))
+    why << "intensity scale must be finite";
   return why.str();
 }
 
 const std::vector<cv::Vec3b>& colorTable() {
   static const std::vector<cv::Vec3b> table = [] {
     cv::Mat ramp(1, kColorTableSize, CV_8UC1), colored;
-    for (int i = 0; i < kColorTableSize; ++i) ramp.at<std::uint8_t>(0, i) = static_cast<std::uint8_t>(i);
+    for (int i = 0; i < kColorTableSize; ++i)
+      ramp.at<std::uint8_t>(0, i) = static_cast<std::uint8_t>(i);
     cv::applyColorMap(ramp, colored, cv::COLORMAP_JET);
     std::vector<cv::Vec3b> out(kColorTableSize);
     for (int i = 0; i < kColorTableSize; ++i) out[i] = colored.at<cv::Vec3b>(0, i);
@@ -101,11 +114,13 @@ const std::vector<cv::Vec3b>& colorTable() {
 }
 
 Expected<ProjectedCloud> projectCloud(const LidarCloud& cloud, const CameraModel& camera,
-                                      const Eigen::Isometry3d& camera_T_lidar, const ProjectionOptions& options) {
+                                      const Eigen::Isometry3d& camera_T_lidar,
+                                      const ProjectionOptions& options) {
   const std::string why = options.validate();
   if (!why.empty()) return Expected<ProjectedCloud>::failure("projection options: " + why);
   if (camera.width() <= 0 || camera.height() <= 0)
-    return Expected<ProjectedCloud>::failure("camera model has no image size (not created from intrinsics?)");
+    return Expected<ProjectedCloud>::failure(
+        "camera model has no image size (not created from intrinsics?)");
   if (!camera_T_lidar.matrix().allFinite())
     return Expected<ProjectedCloud>::failure("camera_T_lidar is not finite");
 
@@ -158,14 +173,17 @@ Expected<ProjectedCloud> projectCloud(const LidarCloud& cloud, const CameraModel
     const float tolerance = static_cast<float>(options.occlusion_tolerance_m);
     const size_t before = out.points.size();
     out.points.erase(std::remove_if(out.points.begin(), out.points.end(),
-                                    [&](const ProjectedPoint& p) { return p.depth > nearest[cellOf(p)] + tolerance; }),
+                                    [&](const ProjectedPoint& p) {
+                                      return p.depth > nearest[cellOf(p)] + tolerance;
+                                    }),
                      out.points.end());
     out.occluded = static_cast<int>(before - out.points.size());
   }
   return out;
 }
 
-Status drawProjectedCloud(const ProjectedCloud& projected, const OverlayOptions& options, cv::Mat* image) {
+Status drawProjectedCloud(const ProjectedCloud& projected, const OverlayOptions& options,
+                          cv::Mat* image) {
   const std::string why = options.validate();
   if (!why.empty()) return Status::failure("overlay options: " + why);
   Status bgr = toBgr(image);
@@ -205,7 +223,8 @@ Status drawProjectedCloud(const ProjectedCloud& projected, const OverlayOptions&
   }
   for (int b = 0; b < kDepthOrderBins; ++b) counts[b + 1] += counts[b];
   std::vector<int> order(projected.points.size());
-  for (size_t i = 0; i < projected.points.size(); ++i) order[counts[bins[i]]++] = static_cast<int>(i);
+  for (size_t i = 0; i < projected.points.size(); ++i)
+    order[counts[bins[i]]++] = static_cast<int>(i);
 
   const auto& table = colorTable();
   const std::vector<cv::Point> disc = discOffsets(options.point_radius_px);
@@ -235,14 +254,15 @@ Status drawProjectedCloud(const ProjectedCloud& projected, const OverlayOptions&
   return Status::success();
 }
 
-int drawUndistortedSegment(const Eigen::Vector2d& from, const Eigen::Vector2d& to, const CameraModel& camera,
-                           const LineStyle& style, cv::Mat* image) {
+int drawUndistortedSegment(const Eigen::Vector2d& from, const Eigen::Vector2d& to,
+                           const CameraModel& camera, const LineStyle& style, cv::Mat* image) {
   if (image == nullptr || image->empty() || !from.allFinite() || !to.allFinite()) return 0;
   if (!(style.sample_step_px > 0.0)) return 0;
   const double length = (to - from).norm();
   // Bound the sample count: a line clipped to a sane region never needs more.
   constexpr int kMaxSamples = 100000;
-  const int n = std::clamp(static_cast<int>(std::ceil(length / style.sample_step_px)), 1, kMaxSamples);
+  const int n =
+      std::clamp(static_cast<int>(std::ceil(length / style.sample_step_px)), 1, kMaxSamples);
   const Eigen::Matrix3d K_inv = camera.K().inverse();
   const cv::Scalar color(style.color[0], style.color[1], style.color[2]);
   int segments = 0;
@@ -269,7 +289,8 @@ int drawUndistortedSegment(const Eigen::Vector2d& from, const Eigen::Vector2d& t
   return segments;
 }
 
-int drawUndistortedLine(const Eigen::Vector3d& line, const CameraModel& camera, const LineStyle& style, cv::Mat* image) {
+int drawUndistortedLine(const Eigen::Vector3d& line, const CameraModel& camera,
+                        const LineStyle& style, cv::Mat* image) {
   const double a = line.x(), b = line.y(), c = line.z();
   const double norm = std::hypot(a, b);
   if (!(norm > 0) || !std::isfinite(c)) return 0;
@@ -305,7 +326,8 @@ int drawUndistortedLine(const Eigen::Vector3d& line, const CameraModel& camera, 
   return drawUndistortedSegment(hits[bi], hits[bj], camera, style, image);
 }
 
-Expected<ColoredCloud> colorCloud(const LidarCloud& cloud, const ProjectedCloud& projected, const cv::Mat& image) {
+Expected<ColoredCloud> colorCloud(const LidarCloud& cloud, const ProjectedCloud& projected,
+                                  const cv::Mat& image) {
   if (image.empty()) return Expected<ColoredCloud>::failure("image is empty");
   if (image.type() != CV_8UC3 && image.type() != CV_8UC1)
     return Expected<ColoredCloud>::failure("image must be 8-bit mono or bgr (OpenCV type " +
@@ -318,7 +340,8 @@ Expected<ColoredCloud> colorCloud(const LidarCloud& cloud, const ProjectedCloud&
   const int w = image.cols, h = image.rows;
   for (const ProjectedPoint& p : projected.points) {
     if (p.index < 0 || static_cast<size_t>(p.index) >= cloud.points.size())
-      return Expected<ColoredCloud>::failure("projection does not belong to this cloud (index out of range)");
+      return Expected<ColoredCloud>::failure(
+          "projection does not belong to this cloud (index out of range)");
     // Bilinear sample at the pixel centre convention of OpenCV (integer = pixel centre).
     const float u = std::clamp(p.u, 0.f, static_cast<float>(w - 1));
     const float v = std::clamp(p.v, 0.f, static_cast<float>(h - 1));
@@ -334,7 +357,8 @@ Expected<ColoredCloud> colorCloud(const LidarCloud& cloud, const ProjectedCloud&
     } else {
       const cv::Vec3b &c00 = image.at<cv::Vec3b>(y0, x0), &c01 = image.at<cv::Vec3b>(y0, x1),
                       &c10 = image.at<cv::Vec3b>(y1, x0), &c11 = image.at<cv::Vec3b>(y1, x1);
-      for (int c = 0; c < 3; ++c) bgr[c] = w00 * c00[c] + w01 * c01[c] + w10 * c10[c] + w11 * c11[c];
+      for (int c = 0; c < 3; ++c)
+        bgr[c] = w00 * c00[c] + w01 * c01[c] + w10 * c10[c] + w11 * c11[c];
     }
     const LidarPoint& lp = cloud.points[p.index];
     ColoredPoint cp;
@@ -353,8 +377,9 @@ Expected<ColoredCloud> colorCloud(const LidarCloud& cloud, const ProjectedCloud&
 std::array<Eigen::Vector3d, 4> frustumCorners(const CameraModel& camera, const double depth_m) {
   const double w = camera.width(), h = camera.height();
   // Pixel centres of the corner pixels' outer edges (OpenCV: pixel centre at integer).
-  const std::array<Eigen::Vector2d, 4> px = {Eigen::Vector2d(-0.5, -0.5), Eigen::Vector2d(w - 0.5, -0.5),
-                                             Eigen::Vector2d(w - 0.5, h - 0.5), Eigen::Vector2d(-0.5, h - 0.5)};
+  const std::array<Eigen::Vector2d, 4> px = {
+      Eigen::Vector2d(-0.5, -0.5), Eigen::Vector2d(w - 0.5, -0.5),
+      Eigen::Vector2d(w - 0.5, h - 0.5), Eigen::Vector2d(-0.5, h - 0.5)};
   std::array<Eigen::Vector3d, 4> out;
   for (int i = 0; i < 4; ++i) {
     const Eigen::Vector3d ray = camera.unprojectRay(px[i]);

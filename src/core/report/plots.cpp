@@ -18,10 +18,13 @@ constexpr int kFont = cv::FONT_HERSHEY_SIMPLEX;
 constexpr double kFontScale = 0.45;
 constexpr int kMarginLeft = 60, kMarginRight = 20, kMarginTop = 46, kMarginBottom = 44;  // px
 
-const cv::Scalar kWhite(255, 255, 255), kBlack(0, 0, 0), kGrid(225, 225, 225), kGreyText(90, 90, 90);
+const cv::Scalar kWhite(255, 255, 255), kBlack(0, 0, 0), kGrid(225, 225, 225),
+    kGreyText(90, 90, 90);
 const cv::Scalar kOutlier(30, 30, 220);  // BGR red
-// Per-edge colours (BGR), colour-blind friendly (Okabe-Ito): UL blue, UR bluish green, LR orange, LL purple.
-const cv::Scalar kEdgeColour[kNumEdges] = {{178, 114, 0}, {115, 158, 0}, {0, 159, 230}, {167, 121, 204}};
+// Per-edge colours (BGR), colour-blind friendly (Okabe-Ito): UL blue, UR bluish green, LR orange,
+// LL purple.
+const cv::Scalar kEdgeColour[kNumEdges] = {
+    {178, 114, 0}, {115, 158, 0}, {0, 159, 230}, {167, 121, 204}};
 
 std::string fixed(double v, int precision) {
   std::ostringstream s;
@@ -44,8 +47,8 @@ double niceStep(double range) {
   return 10.0 * p;
 }
 
-void text(cv::Mat* img, const std::string& s, cv::Point at, const cv::Scalar& colour = kBlack, double scale = kFontScale,
-          int thickness = 1) {
+void text(cv::Mat* img, const std::string& s, cv::Point at, const cv::Scalar& colour = kBlack,
+          double scale = kFontScale, int thickness = 1) {
   cv::putText(*img, s, at, kFont, scale, colour, thickness, cv::LINE_AA);
 }
 
@@ -56,7 +59,8 @@ int textWidth(const std::string& s, double scale = kFontScale) {
 
 void dashedHLine(cv::Mat* img, int x0, int x1, int y, const cv::Scalar& colour) {
   constexpr int kDash = 8;
-  for (int x = x0; x < x1; x += 2 * kDash) cv::line(*img, {x, y}, {std::min(x + kDash, x1), y}, colour, 1, cv::LINE_AA);
+  for (int x = x0; x < x1; x += 2 * kDash)
+    cv::line(*img, {x, y}, {std::min(x + kDash, x1), y}, colour, 1, cv::LINE_AA);
 }
 
 /// A data rectangle inside an image with linear axes.
@@ -64,13 +68,16 @@ struct Axes {
   cv::Rect area;
   double x0 = 0, x1 = 1, y0 = 0, y1 = 1;
 
-  int px(double x) const { return area.x + static_cast<int>(std::lround((x - x0) / (x1 - x0) * area.width)); }
+  int px(double x) const {
+    return area.x + static_cast<int>(std::lround((x - x0) / (x1 - x0) * area.width));
+  }
   int py(double y) const {
     return area.y + area.height - static_cast<int>(std::lround((y - y0) / (y1 - y0) * area.height));
   }
 
   /// Grid and labels on y (and on x when `x_ticks`), axis titles, a frame.
-  void draw(cv::Mat* img, const std::string& x_title, const std::string& y_title, bool x_ticks) const {
+  void draw(cv::Mat* img, const std::string& x_title, const std::string& y_title,
+            bool x_ticks) const {
     const double ys = niceStep(y1 - y0);
     for (double y = std::ceil(y0 / ys) * ys; y <= y1 + 1e-9; y += ys) {
       cv::line(*img, {area.x, py(y)}, {area.x + area.width, py(y)}, kGrid, 1);
@@ -86,7 +93,8 @@ struct Axes {
       }
     }
     cv::rectangle(*img, area, kGreyText, 1);
-    text(img, x_title, {area.x + area.width / 2 - textWidth(x_title) / 2, area.y + area.height + 36});
+    text(img, x_title,
+         {area.x + area.width / 2 - textWidth(x_title) / 2, area.y + area.height + 36});
     text(img, y_title, {area.x, area.y - 8});
   }
 };
@@ -150,7 +158,8 @@ std::vector<EdgeOutlier> findEdgeOutliers(const CalibrationSolution& s, const Pl
   for (const auto& v : s.views)
     for (int j = 0; j < kNumEdges; ++j) {
       const auto& e = v.edges[j];
-      if (e.used && e.mlre_px && *e.mlre_px > o.outlier_factor * med) out.push_back({v.view_id, j, *e.mlre_px, med});
+      if (e.used && e.mlre_px && *e.mlre_px > o.outlier_factor * med)
+        out.push_back({v.view_id, j, *e.mlre_px, med});
     }
   return out;
 }
@@ -170,7 +179,9 @@ Expected<cv::Mat> plotEdgeErrors(const CalibrationSolution& s, const PlotOptions
       }
     if (any) views.push_back(&v);
   }
-  if (views.empty()) return Expected<cv::Mat>::failure("no edge has an MLRE (" + std::string(methodName(s.method)) + ")");
+  if (views.empty())
+    return Expected<cv::Mat>::failure("no edge has an MLRE (" + std::string(methodName(s.method)) +
+                                      ")");
   const std::vector<EdgeOutlier> outliers = findEdgeOutliers(s, o);
   constexpr size_t kMinEdgesForMedian = 3;
   const double threshold = all.size() >= kMinEdgesForMedian ? o.outlier_factor * median(all) : 0.0;
@@ -186,7 +197,8 @@ Expected<cv::Mat> plotEdgeErrors(const CalibrationSolution& s, const PlotOptions
   ax.y1 = std::max(1e-3, top * 1.1);
   ax.draw(&img, "", "MLRE px", false);
   text(&img, "view", {8, ax.area.y + ax.area.height + 16}, kGreyText);
-  title(&img, std::string("Line re-projection error per view and edge (") + methodName(s.method) + ")");
+  title(&img,
+        std::string("Line re-projection error per view and edge (") + methodName(s.method) + ")");
 
   const double slot = static_cast<double>(ax.area.width) / views.size();
   const int bar = std::max(1, static_cast<int>(slot * 0.8 / kNumEdges));
@@ -206,21 +218,25 @@ Expected<cv::Mat> plotEdgeErrors(const CalibrationSolution& s, const PlotOptions
       const cv::Rect r(x, y, std::max(1, bar - 1), ax.area.y + ax.area.height - y);
       cv::rectangle(img, r, outlier ? kOutlier : kEdgeColour[j], cv::FILLED);
       if (!e.used) cv::rectangle(img, r, kGreyText, 1);  // drawn but not part of the solve
-      if (clipped) {  // a broken top: two white slashes
+      if (clipped) {                                     // a broken top: two white slashes
         cv::line(img, {x, y + 8}, {x + bar - 1, y + 4}, kWhite, 2);
         cv::line(img, {x, y + 14}, {x + bar - 1, y + 10}, kWhite, 2);
       }
       if (outlier) {  // value on top; beside the break of a clipped bar
         const std::string label = fixed(value, value < 10 ? 1 : 0);
-        const cv::Point at = clipped ? cv::Point(x + bar + 2, y + 14) : cv::Point(x + bar / 2 - textWidth(label, 0.4) / 2, y - 4);
+        const cv::Point at = clipped ? cv::Point(x + bar + 2, y + 14)
+                                     : cv::Point(x + bar / 2 - textWidth(label, 0.4) / 2, y - 4);
         text(&img, label, at, kOutlier, 0.4);
       }
     }
     const std::string id = std::to_string(v.view_id) + (v.used ? "" : "*");
-    text(&img, id, {x_slot + static_cast<int>(0.4 * slot) - textWidth(id) / 2, ax.area.y + ax.area.height + 16},
+    text(&img, id,
+         {x_slot + static_cast<int>(0.4 * slot) - textWidth(id) / 2,
+          ax.area.y + ax.area.height + 16},
          kGreyText);
   }
-  if (s.mlre_px && *s.mlre_px <= ax.y1) dashedHLine(&img, ax.area.x, ax.area.x + ax.area.width, ax.py(*s.mlre_px), kBlack);
+  if (s.mlre_px && *s.mlre_px <= ax.y1)
+    dashedHLine(&img, ax.area.x, ax.area.x + ax.area.width, ax.py(*s.mlre_px), kBlack);
   if (threshold > 0 && threshold <= ax.y1)
     dashedHLine(&img, ax.area.x, ax.area.x + ax.area.width, ax.py(threshold), kOutlier);
 
@@ -229,7 +245,9 @@ Expected<cv::Mat> plotEdgeErrors(const CalibrationSolution& s, const PlotOptions
   legendEntry(&img, &lx, 38, kOutlier, "outlier");
   std::string foot = "black dashes: mean MLRE";
   if (s.mlre_px) foot += " " + fixed(*s.mlre_px, 2) + " px";
-  if (threshold > 0) foot += ";  red dashes: " + fixed(o.outlier_factor, 0) + " x median edge = " + fixed(threshold, 1) + " px";
+  if (threshold > 0)
+    foot += ";  red dashes: " + fixed(o.outlier_factor, 0) +
+            " x median edge = " + fixed(threshold, 1) + " px";
   text(&img, foot, {o.width - kMarginRight - textWidth(foot, 0.4), o.height - 8}, kGreyText, 0.4);
   return img;
 }
@@ -251,7 +269,8 @@ Expected<cv::Mat> plotPoseCoverage(const std::vector<View>& views, const PlotOpt
 
   // Left: distance against tilt, both tilt components.
   Axes ax;
-  ax.area = cv::Rect(kMarginLeft, kMarginTop, half - kMarginLeft - kMarginRight, o.height - kMarginTop - kMarginBottom);
+  ax.area = cv::Rect(kMarginLeft, kMarginTop, half - kMarginLeft - kMarginRight,
+                     o.height - kMarginTop - kMarginBottom);
   double dmin = samples[0].distance_m, dmax = dmin, tmax = 10.0;
   for (const auto& s : samples) {
     dmin = std::min(dmin, s.distance_m);
@@ -266,7 +285,8 @@ Expected<cv::Mat> plotPoseCoverage(const std::vector<View>& views, const PlotOpt
   ax.draw(&img, "board distance from the camera (m)", "tilt deg", true);
   cv::line(img, {ax.area.x, ax.py(0)}, {ax.area.x + ax.area.width, ax.py(0)}, kGreyText, 1);
   for (const auto& s : samples) {
-    cv::circle(img, {ax.px(s.distance_m), ax.py(s.tilt_h_deg)}, 5, kEdgeColour[0], cv::FILLED, cv::LINE_AA);
+    cv::circle(img, {ax.px(s.distance_m), ax.py(s.tilt_h_deg)}, 5, kEdgeColour[0], cv::FILLED,
+               cv::LINE_AA);
     const cv::Point pv(ax.px(s.distance_m), ax.py(s.tilt_v_deg));
     cv::rectangle(img, cv::Rect(pv.x - 4, pv.y - 4, 9, 9), kEdgeColour[2], cv::FILLED);
   }
@@ -286,13 +306,17 @@ Expected<cv::Mat> plotPoseCoverage(const std::vector<View>& views, const PlotOpt
           v1 = std::max(v1, p.y());
         }
   const cv::Rect panel(half + 20, kMarginTop, half - 40, o.height - kMarginTop - kMarginBottom);
-  const double scale = std::min(panel.width / std::max(1.0, u1 - u0), panel.height / std::max(1.0, v1 - v0));
+  const double scale =
+      std::min(panel.width / std::max(1.0, u1 - u0), panel.height / std::max(1.0, v1 - v0));
   const auto toPanel = [&](double u, double v) {
-    return cv::Point(panel.x + static_cast<int>((u - u0) * scale), panel.y + static_cast<int>((v - v0) * scale));
+    return cv::Point(panel.x + static_cast<int>((u - u0) * scale),
+                     panel.y + static_cast<int>((v - v0) * scale));
   };
   if (image_w > 0 && image_h > 0) {
     cv::rectangle(img, cv::Rect(toPanel(0, 0), toPanel(image_w, image_h)), kGreyText, 2);
-    text(&img, "grey frame: the " + std::to_string(image_w) + " x " + std::to_string(image_h) + " px image",
+    text(&img,
+         "grey frame: the " + std::to_string(image_w) + " x " + std::to_string(image_h) +
+             " px image",
          {panel.x, panel.y + panel.height + 30}, kGreyText);
   }
   int k = 0;
@@ -313,8 +337,8 @@ Expected<cv::Mat> plotPoseCoverage(const std::vector<View>& views, const PlotOpt
   return img;
 }
 
-Expected<cv::Mat> plotMethodComparison(const std::vector<CalibrationSolution>& solutions, int chosen,
-                                       const PlotOptions& o) {
+Expected<cv::Mat> plotMethodComparison(const std::vector<CalibrationSolution>& solutions,
+                                       int chosen, const PlotOptions& o) {
   if (auto why = o.validate(); !why.empty()) return Expected<cv::Mat>::failure(why);
   std::vector<int> ok;
   for (int i = 0; i < static_cast<int>(solutions.size()); ++i)
@@ -325,13 +349,16 @@ Expected<cv::Mat> plotMethodComparison(const std::vector<CalibrationSolution>& s
     std::string name;
     std::vector<std::optional<double>> values;
   };
-  std::vector<Metric> metrics = {{"MLRE px", {}}, {"plane RMS mm", {}}, {"1 sigma t mm (max)", {}},
+  std::vector<Metric> metrics = {{"MLRE px", {}},
+                                 {"plane RMS mm", {}},
+                                 {"1 sigma t mm (max)", {}},
                                  {"1 sigma r deg (max)", {}}};
   for (int i : ok) {
     const auto& s = solutions[i];
     metrics[0].values.push_back(s.mlre_px);
     metrics[1].values.push_back(s.plane_rms_mm);
-    const double st = s.stddev.translation_m.maxCoeff() * 1e3, sr = s.stddev.rotation_deg.maxCoeff();
+    const double st = s.stddev.translation_m.maxCoeff() * 1e3,
+                 sr = s.stddev.rotation_deg.maxCoeff();
     metrics[2].values.push_back(std::isfinite(st) ? std::optional<double>(st) : std::nullopt);
     metrics[3].values.push_back(std::isfinite(sr) ? std::optional<double>(sr) : std::nullopt);
   }
@@ -344,8 +371,8 @@ Expected<cv::Mat> plotMethodComparison(const std::vector<CalibrationSolution>& s
     for (const auto& v : metrics[m].values)
       if (v) vmax = std::max(vmax, *v);
     Axes ax;
-    ax.area = cv::Rect(static_cast<int>(m) * panel_w + kMarginLeft, kMarginTop + 10, panel_w - kMarginLeft - 10,
-                       o.height - kMarginTop - 10 - kMarginBottom);
+    ax.area = cv::Rect(static_cast<int>(m) * panel_w + kMarginLeft, kMarginTop + 10,
+                       panel_w - kMarginLeft - 10, o.height - kMarginTop - 10 - kMarginBottom);
     ax.x0 = 0;
     ax.x1 = static_cast<double>(ok.size());
     ax.y0 = 0;
@@ -356,7 +383,8 @@ Expected<cv::Mat> plotMethodComparison(const std::vector<CalibrationSolution>& s
       const int x = ax.area.x + static_cast<int>((i + 0.2) * slot);
       const int w = std::max(2, static_cast<int>(0.6 * slot));
       const std::string name = methodName(solutions[ok[i]].method);
-      text(&img, name, {x + w / 2 - textWidth(name) / 2, ax.area.y + ax.area.height + 16}, kGreyText);
+      text(&img, name, {x + w / 2 - textWidth(name) / 2, ax.area.y + ax.area.height + 16},
+           kGreyText);
       const auto& v = metrics[m].values[i];
       if (!v) {
         text(&img, "-", {x + w / 2 - 3, ax.area.y + ax.area.height - 6}, kGreyText);
@@ -374,11 +402,13 @@ Expected<cv::Mat> plotMethodComparison(const std::vector<CalibrationSolution>& s
 }
 
 Expected<ReportFigures> writeReportFigures(const std::string& dir, const std::vector<View>& views,
-                                           const std::vector<CalibrationSolution>& solutions, int chosen,
-                                           const PlotOptions& o) {
-  if (auto why = o.validate(); !why.empty()) return Expected<ReportFigures>::failure("plot options: " + why);
+                                           const std::vector<CalibrationSolution>& solutions,
+                                           int chosen, const PlotOptions& o) {
+  if (auto why = o.validate(); !why.empty())
+    return Expected<ReportFigures>::failure("plot options: " + why);
   ReportFigures f;
-  const auto save = [&](const std::string& name, const Expected<cv::Mat>& img, std::string* written) -> Status {
+  const auto save = [&](const std::string& name, const Expected<cv::Mat>& img,
+                        std::string* written) -> Status {
     if (!img) {
       f.skipped.push_back(name + ": " + img.error());
       return Status::success();
@@ -393,7 +423,8 @@ Expected<ReportFigures> writeReportFigures(const std::string& dir, const std::ve
     return Status::success();
   };
   if (chosen >= 0 && chosen < static_cast<int>(solutions.size())) {
-    if (Status st = save("edge_errors.png", plotEdgeErrors(solutions[chosen], o), &f.edge_errors); !st)
+    if (Status st = save("edge_errors.png", plotEdgeErrors(solutions[chosen], o), &f.edge_errors);
+        !st)
       return Expected<ReportFigures>::failure(st.reason);
     f.outliers = findEdgeOutliers(solutions[chosen], o);
   } else {
@@ -402,7 +433,9 @@ Expected<ReportFigures> writeReportFigures(const std::string& dir, const std::ve
   if (Status st = save("pose_coverage.png", plotPoseCoverage(views, o), &f.pose_coverage); !st)
     return Expected<ReportFigures>::failure(st.reason);
   if (solutions.size() > 1) {
-    if (Status st = save("methods.png", plotMethodComparison(solutions, chosen, o), &f.method_comparison); !st)
+    if (Status st =
+            save("methods.png", plotMethodComparison(solutions, chosen, o), &f.method_comparison);
+        !st)
       return Expected<ReportFigures>::failure(st.reason);
   }
   return f;
@@ -413,31 +446,40 @@ std::string reportFiguresMarkdown(const ReportFigures& f, const std::vector<std:
   std::ostringstream md;
   md << "## Figures\n\n";
   if (!f.edge_errors.empty()) {
-    md << "Line re-projection error (MLRE) of every edge of every view, as MATLAB's Lidar Camera Calibrator "
-          "shows it; `*` marks a view not used in the solve.\n\n![Per-edge MLRE](" << f.edge_errors << ")\n\n";
+    md << "Line re-projection error (MLRE) of every edge of every view, as MATLAB's Lidar Camera "
+          "Calibrator "
+          "shows it; `*` marks a view not used in the solve.\n\n![Per-edge MLRE]("
+       << f.edge_errors << ")\n\n";
     if (f.outliers.empty()) {
-      md << "No outlier edge (none above " << fixed(o.outlier_factor, 0) << " x the median edge MLRE).\n\n";
+      md << "No outlier edge (none above " << fixed(o.outlier_factor, 0)
+         << " x the median edge MLRE).\n\n";
     } else {
-      md << "**Outlier edges** (MLRE above " << fixed(o.outlier_factor, 0) << " x the median edge MLRE of "
-         << fixed(f.outliers.front().median_px, 2)
-         << " px): check these views' overlays (a hand on the edge, a wrong image line, a bent board) and drop "
-            "them (`--load-session` after editing, or the calibrator's `~drop_view`) if they are wrong:\n\n";
+      md << "**Outlier edges** (MLRE above " << fixed(o.outlier_factor, 0)
+         << " x the median edge MLRE of " << fixed(f.outliers.front().median_px, 2)
+         << " px): check these views' overlays (a hand on the edge, a wrong image line, a bent "
+            "board) and drop "
+            "them (`--load-session` after editing, or the calibrator's `~drop_view`) if they are "
+            "wrong:\n\n";
       for (const auto& q : f.outliers)
-        md << "* view " << q.view_id << ", edge " << edgeName(q.edge) << ": " << fixed(q.mlre_px, 1) << " px\n";
+        md << "* view " << q.view_id << ", edge " << edgeName(q.edge) << ": " << fixed(q.mlre_px, 1)
+           << " px\n";
       md << "\n";
     }
   }
   if (!f.pose_coverage.empty())
-    md << "Board poses: distance and tilt (tilts of both signs about both axes constrain the rotation and the "
-          "translation along the optical axis), and where the board was in the image.\n\n![Pose coverage]("
+    md << "Board poses: distance and tilt (tilts of both signs about both axes constrain the "
+          "rotation and the "
+          "translation along the optical axis), and where the board was in the image.\n\n![Pose "
+          "coverage]("
        << f.pose_coverage << ")\n\n";
   if (!f.method_comparison.empty())
-    md << "The methods side by side (the reported one outlined).\n\n![Methods side by side](" << f.method_comparison
-       << ")\n\n";
+    md << "The methods side by side (the reported one outlined).\n\n![Methods side by side]("
+       << f.method_comparison << ")\n\n";
   for (const auto& s : f.skipped) md << "* not drawn: " << s << "\n";
   if (!f.skipped.empty()) md << "\n";
   if (!overlays.empty()) {
-    md << "## Overlays\n\nEvery view with the reported result: LiDAR points coloured by depth, the detected "
+    md << "## Overlays\n\nEvery view with the reported result: LiDAR points coloured by depth, the "
+          "detected "
           "image edges and the projected LiDAR edge points coloured by their distance to them.\n\n";
     constexpr size_t kColumns = 4;
     md << "|";
@@ -448,7 +490,9 @@ std::string reportFiguresMarkdown(const ReportFigures& f, const std::vector<std:
     for (size_t i = 0; i < overlays.size(); i += kColumns) {
       md << "|";
       for (size_t c = 0; c < kColumns; ++c) {
-        if (i + c < overlays.size()) md << " [![" << overlays[i + c] << "](" << overlays[i + c] << ")](" << overlays[i + c] << ")";
+        if (i + c < overlays.size())
+          md << " [![" << overlays[i + c] << "](" << overlays[i + c] << ")](" << overlays[i + c]
+             << ")";
         md << " |";
       }
       md << "\n";
@@ -478,8 +522,8 @@ std::vector<std::string> listOverlayFiles(const std::string& dir) {
 }
 
 Expected<ReportFigures> appendReportFigures(const std::string& dir, const std::vector<View>& views,
-                                            const std::vector<CalibrationSolution>& solutions, int chosen,
-                                            const PlotOptions& o) {
+                                            const std::vector<CalibrationSolution>& solutions,
+                                            int chosen, const PlotOptions& o) {
   auto f = writeReportFigures(dir, views, solutions, chosen, o);
   if (!f) return f;
   std::ofstream md(dir + "/report.md", std::ios::app);

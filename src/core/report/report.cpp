@@ -40,19 +40,23 @@ std::vector<std::string> consistencyNotes(const std::vector<View>& views, const 
   if (!widths.empty() && target.width > 0 && target.height > 0) {
     const double w = median(widths), h = median(heights);
     const double rw = w / target.width - 1.0, rh = h / target.height - 1.0;
-    const auto pct = [](double r) { return std::string(r > 0 ? "+" : "") + fixed(r * 100, 1) + " %"; };
+    const auto pct = [](double r) {
+      return std::string(r > 0 ? "+" : "") + fixed(r * 100, 1) + " %";
+    };
     std::vector<std::string> off;
     if (std::abs(rw) > kSizeNoteThreshold) off.push_back("width " + pct(rw));
     if (std::abs(rh) > kSizeNoteThreshold) off.push_back("height " + pct(rh));
     if (!off.empty()) {
       const bool larger = (std::abs(rw) > kSizeNoteThreshold ? rw : rh) > 0;
-      notes.push_back("board size inconsistency: the LiDAR measures " + fixed(w, 3) + " x " + fixed(h, 3) + " m (median of " +
-                      std::to_string(widths.size()) + " views), the target declares " + fixed(target.width, 3) +
-                      " x " + fixed(target.height, 3) + " m (" + off.front() + (off.size() > 1 ? ", " + off.back() : "") +
-                      "): " +
-                      (larger ? "either the board is larger than declared or the LiDAR's edge returns bloom"
-                              : "either the board is smaller than declared or the LiDAR's edge returns are eroded") +
-                      "; camera planes from the declared size are then biased in depth");
+      notes.push_back(
+          "board size inconsistency: the LiDAR measures " + fixed(w, 3) + " x " + fixed(h, 3) +
+          " m (median of " + std::to_string(widths.size()) + " views), the target declares " +
+          fixed(target.width, 3) + " x " + fixed(target.height, 3) + " m (" + off.front() +
+          (off.size() > 1 ? ", " + off.back() : "") + "): " +
+          (larger ? "either the board is larger than declared or the LiDAR's edge returns bloom"
+                  : "either the board is smaller than declared or the LiDAR's edge returns are "
+                    "eroded") +
+          "; camera planes from the declared size are then biased in depth");
     }
   }
   if (!solution.success) return notes;
@@ -77,26 +81,31 @@ std::vector<std::string> consistencyNotes(const std::vector<View>& views, const 
   constexpr double kOffsetNote = 0.02;  // m
   const bool scaled = std::abs(scale - 1.0) > kSizeNoteThreshold;
   if (scaled) {
-    std::string note = "camera board planes fit the LiDAR best with their distances scaled by " + fixed(scale, 3) +
-                       ": the declared board size is likely off by " + fixed((scale - 1) * 100, 1) +
+    std::string note = "camera board planes fit the LiDAR best with their distances scaled by " +
+                       fixed(scale, 3) + ": the declared board size is likely off by " +
+                       fixed((scale - 1) * 100, 1) +
                        " % (check target.yaml). The solve estimated this scale and used it";
     if (n > 0)
-      note += ": against the scaled planes the LiDAR board points lie " + fixed(std::abs(sum_scaled / n) * 100, 1) +
-              " cm " + (sum_scaled > 0 ? "behind" : "in front of") + " them on average (RMS " +
-              fixed(std::sqrt(sq_scaled / n) * 1e3, 1) + " mm); the plane RMS of the summary is against the " +
-              "declared-size planes (" + fixed(std::abs(sum_raw / n) * 100, 1) + " cm mean offset)";
+      note += ": against the scaled planes the LiDAR board points lie " +
+              fixed(std::abs(sum_scaled / n) * 100, 1) + " cm " +
+              (sum_scaled > 0 ? "behind" : "in front of") + " them on average (RMS " +
+              fixed(std::sqrt(sq_scaled / n) * 1e3, 1) +
+              " mm); the plane RMS of the summary is against the " + "declared-size planes (" +
+              fixed(std::abs(sum_raw / n) * 100, 1) + " cm mean offset)";
     notes.push_back(note);
   } else if (n > 0 && std::abs(sum_raw / n) > kOffsetNote) {
-    notes.push_back("LiDAR board points lie on average " + fixed(std::abs(sum_raw / n) * 100, 1) + " cm " +
-                    (sum_raw > 0 ? "behind" : "in front of") +
-                    " the camera's board plane: the camera plane depth (from the declared board size) and the "
-                    "LiDAR disagree");
+    notes.push_back(
+        "LiDAR board points lie on average " + fixed(std::abs(sum_raw / n) * 100, 1) + " cm " +
+        (sum_raw > 0 ? "behind" : "in front of") +
+        " the camera's board plane: the camera plane depth (from the declared board size) and the "
+        "LiDAR disagree");
   }
   return notes;
 }
 
-ResultFile makeResultFile(const CalibrationSolution& s, const std::vector<View>& views, const Target& target,
-                          const std::string& camera_frame, const std::string& lidar_frame) {
+ResultFile makeResultFile(const CalibrationSolution& s, const std::vector<View>& views,
+                          const Target& target, const std::string& camera_frame,
+                          const std::string& lidar_frame) {
   ResultFile r;
   r.method = methodName(s.method);
   r.camera_frame = camera_frame;
@@ -132,35 +141,41 @@ std::string solutionSummary(const CalibrationSolution& s) {
   const Eigen::Vector3d t = s.camera_T_lidar.translation();
   const Eigen::Vector4d q = quaternionXyzw(s.camera_T_lidar);
   const Eigen::Vector3d rpy = rollPitchYaw(s.camera_T_lidar.rotation()) * kDegPerRad;
-  o << s.views_used << " views, " << s.iterations << " iterations, " << fixed(s.solve_time_ms, 1) << " ms\n";
-  o << "  camera_T_lidar translation [m]   " << fixed(t.x(), 4) << " " << fixed(t.y(), 4) << " " << fixed(t.z(), 4)
-    << "\n";
-  o << "  camera_T_lidar rotation xyzw     " << fixed(q[0], 5) << " " << fixed(q[1], 5) << " " << fixed(q[2], 5) << " "
-    << fixed(q[3], 5) << "  (rpy deg " << fixed(rpy.x(), 2) << " " << fixed(rpy.y(), 2) << " " << fixed(rpy.z(), 2)
-    << ")\n";
+  o << s.views_used << " views, " << s.iterations << " iterations, " << fixed(s.solve_time_ms, 1)
+    << " ms\n";
+  o << "  camera_T_lidar translation [m]   " << fixed(t.x(), 4) << " " << fixed(t.y(), 4) << " "
+    << fixed(t.z(), 4) << "\n";
+  o << "  camera_T_lidar rotation xyzw     " << fixed(q[0], 5) << " " << fixed(q[1], 5) << " "
+    << fixed(q[2], 5) << " " << fixed(q[3], 5) << "  (rpy deg " << fixed(rpy.x(), 2) << " "
+    << fixed(rpy.y(), 2) << " " << fixed(rpy.z(), 2) << ")\n";
   if (s.mlre_px)
     o << "  MLRE                             " << fixed(*s.mlre_px, 2)
       << " px  (mean distance of LiDAR edge points to the image edge lines)\n";
   o << "  plane RMS                        " << fixed(s.plane_rms_mm, 1)
     << " mm  (LiDAR board points to the camera's board plane"
-    << (std::abs(s.plane_scale - 1.0) > kSizeNoteThreshold ? " from the declared size, before the plane scale)\n"
-                                                           : ")\n");
+    << (std::abs(s.plane_scale - 1.0) > kSizeNoteThreshold
+            ? " from the declared size, before the plane scale)\n"
+            : ")\n");
   o << "  1 sigma translation [mm]         " << fixed(s.stddev.translation_m.x() * 1e3, 2) << " "
-    << fixed(s.stddev.translation_m.y() * 1e3, 2) << " " << fixed(s.stddev.translation_m.z() * 1e3, 2) << "\n";
+    << fixed(s.stddev.translation_m.y() * 1e3, 2) << " "
+    << fixed(s.stddev.translation_m.z() * 1e3, 2) << "\n";
   o << "  1 sigma rotation [deg]           " << fixed(s.stddev.rotation_deg.x(), 3) << " "
     << fixed(s.stddev.rotation_deg.y(), 3) << " " << fixed(s.stddev.rotation_deg.z(), 3) << "\n";
   o << "  observability                    condition " << std::scientific << std::setprecision(2)
     << s.observability.condition_number << std::defaultfloat
-    << (s.observability.well_conditioned ? " (well conditioned)" : " (WEAK: " + s.observability.weakest_description + ")")
+    << (s.observability.well_conditioned ? " (well conditioned)"
+                                         : " (WEAK: " + s.observability.weakest_description + ")")
     << "\n";
-  if (std::abs(s.plane_scale - 1.0) > 1e-9) o << "  camera plane scale               " << fixed(s.plane_scale, 4) << "\n";
+  if (std::abs(s.plane_scale - 1.0) > 1e-9)
+    o << "  camera plane scale               " << fixed(s.plane_scale, 4) << "\n";
   for (const auto& n : s.notes) o << "  note: " << n << "\n";
   return o.str();
 }
 
 std::string comparisonTable(const std::vector<CalibrationSolution>& solutions) {
   std::ostringstream o;
-  o << "| method | ok | views | MLRE px | plane RMS mm | sigma t mm (max) | sigma r deg (max) | dR deg | dt mm |\n";
+  o << "| method | ok | views | MLRE px | plane RMS mm | sigma t mm (max) | sigma r deg (max) | dR "
+       "deg | dt mm |\n";
   o << "|---|---|---|---|---|---|---|---|---|\n";
   const CalibrationSolution* first = nullptr;
   for (const auto& s : solutions)
@@ -169,14 +184,16 @@ std::string comparisonTable(const std::vector<CalibrationSolution>& solutions) {
       break;
     }
   for (const auto& s : solutions) {
-    o << "| " << methodName(s.method) << " | " << (s.success ? "yes" : "no") << " | " << s.views_used << " | ";
+    o << "| " << methodName(s.method) << " | " << (s.success ? "yes" : "no") << " | "
+      << s.views_used << " | ";
     if (!s.success) {
       o << "- | - | - | - | - | - |  (" << s.reason << ")\n";
       continue;
     }
-    o << (s.mlre_px ? fixed(*s.mlre_px, 2) : std::string("-")) << " | " << fixed(s.plane_rms_mm, 1) << " | "
-      << fixed(s.stddev.translation_m.maxCoeff() * 1e3, 2) << " | " << fixed(s.stddev.rotation_deg.maxCoeff(), 3)
-      << " | " << fixed(rotationErrorDeg(s.camera_T_lidar, first->camera_T_lidar), 3) << " | "
+    o << (s.mlre_px ? fixed(*s.mlre_px, 2) : std::string("-")) << " | " << fixed(s.plane_rms_mm, 1)
+      << " | " << fixed(s.stddev.translation_m.maxCoeff() * 1e3, 2) << " | "
+      << fixed(s.stddev.rotation_deg.maxCoeff(), 3) << " | "
+      << fixed(rotationErrorDeg(s.camera_T_lidar, first->camera_T_lidar), 3) << " | "
       << fixed(translationErrorM(s.camera_T_lidar, first->camera_T_lidar) * 1e3, 1) << " |\n";
   }
   return o.str();
@@ -187,9 +204,11 @@ std::string perViewTable(const CalibrationSolution& s) {
   o << "| view | used | plane RMS mm | MLRE px | UL px | UR px | LR px | LL px | note |\n";
   o << "|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& v : s.views) {
-    o << "| " << v.view_id << " | " << (v.used ? "yes" : "no") << " | " << fixed(v.plane.rms_m * 1e3, 1) << " | "
+    o << "| " << v.view_id << " | " << (v.used ? "yes" : "no") << " | "
+      << fixed(v.plane.rms_m * 1e3, 1) << " | "
       << (v.mlre_px ? fixed(*v.mlre_px, 2) : std::string("-"));
-    for (const auto& e : v.edges) o << " | " << (e.mlre_px ? fixed(*e.mlre_px, 2) : std::string("-"));
+    for (const auto& e : v.edges)
+      o << " | " << (e.mlre_px ? fixed(*e.mlre_px, 2) : std::string("-"));
     o << " | " << v.reason << " |\n";
   }
   return o.str();
@@ -203,12 +222,16 @@ std::string staticTransformLaunchSnippet(const ResultFile& r, const std::string&
   const Eigen::Vector4d q = quaternionXyzw(lidar_T_camera);
   std::ostringstream o;
   o << std::setprecision(9);
-  o << "<launch>\n  <!-- board_calib " << r.method << " result: " << r.camera_frame << " in " << r.lidar_frame
-    << " -->\n  <!-- Needs tf2_ros's static_transform_publisher (ROS Noetic; Debian's ROS packages lack it: there run"
-    << "\n       roslaunch board_calib publish_calibration.launch result_file:=" << r.method << "_result.yaml) -->"
+  o << "<launch>\n  <!-- board_calib " << r.method << " result: " << r.camera_frame << " in "
+    << r.lidar_frame
+    << " -->\n  <!-- Needs tf2_ros's static_transform_publisher (ROS Noetic; Debian's ROS packages "
+       "lack it: there run"
+    << "\n       roslaunch board_calib publish_calibration.launch result_file:=" << r.method
+    << "_result.yaml) -->"
     << "\n  <node pkg=\"tf2_ros\" type=\"static_transform_publisher\" name=\"board_calib_"
-    << child_frame << "_tf\"\n        args=\"" << t.x() << " " << t.y() << " " << t.z() << " " << q[0] << " " << q[1]
-    << " " << q[2] << " " << q[3] << " " << r.lidar_frame << " " << child_frame << "\"/>\n</launch>\n";
+    << child_frame << "_tf\"\n        args=\"" << t.x() << " " << t.y() << " " << t.z() << " "
+    << q[0] << " " << q[1] << " " << q[2] << " " << q[3] << " " << r.lidar_frame << " "
+    << child_frame << "\"/>\n</launch>\n";
   return o.str();
 }
 
@@ -218,10 +241,11 @@ std::string urdfJointSnippet(const ResultFile& r, const std::string& child_frame
   const Eigen::Vector3d rpy = rollPitchYaw(lidar_T_camera.rotation());
   std::ostringstream o;
   o << std::setprecision(9);
-  o << "<!-- board_calib " << r.method << " result -->\n<joint name=\"" << r.lidar_frame << "_to_" << child_frame
-    << "\" type=\"fixed\">\n  <parent link=\"" << r.lidar_frame << "\"/>\n  <child link=\"" << child_frame
-    << "\"/>\n  <origin xyz=\"" << t.x() << " " << t.y() << " " << t.z() << "\" rpy=\"" << rpy.x() << " " << rpy.y()
-    << " " << rpy.z() << "\"/>\n</joint>\n";
+  o << "<!-- board_calib " << r.method << " result -->\n<joint name=\"" << r.lidar_frame << "_to_"
+    << child_frame << "\" type=\"fixed\">\n  <parent link=\"" << r.lidar_frame
+    << "\"/>\n  <child link=\"" << child_frame << "\"/>\n  <origin xyz=\"" << t.x() << " " << t.y()
+    << " " << t.z() << "\" rpy=\"" << rpy.x() << " " << rpy.y() << " " << rpy.z()
+    << "\"/>\n</joint>\n";
   return o.str();
 }
 
@@ -236,7 +260,8 @@ int bestSolutionIndex(const std::vector<CalibrationSolution>& solutions) {
     }
     const auto& b = solutions[best];
     const bool both_mlre = s.mlre_px && b.mlre_px;
-    if ((both_mlre && *s.mlre_px < *b.mlre_px) || (!both_mlre && s.plane_rms_mm < b.plane_rms_mm)) best = i;
+    if ((both_mlre && *s.mlre_px < *b.mlre_px) || (!both_mlre && s.plane_rms_mm < b.plane_rms_mm))
+      best = i;
   }
   return best;
 }

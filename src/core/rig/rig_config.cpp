@@ -1,5 +1,5 @@
-#include <board_calib/core/rig/rig_config.h>
 #include <board_calib/core/file_io.h>
+#include <board_calib/core/rig/rig_config.h>
 
 #include <yaml-cpp/yaml.h>
 
@@ -18,7 +18,8 @@ struct RigError {
 
 [[noreturn]] void bad(const std::string& why) { throw RigError{why}; }
 
-std::string requireString(const YAML::Node& node, const std::string& key, const std::string& where) {
+std::string requireString(const YAML::Node& node, const std::string& key,
+                          const std::string& where) {
   const YAML::Node v = node[key];
   if (!v) bad(where + ": missing key '" + key + "'");
   if (!v.IsScalar()) bad(where + "." + key + ": expected a string");
@@ -27,7 +28,8 @@ std::string requireString(const YAML::Node& node, const std::string& key, const 
   return s;
 }
 
-double optionalNumber(const YAML::Node& node, const std::string& key, const std::string& where, double fallback) {
+double optionalNumber(const YAML::Node& node, const std::string& key, const std::string& where,
+                      double fallback) {
   const YAML::Node v = node[key];
   if (!v) return fallback;
   double x = 0.0;
@@ -36,10 +38,12 @@ double optionalNumber(const YAML::Node& node, const std::string& key, const std:
   return x;
 }
 
-std::vector<double> numberList(const YAML::Node& node, const std::string& key, const std::string& where, size_t n) {
+std::vector<double> numberList(const YAML::Node& node, const std::string& key,
+                               const std::string& where, size_t n) {
   const YAML::Node v = node[key];
   if (!v) bad(where + ": missing key '" + key + "'");
-  if (!v.IsSequence() || v.size() != n) bad(where + "." + key + ": expected a list of " + std::to_string(n) + " numbers");
+  if (!v.IsSequence() || v.size() != n)
+    bad(where + "." + key + ": expected a list of " + std::to_string(n) + " numbers");
   std::vector<double> out;
   for (const auto& e : v) {
     double x = 0.0;
@@ -50,7 +54,8 @@ std::vector<double> numberList(const YAML::Node& node, const std::string& key, c
   return out;
 }
 
-void checkKeys(const YAML::Node& node, const std::set<std::string>& allowed, const std::string& where) {
+void checkKeys(const YAML::Node& node, const std::set<std::string>& allowed,
+               const std::string& where) {
   for (const auto& kv : node) {
     const std::string k = kv.first.as<std::string>();
     if (!allowed.count(k)) bad(where + ": unknown key '" + k + "'");
@@ -66,10 +71,13 @@ double noiseValue(const YAML::Node& noise, const std::string& key, const std::st
 
 RigConfig parse(const YAML::Node& root, const std::string& base_dir) {
   if (!root.IsMap()) bad("rig file: expected a map at the top level");
-  checkKeys(root, {"target", "reference", "cameras", "lidars", "known_extrinsics", "stamp_tolerance_s"}, "rig");
+  checkKeys(root,
+            {"target", "reference", "cameras", "lidars", "known_extrinsics", "stamp_tolerance_s"},
+            "rig");
   RigConfig rig;
   rig.target_path = requireString(root, "target", "rig");
-  if (!base_dir.empty() && rig.target_path[0] != '/') rig.target_path = base_dir + "/" + rig.target_path;
+  if (!base_dir.empty() && rig.target_path[0] != '/')
+    rig.target_path = base_dir + "/" + rig.target_path;
   rig.reference = requireString(root, "reference", "rig");
   rig.stamp_tolerance_s = optionalNumber(root, "stamp_tolerance_s", "rig", rig.stamp_tolerance_s);
 
@@ -84,7 +92,8 @@ RigConfig parse(const YAML::Node& root, const std::string& base_dir) {
       cam.name = requireString(c, "name", where);
       cam.image_topic = requireString(c, "image_topic", where);
       cam.camera_info_topic = requireString(c, "camera_info_topic", where);
-      cam.features_topic = c["features_topic"] ? requireString(c, "features_topic", where) : cam.name + "/camera_board";
+      cam.features_topic = c["features_topic"] ? requireString(c, "features_topic", where)
+                                               : cam.name + "/camera_board";
       if (const YAML::Node n = c["noise"]) {
         if (!n.IsMap()) bad(where + ".noise: expected a map");
         const std::string nw = where + ".noise";
@@ -106,7 +115,8 @@ RigConfig parse(const YAML::Node& root, const std::string& base_dir) {
       RigLidar lid;
       lid.name = requireString(l, "name", where);
       lid.cloud_topic = requireString(l, "cloud_topic", where);
-      lid.features_topic = l["features_topic"] ? requireString(l, "features_topic", where) : lid.name + "/lidar_board";
+      lid.features_topic = l["features_topic"] ? requireString(l, "features_topic", where)
+                                               : lid.name + "/lidar_board";
       if (const YAML::Node n = l["noise"]) {
         if (!n.IsMap()) bad(where + ".noise: expected a map");
         const std::string nw = where + ".noise";
@@ -129,13 +139,15 @@ RigConfig parse(const YAML::Node& root, const std::string& base_dir) {
       e.a = requireString(k, "a", where);
       e.b = requireString(k, "b", where);
       const YAML::Node t = k["a_T_b"];
-      if (!t || !t.IsMap()) bad(where + ": missing key 'a_T_b' (a map with translation and rotation_xyzw)");
+      if (!t || !t.IsMap())
+        bad(where + ": missing key 'a_T_b' (a map with translation and rotation_xyzw)");
       checkKeys(t, {"translation", "rotation_xyzw"}, where + ".a_T_b");
       const auto tr = numberList(t, "translation", where + ".a_T_b", 3);
       const auto q = numberList(t, "rotation_xyzw", where + ".a_T_b", 4);
       Eigen::Quaterniond quat(q[3], q[0], q[1], q[2]);
       if (std::abs(quat.norm() - 1.0) > 1e-3)
-        bad(where + ".a_T_b.rotation_xyzw: not a unit quaternion (norm " + std::to_string(quat.norm()) + ")");
+        bad(where + ".a_T_b.rotation_xyzw: not a unit quaternion (norm " +
+            std::to_string(quat.norm()) + ")");
       quat.normalize();
       e.a_T_b.linear() = quat.toRotationMatrix();
       e.a_T_b.translation() = Eigen::Vector3d(tr[0], tr[1], tr[2]);
@@ -150,7 +162,8 @@ RigConfig parse(const YAML::Node& root, const std::string& base_dir) {
 
 std::string RigConfig::validate() const {
   if (target_path.empty()) return "rig: 'target' is empty";
-  if (cameras.size() + lidars.size() < 2) return "rig: needs at least two sensors in 'cameras' and 'lidars'";
+  if (cameras.size() + lidars.size() < 2)
+    return "rig: needs at least two sensors in 'cameras' and 'lidars'";
   if (!(stamp_tolerance_s > 0.0)) return "rig.stamp_tolerance_s: must be > 0";
   std::set<std::string> names, topics;
   auto addName = [&](const std::string& n) { return names.insert(n).second; };
@@ -158,7 +171,8 @@ std::string RigConfig::validate() const {
   for (const auto& c : cameras) {
     if (!addName(c.name)) return "rig: duplicate sensor name '" + c.name + "'";
     if (!addTopic(c.image_topic)) return "rig: topic '" + c.image_topic + "' used twice";
-    if (!addTopic(c.camera_info_topic)) return "rig: topic '" + c.camera_info_topic + "' used twice";
+    if (!addTopic(c.camera_info_topic))
+      return "rig: topic '" + c.camera_info_topic + "' used twice";
     if (!addTopic(c.features_topic)) return "rig: topic '" + c.features_topic + "' used twice";
   }
   for (const auto& l : lidars) {
@@ -166,7 +180,8 @@ std::string RigConfig::validate() const {
     if (!addTopic(l.cloud_topic)) return "rig: topic '" + l.cloud_topic + "' used twice";
     if (!addTopic(l.features_topic)) return "rig: topic '" + l.features_topic + "' used twice";
   }
-  if (!names.count(reference)) return "rig.reference: '" + reference + "' is not a sensor of the rig";
+  if (!names.count(reference))
+    return "rig.reference: '" + reference + "' is not a sensor of the rig";
   for (size_t i = 0; i < known_extrinsics.size(); ++i) {
     const auto& k = known_extrinsics[i];
     const std::string where = "known_extrinsics[" + std::to_string(i) + "]";
@@ -231,7 +246,8 @@ Expected<RigConfig> loadRigConfig(const std::string& path) {
   const auto text = readTextFile(path, "rig file");
   if (!text) return Expected<RigConfig>::failure(text.error());
   const size_t slash = path.find_last_of('/');
-  const std::string base = slash == std::string::npos ? "." : path.substr(0, slash == 0 ? 1 : slash);
+  const std::string base =
+      slash == std::string::npos ? "." : path.substr(0, slash == 0 ? 1 : slash);
   auto rig = parseRigConfig(*text, base);
   if (!rig) return Expected<RigConfig>::failure(path + ": " + rig.error());
   return rig;

@@ -49,7 +49,8 @@ template <typename F>
 const F* closestWithin(const std::vector<F>& features, double stamp, double tolerance) {
   const F* best = nullptr;
   for (const auto& f : features)
-    if (std::abs(f.stamp - stamp) <= tolerance && (!best || std::abs(f.stamp - stamp) < std::abs(best->stamp - stamp)))
+    if (std::abs(f.stamp - stamp) <= tolerance &&
+        (!best || std::abs(f.stamp - stamp) < std::abs(best->stamp - stamp)))
       best = &f;
   return best;
 }
@@ -57,12 +58,15 @@ const F* closestWithin(const std::vector<F>& features, double stamp, double tole
 }  // namespace
 
 std::string RigSessionOptions::validate() const {
-  if (!(stamp_tolerance_s > 0.0) || !std::isfinite(stamp_tolerance_s)) return "stamp_tolerance_s must be finite and > 0";
+  if (!(stamp_tolerance_s > 0.0) || !std::isfinite(stamp_tolerance_s))
+    return "stamp_tolerance_s must be finite and > 0";
   if (auto why = stillness().validate(); !why.empty()) return why;
-  if (!(min_pose_rotation_deg >= 0.0) || !(min_pose_translation_m >= 0.0)) return "min_pose_* must be >= 0";
+  if (!(min_pose_rotation_deg >= 0.0) || !(min_pose_translation_m >= 0.0))
+    return "min_pose_* must be >= 0";
   if (min_sensors < 2) return "min_sensors must be >= 2 (a pose links sensors)";
   if (max_poses < 1) return "max_poses must be >= 1";
-  if (!(history_s >= 2.0 * std::max(stamp_tolerance_s, still_window_s)) || !std::isfinite(history_s))
+  if (!(history_s >= 2.0 * std::max(stamp_tolerance_s, still_window_s)) ||
+      !std::isfinite(history_s))
     return "history_s must be at least twice stamp_tolerance_s and still_window_s";
   return "";
 }
@@ -84,9 +88,12 @@ RigSessionOptions rigSessionOptionsFor(const RigConfig& rig) {
   return o;
 }
 
-RigSession::RigSession(std::vector<std::string> names, std::vector<SensorSpec> sensors, RigSessionOptions options,
-                       std::optional<Target> target)
-    : names_(std::move(names)), sensors_(std::move(sensors)), options_(options), target_(std::move(target)) {
+RigSession::RigSession(std::vector<std::string> names, std::vector<SensorSpec> sensors,
+                       RigSessionOptions options, std::optional<Target> target)
+    : names_(std::move(names)),
+      sensors_(std::move(sensors)),
+      options_(options),
+      target_(std::move(target)) {
   names_.resize(sensors_.size());
   for (size_t i = 0; i < names_.size(); ++i)
     if (names_[i].empty()) names_[i] = sensors_[i].frame;
@@ -95,8 +102,10 @@ RigSession::RigSession(std::vector<std::string> names, std::vector<SensorSpec> s
 }
 
 SessionEvent RigSession::addCamera(int sensor, const CameraBoardFeatures& f) {
-  if (sensor < 0 || sensor >= static_cast<int>(sensors_.size()) || sensors_[sensor].kind != SensorKind::kCamera)
-    return event(SessionEvent::Kind::kRejected, "camera features given for sensor " + std::to_string(sensor) +
+  if (sensor < 0 || sensor >= static_cast<int>(sensors_.size()) ||
+      sensors_[sensor].kind != SensorKind::kCamera)
+    return event(SessionEvent::Kind::kRejected, "camera features given for sensor " +
+                                                    std::to_string(sensor) +
                                                     ", which is not a camera of this rig");
   BoardSample sample = boardSampleOf(f, target_ ? &*target_ : nullptr);
   sample.found = sample.found && summarize(f).has_value();
@@ -106,8 +115,10 @@ SessionEvent RigSession::addCamera(int sensor, const CameraBoardFeatures& f) {
 }
 
 SessionEvent RigSession::addLidar(int sensor, const LidarBoardFeatures& f) {
-  if (sensor < 0 || sensor >= static_cast<int>(sensors_.size()) || sensors_[sensor].kind != SensorKind::kLidar)
-    return event(SessionEvent::Kind::kRejected, "LiDAR features given for sensor " + std::to_string(sensor) +
+  if (sensor < 0 || sensor >= static_cast<int>(sensors_.size()) ||
+      sensors_[sensor].kind != SensorKind::kLidar)
+    return event(SessionEvent::Kind::kRejected, "LiDAR features given for sensor " +
+                                                    std::to_string(sensor) +
                                                     ", which is not a LiDAR of this rig");
   BoardSample sample = boardSampleOf(f);
   sample.found = sample.found && summarize(f).has_value();
@@ -116,10 +127,13 @@ SessionEvent RigSession::addLidar(int sensor, const LidarBoardFeatures& f) {
   });
 }
 
-SessionEvent RigSession::add(int sensor, double stamp, const BoardSample& sample, const std::string& frame,
-                             const std::string& reason, const std::function<void(Stream&)>& keep) {
-  if (!std::isfinite(stamp)) return event(SessionEvent::Kind::kRejected, names_[sensor] + ": non-finite stamp");
-  SessionEvent result = event(SessionEvent::Kind::kWaiting, "waiting for the board to be held still");
+SessionEvent RigSession::add(int sensor, double stamp, const BoardSample& sample,
+                             const std::string& frame, const std::string& reason,
+                             const std::function<void(Stream&)>& keep) {
+  if (!std::isfinite(stamp))
+    return event(SessionEvent::Kind::kRejected, names_[sensor] + ": non-finite stamp");
+  SessionEvent result =
+      event(SessionEvent::Kind::kWaiting, "waiting for the board to be held still");
   RigSensorCounts& count = counts_[sensor];
   if (count.messages > 0 && stamp < count.newest_stamp - kTimeJumpBackS) {
     // This sensor's time went back: the source restarted (a bag looped). Keep the poses, forget
@@ -134,7 +148,8 @@ SessionEvent RigSession::add(int sensor, double stamp, const BoardSample& sample
   count.board_now = sample.found;
   count.newest_stamp = std::max(count.newest_stamp, stamp);
   Stream& st = streams_[sensor];
-  if (!st.samples.empty() && stamp < st.samples.back().stamp) return result;  // out of order: not judged
+  if (!st.samples.empty() && stamp < st.samples.back().stamp)
+    return result;  // out of order: not judged
   st.samples.push_back(sample);
   st.clock.add(stamp);
   if (!sample.found) {
@@ -164,15 +179,18 @@ bool RigSession::readyToJudge(const Candidate& c) const {
   if (counts_[c.sensor].newest_stamp > c.stamp + options_.history_s) return true;
   for (size_t k = 0; k < counts_.size(); ++k) {
     const double newest = counts_[k].newest_stamp;
-    if (counts_[k].messages == 0 || !std::isfinite(newest) || std::abs(newest - c.stamp) > options_.history_s) continue;
+    if (counts_[k].messages == 0 || !std::isfinite(newest) ||
+        std::abs(newest - c.stamp) > options_.history_s)
+      continue;
     if (newest < c.stamp + reach) return false;
   }
   return true;
 }
 
 SessionEvent RigSession::decideCandidates(bool ended) {
-  SessionEvent result = event(SessionEvent::Kind::kWaiting, candidates_.empty() ? "waiting for a board to capture"
-                                                                                 : "waiting for the still window");
+  SessionEvent result =
+      event(SessionEvent::Kind::kWaiting, candidates_.empty() ? "waiting for a board to capture"
+                                                              : "waiting for the still window");
   while (!candidates_.empty() && (ended || readyToJudge(candidates_.front()))) {
     const Candidate c = candidates_.front();
     candidates_.pop_front();
@@ -202,7 +220,8 @@ SessionEvent RigSession::decide(const Candidate& c) {
   const StillnessJudgement judged = judgeStillness(streams, c.stamp, options_.stillness(), true);
   ++stats_.candidates;
   stats_.last_stillness = judged.why;
-  if (judged.state == StillState::kMoving || judged.state == StillState::kNoBoard) hold_pose_id_ = -1;
+  if (judged.state == StillState::kMoving || judged.state == StillState::kNoBoard)
+    hold_pose_id_ = -1;
   if (judged.state == StillState::kMoving) return skip("board moving", judged.why);
   if (judged.state == StillState::kNoBoard) return skip("board lost around the moment", judged.why);
   if (judged.state == StillState::kTooFewFrames || judged.state == StillState::kPending)
@@ -212,10 +231,12 @@ SessionEvent RigSession::decide(const Candidate& c) {
   BoardPoseObservation o = observationAt(c.stamp, &seen_by);
   const int sensors_seen = static_cast<int>(o.cameras.size() + o.lidars.size());
   if (sensors_seen < options_.min_sensors)
-    return skip("seen by too few sensors",
-                "board pose at t=" + fixed(c.stamp, 2) + " s seen by " + std::to_string(sensors_seen) + " sensor(s) (" +
-                    (seen_by.empty() ? "none" : seen_by) + "); a pose needs " + std::to_string(options_.min_sensors) +
-                    " (check the other detectors and stamp_tolerance)");
+    return skip("seen by too few sensors", "board pose at t=" + fixed(c.stamp, 2) + " s seen by " +
+                                               std::to_string(sensors_seen) + " sensor(s) (" +
+                                               (seen_by.empty() ? "none" : seen_by) +
+                                               "); a pose needs " +
+                                               std::to_string(options_.min_sensors) +
+                                               " (check the other detectors and stamp_tolerance)");
   return keepPose(std::move(o), "auto: " + judged.why + "; seen by " + seen_by,
                   judged.state == StillState::kSnapshot);
 }
@@ -242,8 +263,9 @@ BoardPoseObservation RigSession::observationAt(double stamp, std::string* seen_b
 
 SessionEvent RigSession::keepPose(BoardPoseObservation o, const std::string& why, bool snapshot) {
   // One pose per hold: a later moment of the same hold replaces it when it is better.
-  auto held = std::find_if(poses_.begin(), poses_.end(),
-                           [&](const RigSessionPose& p) { return p.observation.id == hold_pose_id_; });
+  auto held = std::find_if(poses_.begin(), poses_.end(), [&](const RigSessionPose& p) {
+    return p.observation.id == hold_pose_id_;
+  });
   if (!snapshot && held != poses_.end() && sameHold(o)) {
     auto score = [](const BoardPoseObservation& x) {
       double lo = 1e300, hi = -1e300;
@@ -252,22 +274,27 @@ SessionEvent RigSession::keepPose(BoardPoseObservation o, const std::string& why
       return std::make_pair(static_cast<int>(x.cameras.size() + x.lidars.size()), -(hi - lo));
     };
     if (score(o) <= score(held->observation))
-      return skip("pose already taken", "pose " + std::to_string(hold_pose_id_) + " already holds this board pose");
+      return skip("pose already taken",
+                  "pose " + std::to_string(hold_pose_id_) + " already holds this board pose");
     o.id = held->observation.id;
     held->observation = std::move(o);
     held->why = why + " (a better moment of the same hold)";
     ++stats_.captured;
-    return event(SessionEvent::Kind::kAccepted, "pose " + std::to_string(hold_pose_id_) + " replaced by a better moment of the same hold",
-                 hold_pose_id_);
+    return event(
+        SessionEvent::Kind::kAccepted,
+        "pose " + std::to_string(hold_pose_id_) + " replaced by a better moment of the same hold",
+        hold_pose_id_);
   }
   int seen_pose = -1;
   if (seenBefore(o, &seen_pose)) {
     stats_.skipped["pose already taken"]++;
-    return event(SessionEvent::Kind::kWaiting, "a sensor already saw this board pose (pose " + std::to_string(seen_pose) +
+    return event(SessionEvent::Kind::kWaiting, "a sensor already saw this board pose (pose " +
+                                                   std::to_string(seen_pose) +
                                                    "): move or tilt the board");
   }
   if (static_cast<int>(poses_.size()) >= options_.max_poses)
-    return skip("session full", "already " + std::to_string(poses_.size()) + " poses (max_poses): solve, or drop poses first");
+    return skip("session full", "already " + std::to_string(poses_.size()) +
+                                    " poses (max_poses): solve, or drop poses first");
   o.id = next_id_++;
   RigSessionPose p;
   p.observation = std::move(o);
@@ -275,19 +302,21 @@ SessionEvent RigSession::keepPose(BoardPoseObservation o, const std::string& why
   poses_.push_back(p);
   hold_pose_id_ = p.observation.id;
   ++stats_.captured;
-  return event(SessionEvent::Kind::kAccepted, "pose " + std::to_string(p.observation.id) + " (" + p.why + ")",
-               p.observation.id);
+  return event(SessionEvent::Kind::kAccepted,
+               "pose " + std::to_string(p.observation.id) + " (" + p.why + ")", p.observation.id);
 }
 
 bool RigSession::sameHold(const BoardPoseObservation& o) const {
   // Every sensor that saw both moments saw the board in the same place (within the still
   // tolerances), and at least one saw both.
-  const auto held = std::find_if(poses_.begin(), poses_.end(),
-                                 [&](const RigSessionPose& p) { return p.observation.id == hold_pose_id_; });
+  const auto held = std::find_if(poses_.begin(), poses_.end(), [&](const RigSessionPose& p) {
+    return p.observation.id == hold_pose_id_;
+  });
   if (held == poses_.end()) return false;
   int shared = 0;
   for (size_t k = 0; k < sensors_.size(); ++k) {
-    const auto a = summaryOf(static_cast<int>(k), o), b = summaryOf(static_cast<int>(k), held->observation);
+    const auto a = summaryOf(static_cast<int>(k), o),
+               b = summaryOf(static_cast<int>(k), held->observation);
     if (!a || !b) continue;
     ++shared;
     if ((a->centre - b->centre).norm() > options_.still_max_translation_m ||
@@ -300,7 +329,8 @@ bool RigSession::sameHold(const BoardPoseObservation& o) const {
 bool RigSession::seenBefore(const BoardPoseObservation& o, int* pose_id) const {
   for (const auto& p : poses_)
     for (size_t k = 0; k < sensors_.size(); ++k) {
-      const auto seen = summaryOf(static_cast<int>(k), p.observation), now = summaryOf(static_cast<int>(k), o);
+      const auto seen = summaryOf(static_cast<int>(k), p.observation),
+                 now = summaryOf(static_cast<int>(k), o);
       if (!seen || !now) continue;
       if (angleDeg(seen->normal, now->normal) < options_.min_pose_rotation_deg &&
           (seen->centre - now->centre).norm() < options_.min_pose_translation_m) {
@@ -323,7 +353,8 @@ std::optional<RigSession::Summary> RigSession::summarize(const LidarBoardFeature
   return Summary{c / static_cast<double>(f.board_points.size()), f.plane.normal};
 }
 
-std::optional<RigSession::Summary> RigSession::summaryOf(int sensor, const BoardPoseObservation& o) const {
+std::optional<RigSession::Summary> RigSession::summaryOf(int sensor,
+                                                         const BoardPoseObservation& o) const {
   if (auto it = o.cameras.find(sensor); it != o.cameras.end()) return summarize(it->second);
   if (auto it = o.lidars.find(sensor); it != o.lidars.end()) return summarize(it->second);
   return std::nullopt;
@@ -337,11 +368,15 @@ void RigSession::prune() {
     double keep_from = counts_[k].newest_stamp - options_.history_s;
     // A stream far from the candidate (an offset clock) keeps only its own history: its frames
     // near the candidate's stamp were taken at another time.
-    if (!candidates_.empty() && std::abs(counts_[k].newest_stamp - candidates_.front().stamp) <= options_.history_s)
-      keep_from = std::min(keep_from, candidates_.front().stamp - std::max(options_.still_window_s, options_.stamp_tolerance_s));
+    if (!candidates_.empty() &&
+        std::abs(counts_[k].newest_stamp - candidates_.front().stamp) <= options_.history_s)
+      keep_from =
+          std::min(keep_from, candidates_.front().stamp -
+                                  std::max(options_.still_window_s, options_.stamp_tolerance_s));
     auto old_camera = [&](const CameraBoardFeatures& f) { return f.stamp < keep_from; };
     auto old_lidar = [&](const LidarBoardFeatures& f) { return f.stamp < keep_from; };
-    st.cameras.erase(std::remove_if(st.cameras.begin(), st.cameras.end(), old_camera), st.cameras.end());
+    st.cameras.erase(std::remove_if(st.cameras.begin(), st.cameras.end(), old_camera),
+                     st.cameras.end());
     st.lidars.erase(std::remove_if(st.lidars.begin(), st.lidars.end(), old_lidar), st.lidars.end());
     while (!st.samples.empty() && st.samples.front().stamp < keep_from) st.samples.pop_front();
     if (st.cameras.size() > kMaxFeaturesPerStream)
@@ -360,28 +395,36 @@ SessionEvent RigSession::captureNow() {
   double stamp = -1e300;
   for (size_t k = 0; k < streams_.size(); ++k) {
     const Stream& st = streams_[k];
-    const double s = sensors_[k].kind == SensorKind::kCamera ? (st.cameras.empty() ? -1e300 : st.cameras.back().stamp)
-                                                             : (st.lidars.empty() ? -1e300 : st.lidars.back().stamp);
+    const double s = sensors_[k].kind == SensorKind::kCamera
+                         ? (st.cameras.empty() ? -1e300 : st.cameras.back().stamp)
+                         : (st.lidars.empty() ? -1e300 : st.lidars.back().stamp);
     if (s > stamp) {
       stamp = s;
       sensor = static_cast<int>(k);
     }
   }
   if (sensor < 0)
-    return event(SessionEvent::Kind::kRejected, "no sensor has seen the board recently: nothing to capture");
+    return event(SessionEvent::Kind::kRejected,
+                 "no sensor has seen the board recently: nothing to capture");
   std::string seen_by;
   BoardPoseObservation o = observationAt(stamp, &seen_by);
   const int sensors_seen = static_cast<int>(o.cameras.size() + o.lidars.size());
   if (sensors_seen < options_.min_sensors)
     return event(SessionEvent::Kind::kRejected,
-                 "board pose at t=" + fixed(stamp, 2) + " s seen by " + std::to_string(sensors_seen) + " sensor(s) (" +
-                     (seen_by.empty() ? "none" : seen_by) + "); a pose needs " + std::to_string(options_.min_sensors));
+                 "board pose at t=" + fixed(stamp, 2) + " s seen by " +
+                     std::to_string(sensors_seen) + " sensor(s) (" +
+                     (seen_by.empty() ? "none" : seen_by) + "); a pose needs " +
+                     std::to_string(options_.min_sensors));
   if (static_cast<int>(poses_.size()) >= options_.max_poses)
-    return event(SessionEvent::Kind::kRejected, "already " + std::to_string(poses_.size()) + " poses (max_poses)");
+    return event(SessionEvent::Kind::kRejected,
+                 "already " + std::to_string(poses_.size()) + " poses (max_poses)");
   o.id = next_id_++;
-  poses_.push_back({std::move(o), "manual capture at " + names_[sensor] + "'s newest board; seen by " + seen_by});
-  return event(SessionEvent::Kind::kAccepted, "pose " + std::to_string(poses_.back().observation.id) + " (" +
-                                                  poses_.back().why + ")", poses_.back().observation.id);
+  poses_.push_back({std::move(o),
+                    "manual capture at " + names_[sensor] + "'s newest board; seen by " + seen_by});
+  return event(
+      SessionEvent::Kind::kAccepted,
+      "pose " + std::to_string(poses_.back().observation.id) + " (" + poses_.back().why + ")",
+      poses_.back().observation.id);
 }
 
 std::vector<int> RigSession::posesPerSensor() const {
@@ -397,7 +440,8 @@ std::string RigSession::whyNoPose(size_t k) const {
   // A sensor with the board in this many frames but in no pose is not a matter of bad luck.
   constexpr int kFoundButUnused = 5;
   const RigSensorCounts& c = counts_[k];
-  if (c.messages == 0) return names_[k] + ": no board features received (is its detector running and publishing?)";
+  if (c.messages == 0)
+    return names_[k] + ": no board features received (is its detector running and publishing?)";
   if (c.found == 0)
     return names_[k] + ": never saw the board in " + std::to_string(c.messages) + " messages" +
            (c.last_reason.empty() ? "" : " (last: " + c.last_reason + ")");
@@ -409,8 +453,9 @@ std::string RigSession::whyNoPose(size_t k) const {
   std::string offset;
   if (std::isfinite(other) && std::isfinite(c.newest_stamp))
     offset = ", its newest stamp is " + fixed(c.newest_stamp - other, 3) + " s from the others'";
-  return names_[k] + ": saw the board in " + std::to_string(c.found) + " frames but is in none of the " +
-         std::to_string(poses_.size()) + " poses: its stamps may be offset from the other sensors" + offset +
+  return names_[k] + ": saw the board in " + std::to_string(c.found) +
+         " frames but is in none of the " + std::to_string(poses_.size()) +
+         " poses: its stamps may be offset from the other sensors" + offset +
          " (stamp_tolerance_s " + fixed(options_.stamp_tolerance_s, 3) + " s)";
 }
 
@@ -438,9 +483,10 @@ std::vector<RigSensorHealth> RigSession::health() const {
     if (!out[k].pose_ids.empty()) continue;
     out[k].why_no_pose = whyNoPose(k);
     if (out[k].why_no_pose.empty())
-      out[k].why_no_pose = names_[k] + ": saw the board in " + std::to_string(counts_[k].found) +
-                           " frames, none of them in a captured pose yet (hold the board still where it and "
-                           "another sensor see it)";
+      out[k].why_no_pose =
+          names_[k] + ": saw the board in " + std::to_string(counts_[k].found) +
+          " frames, none of them in a captured pose yet (hold the board still where it and "
+          "another sensor see it)";
   }
   return out;
 }

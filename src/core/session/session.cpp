@@ -34,12 +34,13 @@ std::string SessionOptions::validate() const {
   if (!(sync_tolerance_s > 0) || !std::isfinite(sync_tolerance_s) || sync_tolerance_s > 1.0)
     return "sync_tolerance_s must be in (0, 1] s";
   if (auto why = stillness().validate(); !why.empty()) return why;
-  if (!(min_view_rotation_deg >= 0) || !(min_view_translation_m >= 0) || !std::isfinite(min_view_rotation_deg) ||
-      !std::isfinite(min_view_translation_m))
+  if (!(min_view_rotation_deg >= 0) || !(min_view_translation_m >= 0) ||
+      !std::isfinite(min_view_rotation_deg) || !std::isfinite(min_view_translation_m))
     return "view diversity thresholds must be finite and >= 0";
-  if (!(max_size_mismatch > 0) || !std::isfinite(max_size_mismatch)) return "max_size_mismatch must be finite and > 0";
-  if (!(max_plane_angle_deg > 0) || !(max_plane_offset_m > 0) || !std::isfinite(max_plane_angle_deg) ||
-      !std::isfinite(max_plane_offset_m))
+  if (!(max_size_mismatch > 0) || !std::isfinite(max_size_mismatch))
+    return "max_size_mismatch must be finite and > 0";
+  if (!(max_plane_angle_deg > 0) || !(max_plane_offset_m > 0) ||
+      !std::isfinite(max_plane_angle_deg) || !std::isfinite(max_plane_offset_m))
     return "plane agreement thresholds must be finite and > 0";
   if (min_board_points < 3) return "min_board_points must be >= 3";
   if (max_views < 1 || max_views > 100000) return "max_views must be in [1, 100000]";
@@ -72,7 +73,8 @@ PairSession::PairSession(const Target& target, const SessionOptions& options)
 
 namespace {
 
-constexpr double kPruneMarginS = 1.0;  // s, kept beyond what the still window and sync tolerance reach
+constexpr double kPruneMarginS =
+    1.0;  // s, kept beyond what the still window and sync tolerance reach
 
 }  // namespace
 
@@ -98,7 +100,8 @@ SessionEvent PairSession::addCamera(const CameraBoardFeatures& f) {
 void PairSession::updateLastPair() {
   if (camera_.empty()) return;
   double gap = 0.0;
-  if (auto lidar = nearestLidar(camera_.back().stamp, &gap); lidar && gap <= options_.sync_tolerance_s) {
+  if (auto lidar = nearestLidar(camera_.back().stamp, &gap);
+      lidar && gap <= options_.sync_tolerance_s) {
     View pair;
     pair.lidar = *lidar;
     pair.camera = camera_.back();
@@ -147,7 +150,8 @@ SessionEvent PairSession::finish() { return decidePending(true); }
 // Accepted beats rejected beats waiting: the caller logs the most significant outcome.
 SessionEvent PairSession::decidePending(bool ended) {
   SessionEvent result{SessionEvent::Kind::kWaiting,
-                      pending_.empty() ? "waiting for an image that sees the board" : "waiting for the still window",
+                      pending_.empty() ? "waiting for an image that sees the board"
+                                       : "waiting for the still window",
                       -1};
   while (!pending_.empty()) {
     bool decided = false;
@@ -172,18 +176,23 @@ SessionEvent PairSession::decide(const CameraBoardFeatures& camera, bool ended, 
   const std::vector<StillnessStream> streams{{&lidar_samples_, &lidar_clock_, "LiDAR"},
                                              {&camera_samples_, &camera_clock_, "camera"}};
   const StillnessJudgement judged = judgeStillness(streams, camera.stamp, still, ended);
-  if (judged.state == StillState::kPending) return {SessionEvent::Kind::kWaiting, "waiting for the still window", -1};
+  if (judged.state == StillState::kPending)
+    return {SessionEvent::Kind::kWaiting, "waiting for the still window", -1};
   *decided = true;
   ++stats_.candidates;
   stats_.last_stillness = judged.why;
   if (!lidar || gap > options_.sync_tolerance_s)
     return skip("no cloud within the sync tolerance",
-                "no LiDAR cloud within " + formatFixed(options_.sync_tolerance_s * 1e3, 0) + " ms of the image (closest " +
-                    (lidar ? formatFixed(gap * 1e3, 0) + " ms" : std::string("none")) + "): check sync_tolerance");
-  if (judged.state == StillState::kMoving || judged.state == StillState::kNoBoard) hold_view_id_ = -1;
+                "no LiDAR cloud within " + formatFixed(options_.sync_tolerance_s * 1e3, 0) +
+                    " ms of the image (closest " +
+                    (lidar ? formatFixed(gap * 1e3, 0) + " ms" : std::string("none")) +
+                    "): check sync_tolerance");
+  if (judged.state == StillState::kMoving || judged.state == StillState::kNoBoard)
+    hold_view_id_ = -1;
   if (judged.state == StillState::kMoving) return skip("board moving", judged.why);
   if (judged.state == StillState::kNoBoard) return skip("board lost around the image", judged.why);
-  if (judged.state == StillState::kTooFewFrames) return skip("too few frames to judge stillness", judged.why);
+  if (judged.state == StillState::kTooFewFrames)
+    return skip("too few frames to judge stillness", judged.why);
   if (!auto_capture_) return {SessionEvent::Kind::kWaiting, "auto-capture is off", -1};
 
   View view;
@@ -197,13 +206,18 @@ SessionEvent PairSession::decide(const CameraBoardFeatures& camera, bool ended, 
   // One view per hold: a later frame of the same still pose replaces it when it is better.
   const BoardSample here = boardSampleOf(camera, &target_);
   const bool snapshot = judged.state == StillState::kSnapshot;
-  const bool same_hold =
-      !snapshot && hold_view_id_ >= 0 && (here.centre - hold_reference_.centre).norm() <= still.max_translation_m +
-                                             still.noise_factor * std::hypot(here.centre_sigma_m, hold_reference_.centre_sigma_m) &&
-      angleDeg(here.normal, hold_reference_.normal) <= still.max_rotation_deg;
+  const bool same_hold = !snapshot && hold_view_id_ >= 0 &&
+                         (here.centre - hold_reference_.centre).norm() <=
+                             still.max_translation_m +
+                                 still.noise_factor * std::hypot(here.centre_sigma_m,
+                                                                 hold_reference_.centre_sigma_m) &&
+                         angleDeg(here.normal, hold_reference_.normal) <= still.max_rotation_deg;
   if (same_hold) {
-    auto it = std::find_if(views_.begin(), views_.end(), [&](const SessionView& v) { return v.view.id == hold_view_id_; });
-    if (it == views_.end()) return skip("pose already taken", "view of this pose was dropped; move the board to a new pose");
+    auto it = std::find_if(views_.begin(), views_.end(),
+                           [&](const SessionView& v) { return v.view.id == hold_view_id_; });
+    if (it == views_.end())
+      return skip("pose already taken",
+                  "view of this pose was dropped; move the board to a new pose");
     auto score = [](const View& v) {
       int edges = 0;
       for (int j = 0; j < kNumEdges; ++j) edges += v.lidar.edge_valid[j] + v.camera.edge_valid[j];
@@ -214,10 +228,12 @@ SessionEvent PairSession::decide(const CameraBoardFeatures& camera, bool ended, 
       it->view = view;
       it->why = "auto: " + judged.why + " (a better frame of the same hold)";
       ++stats_.captured;
-      return {SessionEvent::Kind::kAccepted, "view " + std::to_string(view.id) + " replaced by a better frame of the same hold",
+      return {SessionEvent::Kind::kAccepted,
+              "view " + std::to_string(view.id) + " replaced by a better frame of the same hold",
               view.id};
     }
-    return skip("pose already taken", "view " + std::to_string(hold_view_id_) + " already holds this pose; move the board");
+    return skip("pose already taken", "view " + std::to_string(hold_view_id_) +
+                                          " already holds this pose; move the board");
   }
   const SessionEvent added = addView(view, "auto: " + judged.why, true);
   if (added.kind == SessionEvent::Kind::kAccepted) {
@@ -230,39 +246,43 @@ SessionEvent PairSession::decide(const CameraBoardFeatures& camera, bool ended, 
 }
 
 SessionEvent PairSession::captureNow() {
-  if (!last_pair_) return {SessionEvent::Kind::kRejected, "no synchronised LiDAR/camera pair seen yet", -1};
+  if (!last_pair_)
+    return {SessionEvent::Kind::kRejected, "no synchronised LiDAR/camera pair seen yet", -1};
   const SessionEvent gated = gate(*last_pair_, true);
   if (gated.kind == SessionEvent::Kind::kRejected) return gated;
   return addView(*last_pair_, "manual capture", false);
 }
 
 SessionEvent PairSession::gate(const View& v, bool /*forced*/) const {
-  const auto reject = [](const std::string& why) { return SessionEvent{SessionEvent::Kind::kRejected, why, -1}; };
+  const auto reject = [](const std::string& why) {
+    return SessionEvent{SessionEvent::Kind::kRejected, why, -1};
+  };
   if (!v.lidar.found) return reject("LiDAR: no board (" + v.lidar.reason + ")");
   if (!v.camera.found) return reject("camera: no board (" + v.camera.reason + ")");
   if (static_cast<int>(v.lidar.board_points.size()) < options_.min_board_points)
-    return reject("LiDAR: only " + std::to_string(v.lidar.board_points.size()) + " board points (need " +
-                  std::to_string(options_.min_board_points) + ")");
-  if (!v.lidar.plane.normal.allFinite() || !v.camera.plane.normal.allFinite() || !std::isfinite(v.lidar.plane.offset) ||
-      !std::isfinite(v.camera.plane.offset))
+    return reject("LiDAR: only " + std::to_string(v.lidar.board_points.size()) +
+                  " board points (need " + std::to_string(options_.min_board_points) + ")");
+  if (!v.lidar.plane.normal.allFinite() || !v.camera.plane.normal.allFinite() ||
+      !std::isfinite(v.lidar.plane.offset) || !std::isfinite(v.camera.plane.offset))
     return reject("non-finite board plane");
   // Both sensors must agree this is the board: the LiDAR's measured size against the target.
   // Side by side: the detector pairs measured_size_m.x() with the width, .y() with the height.
   if (v.lidar.measured_size_m.minCoeff() > 0) {
     const Eigen::Vector2d declared(target_.width, target_.height);
-    const Eigen::Vector2d mismatch = (v.lidar.measured_size_m.cwiseQuotient(declared).array() - 1.0).abs();
+    const Eigen::Vector2d mismatch =
+        (v.lidar.measured_size_m.cwiseQuotient(declared).array() - 1.0).abs();
     if (mismatch.maxCoeff() > options_.max_size_mismatch)
       return reject("LiDAR board measures " + formatFixed(v.lidar.measured_size_m.x()) + " x " +
-                    formatFixed(v.lidar.measured_size_m.y()) + " m, the target is " + formatFixed(target_.width) + " x " +
-                    formatFixed(target_.height) + " m");
+                    formatFixed(v.lidar.measured_size_m.y()) + " m, the target is " +
+                    formatFixed(target_.width) + " x " + formatFixed(target_.height) + " m");
   }
   if (estimate_) {
     const Plane lidar_in_camera = v.lidar.plane.transformed(*estimate_);
     const double angle = angleDeg(lidar_in_camera.normal, v.camera.plane.normal);
     const double offset = std::abs(lidar_in_camera.offset - v.camera.plane.offset);
     if (angle > options_.max_plane_angle_deg || offset > options_.max_plane_offset_m)
-      return reject("sensors disagree on the board plane under the current estimate (" + formatFixed(angle, 1) + " deg, " +
-                    formatFixed(offset * 100, 1) + " cm)");
+      return reject("sensors disagree on the board plane under the current estimate (" +
+                    formatFixed(angle, 1) + " deg, " + formatFixed(offset * 100, 1) + " cm)");
   }
   if (static_cast<int>(views_.size()) >= options_.max_views)
     return reject("session holds the maximum of " + std::to_string(options_.max_views) + " views");
@@ -274,11 +294,13 @@ SessionEvent PairSession::addView(const View& view, const std::string& why, bool
     for (const auto& kept : views_) {
       const double turn = angleDeg(kept.view.camera.plane.normal, view.camera.plane.normal);
       const double move =
-          (cameraBoardCentre(kept.view.camera, target_) - cameraBoardCentre(view.camera, target_)).norm();
+          (cameraBoardCentre(kept.view.camera, target_) - cameraBoardCentre(view.camera, target_))
+              .norm();
       if (turn < options_.min_view_rotation_deg && move < options_.min_view_translation_m)
         return {SessionEvent::Kind::kRejected,
-                "too similar to view " + std::to_string(kept.view.id) + " (" + formatFixed(turn, 1) + " deg, " +
-                    formatFixed(move * 100, 0) + " cm); move or tilt the board more",
+                "too similar to view " + std::to_string(kept.view.id) + " (" +
+                    formatFixed(turn, 1) + " deg, " + formatFixed(move * 100, 0) +
+                    " cm); move or tilt the board more",
                 -1};
     }
   }
@@ -288,7 +310,8 @@ SessionEvent PairSession::addView(const View& view, const std::string& why, bool
   sv.why = why;
   views_.push_back(sv);
   ++stats_.captured;
-  return {SessionEvent::Kind::kAccepted, "view " + std::to_string(sv.view.id) + " accepted (" + why + ")", sv.view.id};
+  return {SessionEvent::Kind::kAccepted,
+          "view " + std::to_string(sv.view.id) + " accepted (" + why + ")", sv.view.id};
 }
 
 std::vector<View> PairSession::plainViews() const {
@@ -299,7 +322,8 @@ std::vector<View> PairSession::plainViews() const {
 }
 
 Status PairSession::dropView(int view_id) {
-  const auto it = std::find_if(views_.begin(), views_.end(), [&](const SessionView& v) { return v.view.id == view_id; });
+  const auto it = std::find_if(views_.begin(), views_.end(),
+                               [&](const SessionView& v) { return v.view.id == view_id; });
   if (it == views_.end()) return Status::failure("no view with id " + std::to_string(view_id));
   views_.erase(it);
   return Status::success();
@@ -325,7 +349,8 @@ CoverageReport PairSession::coverage() const {
   CoverageReport r;
   r.views = static_cast<int>(views_.size());
   if (views_.empty()) {
-    r.advice.push_back("no views yet: hold the board still, about 2-4 m away, tilted like a diamond");
+    r.advice.push_back(
+        "no views yet: hold the board still, about 2-4 m away, tilted like a diamond");
     return r;
   }
   constexpr int kGrid = 3;  // 3x3 image regions
@@ -338,7 +363,8 @@ CoverageReport PairSession::coverage() const {
     r.range_min_m = std::min(r.range_min_m, centre.norm());
     r.range_max_m = std::max(r.range_max_m, centre.norm());
     for (size_t j = i + 1; j < views_.size(); ++j)
-      r.tilt_span_deg = std::max(r.tilt_span_deg, angleDeg(c.plane.normal, views_[j].view.camera.plane.normal));
+      r.tilt_span_deg =
+          std::max(r.tilt_span_deg, angleDeg(c.plane.normal, views_[j].view.camera.plane.normal));
     if (centre.z() > 0 && c.image_width > 0 && c.image_height > 0) {
       const double u = c.K(0, 0) * centre.x() / centre.z() + c.K(0, 2);
       const double v = c.K(1, 1) * centre.y() / centre.z() + c.K(1, 2);
@@ -361,18 +387,23 @@ CoverageReport PairSession::coverage() const {
   r.image_coverage = static_cast<double>(cells) / (kGrid * kGrid);
 
   constexpr int kEnoughViews = 20;
-  constexpr double kTiltWanted = 0.25;      // sin(~15 deg) each way
+  constexpr double kTiltWanted = 0.25;        // sin(~15 deg) each way
   constexpr double kRangeSpreadWanted = 1.0;  // m
-  if (r.views < 3) r.advice.push_back("collect at least 3 views with different tilts (PPC needs 3 non-coplanar)");
-  if (max_lr < kTiltWanted) r.advice.push_back("tilt the board to turn its face towards the camera's left");
-  if (min_lr > -kTiltWanted) r.advice.push_back("tilt the board to turn its face towards the camera's right");
+  if (r.views < 3)
+    r.advice.push_back("collect at least 3 views with different tilts (PPC needs 3 non-coplanar)");
+  if (max_lr < kTiltWanted)
+    r.advice.push_back("tilt the board to turn its face towards the camera's left");
+  if (min_lr > -kTiltWanted)
+    r.advice.push_back("tilt the board to turn its face towards the camera's right");
   if (max_ud < kTiltWanted) r.advice.push_back("tilt the board top towards the camera");
   if (min_ud > -kTiltWanted) r.advice.push_back("tilt the board top away from the camera");
   if (r.range_max_m - r.range_min_m < kRangeSpreadWanted)
-    r.advice.push_back("vary the distance: current views span " + formatFixed(r.range_min_m, 1) + "-" + formatFixed(r.range_max_m, 1) +
-                       " m");
-  if (r.image_coverage < 0.5) r.advice.push_back("move the board across the image (left/right/top/bottom)");
-  if (r.views < kEnoughViews) r.advice.push_back(std::to_string(kEnoughViews - r.views) + " more views recommended");
+    r.advice.push_back("vary the distance: current views span " + formatFixed(r.range_min_m, 1) +
+                       "-" + formatFixed(r.range_max_m, 1) + " m");
+  if (r.image_coverage < 0.5)
+    r.advice.push_back("move the board across the image (left/right/top/bottom)");
+  if (r.views < kEnoughViews)
+    r.advice.push_back(std::to_string(kEnoughViews - r.views) + " more views recommended");
   return r;
 }
 

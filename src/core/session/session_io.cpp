@@ -1,7 +1,7 @@
 // Session file: YAML with the target, the gating options and every kept view's features.
 // Features (not images) are stored, so a session is small and a solve is reproducible.
-#include <board_calib/core/session/session.h>
 #include <board_calib/core/file_io.h>
+#include <board_calib/core/session/session.h>
 #include <board_calib/core/transform.h>
 
 #include "feature_yaml.h"
@@ -61,11 +61,13 @@ Status PairSession::load(const std::string& path) {
     std::set<int> ids;
     int next_id = 0;
     const YAML::Node view_list = root["views"];
-    if (view_list && !view_list.IsSequence()) return Status::failure("session '" + path + "': 'views' must be a list");
+    if (view_list && !view_list.IsSequence())
+      return Status::failure("session '" + path + "': 'views' must be a list");
     for (const auto& v : view_list) {
       SessionView sv;
       sv.view.id = v["id"].as<int>();
-      if (sv.view.id < 0 || sv.view.id == std::numeric_limits<int>::max() || !ids.insert(sv.view.id).second)
+      if (sv.view.id < 0 || sv.view.id == std::numeric_limits<int>::max() ||
+          !ids.insert(sv.view.id).second)
         return Status::failure("session '" + path + "': view id " + std::to_string(sv.view.id) +
                                " is negative, out of range or appears twice");
       sv.why = v["why"].as<std::string>("");

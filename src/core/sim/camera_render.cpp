@@ -41,15 +41,16 @@ struct RayMap {
     const int v0 = std::clamp(static_cast<int>(std::floor(v)), 0, std::max(0, height - 2));
     const int u1 = std::min(u0 + 1, width - 1), v1 = std::min(v0 + 1, height - 1);
     const double a = u - u0, b = v - v0;
-    return (at(u0, v0) * (1 - a) + at(u1, v0) * a) * (1 - b) + (at(u0, v1) * (1 - a) + at(u1, v1) * a) * b;
+    return (at(u0, v0) * (1 - a) + at(u1, v0) * a) * (1 - b) +
+           (at(u0, v1) * (1 - a) + at(u1, v1) * a) * b;
   }
 };
 
 std::string intrinsicsKey(const CameraIntrinsics& in) {
   std::ostringstream key;
   key.precision(17);
-  key << in.width << ' ' << in.height << ' ' << in.fx << ' ' << in.fy << ' ' << in.cx << ' ' << in.cy << ' '
-      << static_cast<int>(in.model);
+  key << in.width << ' ' << in.height << ' ' << in.fx << ' ' << in.fy << ' ' << in.cx << ' '
+      << in.cy << ' ' << static_cast<int>(in.model);
   for (double c : in.coeffs) key << ' ' << c;
   return key.str();
 }
@@ -65,31 +66,32 @@ std::shared_ptr<const RayMap> buildRayMap(const CameraModel& camera) {
   constexpr double kStep = 1e-7;
   constexpr double kTolerance2 = 1e-26;
   cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& range) {
-  for (int v = range.start; v < range.end; ++v) {
-    Eigen::Vector2d x = camera.undistortNormalized(Eigen::Vector2d(0, v));  // robust start of each row
-    for (int u = 0; u < w; ++u) {
-      const Eigen::Vector2d target((u - in.cx) / in.fx, (v - in.cy) / in.fy);
-      // Newton from the left neighbour's solution: two or three steps per pixel.
-      for (int it = 0; it < kMaxIterations; ++it) {
-        Eigen::Vector2d f;
-        camera.distortNormalized(x.x(), x.y(), &f.x(), &f.y());
-        const Eigen::Vector2d r = f - target;
-        if (r.squaredNorm() < kTolerance2) break;
-        Eigen::Matrix2d J;
-        for (int k = 0; k < 2; ++k) {
-          Eigen::Vector2d xp = x;
-          xp[k] += kStep;
-          Eigen::Vector2d fp;
-          camera.distortNormalized(xp.x(), xp.y(), &fp.x(), &fp.y());
-          J.col(k) = (fp - f) / kStep;
+    for (int v = range.start; v < range.end; ++v) {
+      Eigen::Vector2d x =
+          camera.undistortNormalized(Eigen::Vector2d(0, v));  // robust start of each row
+      for (int u = 0; u < w; ++u) {
+        const Eigen::Vector2d target((u - in.cx) / in.fx, (v - in.cy) / in.fy);
+        // Newton from the left neighbour's solution: two or three steps per pixel.
+        for (int it = 0; it < kMaxIterations; ++it) {
+          Eigen::Vector2d f;
+          camera.distortNormalized(x.x(), x.y(), &f.x(), &f.y());
+          const Eigen::Vector2d r = f - target;
+          if (r.squaredNorm() < kTolerance2) break;
+          Eigen::Matrix2d J;
+          for (int k = 0; k < 2; ++k) {
+            Eigen::Vector2d xp = x;
+            xp[k] += kStep;
+            Eigen::Vector2d fp;
+            camera.distortNormalized(xp.x(), xp.y(), &fp.x(), &fp.y());
+            J.col(k) = (fp - f) / kStep;
+          }
+          x -= J.partialPivLu().solve(r);
         }
-        x -= J.partialPivLu().solve(r);
+        const size_t i = 2 * (static_cast<size_t>(v) * w + u);
+        map->xy[i] = static_cast<float>(x.x());
+        map->xy[i + 1] = static_cast<float>(x.y());
       }
-      const size_t i = 2 * (static_cast<size_t>(v) * w + u);
-      map->xy[i] = static_cast<float>(x.x());
-      map->xy[i + 1] = static_cast<float>(x.y());
     }
-  }
   });
   return map;
 }
@@ -116,17 +118,21 @@ std::shared_ptr<const RayMap> rayMapFor(const CameraModel& camera) {
 // ---------------------------------------------------------------------------------------------
 // Camera
 // ---------------------------------------------------------------------------------------------
-cv::Mat renderCameraImage(const CameraModel& camera, const Eigen::Isometry3d& world_T_camera, const SceneSpec& scene,
-                          const Eigen::Isometry3d& world_T_board, const RenderOptions& options, std::mt19937& rng) {
-  const cv::Mat radiance = renderCameraRadiance(camera, world_T_camera, scene, world_T_board, options);
+cv::Mat renderCameraImage(const CameraModel& camera, const Eigen::Isometry3d& world_T_camera,
+                          const SceneSpec& scene, const Eigen::Isometry3d& world_T_board,
+                          const RenderOptions& options, std::mt19937& rng) {
+  const cv::Mat radiance =
+      renderCameraRadiance(camera, world_T_camera, scene, world_T_board, options);
   if (radiance.empty()) return cv::Mat();
   return finishCameraImage(radiance, camera, options, rng);
 }
 
-cv::Mat renderCameraRadiance(const CameraModel& camera, const Eigen::Isometry3d& world_T_camera, const SceneSpec& scene,
-                             const Eigen::Isometry3d& world_T_board, const RenderOptions& options) {
+cv::Mat renderCameraRadiance(const CameraModel& camera, const Eigen::Isometry3d& world_T_camera,
+                             const SceneSpec& scene, const Eigen::Isometry3d& world_T_board,
+                             const RenderOptions& options) {
   const int w = camera.width(), h = camera.height();
-  if (w <= 0 || h <= 0 || !options.validate().empty() || !scene.validate().empty()) return cv::Mat();
+  if (w <= 0 || h <= 0 || !options.validate().empty() || !scene.validate().empty())
+    return cv::Mat();
   const std::shared_ptr<const RayMap> rays = rayMapFor(camera);
   const Scene world(scene, world_T_board);
   const Eigen::Matrix3d R = world_T_camera.linear();
@@ -149,7 +155,8 @@ cv::Mat renderCameraRadiance(const CameraModel& camera, const Eigen::Isometry3d&
       auto* lrow = labels.ptr<int>(v);
       for (int u = 0; u < w; ++u) {
         const Eigen::Vector3d c = sample(rays->at(u, v), &lrow[u]);
-        row[u] = cv::Vec3f(static_cast<float>(c[0]), static_cast<float>(c[1]), static_cast<float>(c[2]));
+        row[u] =
+            cv::Vec3f(static_cast<float>(c[0]), static_cast<float>(c[1]), static_cast<float>(c[2]));
       }
     }
   });
@@ -173,39 +180,42 @@ cv::Mat renderCameraRadiance(const CameraModel& camera, const Eigen::Isometry3d&
       }
     }
     cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& range) {
-    for (int v = range.start; v < range.end; ++v) {
-      for (int u = 0; u < w; ++u) {
-        if (!edge.at<uint8_t>(v, u)) continue;
-        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-        for (int j = 0; j < n; ++j)
-          for (int i = 0; i < n; ++i) {
-            const double su = u - 0.5 + (i + 0.5) / n, sv = v - 0.5 + (j + 0.5) / n;
-            int label = 0;
-            sum += sample(rays->interpolate(su, sv), &label);
-          }
-        sum /= (n * n);
-        colour.at<cv::Vec3f>(v, u) =
-            cv::Vec3f(static_cast<float>(sum[0]), static_cast<float>(sum[1]), static_cast<float>(sum[2]));
+      for (int v = range.start; v < range.end; ++v) {
+        for (int u = 0; u < w; ++u) {
+          if (!edge.at<uint8_t>(v, u)) continue;
+          Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+          for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) {
+              const double su = u - 0.5 + (i + 0.5) / n, sv = v - 0.5 + (j + 0.5) / n;
+              int label = 0;
+              sum += sample(rays->interpolate(su, sv), &label);
+            }
+          sum /= (n * n);
+          colour.at<cv::Vec3f>(v, u) = cv::Vec3f(
+              static_cast<float>(sum[0]), static_cast<float>(sum[1]), static_cast<float>(sum[2]));
+        }
       }
-    }
     });
   }
 
   return colour;
 }
 
-cv::Mat finishCameraImage(const cv::Mat& radiance, const CameraModel& camera, const RenderOptions& options,
-                          std::mt19937& rng) {
-  if (radiance.empty() || radiance.type() != CV_32FC3 || !options.validate().empty()) return cv::Mat();
+cv::Mat finishCameraImage(const cv::Mat& radiance, const CameraModel& camera,
+                          const RenderOptions& options, std::mt19937& rng) {
+  if (radiance.empty() || radiance.type() != CV_32FC3 || !options.validate().empty())
+    return cv::Mat();
   const int w = radiance.cols, h = radiance.rows;
   cv::Mat colour = radiance;
-  if (options.blur_sigma_px > 0) cv::GaussianBlur(radiance, colour, cv::Size(0, 0), options.blur_sigma_px);
+  if (options.blur_sigma_px > 0)
+    cv::GaussianBlur(radiance, colour, cv::Size(0, 0), options.blur_sigma_px);
 
   // Vignetting (radial, quadratic in the distance from the principal point), then 8 bit + noise.
   const auto& in = camera.intrinsics();
-  const double r_max2 = std::max({in.cx * in.cx + in.cy * in.cy, (w - in.cx) * (w - in.cx) + in.cy * in.cy,
-                                  in.cx * in.cx + (h - in.cy) * (h - in.cy),
-                                  (w - in.cx) * (w - in.cx) + (h - in.cy) * (h - in.cy)});
+  const double r_max2 =
+      std::max({in.cx * in.cx + in.cy * in.cy, (w - in.cx) * (w - in.cx) + in.cy * in.cy,
+                in.cx * in.cx + (h - in.cy) * (h - in.cy),
+                (w - in.cx) * (w - in.cx) + (h - in.cy) * (h - in.cy)});
   cv::Mat noise;
   if (options.noise_sigma > 0) {
     noise.create(h, w, CV_32FC3);

@@ -43,8 +43,8 @@ Eigen::Vector3d beamDirection(double az, double el) {
 
 // One return from the footprint's hits (some valid): range and intensity before noise. Energy
 // per sub-ray ~ reflectivity / r^2, clustered into board / not board.
-ReturnOrigin mixReturn(const LidarSpec& spec, const Scene& world, const Hit* hits, int n_valid, int n_board,
-                       double* range, double* intensity) {
+ReturnOrigin mixReturn(const LidarSpec& spec, const Scene& world, const Hit* hits, int n_valid,
+                       int n_board, double* range, double* intensity) {
   double e_board = 0, r_board = 0, i_board = 0, e_other = 0, r_other = 0, i_other = 0;
   for (int k = 0; k < kFootprintRays; ++k) {
     if (!hits[k].valid()) continue;
@@ -89,8 +89,9 @@ struct BeamNoise {
 
 // One beam (ring, azimuth): the point in the LiDAR frame (NaN when nothing returns) and where
 // its return came from.
-ReturnOrigin castBeam(const LidarSpec& spec, const Scene& world, const Eigen::Isometry3d& world_T_lidar,
-                      const Footprint& footprint, double az, double el, BeamNoise& noise, LidarPoint* point) {
+ReturnOrigin castBeam(const LidarSpec& spec, const Scene& world,
+                      const Eigen::Isometry3d& world_T_lidar, const Footprint& footprint, double az,
+                      double el, BeamNoise& noise, LidarPoint* point) {
   Hit hits[kFootprintRays];
   int n_board = 0, n_valid = 0;
   for (int k = 0; k < kFootprintRays; ++k) {
@@ -102,7 +103,8 @@ ReturnOrigin castBeam(const LidarSpec& spec, const Scene& world, const Eigen::Is
       if (hits[k].board()) ++n_board;
     }
   }
-  const bool dropped = spec.dropout_probability > 0 && noise.uniform(noise.rng) < spec.dropout_probability;
+  const bool dropped =
+      spec.dropout_probability > 0 && noise.uniform(noise.rng) < spec.dropout_probability;
   if (n_valid == 0 || dropped) return ReturnOrigin::kNone;
   double range = 0, intensity = 0;
   const ReturnOrigin what = mixReturn(spec, world, hits, n_valid, n_board, &range, &intensity);
@@ -119,19 +121,21 @@ ReturnOrigin castBeam(const LidarSpec& spec, const Scene& world, const Eigen::Is
 
 }  // namespace
 
-LidarCloud simulateLidarScan(const LidarSpec& spec, const Eigen::Isometry3d& world_T_lidar, const SceneSpec& scene,
-                             const Eigen::Isometry3d& world_T_board, std::mt19937& rng) {
+LidarCloud simulateLidarScan(const LidarSpec& spec, const Eigen::Isometry3d& world_T_lidar,
+                             const SceneSpec& scene, const Eigen::Isometry3d& world_T_board,
+                             std::mt19937& rng) {
   return simulateLidarScan(spec, world_T_lidar, scene, world_T_board, rng, nullptr);
 }
 
-LidarCloud simulateLidarScan(const LidarSpec& spec, const Eigen::Isometry3d& world_T_lidar, const SceneSpec& scene,
-                             const Eigen::Isometry3d& world_T_board, std::mt19937& rng,
-                             std::vector<ReturnOrigin>* origins) {
+LidarCloud simulateLidarScan(const LidarSpec& spec, const Eigen::Isometry3d& world_T_lidar,
+                             const SceneSpec& scene, const Eigen::Isometry3d& world_T_board,
+                             std::mt19937& rng, std::vector<ReturnOrigin>* origins) {
   LidarCloud cloud;
   cloud.has_intensity = true;
   cloud.has_ring = spec.with_ring;
   if (origins) origins->clear();
-  if (!spec.validate().empty() || !scene.validate().empty()) return cloud;  // empty cloud: nothing sensible to cast
+  if (!spec.validate().empty() || !scene.validate().empty())
+    return cloud;  // empty cloud: nothing sensible to cast
 
   const Scene world(scene, world_T_board);
   const int rings = static_cast<int>(spec.elevations_deg.size());
@@ -150,8 +154,8 @@ LidarCloud simulateLidarScan(const LidarSpec& spec, const Eigen::Isometry3d& wor
       LidarPoint point;
       point.x = point.y = point.z = nan;
       point.ring = spec.with_ring ? ring : -1;
-      const ReturnOrigin what =
-          castBeam(spec, world, world_T_lidar, footprint, spec.azimuthRad(ring, col), el, noise, &point);
+      const ReturnOrigin what = castBeam(spec, world, world_T_lidar, footprint,
+                                         spec.azimuthRad(ring, col), el, noise, &point);
       if (spec.organized) {
         cloud.points[static_cast<size_t>(ring) * cols + col] = point;
         if (origins) origins->push_back(what);

@@ -2,8 +2,8 @@
 // Scenario files: strict YAML reading (errors name the key), validation, seeded clutter.
 #include <board_calib/core/sim/scenario.h>
 
-#include "scenario_internal.h"
 #include <board_calib/core/transform.h>
+#include "scenario_internal.h"
 
 #include <yaml-cpp/yaml.h>
 
@@ -25,7 +25,8 @@ struct ScenarioError {
   std::string message;
 };
 
-void rejectUnknownKeys(const YAML::Node& node, const std::set<std::string>& allowed, const std::string& where) {
+void rejectUnknownKeys(const YAML::Node& node, const std::set<std::string>& allowed,
+                       const std::string& where) {
   if (!node.IsMap()) throw ScenarioError{"'" + where + "' must be a map"};
   for (const auto& kv : node) {
     const std::string key = kv.first.as<std::string>();
@@ -38,26 +39,31 @@ void rejectUnknownKeys(const YAML::Node& node, const std::set<std::string>& allo
 }
 
 template <typename T>
-T readValue(const YAML::Node& node, const std::string& key, const std::string& where, const char* type_name) {
+T readValue(const YAML::Node& node, const std::string& key, const std::string& where,
+            const char* type_name) {
   const YAML::Node value = node[key];
   if (!value) throw ScenarioError{"missing key '" + where + "." + key + "'"};
-  if (!value.IsScalar()) throw ScenarioError{"key '" + where + "." + key + "' must be a " + type_name};
+  if (!value.IsScalar())
+    throw ScenarioError{"key '" + where + "." + key + "' must be a " + type_name};
   try {
     return value.as<T>();
   } catch (const YAML::Exception&) {
-    throw ScenarioError{"key '" + where + "." + key + "' must be a " + type_name + ", got '" + value.Scalar() + "'"};
+    throw ScenarioError{"key '" + where + "." + key + "' must be a " + type_name + ", got '" +
+                        value.Scalar() + "'"};
   }
 }
 
 template <typename T>
-void readOptional(const YAML::Node& node, const std::string& key, const std::string& where, const char* type_name,
-                  T* out) {
+void readOptional(const YAML::Node& node, const std::string& key, const std::string& where,
+                  const char* type_name, T* out) {
   if (node[key]) *out = readValue<T>(node, key, where, type_name);
 }
 
-std::vector<double> readNumbers(const YAML::Node& node, const std::string& key, const std::string& where) {
+std::vector<double> readNumbers(const YAML::Node& node, const std::string& key,
+                                const std::string& where) {
   const YAML::Node value = node[key];
-  if (!value || !value.IsSequence()) throw ScenarioError{"key '" + where + "." + key + "' must be a list of numbers"};
+  if (!value || !value.IsSequence())
+    throw ScenarioError{"key '" + where + "." + key + "' must be a list of numbers"};
   std::vector<double> out;
   for (size_t i = 0; i < value.size(); ++i) {
     try {
@@ -83,13 +89,16 @@ Eigen::Matrix3d bodyROptical() {
 // quaternion gives the optical frame directly.
 Eigen::Isometry3d readPose(const YAML::Node& parent, const std::string& where, bool camera) {
   const YAML::Node node = parent["pose"];
-  if (!node) return camera ? makeTransform(bodyROptical(), Eigen::Vector3d::Zero()) : Eigen::Isometry3d::Identity();
+  if (!node)
+    return camera ? makeTransform(bodyROptical(), Eigen::Vector3d::Zero())
+                  : Eigen::Isometry3d::Identity();
   const std::string at = where + ".pose";
   rejectUnknownKeys(node, {"translation", "rpy_deg", "rotation_xyzw"}, at);
   Eigen::Vector3d t = Eigen::Vector3d::Zero();
   if (node["translation"]) {
     const auto v = readNumbers(node, "translation", at);
-    if (v.size() != 3) throw ScenarioError{"key '" + at + ".translation' must be [x, y, z] in metres"};
+    if (v.size() != 3)
+      throw ScenarioError{"key '" + at + ".translation' must be [x, y, z] in metres"};
     t = Eigen::Vector3d(v[0], v[1], v[2]);
   }
   if (node["rpy_deg"] && node["rotation_xyzw"])
@@ -98,12 +107,14 @@ Eigen::Isometry3d readPose(const YAML::Node& parent, const std::string& where, b
   if (node["rotation_xyzw"]) {
     const auto q = readNumbers(node, "rotation_xyzw", at);
     if (q.size() != 4 || Eigen::Vector4d(q[0], q[1], q[2], q[3]).norm() < 1e-9)
-      throw ScenarioError{"key '" + at + ".rotation_xyzw' must be a non-zero quaternion [qx, qy, qz, qw]"};
+      throw ScenarioError{"key '" + at +
+                          ".rotation_xyzw' must be a non-zero quaternion [qx, qy, qz, qw]"};
     return makeTransform(t, Eigen::Vector4d(q[0], q[1], q[2], q[3]));
   }
   if (node["rpy_deg"]) {
     const auto rpy = readNumbers(node, "rpy_deg", at);
-    if (rpy.size() != 3) throw ScenarioError{"key '" + at + ".rpy_deg' must be [roll, pitch, yaw] in degrees"};
+    if (rpy.size() != 3)
+      throw ScenarioError{"key '" + at + ".rpy_deg' must be [roll, pitch, yaw] in degrees"};
     R = fromRollPitchYaw(Eigen::Vector3d(rpy[0], rpy[1], rpy[2]) * kRadPerDeg);
   }
   if (camera) R = R * bodyROptical();
@@ -126,8 +137,9 @@ RenderOptions readRender(const YAML::Node& parent, const std::string& where) {
 }
 
 CameraSensor readCamera(const YAML::Node& node, const std::string& where) {
-  rejectUnknownKeys(node, {"name", "frame_id", "width", "height", "fx", "fy", "cx", "cy", "distortion_model", "D",
-                           "rate_hz", "stamp_offset_s", "pose", "render"},
+  rejectUnknownKeys(node,
+                    {"name", "frame_id", "width", "height", "fx", "fy", "cx", "cy",
+                     "distortion_model", "D", "rate_hz", "stamp_offset_s", "pose", "render"},
                     where);
   CameraSensor c;
   c.name = readValue<std::string>(node, "name", where, "string");
@@ -156,11 +168,13 @@ CameraSensor readCamera(const YAML::Node& node, const std::string& where) {
 }
 
 LidarSensor readLidar(const YAML::Node& node, const std::string& where) {
-  rejectUnknownKeys(node, {"name", "frame_id", "preset", "rate_hz", "stamp_offset_s", "pose", "range_noise_m",
-                           "min_range_m", "max_range_m", "dropout_probability", "beam_divergence_deg", "organized",
-                           "with_ring", "mixed_return_max_gap_m", "intensity_noise", "horizontal_resolution_deg",
-                           "elevations_deg", "azimuth_offsets_deg"},
-                    where);
+  rejectUnknownKeys(
+      node,
+      {"name", "frame_id", "preset", "rate_hz", "stamp_offset_s", "pose", "range_noise_m",
+       "min_range_m", "max_range_m", "dropout_probability", "beam_divergence_deg", "organized",
+       "with_ring", "mixed_return_max_gap_m", "intensity_noise", "horizontal_resolution_deg",
+       "elevations_deg", "azimuth_offsets_deg"},
+      where);
   LidarSensor l;
   l.name = readValue<std::string>(node, "name", where, "string");
   l.frame_id = l.name;
@@ -171,11 +185,13 @@ LidarSensor readLidar(const YAML::Node& node, const std::string& where) {
     l.spec = *preset;
   } else {
     l.spec.name = "custom";
-    if (!node["elevations_deg"]) throw ScenarioError{"'" + where + "' needs a preset or elevations_deg"};
+    if (!node["elevations_deg"])
+      throw ScenarioError{"'" + where + "' needs a preset or elevations_deg"};
   }
   auto& s = l.spec;
   if (node["elevations_deg"]) s.elevations_deg = readNumbers(node, "elevations_deg", where);
-  if (node["azimuth_offsets_deg"]) s.azimuth_offsets_deg = readNumbers(node, "azimuth_offsets_deg", where);
+  if (node["azimuth_offsets_deg"])
+    s.azimuth_offsets_deg = readNumbers(node, "azimuth_offsets_deg", where);
   readOptional(node, "horizontal_resolution_deg", where, "number", &s.horizontal_resolution_deg);
   readOptional(node, "range_noise_m", where, "number", &s.range_noise_m);
   readOptional(node, "min_range_m", where, "number", &s.min_range_m);
@@ -198,11 +214,12 @@ MotionSpec readMotion(const YAML::Node& node) {
   MotionSpec m;
   if (!node) return m;
   const std::string at = "motion";
-  rejectUnknownKeys(node, {"poses", "min_distance_m", "max_distance_m", "max_azimuth_deg", "max_elevation_deg",
-                           "min_roll_deg", "max_roll_deg", "max_tilt_deg", "min_edge_slope_deg",
-                           "min_board_height_m", "hold_s", "move_s", "still_frames_per_hold", "frames_per_move",
-                           "image_margin_px"},
-                    at);
+  rejectUnknownKeys(
+      node,
+      {"poses", "min_distance_m", "max_distance_m", "max_azimuth_deg", "max_elevation_deg",
+       "min_roll_deg", "max_roll_deg", "max_tilt_deg", "min_edge_slope_deg", "min_board_height_m",
+       "hold_s", "move_s", "still_frames_per_hold", "frames_per_move", "image_margin_px"},
+      at);
   readOptional(node, "poses", at, "integer", &m.poses);
   readOptional(node, "min_distance_m", at, "number", &m.min_distance_m);
   readOptional(node, "max_distance_m", at, "number", &m.max_distance_m);
@@ -231,24 +248,29 @@ struct SceneRandom {
   unsigned int seed = 0;
 };
 
-Eigen::Vector3d readColour(const YAML::Node& node, const std::string& key, const std::string& where) {
+Eigen::Vector3d readColour(const YAML::Node& node, const std::string& key,
+                           const std::string& where) {
   const auto v = readNumbers(node, key, where);
-  if (v.size() != 3) throw ScenarioError{"key '" + where + "." + key + "' must be [r, g, b] factors"};
+  if (v.size() != 3)
+    throw ScenarioError{"key '" + where + "." + key + "' must be [r, g, b] factors"};
   return {v[2], v[1], v[0]};  // stored b, g, r as the renderer's colours
 }
 
 Panel readPanel(const YAML::Node& node, const std::string& where) {
-  rejectUnknownKeys(node, {"center", "rpy_deg", "width", "height", "grey", "tint", "intensity"}, where);
+  rejectUnknownKeys(node, {"center", "rpy_deg", "width", "height", "grey", "tint", "intensity"},
+                    where);
   Panel panel;
   const auto c = readNumbers(node, "center", where);
   if (c.size() != 3) throw ScenarioError{"key '" + where + ".center' must be [x, y, z] in metres"};
   Eigen::Vector3d rpy = Eigen::Vector3d::Zero();
   if (node["rpy_deg"]) {
     const auto v = readNumbers(node, "rpy_deg", where);
-    if (v.size() != 3) throw ScenarioError{"key '" + where + ".rpy_deg' must be [roll, pitch, yaw] in degrees"};
+    if (v.size() != 3)
+      throw ScenarioError{"key '" + where + ".rpy_deg' must be [roll, pitch, yaw] in degrees"};
     rpy = Eigen::Vector3d(v[0], v[1], v[2]);
   }
-  panel.world_T_panel = makeTransform(fromRollPitchYaw(rpy * kRadPerDeg) * internal::facingRig(), Eigen::Vector3d(c[0], c[1], c[2]));
+  panel.world_T_panel = makeTransform(fromRollPitchYaw(rpy * kRadPerDeg) * internal::facingRig(),
+                                      Eigen::Vector3d(c[0], c[1], c[2]));
   panel.width_m = readValue<double>(node, "width", where, "number");
   panel.height_m = readValue<double>(node, "height", where, "number");
   readOptional(node, "grey", where, "number", &panel.grey);
@@ -262,10 +284,11 @@ Panel readPanel(const YAML::Node& node, const std::string& where) {
 void readScene(const YAML::Node& node, SceneSpec* scene, SceneRandom* random) {
   if (!node) return;
   const std::string at = "scene";
-  rejectUnknownKeys(node, {"room", "room_half_size_m", "floor_z_m", "ceiling_z_m", "occluder", "board_intensity",
-                           "background_intensity", "outdoor", "street_half_width_m", "facade_distance_m",
-                           "ground_grey", "board_grey", "board_tint", "board_texture", "board_marks", "posters",
-                           "panels", "clutter_seed"},
+  rejectUnknownKeys(node,
+                    {"room", "room_half_size_m", "floor_z_m", "ceiling_z_m", "occluder",
+                     "board_intensity", "background_intensity", "outdoor", "street_half_width_m",
+                     "facade_distance_m", "ground_grey", "board_grey", "board_tint",
+                     "board_texture", "board_marks", "posters", "panels", "clutter_seed"},
                     at);
   readOptional(node, "outdoor", at, "bool", &scene->outdoor);
   readOptional(node, "street_half_width_m", at, "number", &scene->street_half_width_m);
@@ -277,15 +300,19 @@ void readScene(const YAML::Node& node, SceneSpec* scene, SceneRandom* random) {
   if (node["board_marks"]) {
     const YAML::Node marks = node["board_marks"];
     if (marks.IsScalar()) {
-      random->board_marks = readValue<int>(node, "board_marks", at, "integer or a list of {min, max}");
+      random->board_marks =
+          readValue<int>(node, "board_marks", at, "integer or a list of {min, max}");
       if (random->board_marks < 0) throw ScenarioError{"key 'scene.board_marks' must be >= 0"};
     } else if (marks.IsSequence()) {
       for (size_t i = 0; i < marks.size(); ++i) {
         const std::string where = at + ".board_marks[" + std::to_string(i) + "]";
         rejectUnknownKeys(marks[i], {"min", "max"}, where);
-        const auto lo = readNumbers(marks[i], "min", where), hi = readNumbers(marks[i], "max", where);
-        if (lo.size() != 2 || hi.size() != 2) throw ScenarioError{"'" + where + "': min and max must be [x, y] in metres"};
-        scene->board_marks.push_back({Eigen::Vector2d(lo[0], lo[1]), Eigen::Vector2d(hi[0], hi[1])});
+        const auto lo = readNumbers(marks[i], "min", where),
+                   hi = readNumbers(marks[i], "max", where);
+        if (lo.size() != 2 || hi.size() != 2)
+          throw ScenarioError{"'" + where + "': min and max must be [x, y] in metres"};
+        scene->board_marks.push_back(
+            {Eigen::Vector2d(lo[0], lo[1]), Eigen::Vector2d(hi[0], hi[1])});
       }
     } else {
       throw ScenarioError{"key 'scene.board_marks' must be an integer or a list of {min, max}"};
@@ -296,7 +323,8 @@ void readScene(const YAML::Node& node, SceneSpec* scene, SceneRandom* random) {
   if (node["panels"]) {
     if (!node["panels"].IsSequence()) throw ScenarioError{"key 'scene.panels' must be a list"};
     for (size_t i = 0; i < node["panels"].size(); ++i)
-      scene->panels.push_back(readPanel(node["panels"][i], at + ".panels[" + std::to_string(i) + "]"));
+      scene->panels.push_back(
+          readPanel(node["panels"][i], at + ".panels[" + std::to_string(i) + "]"));
   }
   if (node["clutter_seed"]) {
     random->seed = readValue<unsigned int>(node, "clutter_seed", at, "non-negative integer");
@@ -320,13 +348,16 @@ std::string joinPath(const std::string& base_dir, const std::string& path) {
 
 std::string MotionSpec::validate() const {
   if (poses < 1) return "poses must be >= 1";
-  if (!(min_distance_m > 0) || !(max_distance_m >= min_distance_m)) return "need 0 < min_distance_m <= max_distance_m";
+  if (!(min_distance_m > 0) || !(max_distance_m >= min_distance_m))
+    return "need 0 < min_distance_m <= max_distance_m";
   if (!(max_azimuth_deg >= 0) || max_azimuth_deg > 80) return "max_azimuth_deg must be in [0, 80]";
-  if (!(max_elevation_deg >= 0) || max_elevation_deg > 60) return "max_elevation_deg must be in [0, 60]";
+  if (!(max_elevation_deg >= 0) || max_elevation_deg > 60)
+    return "max_elevation_deg must be in [0, 60]";
   if (!(min_roll_deg >= 0) || !(max_roll_deg >= min_roll_deg) || max_roll_deg > 90)
     return "need 0 <= min_roll_deg <= max_roll_deg <= 90";
   if (!(max_tilt_deg >= 0) || max_tilt_deg > 60) return "max_tilt_deg must be in [0, 60]";
-  if (!(min_edge_slope_deg >= 0) || min_edge_slope_deg > 45) return "min_edge_slope_deg must be in [0, 45]";
+  if (!(min_edge_slope_deg >= 0) || min_edge_slope_deg > 45)
+    return "min_edge_slope_deg must be in [0, 45]";
   if (!(hold_s > 0)) return "hold_s must be > 0";
   if (!(move_s >= 0)) return "move_s must be >= 0";
   if (still_frames_per_hold < 0) return "still_frames_per_hold must be >= 0 (0 = all)";
@@ -362,7 +393,9 @@ Expected<Scenario> parseScenario(const std::string& yaml_text, const std::string
   try {
     const YAML::Node root = YAML::Load(yaml_text);
     if (!root.IsMap()) return Expected<Scenario>::failure("scenario must be a YAML map");
-    rejectUnknownKeys(root, {"name", "seed", "target", "scene", "rig_pose", "cameras", "lidars", "motion"}, "scenario");
+    rejectUnknownKeys(
+        root, {"name", "seed", "target", "scene", "rig_pose", "cameras", "lidars", "motion"},
+        "scenario");
     Scenario s;
     readOptional(root, "name", "scenario", "string", &s.name);
     readOptional(root, "seed", "scenario", "non-negative integer", &s.seed);
@@ -378,12 +411,14 @@ Expected<Scenario> parseScenario(const std::string& yaml_text, const std::string
       s.world_T_rig = readPose(wrapper, "scenario.rig", false);
     }
     if (root["cameras"]) {
-      if (!root["cameras"].IsSequence()) return Expected<Scenario>::failure("'cameras' must be a list");
+      if (!root["cameras"].IsSequence())
+        return Expected<Scenario>::failure("'cameras' must be a list");
       for (size_t i = 0; i < root["cameras"].size(); ++i)
         s.cameras.push_back(readCamera(root["cameras"][i], "cameras[" + std::to_string(i) + "]"));
     }
     if (root["lidars"]) {
-      if (!root["lidars"].IsSequence()) return Expected<Scenario>::failure("'lidars' must be a list");
+      if (!root["lidars"].IsSequence())
+        return Expected<Scenario>::failure("'lidars' must be a list");
       for (size_t i = 0; i < root["lidars"].size(); ++i)
         s.lidars.push_back(readLidar(root["lidars"][i], "lidars[" + std::to_string(i) + "]"));
     }

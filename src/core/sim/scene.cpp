@@ -17,39 +17,41 @@ namespace {
 constexpr double kRayEpsilon = 1e-9;  // m, ignore hits at the ray origin
 
 // Person-like occluder: a box standing on the floor behind the board's centre.
-constexpr double kPersonHalfWidth = 0.22;   // m, shoulder half width
-constexpr double kPersonHalfDepth = 0.14;   // m
-constexpr double kPersonBehindBoard = 0.25; // m, body centre behind the board centre (horizontal), at least
-constexpr double kPersonMaxBehind = 2.0;    // m
-constexpr double kPersonStep = 0.05;        // m
-constexpr double kPersonClearance = 0.15;   // m, body behind the board's plane: a held board is at arm's length
+constexpr double kPersonHalfWidth = 0.22;  // m, shoulder half width
+constexpr double kPersonHalfDepth = 0.14;  // m
+constexpr double kPersonBehindBoard =
+    0.25;  // m, body centre behind the board centre (horizontal), at least
+constexpr double kPersonMaxBehind = 2.0;  // m
+constexpr double kPersonStep = 0.05;      // m
+constexpr double kPersonClearance =
+    0.15;  // m, body behind the board's plane: a held board is at arm's length
 
 // Room texture.
-constexpr double kFloorTile = 0.6;          // m, tile size on the floor
-constexpr double kGroutWidth = 0.01;        // m
-constexpr double kWallPanelWidth = 1.2;     // m
-constexpr double kWallPanelHeight = 0.8;    // m
-constexpr double kSeamFraction = 0.02;      // of a panel, dark seams between panels
-constexpr double kPosterThreshold = 0.85;   // panels above this hash are coloured posters
+constexpr double kFloorTile = 0.6;         // m, tile size on the floor
+constexpr double kGroutWidth = 0.01;       // m
+constexpr double kWallPanelWidth = 1.2;    // m
+constexpr double kWallPanelHeight = 0.8;   // m
+constexpr double kSeamFraction = 0.02;     // of a panel, dark seams between panels
+constexpr double kPosterThreshold = 0.85;  // panels above this hash are coloured posters
 // Outdoor texture: paving slabs, facades with storeys of windows, sky.
-constexpr double kPavingSlab = 0.5;         // m
-constexpr double kPavingGroutGrey = 0.7;    // grout albedo relative to the pavement's
-constexpr double kPavingVariation = 0.2;    // relative albedo spread between slabs
-constexpr double kFacadeHeight = 15.0;      // m above the ground; above it the sky
-constexpr double kFacadeBay = 3.0;          // m, window pitch along a facade and between storeys
+constexpr double kPavingSlab = 0.5;       // m
+constexpr double kPavingGroutGrey = 0.7;  // grout albedo relative to the pavement's
+constexpr double kPavingVariation = 0.2;  // relative albedo spread between slabs
+constexpr double kFacadeHeight = 15.0;    // m above the ground; above it the sky
+constexpr double kFacadeBay = 3.0;        // m, window pitch along a facade and between storeys
 constexpr double kWindowLo = 0.6, kWindowHi = 2.4;  // m, window extent inside a bay (both axes)
 constexpr double kWindowGrey = 0.12;
 // Board face grain (cardboard, wood): streaks along board x.
-constexpr double kGrainAlong = 0.04;        // m
-constexpr double kGrainAcross = 0.004;      // m
+constexpr double kGrainAlong = 0.04;    // m
+constexpr double kGrainAcross = 0.004;  // m
 
 // Surface appearance (linear grey levels 0..1).
 constexpr double kBoardWhite = 0.86;
 constexpr double kBoardBlack = 0.08;
 constexpr double kBoardBack = 0.45;
 constexpr double kBlackReflectivity = 0.25;  // LiDAR intensity of printed black relative to white
-constexpr double kBoardFacingMin = 0.85;   // brightness of the board at grazing view
-constexpr double kBoardAmbient = 0.85;     // the board is lit mostly evenly (light, slightly shaded)
+constexpr double kBoardFacingMin = 0.85;     // brightness of the board at grazing view
+constexpr double kBoardAmbient = 0.85;  // the board is lit mostly evenly (light, slightly shaded)
 constexpr double kAmbient = 0.55;
 constexpr double kDiffuse = 0.45;
 
@@ -126,7 +128,8 @@ bool boardBlackAt(const Target& target, double x, double y) {
 
 // Pseudo-random value in [0, 1] per integer lattice cell (per-tile brightness).
 double hash01(int64_t x, int64_t y, int64_t z) {
-  uint64_t h = static_cast<uint64_t>(x) * 0x9E3779B97F4A7C15ULL ^ static_cast<uint64_t>(y) * 0xC2B2AE3D27D4EB4FULL ^
+  uint64_t h = static_cast<uint64_t>(x) * 0x9E3779B97F4A7C15ULL ^
+               static_cast<uint64_t>(y) * 0xC2B2AE3D27D4EB4FULL ^
                static_cast<uint64_t>(z) * 0x165667B19E3779F9ULL;
   h ^= h >> 29;
   h *= 0xBF58476D1CE4E5B9ULL;
@@ -161,14 +164,16 @@ void Scene::placePerson() {
   // Step back until the body, where it overlaps the board's height, is behind the board's
   // plane (a tilted board leans forward or back by up to ~0.3 m).
   double lowest = top;
-  for (const auto& corner : spec.target.outerCorners()) lowest = std::min(lowest, (world_T_board * corner).z());
+  for (const auto& corner : spec.target.outerCorners())
+    lowest = std::min(lowest, (world_T_board * corner).z());
   Eigen::Vector3d person_centre;
   for (double behind = kPersonBehindBoard; behind < kPersonMaxBehind; behind += kPersonStep) {
     person_centre = Eigen::Vector3d(centre.x() + behind * back.x(), centre.y() + behind * back.y(),
                                     spec.floor_z_m + person_half_height_);
     bool clear = true;
     for (int k = 0; k < 8 && clear; ++k) {
-      const Eigen::Vector3d local((k & 1 ? 1 : -1) * kPersonHalfDepth, (k & 2 ? 1 : -1) * kPersonHalfWidth, 0.0);
+      const Eigen::Vector3d local((k & 1 ? 1 : -1) * kPersonHalfDepth,
+                                  (k & 2 ? 1 : -1) * kPersonHalfWidth, 0.0);
       Eigen::Vector3d corner = person_centre + rotation * local;
       corner.z() = (k & 4) ? top : std::max(lowest, spec.floor_z_m);
       clear = board_normal_.dot(corner - board_origin_) > kPersonClearance;
@@ -191,13 +196,13 @@ Hit Scene::cast(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir) const
   return best;
 }
 
-
 Eigen::Vector3d Scene::shade(const Hit& hit, const Eigen::Vector3d& dir) const {
   // Light from above and slightly from the side: soft, so edges stay photometric.
   const Eigen::Vector3d light = Eigen::Vector3d(0.3, 0.2, 1.0).normalized();
   const double lambert = std::abs(hit.normal.dot(light));
   const bool board = hit.board();
-  const double shading = board ? kBoardAmbient + (1 - kBoardAmbient) * lambert : kAmbient + kDiffuse * lambert;
+  const double shading =
+      board ? kBoardAmbient + (1 - kBoardAmbient) * lambert : kAmbient + kDiffuse * lambert;
   double grey = 0.5;
   Eigen::Vector3d tint(1.0, 1.0, 1.0);  // b, g, r
   switch (hit.label) {
@@ -219,7 +224,8 @@ Eigen::Vector3d Scene::shade(const Hit& hit, const Eigen::Vector3d& dir) const {
 double Scene::boardGrey(const Hit& hit, const Eigen::Vector3d& dir, Eigen::Vector3d* tint) const {
   // Slightly darker at grazing views (matte print): a smooth gradient over the board.
   const double facing = std::abs(hit.normal.dot(dir));
-  double grey = (hit.label == kLabelBoardWhite ? spec_.board_grey : kBoardBlack) * (kBoardFacingMin + (1 - kBoardFacingMin) * facing);
+  double grey = (hit.label == kLabelBoardWhite ? spec_.board_grey : kBoardBlack) *
+                (kBoardFacingMin + (1 - kBoardFacingMin) * facing);
   if (hit.label == kLabelBoardWhite) {
     *tint = spec_.board_tint;
     if (spec_.board_texture > 0) {
@@ -237,15 +243,18 @@ double Scene::floorGrey(const Eigen::Vector3d& p, Eigen::Vector3d* tint) const {
     const double gx = p.x() / kPavingSlab, gy = p.y() / kPavingSlab;
     const double fx = gx - std::floor(gx), fy = gy - std::floor(gy);
     const double grout = kGroutWidth / kPavingSlab;
-    const double h = hash01(static_cast<int64_t>(std::floor(gx)), static_cast<int64_t>(std::floor(gy)), 2);
-    return spec_.ground_grey * ((fx < grout || fy < grout) ? kPavingGroutGrey : 1.0 + kPavingVariation * (h - 0.5));
+    const double h =
+        hash01(static_cast<int64_t>(std::floor(gx)), static_cast<int64_t>(std::floor(gy)), 2);
+    return spec_.ground_grey *
+           ((fx < grout || fy < grout) ? kPavingGroutGrey : 1.0 + kPavingVariation * (h - 0.5));
   }
   const double gx = p.x() / kFloorTile, gy = p.y() / kFloorTile;
   const double fx = gx - std::floor(gx), fy = gy - std::floor(gy);
   const double grout = kGroutWidth / kFloorTile;
   *tint = {0.85, 0.95, 1.1};
   if (fx < grout || fy < grout) return 0.22;
-  return 0.38 + 0.2 * hash01(static_cast<int64_t>(std::floor(gx)), static_cast<int64_t>(std::floor(gy)), 1);
+  return 0.38 + 0.2 * hash01(static_cast<int64_t>(std::floor(gx)),
+                             static_cast<int64_t>(std::floor(gy)), 1);
 }
 
 // Panels, facades (outdoors) and room walls.
@@ -260,20 +269,24 @@ double Scene::wallGrey(const Hit& hit, Eigen::Vector3d* tint) const {
     const double s = std::abs(hit.normal.x()) > 0.5 ? p.y() : p.x();
     const double gu = s / kFacadeBay, gv = (p.z() - spec_.floor_z_m) / kFacadeBay;
     const double fu = (gu - std::floor(gu)) * kFacadeBay, fv = (gv - std::floor(gv)) * kFacadeBay;
-    const bool window = fu > kWindowLo && fu < kWindowHi && fv > kWindowLo && fv < kWindowHi && gv >= 1;
+    const bool window =
+        fu > kWindowLo && fu < kWindowHi && fv > kWindowLo && fv < kWindowHi && gv >= 1;
     if (window) *tint = {1.2, 1.0, 0.9};
-    return window ? kWindowGrey : 0.45 + 0.3 * hash01(static_cast<int64_t>(std::floor(gu / 4)), 0, 7 + hit.label);
+    return window ? kWindowGrey
+                  : 0.45 + 0.3 * hash01(static_cast<int64_t>(std::floor(gu / 4)), 0, 7 + hit.label);
   }
   // walls: panels of random brightness with dark seams, some posters
   const double s = std::abs(hit.normal.x()) > 0.5 ? p.y() : p.x();
   const double gu = s / kWallPanelWidth, gv = (p.z() - spec_.floor_z_m) / kWallPanelHeight;
   const double fu = gu - std::floor(gu), fv = gv - std::floor(gv);
-  const int64_t iu = static_cast<int64_t>(std::floor(gu)), iv = static_cast<int64_t>(std::floor(gv));
+  const int64_t iu = static_cast<int64_t>(std::floor(gu)),
+                iv = static_cast<int64_t>(std::floor(gv));
   double grey = 0.25;
   if (!(fu < kSeamFraction || fv < kSeamFraction)) {
     const double h = hash01(iu, iv, 3 + hit.label);
     grey = 0.4 + 0.35 * h;
-    if (h > kPosterThreshold) *tint = {0.7 + 0.6 * hash01(iu, iv, 17), 0.8, 0.7 + 0.6 * hash01(iu, iv, 23)};
+    if (h > kPosterThreshold)
+      *tint = {0.7 + 0.6 * hash01(iu, iv, 17), 0.8, 0.7 + 0.6 * hash01(iu, iv, 23)};
   }
   *tint = tint->cwiseProduct(Eigen::Vector3d(0.9 + 0.05 * (hit.label - kLabelWall), 1.0, 1.05));
   return grey;
@@ -285,7 +298,8 @@ double Scene::reflectivity(const Hit& hit) const {
     case kLabelBoardBlack: return spec_.board_intensity * kBlackReflectivity;
     case kLabelBoardBack: return spec_.board_intensity * 0.5;
     default:
-      if (hit.label >= kLabelPanel) return spec_.panels[static_cast<size_t>(hit.label - kLabelPanel)].intensity;
+      if (hit.label >= kLabelPanel)
+        return spec_.panels[static_cast<size_t>(hit.label - kLabelPanel)].intensity;
       return spec_.background_intensity;
   }
 }
@@ -297,14 +311,16 @@ void Scene::castBoard(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
   if (t <= kRayEpsilon || t >= best->t) return;
   const Eigen::Vector3d p_board = board_T_world_ * (origin + t * dir);
   const Target& target = spec_.target;
-  if (p_board.x() < 0 || p_board.y() < 0 || p_board.x() >= target.width || p_board.y() >= target.height) return;
+  if (p_board.x() < 0 || p_board.y() < 0 || p_board.x() >= target.width ||
+      p_board.y() >= target.height)
+    return;
   best->t = t;
   best->normal = board_normal_;
   if (denom > 0) {  // ray travels along +z: seen from -z, the printed face
     bool black = boardBlackAt(target, p_board.x(), p_board.y());
     for (const auto& mark : spec_.board_marks)
-      black = black || (p_board.x() >= mark.min.x() && p_board.x() < mark.max.x() && p_board.y() >= mark.min.y() &&
-                        p_board.y() < mark.max.y());
+      black = black || (p_board.x() >= mark.min.x() && p_board.x() < mark.max.x() &&
+                        p_board.y() >= mark.min.y() && p_board.y() < mark.max.y());
     best->label = black ? kLabelBoardBlack : kLabelBoardWhite;
   } else {
     best->label = kLabelBoardBack;
@@ -315,7 +331,8 @@ void Scene::castPerson(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir
   const Eigen::Vector3d o = person_T_world_ * origin;
   const Eigen::Vector3d d = person_T_world_.linear() * dir;
   const Eigen::Vector3d half(kPersonHalfDepth, kPersonHalfWidth, person_half_height_);
-  double t_near = -std::numeric_limits<double>::infinity(), t_far = std::numeric_limits<double>::infinity();
+  double t_near = -std::numeric_limits<double>::infinity(),
+         t_far = std::numeric_limits<double>::infinity();
   int axis_near = -1;
   for (int a = 0; a < 3; ++a) {
     if (std::abs(d[a]) < 1e-15) {
@@ -338,7 +355,8 @@ void Scene::castPerson(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir
   best->normal = person_rotation_ * n_local;
 }
 
-void Scene::castPanel(size_t k, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, Hit* best) const {
+void Scene::castPanel(size_t k, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+                      Hit* best) const {
   const Panel& panel = spec_.panels[k];
   const Eigen::Vector3d o = panels_[k] * origin;
   const Eigen::Vector3d d = panels_[k].linear() * dir;
@@ -371,7 +389,8 @@ void Scene::castRoom(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, 
     }
   }
   if (face < 0 || t_exit >= best->t) return;
-  if (spec_.outdoor && face < 4 && origin.z() + t_exit * dir.z() > spec_.floor_z_m + kFacadeHeight) return;  // sky
+  if (spec_.outdoor && face < 4 && origin.z() + t_exit * dir.z() > spec_.floor_z_m + kFacadeHeight)
+    return;  // sky
   best->t = t_exit;
   const int axis = face / 2;
   best->normal = Eigen::Vector3d::Zero();

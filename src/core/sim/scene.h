@@ -23,7 +23,7 @@ enum Label : int {
   kLabelNone = 0,
   kLabelFloor = 1,
   kLabelCeiling = 2,
-  kLabelWall = 3,   // + wall index 0..3
+  kLabelWall = 3,  // + wall index 0..3
   kLabelPerson = 8,
   kLabelBoardWhite = 9,
   kLabelBoardBlack = 10,
@@ -53,7 +53,9 @@ class Scene {
   Eigen::Vector3d shade(const Hit& hit, const Eigen::Vector3d& dir) const;
 
   // Colour where a camera ray hits nothing: the sky outdoors, black otherwise.
-  Eigen::Vector3d sky() const { return spec_.outdoor ? Eigen::Vector3d(0.95, 0.85, 0.75) : Eigen::Vector3d::Zero(); }
+  Eigen::Vector3d sky() const {
+    return spec_.outdoor ? Eigen::Vector3d(0.95, 0.85, 0.75) : Eigen::Vector3d::Zero();
+  }
 
   // LiDAR reflectivity in intensity units.
   double reflectivity(const Hit& hit) const;
@@ -67,7 +69,8 @@ class Scene {
 
   void castBoard(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, Hit* best) const;
   void castPerson(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, Hit* best) const;
-  void castPanel(size_t k, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, Hit* best) const;
+  void castPanel(size_t k, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+                 Hit* best) const;
   void castRoom(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, Hit* best) const;
 
   const SceneSpec& spec_;

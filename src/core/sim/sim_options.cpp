@@ -15,7 +15,8 @@ using internal::kDegToRad;
 std::string LidarSpec::validate() const {
   if (elevations_deg.empty()) return "LiDAR '" + name + "': elevations_deg is empty";
   for (double e : elevations_deg)
-    if (!std::isfinite(e) || e <= -90 || e >= 90) return "LiDAR '" + name + "': elevation out of (-90, 90) deg";
+    if (!std::isfinite(e) || e <= -90 || e >= 90)
+      return "LiDAR '" + name + "': elevation out of (-90, 90) deg";
   if (!azimuth_offsets_deg.empty() && azimuth_offsets_deg.size() != elevations_deg.size())
     return "LiDAR '" + name + "': azimuth_offsets_deg must be empty or have one entry per ring";
   if (!(horizontal_resolution_deg > 0.01) || horizontal_resolution_deg > 10)
@@ -27,17 +28,21 @@ std::string LidarSpec::validate() const {
     return "LiDAR '" + name + "': dropout_probability must be in [0, 1]";
   if (!(beam_divergence_deg >= 0) || beam_divergence_deg > 5)
     return "LiDAR '" + name + "': beam_divergence_deg must be in [0, 5]";
-  if (!(mixed_return_max_gap_m >= 0)) return "LiDAR '" + name + "': mixed_return_max_gap_m must be >= 0";
+  if (!(mixed_return_max_gap_m >= 0))
+    return "LiDAR '" + name + "': mixed_return_max_gap_m must be >= 0";
   if (!(intensity_noise >= 0)) return "LiDAR '" + name + "': intensity_noise must be >= 0";
   if (!(rate_hz > 0)) return "LiDAR '" + name + "': rate_hz must be > 0";
   return {};
 }
 
-int LidarSpec::columns() const { return std::max(1, static_cast<int>(std::lround(360.0 / horizontal_resolution_deg))); }
+int LidarSpec::columns() const {
+  return std::max(1, static_cast<int>(std::lround(360.0 / horizontal_resolution_deg)));
+}
 
 double LidarSpec::azimuthRad(int ring, int col) const {
   double az_deg = 180.0 - col * (360.0 / columns());
-  if (!azimuth_offsets_deg.empty() && ring >= 0 && ring < static_cast<int>(azimuth_offsets_deg.size()))
+  if (!azimuth_offsets_deg.empty() && ring >= 0 &&
+      ring < static_cast<int>(azimuth_offsets_deg.size()))
     az_deg += azimuth_offsets_deg[static_cast<size_t>(ring)];
   az_deg = std::remainder(az_deg, 360.0);
   return az_deg * kDegToRad;
@@ -55,14 +60,16 @@ std::string SceneSpec::validate() const {
     if (!(facade_distance_m > 0)) return "facade_distance_m must be > 0";
     if (!(ground_grey >= 0 && ground_grey <= 1)) return "ground_grey must be in [0, 1]";
   }
-  if (!std::isfinite(board_intensity) || !std::isfinite(background_intensity) || board_intensity < 0 ||
-      background_intensity < 0)
+  if (!std::isfinite(board_intensity) || !std::isfinite(background_intensity) ||
+      board_intensity < 0 || background_intensity < 0)
     return "intensities must be finite and >= 0";
   if (!(board_grey >= 0 && board_grey <= 1)) return "board_grey must be in [0, 1]";
-  if (!board_tint.allFinite() || (board_tint.array() < 0).any()) return "board_tint must be finite and >= 0";
+  if (!board_tint.allFinite() || (board_tint.array() < 0).any())
+    return "board_tint must be finite and >= 0";
   if (!(board_texture >= 0 && board_texture <= 0.5)) return "board_texture must be in [0, 0.5]";
   for (const auto& mark : board_marks)
-    if (!mark.min.allFinite() || !mark.max.allFinite() || !(mark.min.array() < mark.max.array()).all())
+    if (!mark.min.allFinite() || !mark.max.allFinite() ||
+        !(mark.min.array() < mark.max.array()).all())
       return "board mark: min must be < max";
   if (panels.size() > 1000) return "at most 1000 panels";
   for (size_t k = 0; k < panels.size(); ++k) {
@@ -125,7 +132,8 @@ Expected<LidarSpec> lidarPreset(const std::string& name) {
     spec.max_range_m = 120.0;
     spec.beam_divergence_deg = 0.13;
   } else {
-    return Expected<LidarSpec>::failure("unknown LiDAR preset '" + name + "' (known: VLP-16, VLP-32C, OS1-64)");
+    return Expected<LidarSpec>::failure("unknown LiDAR preset '" + name +
+                                        "' (known: VLP-16, VLP-32C, OS1-64)");
   }
   return spec;
 }

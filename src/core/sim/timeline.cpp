@@ -14,10 +14,10 @@ namespace board_calib {
 namespace sim {
 namespace {
 
-constexpr int kMaxPoseAttempts = 20000;   // rejection sampling per pose
-constexpr int kMinLidarRingsOnBoard = 3;  // fewer rings cannot give a plane with edges
-constexpr double kCeilingClearance = 0.1; // m
-constexpr double kWallClearance = 0.5;    // m, board centre from the walls
+constexpr int kMaxPoseAttempts = 20000;    // rejection sampling per pose
+constexpr int kMinLidarRingsOnBoard = 3;   // fewer rings cannot give a plane with edges
+constexpr double kCeilingClearance = 0.1;  // m
+constexpr double kWallClearance = 0.5;     // m, board centre from the walls
 
 // Smooth 0..1 ramp (zero velocity at both ends: the person starts and stops gently).
 double smoothstep(double x) {
@@ -73,20 +73,24 @@ std::string placeProblem(const Scenario& s, const Eigen::Isometry3d& world_T_boa
   if (!s.scene.panels.empty()) {
     // Clutter must neither cut the board nor hide a corner or the centre from any sensor.
     std::vector<Eigen::Vector3d> eyes;
-    for (size_t k = 0; k < s.cameras.size(); ++k) eyes.push_back(worldTCamera(s, static_cast<int>(k)).translation());
-    for (size_t k = 0; k < s.lidars.size(); ++k) eyes.push_back(worldTLidar(s, static_cast<int>(k)).translation());
+    for (size_t k = 0; k < s.cameras.size(); ++k)
+      eyes.push_back(worldTCamera(s, static_cast<int>(k)).translation());
+    for (size_t k = 0; k < s.lidars.size(); ++k)
+      eyes.push_back(worldTLidar(s, static_cast<int>(k)).translation());
     std::vector<Eigen::Vector3d> marks(world.begin(), world.end());
     marks.push_back(world_T_board * target.center());
     for (const Panel& panel : s.scene.panels) {
       const Eigen::Isometry3d panel_T_world = panel.world_T_panel.inverse();
-      auto crosses = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {  // segment a-b through the panel
+      auto crosses = [&](const Eigen::Vector3d& a,
+                         const Eigen::Vector3d& b) {  // segment a-b through the panel
         const Eigen::Vector3d pa = panel_T_world * a, pb = panel_T_world * b;
         if ((pa.z() > 0) == (pb.z() > 0)) return false;
         const Eigen::Vector3d q = pa + (pb - pa) * (pa.z() / (pa.z() - pb.z()));
         return std::abs(q.x()) <= 0.5 * panel.width_m && std::abs(q.y()) <= 0.5 * panel.height_m;
       };
       for (int e = 0; e < 4; ++e)
-        if (crosses(world[e], world[(e + 1) % 4]) || crosses(world[e], world[(e + 2) % 4])) return "board cuts a panel";
+        if (crosses(world[e], world[(e + 1) % 4]) || crosses(world[e], world[(e + 2) % 4]))
+          return "board cuts a panel";
       for (const auto& eye : eyes)
         for (const auto& m : marks)
           if (crosses(eye, m)) return "panel hides the board";
@@ -104,11 +108,13 @@ std::string sensorProblem(const Scenario& s, const std::vector<CameraModel>& mod
   std::array<Eigen::Vector3d, 4> world;
   for (int i = 0; i < 4; ++i) world[i] = world_T_board * outer[i];
   for (size_t k = 0; k < s.cameras.size(); ++k) {
-    const Eigen::Isometry3d board_T_camera = world_T_board.inverse() * worldTCamera(s, static_cast<int>(k));
+    const Eigen::Isometry3d board_T_camera =
+        world_T_board.inverse() * worldTCamera(s, static_cast<int>(k));
     if (!(board_T_camera.translation().z() < 0)) return "camera sees the back";
     const Eigen::Isometry3d camera_T_world = worldTCamera(s, static_cast<int>(k)).inverse();
     for (const auto& p : world)
-      if (!models[k].isVisible(camera_T_world * p, -s.motion.image_margin_px)) return "corner outside an image";
+      if (!models[k].isVisible(camera_T_world * p, -s.motion.image_margin_px))
+        return "corner outside an image";
   }
   for (size_t k = 0; k < s.lidars.size(); ++k) {
     const LidarSpec& spec = s.lidars[k].spec;
@@ -121,7 +127,8 @@ std::string sensorProblem(const Scenario& s, const std::vector<CameraModel>& mod
       const double el = std::atan2(q.z(), std::hypot(q.x(), q.y())) / kRadPerDeg;
       el_lo = std::min(el_lo, el);
       el_hi = std::max(el_hi, el);
-      if (q.norm() < spec.min_range_m || q.norm() > spec.max_range_m) return "board out of LiDAR range";
+      if (q.norm() < spec.min_range_m || q.norm() > spec.max_range_m)
+        return "board out of LiDAR range";
     }
     int rings = 0;
     for (double e : spec.elevations_deg) rings += (e > el_lo && e < el_hi) ? 1 : 0;
@@ -155,26 +162,30 @@ Eigen::Isometry3d drawRigTBoard(const MotionSpec& m, const Target& target, std::
   const double d = uniform(m.min_distance_m, m.max_distance_m);
   const double az = uniform(-m.max_azimuth_deg, m.max_azimuth_deg) * kRadPerDeg;
   const double el = uniform(-m.max_elevation_deg, m.max_elevation_deg) * kRadPerDeg;
-  const Eigen::Vector3d centre = d * Eigen::Vector3d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
-                                                     std::sin(el));
+  const Eigen::Vector3d centre =
+      d * Eigen::Vector3d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
   // Facing the rig origin: z away from the rig, y down, x right as seen from the rig.
   const Eigen::Vector3d z = centre.normalized();
-  const Eigen::Vector3d y = -(Eigen::Vector3d::UnitZ() - Eigen::Vector3d::UnitZ().dot(z) * z).normalized();
+  const Eigen::Vector3d y =
+      -(Eigen::Vector3d::UnitZ() - Eigen::Vector3d::UnitZ().dot(z) * z).normalized();
   Eigen::Matrix3d facing;
   facing.col(0) = y.cross(z);
   facing.col(1) = y;
   facing.col(2) = z;
-  const double roll = (unit(rng) < 0.5 ? -1 : 1) * uniform(m.min_roll_deg, m.max_roll_deg) * kRadPerDeg;
+  const double roll =
+      (unit(rng) < 0.5 ? -1 : 1) * uniform(m.min_roll_deg, m.max_roll_deg) * kRadPerDeg;
   const double tilt_x = uniform(-m.max_tilt_deg, m.max_tilt_deg) * kRadPerDeg;
   const double tilt_y = uniform(-m.max_tilt_deg, m.max_tilt_deg) * kRadPerDeg;
-  const Eigen::Matrix3d R = facing * Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
+  const Eigen::Matrix3d R = facing *
+                            Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
                             Eigen::AngleAxisd(tilt_x, Eigen::Vector3d::UnitX()).toRotationMatrix() *
                             Eigen::AngleAxisd(tilt_y, Eigen::Vector3d::UnitY()).toRotationMatrix();
   return makeTransform(R, centre - R * target.center());
 }
 
 // The held poses, by rejection sampling; fails naming the most frequent rejection.
-Expected<std::vector<Eigen::Isometry3d>> drawBoardPoses(const Scenario& s, const std::vector<CameraModel>& models) {
+Expected<std::vector<Eigen::Isometry3d>> drawBoardPoses(const Scenario& s,
+                                                        const std::vector<CameraModel>& models) {
   std::mt19937 rng(s.seed);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   std::vector<Eigen::Isometry3d> poses;
@@ -182,7 +193,8 @@ Expected<std::vector<Eigen::Isometry3d>> drawBoardPoses(const Scenario& s, const
     std::map<std::string, int> rejections;
     bool placed = false;
     for (int attempt = 0; attempt < kMaxPoseAttempts && !placed; ++attempt) {
-      const Eigen::Isometry3d world_T_board = s.world_T_rig * drawRigTBoard(s.motion, s.scene.target, rng, unit);
+      const Eigen::Isometry3d world_T_board =
+          s.world_T_rig * drawRigTBoard(s.motion, s.scene.target, rng, unit);
       const std::string problem = poseProblem(s, models, world_T_board);
       if (problem.empty()) {
         poses.push_back(world_T_board);
@@ -200,15 +212,17 @@ Expected<std::vector<Eigen::Isometry3d>> drawBoardPoses(const Scenario& s, const
           count = kv.second;
         }
       return Expected<std::vector<Eigen::Isometry3d>>::failure(
-          "cannot place board pose " + std::to_string(i) + " after " + std::to_string(kMaxPoseAttempts) +
-          " tries (mostly: " + most + "); check that the sensors' fields of view overlap at the motion's distances");
+          "cannot place board pose " + std::to_string(i) + " after " +
+          std::to_string(kMaxPoseAttempts) + " tries (mostly: " + most +
+          "); check that the sensors' fields of view overlap at the motion's distances");
     }
   }
   return poses;
 }
 
 // The board at time t: a held pose (*pose = its index) or between two (*pose = -1).
-Eigen::Isometry3d boardAt(const Timeline& timeline, const MotionSpec& m, double t, int* pose, double* hold_end) {
+Eigen::Isometry3d boardAt(const Timeline& timeline, const MotionSpec& m, double t, int* pose,
+                          double* hold_end) {
   const double period = m.hold_s + m.move_s;
   const int k = std::clamp(static_cast<int>(std::floor(t / period)), 0, m.poses - 1);
   const double local = t - k * period;
@@ -223,7 +237,8 @@ Eigen::Isometry3d boardAt(const Timeline& timeline, const MotionSpec& m, double 
                      timeline.world_T_board_poses[static_cast<size_t>(k + 1)], sm);
 }
 
-// Thin a sensor's frames: the last N still frames of each hold, N evenly spread frames of each move.
+// Thin a sensor's frames: the last N still frames of each hold, N evenly spread frames of each
+// move.
 std::vector<Frame> thinFrames(const std::vector<Frame>& frames, const MotionSpec& m) {
   std::vector<Frame> kept;
   size_t i = 0;
@@ -234,7 +249,9 @@ std::vector<Frame> thinFrames(const std::vector<Frame>& frames, const MotionSpec
     while (j < frames.size() && frames[j].still == still && frames[j].pose == pose) ++j;
     const size_t n = j - i;
     if (still) {
-      const size_t keep = m.still_frames_per_hold > 0 ? std::min(n, static_cast<size_t>(m.still_frames_per_hold)) : n;
+      const size_t keep = m.still_frames_per_hold > 0
+                              ? std::min(n, static_cast<size_t>(m.still_frames_per_hold))
+                              : n;
       for (size_t q = j - keep; q < j; ++q) kept.push_back(frames[q]);
     } else if (m.frames_per_move < 0 || static_cast<size_t>(m.frames_per_move) >= n) {
       for (size_t q = i; q < j; ++q) kept.push_back(frames[q]);
@@ -248,8 +265,8 @@ std::vector<Frame> thinFrames(const std::vector<Frame>& frames, const MotionSpec
 }
 
 // Every frame one sensor takes over the recording, thinned.
-std::vector<Frame> sensorFrames(const Timeline& timeline, const MotionSpec& m, bool is_camera, int index, double rate,
-                                double offset) {
+std::vector<Frame> sensorFrames(const Timeline& timeline, const MotionSpec& m, bool is_camera,
+                                int index, double rate, double offset) {
   std::vector<Frame> frames;
   const double dt = 1.0 / rate;
   // A LiDAR frame integrates one revolution; it is still only if the whole sweep is.
@@ -290,9 +307,11 @@ Expected<Timeline> makeTimeline(const Scenario& s) {
     timeline.frames.insert(timeline.frames.end(), frames.begin(), frames.end());
   };
   for (size_t k = 0; k < s.cameras.size(); ++k)
-    add(sensorFrames(timeline, m, true, static_cast<int>(k), s.cameras[k].rate_hz, s.cameras[k].stamp_offset_s));
+    add(sensorFrames(timeline, m, true, static_cast<int>(k), s.cameras[k].rate_hz,
+                     s.cameras[k].stamp_offset_s));
   for (size_t k = 0; k < s.lidars.size(); ++k)
-    add(sensorFrames(timeline, m, false, static_cast<int>(k), s.lidars[k].spec.rate_hz, s.lidars[k].stamp_offset_s));
+    add(sensorFrames(timeline, m, false, static_cast<int>(k), s.lidars[k].spec.rate_hz,
+                     s.lidars[k].stamp_offset_s));
   std::stable_sort(timeline.frames.begin(), timeline.frames.end(),
                    [](const Frame& a, const Frame& b) { return a.stamp < b.stamp; });
   return timeline;
@@ -302,26 +321,30 @@ ResultFile groundTruth(const Scenario& s) {
   ResultFile r;
   r.method = "ground_truth";
   r.views_used = s.motion.poses;
-  r.notes.push_back("simulated ground truth of scenario '" + s.name + "' (seed " + std::to_string(s.seed) + ")");
+  r.notes.push_back("simulated ground truth of scenario '" + s.name + "' (seed " +
+                    std::to_string(s.seed) + ")");
   if (!s.cameras.empty() && !s.lidars.empty()) {
     r.camera_frame = s.cameras[0].frame_id;
     r.lidar_frame = s.lidars[0].frame_id;
     r.camera_T_lidar = worldTCamera(s, 0).inverse() * worldTLidar(s, 0);
   }
   // Reference: the first LiDAR (a frame that exists in TF), else the first camera.
-  const Eigen::Isometry3d world_T_reference = s.lidars.empty() ? worldTCamera(s, 0) : worldTLidar(s, 0);
+  const Eigen::Isometry3d world_T_reference =
+      s.lidars.empty() ? worldTCamera(s, 0) : worldTLidar(s, 0);
   r.reference_frame = s.lidars.empty() ? s.cameras[0].frame_id : s.lidars[0].frame_id;
   for (size_t k = 0; k < s.lidars.size(); ++k)
-    r.sensors.push_back({s.lidars[k].frame_id, "lidar", world_T_reference.inverse() * worldTLidar(s, static_cast<int>(k))});
+    r.sensors.push_back({s.lidars[k].frame_id, "lidar",
+                         world_T_reference.inverse() * worldTLidar(s, static_cast<int>(k))});
   for (size_t k = 0; k < s.cameras.size(); ++k)
-    r.sensors.push_back(
-        {s.cameras[k].frame_id, "camera", world_T_reference.inverse() * worldTCamera(s, static_cast<int>(k))});
+    r.sensors.push_back({s.cameras[k].frame_id, "camera",
+                         world_T_reference.inverse() * worldTCamera(s, static_cast<int>(k))});
   for (size_t c = 0; c < s.cameras.size(); ++c) {
     for (size_t l = 0; l < s.lidars.size(); ++l) {
       PairEntry pair;
       pair.camera_frame = s.cameras[c].frame_id;
       pair.lidar_frame = s.lidars[l].frame_id;
-      pair.camera_T_lidar = worldTCamera(s, static_cast<int>(c)).inverse() * worldTLidar(s, static_cast<int>(l));
+      pair.camera_T_lidar =
+          worldTCamera(s, static_cast<int>(c)).inverse() * worldTLidar(s, static_cast<int>(l));
       r.pairs.push_back(pair);
     }
   }
@@ -341,7 +364,8 @@ Expected<FrameGenerator> FrameGenerator::create(const Scenario& scenario) {
 
 namespace {
 std::mt19937 frameRng(unsigned int seed, size_t frame_index) {
-  std::seed_seq seq{seed, static_cast<unsigned int>(frame_index), static_cast<unsigned int>(frame_index >> 32)};
+  std::seed_seq seq{seed, static_cast<unsigned int>(frame_index),
+                    static_cast<unsigned int>(frame_index >> 32)};
   return std::mt19937(seq);
 }
 }  // namespace
@@ -354,8 +378,8 @@ cv::Mat FrameGenerator::image(const Frame& frame, size_t frame_index) {
   if (frame.still && cached.pose == frame.pose && !cached.radiance.empty()) {
     radiance = cached.radiance;
   } else {
-    radiance = renderCameraRadiance(models_[k], worldTCamera(*scenario_, frame.sensor), scenario_->scene,
-                                    frame.world_T_board, camera.render);
+    radiance = renderCameraRadiance(models_[k], worldTCamera(*scenario_, frame.sensor),
+                                    scenario_->scene, frame.world_T_board, camera.render);
     cached.pose = frame.still ? frame.pose : -2;
     cached.radiance = frame.still ? radiance : cv::Mat();
   }
@@ -363,11 +387,12 @@ cv::Mat FrameGenerator::image(const Frame& frame, size_t frame_index) {
   return finishCameraImage(radiance, models_[k], camera.render, rng);
 }
 
-LidarCloud FrameGenerator::cloud(const Frame& frame, size_t frame_index, std::vector<ReturnOrigin>* origins) {
+LidarCloud FrameGenerator::cloud(const Frame& frame, size_t frame_index,
+                                 std::vector<ReturnOrigin>* origins) {
   const LidarSensor& lidar = scenario_->lidars[static_cast<size_t>(frame.sensor)];
   std::mt19937 rng = frameRng(scenario_->seed, frame_index);
-  LidarCloud cloud = simulateLidarScan(lidar.spec, worldTLidar(*scenario_, frame.sensor), scenario_->scene,
-                                       frame.world_T_board, rng, origins);
+  LidarCloud cloud = simulateLidarScan(lidar.spec, worldTLidar(*scenario_, frame.sensor),
+                                       scenario_->scene, frame.world_T_board, rng, origins);
   cloud.frame_id = lidar.frame_id;
   cloud.stamp = frame.stamp;
   return cloud;

@@ -14,8 +14,10 @@ using namespace calibrate_detail;
 Expected<Eigen::Isometry3d> closedFormInitialGuess(const std::vector<View>& views, Method method,
                                                    const SolverOptions& options) {
   const std::string invalid = options.validate();
-  if (!invalid.empty()) return Expected<Eigen::Isometry3d>::failure("invalid solver options: " + invalid);
-  if (method == Method::kMsgPair) return closedFormPlaneToPlane(planeCorrespondences(views), options);
+  if (!invalid.empty())
+    return Expected<Eigen::Isometry3d>::failure("invalid solver options: " + invalid);
+  if (method == Method::kMsgPair)
+    return closedFormPlaneToPlane(planeCorrespondences(views), options);
   const auto prepared = prepareAll(views, method, options);
   int used = 0;
   const std::string why = checkGeometry(prepared, method, options, &used);
@@ -35,8 +37,9 @@ struct Run {
 };
 
 // One solve of `terms` from run->pose; false when Ceres gives no usable solution.
-bool solveTerms(const std::vector<Cluster>& terms, bool scale, bool warm, const SolverOptions& options, Run* run,
-                CalibrationSolution* sol, const PlaneErrorModel& model = PlaneErrorModel()) {
+bool solveTerms(const std::vector<Cluster>& terms, bool scale, bool warm,
+                const SolverOptions& options, Run* run, CalibrationSolution* sol,
+                const PlaneErrorModel& model = PlaneErrorModel()) {
   run->outcome = solveStage(terms, scale, options, warm, &run->pose, model);
   sol->iterations += run->outcome.iterations;
   return run->outcome.usable;
@@ -61,7 +64,8 @@ bool runPpc(const std::vector<PreparedView>& prepared, const SolverOptions& opti
          << 1000.0 * std::sqrt(m.offset_var) << " mm, tilt " << std::sqrt(m.tilt_var) * kDegPerRad
          << " deg per axis (1 sigma"
          << (m.distance_power > 0.0
-                 ? ", at " + std::to_string(m.reference_distance_m).substr(0, 4) + " m, growing with distance^2)"
+                 ? ", at " + std::to_string(m.reference_distance_m).substr(0, 4) +
+                       " m, growing with distance^2)"
                  : ", the same for every view)");
     sol->notes.push_back(note.str());
   }
@@ -70,8 +74,8 @@ bool runPpc(const std::vector<PreparedView>& prepared, const SolverOptions& opti
 
 // PBPC: as the paper (PPC first, then the line terms alone, then both) or one joint solve; then
 // the edges re-associated by projection and solved again if any changed.
-bool runPbpc(const std::vector<View>& views, std::vector<PreparedView>* prepared, const SolverOptions& options,
-             Run* run, CalibrationSolution* sol) {
+bool runPbpc(const std::vector<View>& views, std::vector<PreparedView>* prepared,
+             const SolverOptions& options, Run* run, CalibrationSolution* sol) {
   const bool planes = options.pbpc_use_plane_terms;
   const double lw = options.pbpc_line_weight;
   bool ok = true;
@@ -82,12 +86,12 @@ bool runPbpc(const std::vector<View>& views, std::vector<PreparedView>* prepared
     // before the line terms pull the pose towards wrongly named edges.
     if (ok && !plane_terms.empty() && options.edge_reassociation)
       reassociateEdges(views, prepared, run->pose.isometry(), &sol->notes);
-    ok = ok && solveTerms(buildClusters(*prepared, false, true, false, lw), false, plane_terms.empty(), options, run,
-                          sol);
+    ok = ok && solveTerms(buildClusters(*prepared, false, true, false, lw), false,
+                          plane_terms.empty(), options, run, sol);
   }
   run->final_terms = buildClusters(*prepared, planes, true, run->use_scale, lw);
-  ok = ok && solveTerms(run->final_terms, run->use_scale, options.pbpc_schedule == PbpcSchedule::kJoint, options,
-                        run, sol);
+  ok = ok && solveTerms(run->final_terms, run->use_scale,
+                        options.pbpc_schedule == PbpcSchedule::kJoint, options, run, sol);
   // Re-pair and re-solve until the pairs are those of the final pose (the MLRE figures and the
   // overlay pair edges at that pose).
   for (int round = 0; ok && options.edge_reassociation && round < kMaxReassociationRounds &&
@@ -102,12 +106,12 @@ bool runPbpc(const std::vector<View>& views, std::vector<PreparedView>* prepared
 // Covariance, observability and the plane-scale note of a solved run.
 void finishSolution(const Run& run, const SolverOptions& options, CalibrationSolution* sol) {
   if (options.compute_covariance) {
-    const bool cov_ok =
-        finalCovariance(run.final_terms, run.use_scale, run.plane_model, options, run.pose, &sol->covariance);
+    const bool cov_ok = finalCovariance(run.final_terms, run.use_scale, run.plane_model, options,
+                                        run.pose, &sol->covariance);
     if (!cov_ok) sol->covariance.setConstant(std::numeric_limits<double>::infinity());
     sol->stddev = stddevFromCovariance(sol->covariance);
-    sol->observability =
-        solvers_detail::analyseObservability(sol->covariance, cov_ok, options.observability_max_stddev, "camera");
+    sol->observability = solvers_detail::analyseObservability(
+        sol->covariance, cov_ok, options.observability_max_stddev, "camera");
     if (!sol->observability.well_conditioned)
       sol->notes.push_back("weakly observable: " + sol->observability.weakest_description);
   }
@@ -115,8 +119,9 @@ void finishSolution(const Run& run, const SolverOptions& options, CalibrationSol
     std::ostringstream note;
     note.precision(3);
     note << "camera board planes fit best scaled by " << sol->plane_scale
-         << (sol->plane_scale > 1.0 ? ": the board is larger than declared or LiDAR edges bloom"
-                                    : ": the board is smaller than declared or LiDAR edges are eroded");
+         << (sol->plane_scale > 1.0
+                 ? ": the board is larger than declared or LiDAR edges bloom"
+                 : ": the board is smaller than declared or LiDAR edges are eroded");
     sol->notes.push_back(note.str());
   }
 }
@@ -124,8 +129,8 @@ void finishSolution(const Run& run, const SolverOptions& options, CalibrationSol
 // Prepares the views, checks them and finds the start; false (and sol->reason) when they
 // cannot be solved.
 bool prepareStart(const std::vector<View>& views, Method method, const SolverOptions& options,
-                  const std::optional<Eigen::Isometry3d>& initial_guess, std::vector<PreparedView>* prepared,
-                  CalibrationSolution* sol) {
+                  const std::optional<Eigen::Isometry3d>& initial_guess,
+                  std::vector<PreparedView>* prepared, CalibrationSolution* sol) {
   double step_rad = 0.0;
   *prepared = prepareAll(views, method, options, &step_rad);
   if (method == Method::kPbpc && options.edge_outward_shift_steps != 0.0) {
@@ -134,7 +139,9 @@ bool prepareStart(const std::vector<View>& views, Method method, const SolverOpt
     if (step_rad > 0.0)
       note << "LiDAR edge points shifted outward by " << options.edge_outward_shift_steps << " x "
            << step_rad * kDegPerRad << " deg horizontal step"
-           << (options.lidar_horizontal_resolution_deg > 0.0 ? "" : " (step estimated from the board points)");
+           << (options.lidar_horizontal_resolution_deg > 0.0
+                   ? ""
+                   : " (step estimated from the board points)");
     else
       note << "LiDAR horizontal step could not be estimated: edge points not shifted";
     sol->notes.push_back(note.str());
@@ -166,11 +173,13 @@ bool prepareStart(const std::vector<View>& views, Method method, const SolverOpt
 
 }  // namespace
 
-CalibrationSolution calibrate(const std::vector<View>& views, Method method, const SolverOptions& options,
+CalibrationSolution calibrate(const std::vector<View>& views, Method method,
+                              const SolverOptions& options,
                               const std::optional<Eigen::Isometry3d>& initial_guess) {
   const auto start = std::chrono::steady_clock::now();
   auto elapsed_ms = [&] {
-    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+        .count();
   };
   CalibrationSolution sol;
   sol.method = method;
@@ -197,7 +206,8 @@ CalibrationSolution calibrate(const std::vector<View>& views, Method method, con
   if (!prepareStart(views, method, options, initial_guess, &prepared, &sol)) return sol;
   Run run;
   run.pose = Pose::from(sol.initial_guess);
-  run.use_scale = method == Method::kPbpc && options.estimate_plane_scale && options.pbpc_use_plane_terms;
+  run.use_scale =
+      method == Method::kPbpc && options.estimate_plane_scale && options.pbpc_use_plane_terms;
   const bool ok = method == Method::kPpc ? runPpc(prepared, options, &run, &sol)
                                          : runPbpc(views, &prepared, options, &run, &sol);
   sol.camera_T_lidar = run.pose.isometry();

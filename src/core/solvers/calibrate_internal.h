@@ -13,9 +13,9 @@
 namespace board_calib {
 namespace calibrate_detail {
 
-constexpr int kMinEdgePoints = 2;          // a line term needs two points to constrain anything
-constexpr int kPlaneErrorRounds = 3;       // PPC: re-estimations of the camera plane error
-constexpr int kMaxReassociationRounds = 3; // PBPC: re-pair-and-solve rounds after the final solve
+constexpr int kMinEdgePoints = 2;           // a line term needs two points to constrain anything
+constexpr int kPlaneErrorRounds = 3;        // PPC: re-estimations of the camera plane error
+constexpr int kMaxReassociationRounds = 3;  // PBPC: re-pair-and-solve rounds after the final solve
 
 // A set of points that must lie on one plane n . x = s d in the camera frame: one view's board
 // points (camera plane) or one edge's points (back-projected plane, d = 0). Points share the
@@ -44,7 +44,7 @@ struct PreparedView {
   std::array<bool, kNumEdges> image_edge_ok{};
   std::array<Eigen::Vector3d, kNumEdges> backprojected_normal;  // unit K^T l
   std::array<bool, kNumEdges> lidar_edge_ok{};
-  std::array<Points3, kNumEdges> lidar_edges;  // possibly shifted outward
+  std::array<Points3, kNumEdges> lidar_edges;            // possibly shifted outward
   std::array<int, kNumEdges> association{{0, 1, 2, 3}};  // image edge -> LiDAR edge
   bool used = false;
 
@@ -98,41 +98,45 @@ struct PlaneErrorModel {
   double reference_distance_m = 1.0;
 
   double factor(const Eigen::Vector3d& point_in_camera) const {
-    return distance_power == 0.0 ? 1.0 : std::pow(point_in_camera.norm() / reference_distance_m, distance_power);
+    return distance_power == 0.0
+               ? 1.0
+               : std::pow(point_in_camera.norm() / reference_distance_m, distance_power);
   }
 };
 
 // --- prepared_views.cpp ---
 /// Every view checked and prepared (LiDAR edges shifted outward by the options' fraction of the
 /// horizontal step, given or estimated; `step_used` receives it).
-std::vector<PreparedView> prepareAll(const std::vector<View>& views, Method method, const SolverOptions& options,
-                                     double* step_used = nullptr);
+std::vector<PreparedView> prepareAll(const std::vector<View>& views, Method method,
+                                     const SolverOptions& options, double* step_used = nullptr);
 /// Degeneracy checks; empty when the views can be solved. `used` receives the usable views.
-std::string checkGeometry(const std::vector<PreparedView>& prepared, Method method, const SolverOptions& options,
-                          int* used);
+std::string checkGeometry(const std::vector<PreparedView>& prepared, Method method,
+                          const SolverOptions& options, int* used);
 /// Closed-form camera_T_lidar from the prepared views.
 Expected<Eigen::Isometry3d> closedForm(const std::vector<PreparedView>& prepared, Method method,
                                        const SolverOptions& options);
 /// The residual clusters of the used views: camera planes and/or back-projected line planes.
-std::vector<Cluster> buildClusters(const std::vector<PreparedView>& views, bool planes, bool lines, bool scaled,
-                                   double line_weight);
+std::vector<Cluster> buildClusters(const std::vector<PreparedView>& views, bool planes, bool lines,
+                                   bool scaled, double line_weight);
 /// Re-assigns LiDAR edges to image lines by projection; true if any view changed.
-bool reassociateEdges(const std::vector<View>& views, std::vector<PreparedView>* prepared, const Eigen::Isometry3d& T,
-                      std::vector<std::string>* notes);
+bool reassociateEdges(const std::vector<View>& views, std::vector<PreparedView>* prepared,
+                      const Eigen::Isometry3d& T, std::vector<std::string>* notes);
 /// MLRE, plane and line RMS and the per-view residuals of sol->camera_T_lidar.
-void fillResidualFigures(const std::vector<View>& views, const std::vector<PreparedView>& prepared, Method method,
-                         CalibrationSolution* sol);
+void fillResidualFigures(const std::vector<View>& views, const std::vector<PreparedView>& prepared,
+                         Method method, CalibrationSolution* sol);
 
 // --- cluster_solve.cpp ---
 /// A solve with the requested loss (squared loss in closed form, robust losses by IRLS).
-SolveOutcome solveStage(const std::vector<Cluster>& clusters, bool estimate_scale, const SolverOptions& options,
-                        bool warm, Pose* pose, const PlaneErrorModel& model = PlaneErrorModel());
+SolveOutcome solveStage(const std::vector<Cluster>& clusters, bool estimate_scale,
+                        const SolverOptions& options, bool warm, Pose* pose,
+                        const PlaneErrorModel& model = PlaneErrorModel());
 /// The more likely of a distance-independent camera plane error and one growing as a PnP's.
 PlaneErrorModel choosePlaneErrorModel(const std::vector<Cluster>& clusters, const Pose& pose,
                                       const SolverOptions& options);
 /// Cluster-robust covariance of the final problem at `pose`.
-bool finalCovariance(const std::vector<Cluster>& clusters, bool estimate_scale, const PlaneErrorModel& model,
-                     const SolverOptions& options, Pose pose, Matrix6d* covariance);
+bool finalCovariance(const std::vector<Cluster>& clusters, bool estimate_scale,
+                     const PlaneErrorModel& model, const SolverOptions& options, Pose pose,
+                     Matrix6d* covariance);
 
 }  // namespace calibrate_detail
 }  // namespace board_calib

@@ -16,10 +16,10 @@ namespace calibrate_detail {
 
 namespace {
 
-constexpr double kPlaneScaleMin = 0.5;     // bounds of the offset factor: a plausible board
+constexpr double kPlaneScaleMin = 0.5;  // bounds of the offset factor: a plausible board
 constexpr double kPlaneScaleMax = 2.0;
-constexpr int kMaxIrlsRounds = 10;         // reweighting rounds of a robust solve
-constexpr double kIrlsTolerance = 1e-9;    // rad / m / scale change that ends the rounds
+constexpr int kMaxIrlsRounds = 10;       // reweighting rounds of a robust solve
+constexpr double kIrlsTolerance = 1e-9;  // rad / m / scale change that ends the rounds
 
 // Weighted moments of one cluster's points: W = sum w, mean, scatter eigen-decomposition
 // (eigenvalues ascending; the first is the noise thickness across the plane).
@@ -40,7 +40,8 @@ Moments moments(const Points3& pts, const std::vector<double>* w) {
   if (!(m.W > 0.0)) return m;
   m.mean /= m.W;
   Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
-  for (size_t k = 0; k < pts.size(); ++k) S += (w ? (*w)[k] : 1.0) * (pts[k] - m.mean) * (pts[k] - m.mean).transpose();
+  for (size_t k = 0; k < pts.size(); ++k)
+    S += (w ? (*w)[k] : 1.0) * (pts[k] - m.mean) * (pts[k] - m.mean).transpose();
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(S);
   m.lambda = eig.eigenvalues().cwiseMax(0.0);
   m.axes = eig.eigenvectors();
@@ -58,28 +59,32 @@ double pointVariance(const Moments& m) {
 // residuals). Plane-error model (plane clusters): the offset at the mean and the two tilts
 // n . R v_k whitened by their variances, offset_var + s^2/W and tilt_var + s^2/lambda_k
 // (s^2 the point variance): generalised least squares over the view's shared plane error.
-ceres::CostFunction* clusterCost(const Cluster& cl, const Moments& m, bool scaled, const PlaneErrorModel& model,
-                                 const Eigen::Isometry3d& T) {
+ceres::CostFunction* clusterCost(const Cluster& cl, const Moments& m, bool scaled,
+                                 const PlaneErrorModel& model, const Eigen::Isometry3d& T) {
   double sqrt_weight = 0.0;
   Eigen::Matrix3d axes = Eigen::Matrix3d::Zero();
   if (model.enabled && cl.plane) {
     const double s2 = pointVariance(m), f = model.factor(T * m.mean);
     sqrt_weight = 1.0 / std::sqrt(f * model.offset_var + s2 / m.W);
     for (int k = 1; k < 3; ++k)
-      if (m.lambda(k) > 0.0) axes.col(k) = m.axes.col(k) / std::sqrt(f * model.tilt_var + s2 / m.lambda(k));
+      if (m.lambda(k) > 0.0)
+        axes.col(k) = m.axes.col(k) / std::sqrt(f * model.tilt_var + s2 / m.lambda(k));
   } else {
     sqrt_weight = std::sqrt(cl.weight * m.W);
     axes = m.axes * (cl.weight * m.lambda).cwiseSqrt().asDiagonal();
   }
-  if (scaled) return solvers_detail::ScaledClusterPlaneCost::Create(cl.normal, cl.offset, sqrt_weight, m.mean, axes);
+  if (scaled)
+    return solvers_detail::ScaledClusterPlaneCost::Create(cl.normal, cl.offset, sqrt_weight, m.mean,
+                                                          axes);
   return solvers_detail::ClusterPlaneCost::Create(cl.normal, cl.offset, sqrt_weight, m.mean, axes);
 }
 
 // The Ceres problem of the clusters in closed form (ClusterPlaneCost), one residual block per
 // cluster, with per-point weights (robust IRLS weights; all 1 when null). `blocks` receives each
 // residual block with its cluster id.
-void buildProblem(const std::vector<Cluster>& clusters, const std::vector<std::vector<double>>* point_weights,
-                  bool estimate_scale, const PlaneErrorModel& model, Pose* pose, ceres::Problem* problem,
+void buildProblem(const std::vector<Cluster>& clusters,
+                  const std::vector<std::vector<double>>* point_weights, bool estimate_scale,
+                  const PlaneErrorModel& model, Pose* pose, ceres::Problem* problem,
                   std::vector<std::pair<ceres::ResidualBlockId, int>>* blocks = nullptr) {
   problem->AddParameterBlock(pose->q, 4, new ceres::EigenQuaternionManifold());
   problem->AddParameterBlock(pose->t, 3);
@@ -95,16 +100,18 @@ void buildProblem(const std::vector<Cluster>& clusters, const std::vector<std::v
     if (!(m.W > 0.0)) continue;
     const bool scaled = estimate_scale && cl.scaled;
     ceres::CostFunction* cost = clusterCost(cl, m, scaled, model, T);
-    const ceres::ResidualBlockId id = scaled ? problem->AddResidualBlock(cost, nullptr, pose->q, pose->t, &pose->s)
-                                             : problem->AddResidualBlock(cost, nullptr, pose->q, pose->t);
+    const ceres::ResidualBlockId id =
+        scaled ? problem->AddResidualBlock(cost, nullptr, pose->q, pose->t, &pose->s)
+               : problem->AddResidualBlock(cost, nullptr, pose->q, pose->t);
     if (blocks) blocks->emplace_back(id, cl.id);
   }
 }
 
 // One Ceres solve of the clusters.
-SolveOutcome solveWeighted(const std::vector<Cluster>& clusters, const std::vector<std::vector<double>>* point_weights,
-                           bool estimate_scale, const PlaneErrorModel& model, const SolverOptions& options,
-                           Pose* pose) {
+SolveOutcome solveWeighted(const std::vector<Cluster>& clusters,
+                           const std::vector<std::vector<double>>* point_weights,
+                           bool estimate_scale, const PlaneErrorModel& model,
+                           const SolverOptions& options, Pose* pose) {
   ceres::Problem problem;
   buildProblem(clusters, point_weights, estimate_scale, model, pose, &problem);
   ceres::Solver::Options solver_options;
@@ -121,12 +128,14 @@ SolveOutcome solveWeighted(const std::vector<Cluster>& clusters, const std::vect
   return out;
 }
 
-double residualOf(const Cluster& cl, const Eigen::Isometry3d& T, double s, const Eigen::Vector3d& p) {
+double residualOf(const Cluster& cl, const Eigen::Isometry3d& T, double s,
+                  const Eigen::Vector3d& p) {
   return cl.normal.dot(T * p) - (cl.scaled ? s : 1.0) * cl.offset;
 }
 
 // Robust cost 1/2 sum_c w_c sum_m rho(r^2), as Ceres would report it.
-double robustCost(const std::vector<Cluster>& clusters, const Pose& pose, RobustLoss loss, double a) {
+double robustCost(const std::vector<Cluster>& clusters, const Pose& pose, RobustLoss loss,
+                  double a) {
   const Eigen::Isometry3d T = pose.isometry();
   const double a2 = a * a;
   double cost = 0.0;
@@ -151,8 +160,8 @@ double robustCost(const std::vector<Cluster>& clusters, const Pose& pose, Robust
 }
 
 // The robust loss's weight rho'(r^2) of every point at the pose (all 1 for the squared loss).
-std::vector<std::vector<double>> robustWeights(const std::vector<Cluster>& clusters, const Pose& pose,
-                                               const SolverOptions& options) {
+std::vector<std::vector<double>> robustWeights(const std::vector<Cluster>& clusters,
+                                               const Pose& pose, const SolverOptions& options) {
   const Eigen::Isometry3d T = pose.isometry();
   std::vector<std::vector<double>> weights(clusters.size());
   for (size_t c = 0; c < clusters.size(); ++c) {
@@ -170,8 +179,9 @@ std::vector<std::vector<double>> robustWeights(const std::vector<Cluster>& clust
 // stationary point of the robust cost), optionally after a squared-loss solve.
 }  // namespace
 
-SolveOutcome solveStage(const std::vector<Cluster>& clusters, bool estimate_scale, const SolverOptions& options,
-                        bool warm, Pose* pose, const PlaneErrorModel& model) {
+SolveOutcome solveStage(const std::vector<Cluster>& clusters, bool estimate_scale,
+                        const SolverOptions& options, bool warm, Pose* pose,
+                        const PlaneErrorModel& model) {
   SolveOutcome out;
   int iterations = 0;
   if (options.loss == RobustLoss::kNone || (warm && options.warm_start_unrobust)) {
@@ -190,7 +200,8 @@ SolveOutcome solveStage(const std::vector<Cluster>& clusters, bool estimate_scal
     if (!out.usable) break;
     const Eigen::Isometry3d after = pose->isometry();
     if (rotationErrorDeg(after, before.isometry()) * kRadPerDeg < kIrlsTolerance &&
-        translationErrorM(after, before.isometry()) < kIrlsTolerance && std::abs(pose->s - before.s) < kIrlsTolerance)
+        translationErrorM(after, before.isometry()) < kIrlsTolerance &&
+        std::abs(pose->s - before.s) < kIrlsTolerance)
       break;
   }
   out.iterations = iterations;
@@ -208,7 +219,8 @@ namespace {
 // negative log-likelihood of those residuals under the model, to compare distance powers.
 // Disabled when too few views.
 PlaneErrorModel estimatePlaneErrorModel(const std::vector<Cluster>& clusters, const Pose& pose,
-                                        const SolverOptions& options, double distance_power, double* nll) {
+                                        const SolverOptions& options, double distance_power,
+                                        double* nll) {
   constexpr double kPoseDofPerKind = 3.0;
   struct ViewTerms {
     double f, s2_offset, offset_sq;
@@ -273,14 +285,16 @@ PlaneErrorModel choosePlaneErrorModel(const std::vector<Cluster>& clusters, cons
   constexpr double kPnpDistancePower = 4.0;
   double nll_flat = 0.0, nll_pnp = 0.0;
   const PlaneErrorModel flat = estimatePlaneErrorModel(clusters, pose, options, 0.0, &nll_flat);
-  const PlaneErrorModel pnp = estimatePlaneErrorModel(clusters, pose, options, kPnpDistancePower, &nll_pnp);
+  const PlaneErrorModel pnp =
+      estimatePlaneErrorModel(clusters, pose, options, kPnpDistancePower, &nll_pnp);
   return pnp.enabled && nll_pnp < nll_flat ? pnp : flat;
 }
 
 // The covariance of the final problem (the clusters with the robust weights at the final pose,
 // the same residual blocks as the last solve) from Ceres, cluster-robust.
-bool finalCovariance(const std::vector<Cluster>& clusters, bool estimate_scale, const PlaneErrorModel& model,
-                     const SolverOptions& options, Pose pose, Matrix6d* covariance) {
+bool finalCovariance(const std::vector<Cluster>& clusters, bool estimate_scale,
+                     const PlaneErrorModel& model, const SolverOptions& options, Pose pose,
+                     Matrix6d* covariance) {
   const auto weights = robustWeights(clusters, pose, options);
   ceres::Problem problem;
   std::vector<std::pair<ceres::ResidualBlockId, int>> blocks;

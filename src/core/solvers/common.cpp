@@ -53,7 +53,8 @@ Expected<RobustLoss> parseRobustLoss(const std::string& name) {
   if (n == "huber") return RobustLoss::kHuber;
   if (n == "cauchy") return RobustLoss::kCauchy;
   if (n == "tukey") return RobustLoss::kTukey;
-  return Expected<RobustLoss>::failure("unknown robust loss '" + name + "' (expected none, huber, cauchy or tukey)");
+  return Expected<RobustLoss>::failure("unknown robust loss '" + name +
+                                       "' (expected none, huber, cauchy or tukey)");
 }
 
 const char* pbpcScheduleName(PbpcSchedule schedule) {
@@ -64,7 +65,8 @@ Expected<PbpcSchedule> parsePbpcSchedule(const std::string& name) {
   const std::string n = lower(name);
   if (n == "joint") return PbpcSchedule::kJoint;
   if (n == "sequential" || n == "paper") return PbpcSchedule::kSequential;
-  return Expected<PbpcSchedule>::failure("unknown PBPC schedule '" + name + "' (expected joint or sequential)");
+  return Expected<PbpcSchedule>::failure("unknown PBPC schedule '" + name +
+                                         "' (expected joint or sequential)");
 }
 
 SolverOptions realLidarSolverOptions() {
@@ -80,10 +82,12 @@ std::string SolverOptions::validate() const {
   auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
   if (!positive(loss_scale_m)) return "loss_scale_m must be > 0";
   if (max_iterations < 1) return "max_iterations must be >= 1";
-  if (!positive(function_tolerance) || !positive(gradient_tolerance) || !positive(parameter_tolerance))
+  if (!positive(function_tolerance) || !positive(gradient_tolerance) ||
+      !positive(parameter_tolerance))
     return "solver tolerances must be > 0";
   if (num_threads < 1) return "num_threads must be >= 1";
-  if (!std::isfinite(pbpc_line_weight) || pbpc_line_weight <= 0.0) return "pbpc_line_weight must be > 0";
+  if (!std::isfinite(pbpc_line_weight) || pbpc_line_weight <= 0.0)
+    return "pbpc_line_weight must be > 0";
   if (!std::isfinite(plane_scale_note_threshold) || plane_scale_note_threshold < 0.0)
     return "plane_scale_note_threshold must be >= 0";
   if (!std::isfinite(lidar_horizontal_resolution_deg) || lidar_horizontal_resolution_deg < 0.0 ||
@@ -91,8 +95,10 @@ std::string SolverOptions::validate() const {
     return "lidar_horizontal_resolution_deg must be in [0, 10]";
   if (!std::isfinite(edge_outward_shift_steps) || std::abs(edge_outward_shift_steps) > 2.0)
     return "edge_outward_shift_steps must be in [-2, 2]";
-  if (!positive(msg_normal_sigma_deg) || !positive(msg_offset_sigma_m)) return "msg sigmas must be > 0";
-  if (!std::isfinite(min_normal_spread_deg) || min_normal_spread_deg < 0.0 || min_normal_spread_deg >= 45.0)
+  if (!positive(msg_normal_sigma_deg) || !positive(msg_offset_sigma_m))
+    return "msg sigmas must be > 0";
+  if (!std::isfinite(min_normal_spread_deg) || min_normal_spread_deg < 0.0 ||
+      min_normal_spread_deg >= 45.0)
     return "min_normal_spread_deg must be in [0, 45)";
   if (!positive(observability_max_stddev)) return "observability_max_stddev must be > 0";
   return "";
@@ -100,8 +106,10 @@ std::string SolverOptions::validate() const {
 
 std::string RobustnessOptions::validate() const {
   if (trials < 1) return "trials must be >= 1";
-  if (!std::isfinite(rotation_sigma_deg) || rotation_sigma_deg < 0.0) return "rotation_sigma_deg must be >= 0";
-  if (!std::isfinite(translation_sigma_m) || translation_sigma_m < 0.0) return "translation_sigma_m must be >= 0";
+  if (!std::isfinite(rotation_sigma_deg) || rotation_sigma_deg < 0.0)
+    return "rotation_sigma_deg must be >= 0";
+  if (!std::isfinite(translation_sigma_m) || translation_sigma_m < 0.0)
+    return "translation_sigma_m must be >= 0";
   if (!std::isfinite(converged_rotation_deg) || converged_rotation_deg <= 0.0)
     return "converged_rotation_deg must be > 0";
   if (!std::isfinite(converged_translation_m) || converged_translation_m <= 0.0)
@@ -140,7 +148,8 @@ Observability analyseObservability(const Matrix6d& covariance, bool ok, double m
   constexpr double kTiny = 1e-30;
   out.min_eigenvalue = largest > kTiny ? 1.0 / largest : 0.0;
   out.max_eigenvalue = smallest > kTiny ? 1.0 / smallest : 0.0;
-  out.condition_number = smallest > kTiny ? largest / smallest : std::numeric_limits<double>::infinity();
+  out.condition_number =
+      smallest > kTiny ? largest / smallest : std::numeric_limits<double>::infinity();
   out.weakest_direction = eig.eigenvectors().col(5);
   const Vector6d& v = out.weakest_direction;
   const double rot = v.head<3>().squaredNorm();
@@ -151,8 +160,9 @@ Observability analyseObservability(const Matrix6d& covariance, bool ok, double m
   const char* axes = "xyz";
   std::ostringstream text;
   text.precision(2);
-  text << std::fixed << (is_rotation ? "rotation about " : "translation along ") << frame_name << " "
-       << axes[axis] << " (share " << part(axis) * part(axis) << " of the direction, 1 sigma ";
+  text << std::fixed << (is_rotation ? "rotation about " : "translation along ") << frame_name
+       << " " << axes[axis] << " (share " << part(axis) * part(axis)
+       << " of the direction, 1 sigma ";
   if (is_rotation)
     text << std::sqrt(largest) * kDegPerRad << " deg)";
   else
@@ -162,7 +172,8 @@ Observability analyseObservability(const Matrix6d& covariance, bool ok, double m
   return out;
 }
 
-Expected<Eigen::Matrix3d> alignVectors(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b,
+Expected<Eigen::Matrix3d> alignVectors(const std::vector<Eigen::Vector3d>& a,
+                                       const std::vector<Eigen::Vector3d>& b,
                                        const std::vector<double>& weights) {
   Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
   for (size_t i = 0; i < a.size(); ++i) M += weights[i] * a[i] * b[i].transpose();

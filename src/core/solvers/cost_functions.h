@@ -16,11 +16,12 @@ namespace solvers_detail {
 // (a_k = sqrt(lambda_k) v_k), the cluster's cost is exactly
 //   sum_m w_m (n . (R P_m + t) - s d)^2 = W (n . (R mu + t) - s d)^2 + sum_k (n . R a_k)^2,
 // so four residuals replace hundreds (PPC: n_i, d_i the camera plane; PBPC: n = K^T l / |K^T l|
-// and d = 0, the plane through the camera centre and the image line, so r is in metres): r_0 = sqrt(W) (n . (q * mu + t) - s d), r_k = n . (q * a_k).
+// and d = 0, the plane through the camera centre and the image line, so r is in metres): r_0 =
+// sqrt(W) (n . (q * mu + t) - s d), r_k = n . (q * a_k).
 class ClusterPlaneCost {
  public:
-  ClusterPlaneCost(const Eigen::Vector3d& normal, double offset, double sqrt_weight, const Eigen::Vector3d& mean,
-                   const Eigen::Matrix3d& axes)
+  ClusterPlaneCost(const Eigen::Vector3d& normal, double offset, double sqrt_weight,
+                   const Eigen::Vector3d& mean, const Eigen::Matrix3d& axes)
       : normal_(normal), offset_(offset), sqrt_weight_(sqrt_weight), mean_(mean), axes_(axes) {}
 
   template <typename T>
@@ -38,8 +39,9 @@ class ClusterPlaneCost {
     return true;
   }
 
-  static ceres::CostFunction* Create(const Eigen::Vector3d& normal, double offset, double sqrt_weight,
-                                     const Eigen::Vector3d& mean, const Eigen::Matrix3d& axes) {
+  static ceres::CostFunction* Create(const Eigen::Vector3d& normal, double offset,
+                                     double sqrt_weight, const Eigen::Vector3d& mean,
+                                     const Eigen::Matrix3d& axes) {
     return new ceres::AutoDiffCostFunction<ClusterPlaneCost, 4, 4, 3>(
         new ClusterPlaneCost(normal, offset, sqrt_weight, mean, axes));
   }
@@ -50,7 +52,6 @@ class ClusterPlaneCost {
   const double sqrt_weight_;
   const Eigen::Vector3d mean_;
   const Eigen::Matrix3d axes_;
-
 };
 
 // The same with the offset factor s as a third parameter block.
@@ -59,12 +60,14 @@ class ScaledClusterPlaneCost {
   explicit ScaledClusterPlaneCost(const ClusterPlaneCost& inner) : inner_(inner) {}
 
   template <typename T>
-  bool operator()(const T* const q_ptr, const T* const t_ptr, const T* const scale, T* residual) const {
+  bool operator()(const T* const q_ptr, const T* const t_ptr, const T* const scale,
+                  T* residual) const {
     return inner_.evaluate(q_ptr, t_ptr, scale[0], residual);
   }
 
-  static ceres::CostFunction* Create(const Eigen::Vector3d& normal, double offset, double sqrt_weight,
-                                     const Eigen::Vector3d& mean, const Eigen::Matrix3d& axes) {
+  static ceres::CostFunction* Create(const Eigen::Vector3d& normal, double offset,
+                                     double sqrt_weight, const Eigen::Vector3d& mean,
+                                     const Eigen::Matrix3d& axes) {
     return new ceres::AutoDiffCostFunction<ScaledClusterPlaneCost, 4, 4, 3, 1>(
         new ScaledClusterPlaneCost(ClusterPlaneCost(normal, offset, sqrt_weight, mean, axes)));
   }
@@ -78,7 +81,8 @@ class ScaledClusterPlaneCost {
 //   r = w (n_a - q * n_b)            [dimensionless, whitened to metres by w]
 class NormalAlignmentCost {
  public:
-  NormalAlignmentCost(const Eigen::Vector3d& normal_a, const Eigen::Vector3d& normal_b, double weight)
+  NormalAlignmentCost(const Eigen::Vector3d& normal_a, const Eigen::Vector3d& normal_b,
+                      double weight)
       : normal_a_(normal_a), normal_b_(normal_b), weight_(weight) {}
 
   template <typename T>
@@ -91,7 +95,8 @@ class NormalAlignmentCost {
     return true;
   }
 
-  static ceres::CostFunction* Create(const Eigen::Vector3d& normal_a, const Eigen::Vector3d& normal_b, double weight) {
+  static ceres::CostFunction* Create(const Eigen::Vector3d& normal_a,
+                                     const Eigen::Vector3d& normal_b, double weight) {
     return new ceres::AutoDiffCostFunction<NormalAlignmentCost, 3, 4>(
         new NormalAlignmentCost(normal_a, normal_b, weight));
   }
@@ -115,9 +120,15 @@ class NormalAlignmentCost {
 class PlaneGapCost {
  public:
   PlaneGapCost(const Eigen::Vector3d& normal_a, double offset_a, const Eigen::Vector3d& point_a,
-               const Eigen::Vector3d& normal_b, double offset_b, const Eigen::Vector3d& point_b, double weight)
-      : normal_a_(normal_a), point_a_(point_a), normal_b_(normal_b), point_b_(point_b), offset_a_(offset_a),
-        offset_b_(offset_b), weight_(weight) {}
+               const Eigen::Vector3d& normal_b, double offset_b, const Eigen::Vector3d& point_b,
+               double weight)
+      : normal_a_(normal_a),
+        point_a_(point_a),
+        normal_b_(normal_b),
+        point_b_(point_b),
+        offset_a_(offset_a),
+        offset_b_(offset_b),
+        weight_(weight) {}
 
   template <typename T>
   bool operator()(const T* const q_ptr, const T* const t_ptr, T* residual) const {
@@ -130,9 +141,10 @@ class PlaneGapCost {
     return true;
   }
 
-  static ceres::CostFunction* Create(const Eigen::Vector3d& normal_a, double offset_a, const Eigen::Vector3d& point_a,
-                                     const Eigen::Vector3d& normal_b, double offset_b, const Eigen::Vector3d& point_b,
-                                     double weight = 1.0) {
+  static ceres::CostFunction* Create(const Eigen::Vector3d& normal_a, double offset_a,
+                                     const Eigen::Vector3d& point_a,
+                                     const Eigen::Vector3d& normal_b, double offset_b,
+                                     const Eigen::Vector3d& point_b, double weight = 1.0) {
     return new ceres::AutoDiffCostFunction<PlaneGapCost, 1, 4, 3>(
         new PlaneGapCost(normal_a, offset_a, point_a, normal_b, offset_b, point_b, weight));
   }

@@ -55,7 +55,8 @@ bool clusterRobustCovariance(ceres::Problem* problem, const std::vector<double*>
     if (!problem->EvaluateResidualBlock(id, true, &cost, r.data(), jac_ptr.data())) return false;
     auto it = scores.try_emplace(cluster, Eigen::VectorXd::Zero(dim)).first;
     for (size_t k = 0; k < params.size(); ++k)
-      if (jac_ptr[k]) it->second.segment(offset_of[params[k]], jac[k].cols()) += jac[k].transpose() * r;
+      if (jac_ptr[k])
+        it->second.segment(offset_of[params[k]], jac[k].cols()) += jac[k].transpose() * r;
   }
   const double count = static_cast<double>(scores.size());
   if (count <= dim) return false;

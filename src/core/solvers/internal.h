@@ -18,7 +18,8 @@ Observability analyseObservability(const Matrix6d& covariance, bool ok, double m
                                    const std::string& frame_name);
 
 /// Kabsch: R minimising sum w |a_i - R b_i|^2. Fails when the pairs do not fix a rotation.
-Expected<Eigen::Matrix3d> alignVectors(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b,
+Expected<Eigen::Matrix3d> alignVectors(const std::vector<Eigen::Vector3d>& a,
+                                       const std::vector<Eigen::Vector3d>& b,
                                        const std::vector<double>& weights);
 
 /// Angle (deg) whose sine is the k-th singular value (k = 1 or 2, 0-based, descending) of the

@@ -11,12 +11,14 @@ namespace {
 // Sum and count of the perpendicular pixel distances of the LiDAR edge points paired with
 // image edges by the one association (core/common/edge_association.h); only image edge `only`
 // when it is >= 0.
-void accumulateView(const View& view, const Eigen::Isometry3d& camera_T_lidar, int only, double* sum, int* count) {
+void accumulateView(const View& view, const Eigen::Isometry3d& camera_T_lidar, int only,
+                    double* sum, int* count) {
   const EdgeAssociation a = associateEdges(view.camera, view.lidar, camera_T_lidar);
   for (int j = 0; j < kNumEdges; ++j) {
     if (!a.scored[j] || (only >= 0 && j != only)) continue;
     int n = 0;
-    const double mean = edgeLineDistancePx(view.camera, j, view.lidar.edge_points[a.lidar_edge[j]], camera_T_lidar, &n);
+    const double mean = edgeLineDistancePx(view.camera, j, view.lidar.edge_points[a.lidar_edge[j]],
+                                           camera_T_lidar, &n);
     *sum += mean * n;
     *count += n;
   }
@@ -29,7 +31,8 @@ std::optional<double> mean(double sum, int count) {
 
 }  // namespace
 
-std::optional<double> edgeLineReprojectionErrorPx(const View& view, int edge, const Eigen::Isometry3d& camera_T_lidar) {
+std::optional<double> edgeLineReprojectionErrorPx(const View& view, int edge,
+                                                  const Eigen::Isometry3d& camera_T_lidar) {
   if (edge < 0 || edge >= kNumEdges) return std::nullopt;
   double sum = 0.0;
   int count = 0;
@@ -37,7 +40,8 @@ std::optional<double> edgeLineReprojectionErrorPx(const View& view, int edge, co
   return mean(sum, count);
 }
 
-std::optional<double> viewLineReprojectionErrorPx(const View& view, const Eigen::Isometry3d& camera_T_lidar) {
+std::optional<double> viewLineReprojectionErrorPx(const View& view,
+                                                  const Eigen::Isometry3d& camera_T_lidar) {
   double sum = 0.0;
   int count = 0;
   accumulateView(view, camera_T_lidar, -1, &sum, &count);
@@ -52,7 +56,8 @@ std::optional<double> meanLineReprojectionErrorPx(const std::vector<View>& views
   return mean(sum, count);
 }
 
-std::optional<double> planeRmsM(const std::vector<View>& views, const Eigen::Isometry3d& camera_T_lidar) {
+std::optional<double> planeRmsM(const std::vector<View>& views,
+                                const Eigen::Isometry3d& camera_T_lidar) {
   double sum = 0.0;
   int count = 0;
   for (const View& view : views) {

@@ -10,7 +10,6 @@
 
 namespace board_calib {
 
-
 namespace {
 
 constexpr int kMinCorrespondences = 3;  // three non-coplanar planes fix the translation
@@ -20,7 +19,8 @@ constexpr double kUnitTolerance = 1e-3;
 constexpr double kMinRelativeDistance = 0.2;
 
 bool validPlane(const Plane& p) {
-  return p.normal.allFinite() && std::isfinite(p.offset) && std::abs(p.normal.norm() - 1.0) <= kUnitTolerance;
+  return p.normal.allFinite() && std::isfinite(p.offset) &&
+         std::abs(p.normal.norm() - 1.0) <= kUnitTolerance;
 }
 
 // The board point of correspondence k (the origins when none are given).
@@ -29,7 +29,8 @@ BoardPointPair pointsOf(const std::vector<BoardPointPair>& points, size_t k) {
 }
 
 // Checks the correspondences; empty when solvable.
-std::string checkCorrespondences(const std::vector<PlaneCorrespondence>& c, const std::vector<BoardPointPair>& points,
+std::string checkCorrespondences(const std::vector<PlaneCorrespondence>& c,
+                                 const std::vector<BoardPointPair>& points,
                                  const SolverOptions& options) {
   if (!points.empty() && points.size() != c.size())
     return std::to_string(points.size()) + " board point pairs for " + std::to_string(c.size()) +
@@ -40,13 +41,13 @@ std::string checkCorrespondences(const std::vector<PlaneCorrespondence>& c, cons
   std::vector<Eigen::Vector3d> normals;
   for (size_t i = 0; i < c.size(); ++i) {
     if (!validPlane(c[i].in_a) || !validPlane(c[i].in_b))
-      return "plane correspondence " + std::to_string(i) + " (view " + std::to_string(c[i].view_id) +
-             ") has a non-finite plane or a non-unit normal";
+      return "plane correspondence " + std::to_string(i) + " (view " +
+             std::to_string(c[i].view_id) + ") has a non-finite plane or a non-unit normal";
     if (!std::isfinite(c[i].weight) || c[i].weight <= 0.0)
       return "plane correspondence " + std::to_string(i) + " has a non-positive weight";
     if (!pointsOf(points, i).in_a.allFinite() || !pointsOf(points, i).in_b.allFinite())
-      return "plane correspondence " + std::to_string(i) + " (view " + std::to_string(c[i].view_id) +
-             ") has a non-finite board point";
+      return "plane correspondence " + std::to_string(i) + " (view " +
+             std::to_string(c[i].view_id) + ") has a non-finite board point";
     normals.push_back(c[i].in_a.normal);
   }
   const double parallel = solvers_detail::normalSpreadDeg(normals, 1);
@@ -55,8 +56,8 @@ std::string checkCorrespondences(const std::vector<PlaneCorrespondence>& c, cons
   text.precision(2);
   text << std::fixed;
   if (parallel < options.min_normal_spread_deg) {
-    text << "all board normals are parallel (spread " << parallel << " deg < " << options.min_normal_spread_deg
-         << " deg)";
+    text << "all board normals are parallel (spread " << parallel << " deg < "
+         << options.min_normal_spread_deg << " deg)";
     return text.str();
   }
   if (coplanar < options.min_normal_spread_deg) {
@@ -86,7 +87,8 @@ std::vector<ViewScale> distanceScales(const std::vector<BoardPointPair>& points)
   if (!(d_ref > 0.0)) return {};
   std::vector<ViewScale> scales(points.size());
   for (size_t k = 0; k < points.size(); ++k) {
-    const double u = std::max(0.5 * (points[k].in_a.norm() + points[k].in_b.norm()) / d_ref, kMinRelativeDistance);
+    const double u = std::max(0.5 * (points[k].in_a.norm() + points[k].in_b.norm()) / d_ref,
+                              kMinRelativeDistance);
     scales[k].normal = u;
     scales[k].gap = u * u;
   }
@@ -104,14 +106,16 @@ struct PairOutcome {
 
 // One solve; with `covariance`, also the cluster-robust covariance of the solved problem (each
 // correspondence's normal and offset residuals share the plane errors: one cluster).
-PairOutcome solvePair(const std::vector<PlaneCorrespondence>& c, const std::vector<BoardPointPair>& points,
-                      const std::vector<ViewScale>& scales, RobustLoss loss, const SolverOptions& options, double* q,
-                      double* t, bool covariance = false) {
+PairOutcome solvePair(const std::vector<PlaneCorrespondence>& c,
+                      const std::vector<BoardPointPair>& points,
+                      const std::vector<ViewScale>& scales, RobustLoss loss,
+                      const SolverOptions& options, double* q, double* t, bool covariance = false) {
   ceres::Problem problem;
   problem.AddParameterBlock(q, 4, new ceres::EigenQuaternionManifold());
   problem.AddParameterBlock(t, 3);
   // Whitening: normal residuals (unit-less) become metres-equivalent via sigma_d / sigma_n.
-  const double normal_weight = options.msg_offset_sigma_m / (options.msg_normal_sigma_deg * kRadPerDeg);
+  const double normal_weight =
+      options.msg_offset_sigma_m / (options.msg_normal_sigma_deg * kRadPerDeg);
   std::vector<std::pair<ceres::ResidualBlockId, int>> blocks;
   for (size_t k = 0; k < c.size(); ++k) {
     const PlaneCorrespondence& pc = c[k];
@@ -120,13 +124,20 @@ PairOutcome solvePair(const std::vector<PlaneCorrespondence>& c, const std::vect
     const double sn = scales.empty() ? 1.0 : 1.0 / scales[k].normal;
     const double sd = scales.empty() ? 1.0 : 1.0 / scales[k].gap;
     blocks.emplace_back(
-        problem.AddResidualBlock(solvers_detail::NormalAlignmentCost::Create(pc.in_a.normal, pc.in_b.normal, normal_weight * sn),
-                                 new ceres::ScaledLoss(solvers_detail::makeLoss(loss, options.loss_scale_m), w, ceres::TAKE_OWNERSHIP), q),
+        problem.AddResidualBlock(
+            solvers_detail::NormalAlignmentCost::Create(pc.in_a.normal, pc.in_b.normal,
+                                                        normal_weight * sn),
+            new ceres::ScaledLoss(solvers_detail::makeLoss(loss, options.loss_scale_m), w,
+                                  ceres::TAKE_OWNERSHIP),
+            q),
         static_cast<int>(k));
     blocks.emplace_back(
-        problem.AddResidualBlock(solvers_detail::PlaneGapCost::Create(pc.in_a.normal, pc.in_a.offset, at.in_a,
-                                                                      pc.in_b.normal, pc.in_b.offset, at.in_b, sd),
-                                 new ceres::ScaledLoss(solvers_detail::makeLoss(loss, options.loss_scale_m), w, ceres::TAKE_OWNERSHIP), q, t),
+        problem.AddResidualBlock(
+            solvers_detail::PlaneGapCost::Create(pc.in_a.normal, pc.in_a.offset, at.in_a,
+                                                 pc.in_b.normal, pc.in_b.offset, at.in_b, sd),
+            new ceres::ScaledLoss(solvers_detail::makeLoss(loss, options.loss_scale_m), w,
+                                  ceres::TAKE_OWNERSHIP),
+            q, t),
         static_cast<int>(k));
   }
   ceres::Solver::Options so;
@@ -141,7 +152,8 @@ PairOutcome solvePair(const std::vector<PlaneCorrespondence>& c, const std::vect
   out.termination = ceres::TerminationTypeToString(summary.termination_type);
   out.message = summary.message;
   if (covariance && out.usable)
-    out.covariance_ok = solvers_detail::clusterRobustCovariance(&problem, {q, t}, blocks, &out.covariance);
+    out.covariance_ok =
+        solvers_detail::clusterRobustCovariance(&problem, {q, t}, blocks, &out.covariance);
   return out;
 }
 
@@ -164,8 +176,9 @@ namespace {
 
 // Rotation by Kabsch on the normals; translation from the gaps at the boards (PlaneGapCost is
 // linear in t for a fixed rotation: m . t = d_a - d_b - (n_a - R n_b) . (c_a + R c_b) / 2).
-Expected<Eigen::Isometry3d> closedFormAtBoards(const std::vector<PlaneCorrespondence>& correspondences,
-                                               const std::vector<BoardPointPair>& points, const SolverOptions& options) {
+Expected<Eigen::Isometry3d> closedFormAtBoards(
+    const std::vector<PlaneCorrespondence>& correspondences,
+    const std::vector<BoardPointPair>& points, const SolverOptions& options) {
   const std::string why = checkCorrespondences(correspondences, points, options);
   if (!why.empty()) return Expected<Eigen::Isometry3d>::failure(why);
   std::vector<Eigen::Vector3d> a, b;
@@ -184,7 +197,8 @@ Expected<Eigen::Isometry3d> closedFormAtBoards(const std::vector<PlaneCorrespond
     const BoardPointPair at = pointsOf(points, k);
     const Eigen::Vector3d rnb = *R * c.in_b.normal;
     const Eigen::Vector3d m = 0.5 * (c.in_a.normal + rnb);
-    const double y = c.in_a.offset - c.in_b.offset - 0.5 * (c.in_a.normal - rnb).dot(at.in_a + *R * at.in_b);
+    const double y =
+        c.in_a.offset - c.in_b.offset - 0.5 * (c.in_a.normal - rnb).dot(at.in_a + *R * at.in_b);
     A += c.weight * m * m.transpose();
     rhs += c.weight * m * y;
   }
@@ -196,21 +210,22 @@ Expected<Eigen::Isometry3d> closedFormAtBoards(const std::vector<PlaneCorrespond
 
 }  // namespace
 
-Expected<Eigen::Isometry3d> closedFormPlaneToPlane(const std::vector<PlaneCorrespondence>& correspondences,
-                                                   const SolverOptions& options) {
+Expected<Eigen::Isometry3d> closedFormPlaneToPlane(
+    const std::vector<PlaneCorrespondence>& correspondences, const SolverOptions& options) {
   return closedFormAtBoards(correspondences, {}, options);
 }
 
 PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& correspondences,
-                                   const SolverOptions& options, const std::optional<Eigen::Isometry3d>& initial_guess) {
+                                   const SolverOptions& options,
+                                   const std::optional<Eigen::Isometry3d>& initial_guess) {
   return solvePlaneToPlane(correspondences, std::vector<BoardPointPair>{}, options, initial_guess);
 }
 
 namespace {
 
 // RMS normal angle and plane gap of the correspondences under sol->a_T_b.
-void residualFigures(const std::vector<PlaneCorrespondence>& correspondences, const std::vector<BoardPointPair>& points,
-                     PairwiseSolution* sol) {
+void residualFigures(const std::vector<PlaneCorrespondence>& correspondences,
+                     const std::vector<BoardPointPair>& points, PairwiseSolution* sol) {
   const Eigen::Matrix3d R = sol->a_T_b.linear();
   double angle_sq = 0.0, offset_sq = 0.0;
   for (size_t k = 0; k < correspondences.size(); ++k) {
@@ -230,7 +245,8 @@ void residualFigures(const std::vector<PlaneCorrespondence>& correspondences, co
 }  // namespace
 
 PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& correspondences,
-                                   const std::vector<BoardPointPair>& points, const SolverOptions& options,
+                                   const std::vector<BoardPointPair>& points,
+                                   const SolverOptions& options,
                                    const std::optional<Eigen::Isometry3d>& initial_guess) {
   PairwiseSolution sol;
   const std::string invalid = options.validate();
@@ -270,7 +286,8 @@ PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& corre
     sol.iterations += outcome.iterations;
   }
   if (!(options.warm_start_unrobust && options.loss != RobustLoss::kNone) || outcome.usable) {
-    outcome = solvePair(correspondences, points, scales, options.loss, options, q, t, options.compute_covariance);
+    outcome = solvePair(correspondences, points, scales, options.loss, options, q, t,
+                        options.compute_covariance);
     sol.iterations += outcome.iterations;
   }
   sol.final_cost = outcome.cost;
@@ -290,7 +307,8 @@ PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& corre
     sol.covariance = outcome.covariance;
     if (!cov_ok) sol.covariance.setConstant(std::numeric_limits<double>::infinity());
     sol.stddev = stddevFromCovariance(sol.covariance);
-    sol.observability = solvers_detail::analyseObservability(sol.covariance, cov_ok, options.observability_max_stddev, "a");
+    sol.observability = solvers_detail::analyseObservability(sol.covariance, cov_ok,
+                                                             options.observability_max_stddev, "a");
     if (!sol.observability.well_conditioned)
       sol.notes.push_back("weakly observable: " + sol.observability.weakest_description);
   }
@@ -308,10 +326,14 @@ CalibrationSolution calibrateMsgPair(const std::vector<View>& views, const Solve
   std::vector<BoardPointPair> points;
   for (const View& v : views) {
     std::string why;
-    if (!v.camera.found) why = "camera found no board";
-    else if (!v.lidar.found) why = "LiDAR found no board";
-    else if (!validPlane(v.camera.plane)) why = "camera board plane is not finite or its normal not unit";
-    else if (!validPlane(v.lidar.plane)) why = "LiDAR board plane is not finite or its normal not unit";
+    if (!v.camera.found)
+      why = "camera found no board";
+    else if (!v.lidar.found)
+      why = "LiDAR found no board";
+    else if (!validPlane(v.camera.plane))
+      why = "camera board plane is not finite or its normal not unit";
+    else if (!validPlane(v.lidar.plane))
+      why = "LiDAR board plane is not finite or its normal not unit";
     ViewResidual vr;
     vr.view_id = v.id;
     vr.used = why.empty();

@@ -17,8 +17,8 @@ namespace calibrate_detail {
 
 namespace {
 
-constexpr int kMinPpcViews = 3;            // 3 non-coplanar planes fix the translation
-constexpr int kMinPbpcViews = 2;           // 8 line correspondences: DLT-lines needs 6
+constexpr int kMinPpcViews = 3;   // 3 non-coplanar planes fix the translation
+constexpr int kMinPbpcViews = 2;  // 8 line correspondences: DLT-lines needs 6
 constexpr double kUnitNormalTolerance = 1e-3;
 constexpr double kSameScanLineRad = 0.05 * kRadPerDeg;  // elevation gap that separates scan lines
 constexpr size_t kMinScanLinePoints = 3;
@@ -59,22 +59,29 @@ PreparedView prepareView(const View& view, int index, Method method, const Solve
     pv.reason = why;
     return pv;
   };
-  if (!view.camera.found) return fail("camera found no board" + (view.camera.reason.empty() ? "" : ": " + view.camera.reason));
-  if (!view.lidar.found) return fail("LiDAR found no board" + (view.lidar.reason.empty() ? "" : ": " + view.lidar.reason));
+  if (!view.camera.found)
+    return fail("camera found no board" +
+                (view.camera.reason.empty() ? "" : ": " + view.camera.reason));
+  if (!view.lidar.found)
+    return fail("LiDAR found no board" +
+                (view.lidar.reason.empty() ? "" : ": " + view.lidar.reason));
   const Eigen::Matrix3d& K = view.camera.K;
-  if (!K.allFinite() || !(K(0, 0) > 0.0) || !(K(1, 1) > 0.0)) return fail("camera K is not a valid intrinsic matrix");
+  if (!K.allFinite() || !(K(0, 0) > 0.0) || !(K(1, 1) > 0.0))
+    return fail("camera K is not a valid intrinsic matrix");
   size_t bad = 0;
   if (view.lidar.board_points.empty()) return fail("no LiDAR board points");
   if (!finitePoints(view.lidar.board_points, &bad))
     return fail("LiDAR board point " + std::to_string(bad) + " is not finite");
   for (int j = 0; j < kNumEdges; ++j)
     if (!finitePoints(view.lidar.edge_points[j], &bad))
-      return fail(std::string("LiDAR ") + edgeName(j) + " edge point " + std::to_string(bad) + " is not finite");
+      return fail(std::string("LiDAR ") + edgeName(j) + " edge point " + std::to_string(bad) +
+                  " is not finite");
   pv.board_points = &view.lidar.board_points;
 
   pv.plane_ok = unitNormal(view.camera.plane, &pv.cam_normal, &pv.cam_offset);
   pv.lidar_plane_ok = unitNormal(view.lidar.plane, &pv.lidar_normal, &pv.lidar_offset);
-  if (method == Method::kPpc && !pv.plane_ok) return fail("camera board plane is not finite or its normal not unit");
+  if (method == Method::kPpc && !pv.plane_ok)
+    return fail("camera board plane is not finite or its normal not unit");
 
   // LiDAR edges, optionally shifted outward along the scan line by a fraction of the step.
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
@@ -83,12 +90,14 @@ PreparedView prepareView(const View& view, int index, Method method, const Solve
   const double centre_azimuth = std::atan2(centroid.y(), centroid.x());
   const double shift = options.edge_outward_shift_steps * horizontal_step_rad;
   for (int j = 0; j < kNumEdges; ++j) {
-    pv.lidar_edge_ok[j] = view.lidar.edge_valid[j] && static_cast<int>(view.lidar.edge_points[j].size()) >= kMinEdgePoints;
+    pv.lidar_edge_ok[j] = view.lidar.edge_valid[j] &&
+                          static_cast<int>(view.lidar.edge_points[j].size()) >= kMinEdgePoints;
     if (!pv.lidar_edge_ok[j]) continue;
     pv.lidar_edges[j] = view.lidar.edge_points[j];
     if (shift != 0.0) {
       for (auto& p : pv.lidar_edges[j]) {
-        const double side = wrapAngle(std::atan2(p.y(), p.x()) - centre_azimuth) >= 0.0 ? 1.0 : -1.0;
+        const double side =
+            wrapAngle(std::atan2(p.y(), p.x()) - centre_azimuth) >= 0.0 ? 1.0 : -1.0;
         p = rotateAboutZ(p, side * shift);
       }
     }
@@ -149,7 +158,8 @@ double estimateHorizontalStepRad(const std::vector<View>& views) {
     std::sort(elev_az.begin(), elev_az.end());
     size_t begin = 0;
     for (size_t i = 1; i <= elev_az.size(); ++i) {
-      if (i < elev_az.size() && elev_az[i].first - elev_az[i - 1].first < kSameScanLineRad) continue;
+      if (i < elev_az.size() && elev_az[i].first - elev_az[i - 1].first < kSameScanLineRad)
+        continue;
       if (i - begin >= kMinScanLinePoints) {
         std::vector<double> az;
         for (size_t k = begin; k < i; ++k) az.push_back(elev_az[k].second);
@@ -163,19 +173,21 @@ double estimateHorizontalStepRad(const std::vector<View>& views) {
     }
   }
   if (line_minima.empty()) return 0.0;
-  std::nth_element(line_minima.begin(), line_minima.begin() + line_minima.size() / 2, line_minima.end());
+  std::nth_element(line_minima.begin(), line_minima.begin() + line_minima.size() / 2,
+                   line_minima.end());
   const double step = line_minima[line_minima.size() / 2];
   return step <= kMaxPlausibleStepRad ? step : 0.0;
 }
 
 }  // namespace
 
-std::vector<PreparedView> prepareAll(const std::vector<View>& views, Method method, const SolverOptions& options,
-                                     double* step_used) {
+std::vector<PreparedView> prepareAll(const std::vector<View>& views, Method method,
+                                     const SolverOptions& options, double* step_used) {
   double step = 0.0;
   if (options.edge_outward_shift_steps != 0.0)
-    step = options.lidar_horizontal_resolution_deg > 0.0 ? options.lidar_horizontal_resolution_deg * kRadPerDeg
-                                                         : estimateHorizontalStepRad(views);
+    step = options.lidar_horizontal_resolution_deg > 0.0
+               ? options.lidar_horizontal_resolution_deg * kRadPerDeg
+               : estimateHorizontalStepRad(views);
   if (step_used) *step_used = step;
   std::vector<PreparedView> prepared;
   prepared.reserve(views.size());
@@ -185,8 +197,8 @@ std::vector<PreparedView> prepareAll(const std::vector<View>& views, Method meth
 }
 
 // Degeneracy checks; empty when the views can be solved.
-std::string checkGeometry(const std::vector<PreparedView>& prepared, Method method, const SolverOptions& options,
-                          int* used) {
+std::string checkGeometry(const std::vector<PreparedView>& prepared, Method method,
+                          const SolverOptions& options, int* used) {
   std::vector<Eigen::Vector3d> normals;
   *used = 0;
   for (const auto& v : prepared) {
@@ -197,8 +209,9 @@ std::string checkGeometry(const std::vector<PreparedView>& prepared, Method meth
   const int needed = method == Method::kPpc ? kMinPpcViews : kMinPbpcViews;
   if (*used < needed) {
     std::ostringstream text;
-    text << "only " << *used << " usable view(s) of " << prepared.size() << "; " << methodName(method)
-         << " needs >= " << needed << (method == Method::kPpc ? " non-coplanar views" : " views with edges")
+    text << "only " << *used << " usable view(s) of " << prepared.size() << "; "
+         << methodName(method) << " needs >= " << needed
+         << (method == Method::kPpc ? " non-coplanar views" : " views with edges")
          << usableSummary(prepared);
     return text.str();
   }
@@ -215,8 +228,8 @@ std::string checkGeometry(const std::vector<PreparedView>& prepared, Method meth
     if (coplanar < options.min_normal_spread_deg) {
       std::ostringstream text;
       text.precision(2);
-      text << std::fixed << "the board normals are coplanar (out-of-plane spread " << coplanar << " deg < "
-           << options.min_normal_spread_deg
+      text << std::fixed << "the board normals are coplanar (out-of-plane spread " << coplanar
+           << " deg < " << options.min_normal_spread_deg
            << " deg): PPC needs >= 3 non-coplanar views; tilt the board about two different axes";
       return text.str();
     }
@@ -239,7 +252,8 @@ Expected<Eigen::Isometry3d> closedForm(const std::vector<PreparedView>& prepared
       weights.push_back(1.0);
     }
   if (cam_normals.size() < 2)
-    return Expected<Eigen::Isometry3d>::failure("closed-form initialiser needs >= 2 views with planes in both sensors");
+    return Expected<Eigen::Isometry3d>::failure(
+        "closed-form initialiser needs >= 2 views with planes in both sensors");
   auto R = solvers_detail::alignVectors(cam_normals, lidar_normals, weights);
   if (!R) return Expected<Eigen::Isometry3d>::failure("closed-form initialiser: " + R.error());
   // Translation: n_C . t = d_C - n_C . R (point on the LiDAR plane) per view; lines (PBPC):
@@ -269,27 +283,30 @@ Expected<Eigen::Isometry3d> closedForm(const std::vector<PreparedView>& prepared
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(A);
   constexpr double kMinRelativeEigen = 1e-9;
   if (!(eig.eigenvalues()(0) > kMinRelativeEigen * eig.eigenvalues()(2)))
-    return Expected<Eigen::Isometry3d>::failure("closed-form initialiser: the translation is not constrained");
+    return Expected<Eigen::Isometry3d>::failure(
+        "closed-form initialiser: the translation is not constrained");
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.linear() = *R;
   T.translation() = A.ldlt().solve(b);
   return T;
 }
 
-std::vector<Cluster> buildClusters(const std::vector<PreparedView>& views, bool planes, bool lines, bool scaled,
-                                   double line_weight) {
+std::vector<Cluster> buildClusters(const std::vector<PreparedView>& views, bool planes, bool lines,
+                                   bool scaled, double line_weight) {
   std::vector<Cluster> clusters;
   for (const PreparedView& v : views) {
     if (!v.used) continue;
     if (planes && v.plane_ok)
-      clusters.push_back({v.cam_normal, v.cam_offset, 1.0 / static_cast<double>(v.board_points->size()), scaled,
-                          true, v.index * (kNumEdges + 1), v.board_points});
+      clusters.push_back({v.cam_normal, v.cam_offset,
+                          1.0 / static_cast<double>(v.board_points->size()), scaled, true,
+                          v.index * (kNumEdges + 1), v.board_points});
     if (lines) {
       for (int j = 0; j < kNumEdges; ++j) {
         const int k = v.association[j];
         if (!v.image_edge_ok[j] || k < 0 || !v.lidar_edge_ok[k]) continue;
-        clusters.push_back({v.backprojected_normal[j], 0.0, line_weight / static_cast<double>(v.lidar_edges[k].size()),
-                            false, false, v.index * (kNumEdges + 1) + 1 + j, &v.lidar_edges[k]});
+        clusters.push_back({v.backprojected_normal[j], 0.0,
+                            line_weight / static_cast<double>(v.lidar_edges[k].size()), false,
+                            false, v.index * (kNumEdges + 1) + 1 + j, &v.lidar_edges[k]});
       }
     }
   }
@@ -298,8 +315,8 @@ std::vector<Cluster> buildClusters(const std::vector<PreparedView>& views, bool 
 
 // Re-assigns LiDAR edges to image lines by projection (core/common/edge_association.h, the
 // association the MLRE figures and the overlay use); true if any view changed.
-bool reassociateEdges(const std::vector<View>& views, std::vector<PreparedView>* prepared, const Eigen::Isometry3d& T,
-                      std::vector<std::string>* notes) {
+bool reassociateEdges(const std::vector<View>& views, std::vector<PreparedView>* prepared,
+                      const Eigen::Isometry3d& T, std::vector<std::string>* notes) {
   bool changed = false;
   for (PreparedView& v : *prepared) {
     if (!v.used) continue;
@@ -308,7 +325,8 @@ bool reassociateEdges(const std::vector<View>& views, std::vector<PreparedView>*
     if (a.lidar_edge == v.association) continue;
     std::ostringstream note;
     note << "view " << v.id << ": LiDAR edges re-associated to image lines by projection (";
-    for (int j = 0; j < kNumEdges; ++j) note << (j ? ", " : "") << edgeName(j) << "<-" << edgeName(a.lidar_edge[j]);
+    for (int j = 0; j < kNumEdges; ++j)
+      note << (j ? ", " : "") << edgeName(j) << "<-" << edgeName(a.lidar_edge[j]);
     note << ")";
     notes->push_back(note.str());
     v.association = a.lidar_edge;
@@ -317,8 +335,8 @@ bool reassociateEdges(const std::vector<View>& views, std::vector<PreparedView>*
   return changed;
 }
 
-void fillResidualFigures(const std::vector<View>& views, const std::vector<PreparedView>& prepared, Method method,
-                         CalibrationSolution* sol) {
+void fillResidualFigures(const std::vector<View>& views, const std::vector<PreparedView>& prepared,
+                         Method method, CalibrationSolution* sol) {
   const Eigen::Isometry3d& T = sol->camera_T_lidar;
   const Eigen::Matrix3d R = T.linear();
   double mlre_sum = 0.0, line_sq = 0.0, plane_sq = 0.0;
@@ -332,7 +350,8 @@ void fillResidualFigures(const std::vector<View>& views, const std::vector<Prepa
     if (v.board_points && v.plane_ok) {
       std::vector<double> r;
       r.reserve(v.board_points->size());
-      for (const auto& p : *v.board_points) r.push_back(v.cam_normal.dot(R * p + T.translation()) - v.cam_offset);
+      for (const auto& p : *v.board_points)
+        r.push_back(v.cam_normal.dot(R * p + T.translation()) - v.cam_offset);
       vr.plane = stats(r);
       if (v.used) {
         plane_sq += vr.plane.rms_m * vr.plane.rms_m * vr.plane.count;
@@ -348,12 +367,14 @@ void fillResidualFigures(const std::vector<View>& views, const std::vector<Prepa
       if (!v.used || !v.image_edge_ok[j] || !v.lidar_edge_ok[k]) continue;
       er.used = method == Method::kPbpc;
       std::vector<double> r;
-      for (const auto& q : v.lidar_edges[k]) r.push_back(v.backprojected_normal[j].dot(R * q + T.translation()));
+      for (const auto& q : v.lidar_edges[k])
+        r.push_back(v.backprojected_normal[j].dot(R * q + T.translation()));
       er.distance = stats(r);
       line_sq += er.distance.rms_m * er.distance.rms_m * er.distance.count;
       line_count += er.distance.count;
       int count = 0;
-      const double mean = edgeLineDistancePx(views[v.index].camera, j, views[v.index].lidar.edge_points[k], T, &count);
+      const double mean = edgeLineDistancePx(views[v.index].camera, j,
+                                             views[v.index].lidar.edge_points[k], T, &count);
       if (count > 0) {
         er.mlre_px = mean;
         view_sum += mean * count;

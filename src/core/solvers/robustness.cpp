@@ -8,7 +8,8 @@
 namespace board_calib {
 
 RobustnessReport evaluateRandomInitialisation(const std::vector<View>& views, Method method,
-                                              const SolverOptions& options, const RobustnessOptions& robustness,
+                                              const SolverOptions& options,
+                                              const RobustnessOptions& robustness,
                                               const std::optional<Eigen::Isometry3d>& reference) {
   RobustnessReport report;
   const std::string invalid = robustness.validate();
@@ -30,7 +31,8 @@ RobustnessReport evaluateRandomInitialisation(const std::vector<View>& views, Me
   }
 
   std::mt19937 rng(robustness.seed);
-  const Eigen::Isometry3d centre = robustness.around_reference ? report.reference : Eigen::Isometry3d::Identity();
+  const Eigen::Isometry3d centre =
+      robustness.around_reference ? report.reference : Eigen::Isometry3d::Identity();
   std::vector<Eigen::Isometry3d> converged;
   double time_sum = 0.0;
   for (int i = 0; i < robustness.trials; ++i) {
@@ -43,7 +45,8 @@ RobustnessReport evaluateRandomInitialisation(const std::vector<View>& views, Me
                                      : std::numeric_limits<double>::infinity();
     report.rotation_error_deg.push_back(rot);
     report.translation_error_m.push_back(trans);
-    if (sol.success && rot <= robustness.converged_rotation_deg && trans <= robustness.converged_translation_m)
+    if (sol.success && rot <= robustness.converged_rotation_deg &&
+        trans <= robustness.converged_translation_m)
       converged.push_back(sol.camera_T_lidar);
   }
   report.trials = robustness.trials;

@@ -16,8 +16,9 @@ namespace {
 constexpr double kMadToSigma = 1.4826;
 constexpr double kMinDistanceFactor = 0.5, kMaxDistanceFactor = 4.0;
 constexpr int kRefineRounds = 4;
-constexpr double kMinScale = 0.7, kMaxScale = 1.3;  // a board declared more than 30 % off is an error
-constexpr double kMaxScaleCondition = 1e4;          // (t, s) fit conditioning before the scale is trusted
+constexpr double kMinScale = 0.7,
+                 kMaxScale = 1.3;           // a board declared more than 30 % off is an error
+constexpr double kMaxScaleCondition = 1e4;  // (t, s) fit conditioning before the scale is trusted
 constexpr int kMinViewsForScale = 6;
 
 struct Obs {
@@ -36,8 +37,10 @@ Eigen::Matrix3d kabsch(const std::vector<const Obs*>& obs) {
   return svd.matrixV() * D * svd.matrixU().transpose();
 }
 
-// t (and s when asked and well determined) from s d_c - d_l = n_c . t, weighted by the offset error.
-bool fitOffsets(const std::vector<const Obs*>& obs, bool with_scale, Eigen::Vector3d* t, double* s) {
+// t (and s when asked and well determined) from s d_c - d_l = n_c . t, weighted by the offset
+// error.
+bool fitOffsets(const std::vector<const Obs*>& obs, bool with_scale, Eigen::Vector3d* t,
+                double* s) {
   const int cols = with_scale ? 4 : 3;
   Eigen::MatrixXd A(obs.size(), cols);
   Eigen::VectorXd b(obs.size());
@@ -64,17 +67,27 @@ bool fitOffsets(const std::vector<const Obs*>& obs, bool with_scale, Eigen::Vect
 double normalResidualRad(const Obs& o, const Eigen::Matrix3d& R) {
   return std::acos(std::clamp(o.nc.dot(R * o.nl), -1.0, 1.0));
 }
-double offsetResidual(const Obs& o, const Eigen::Vector3d& t, double s) { return std::abs(s * o.dc - o.dl - o.nc.dot(t)); }
+double offsetResidual(const Obs& o, const Eigen::Vector3d& t, double s) {
+  return std::abs(s * o.dc - o.dl - o.nc.dot(t));
+}
 
 }  // namespace
 
 std::string ConsistencyOptions::validate() const {
-  const double all[] = {inlier_sigmas, min_normal_tolerance_deg, min_offset_tolerance_m, max_normal_tolerance_deg,
-                        max_offset_tolerance_m, first_normal_tolerance_deg, first_offset_tolerance_m,
-                        min_sample_spread_deg, on_board_margin_m, min_on_board_fraction};
+  const double all[] = {inlier_sigmas,
+                        min_normal_tolerance_deg,
+                        min_offset_tolerance_m,
+                        max_normal_tolerance_deg,
+                        max_offset_tolerance_m,
+                        first_normal_tolerance_deg,
+                        first_offset_tolerance_m,
+                        min_sample_spread_deg,
+                        on_board_margin_m,
+                        min_on_board_fraction};
   for (double v : all)
     if (!std::isfinite(v) || v < 0) return "consistency options must be finite and >= 0";
-  if (min_normal_tolerance_deg > max_normal_tolerance_deg || min_offset_tolerance_m > max_offset_tolerance_m)
+  if (min_normal_tolerance_deg > max_normal_tolerance_deg ||
+      min_offset_tolerance_m > max_offset_tolerance_m)
     return "consistency tolerance floors must not exceed their ceilings";
   if (min_on_board_fraction > 1.0) return "min_on_board_fraction must be <= 1";
   if (max_samples < 1) return "max_samples must be >= 1";
@@ -108,7 +121,8 @@ ConsistencyReport checkViewConsistency(const std::vector<View>& views, const Tar
     const bool ok = v.lidar.found && v.camera.found && v.lidar.plane.normal.allFinite() &&
                     v.camera.plane.normal.allFinite() && std::isfinite(v.lidar.plane.offset) &&
                     std::isfinite(v.camera.plane.offset) && v.lidar.plane.normal.norm() > 0.5 &&
-                    v.camera.plane.normal.norm() > 0.5 && v.camera.camera_T_board.matrix().allFinite();
+                    v.camera.plane.normal.norm() > 0.5 &&
+                    v.camera.camera_T_board.matrix().allFinite();
     if (!ok) {
       vc.reason = "the board is missing or not finite in one sensor";
       continue;
@@ -128,7 +142,8 @@ ConsistencyReport checkViewConsistency(const std::vector<View>& views, const Tar
     return r;
   }
   if (obs.size() < 3) {
-    r.reason = std::to_string(obs.size()) + " usable view(s): a calibration needs at least 3 with different tilts";
+    r.reason = std::to_string(obs.size()) +
+               " usable view(s): a calibration needs at least 3 with different tilts";
     return r;
   }
   const double d_med = std::max(1e-3, medianOf(distances));
@@ -156,12 +171,13 @@ ConsistencyReport checkViewConsistency(const std::vector<View>& views, const Tar
   }
   const double min_spread = std::sin(o.min_sample_spread_deg * kRadPerDeg);
   double tol_a = o.first_normal_tolerance_deg * kRadPerDeg, tol_o = o.first_offset_tolerance_m;
-  auto inliersOf = [&](const Eigen::Matrix3d& R, const Eigen::Vector3d& t, double s, double ta, double to,
-                       double* cost) {
+  auto inliersOf = [&](const Eigen::Matrix3d& R, const Eigen::Vector3d& t, double s, double ta,
+                       double to, double* cost) {
     std::vector<const Obs*> in;
     *cost = 0;
     for (const Obs& x : obs) {
-      const double ea = normalResidualRad(x, R) / (ta * x.fa), eo = offsetResidual(x, t, s) / (to * x.fo);
+      const double ea = normalResidualRad(x, R) / (ta * x.fa),
+                   eo = offsetResidual(x, t, s) / (to * x.fo);
       if (ea <= 1.0 && eo <= 1.0) {
         in.push_back(&x);
         *cost += ea * ea + eo * eo;
@@ -178,7 +194,8 @@ ConsistencyReport checkViewConsistency(const std::vector<View>& views, const Tar
     Eigen::Matrix3d N;
     for (int k = 0; k < 3; ++k) N.col(k) = obs[static_cast<size_t>(tri[k])].nc;
     if (std::abs(N.determinant()) < min_spread * min_spread * min_spread) continue;
-    const std::vector<const Obs*> sample{&obs[static_cast<size_t>(tri[0])], &obs[static_cast<size_t>(tri[1])],
+    const std::vector<const Obs*> sample{&obs[static_cast<size_t>(tri[0])],
+                                         &obs[static_cast<size_t>(tri[1])],
                                          &obs[static_cast<size_t>(tri[2])]};
     const Eigen::Matrix3d Rs = kabsch(sample);
     Eigen::Vector3d ts;
@@ -196,13 +213,15 @@ ConsistencyReport checkViewConsistency(const std::vector<View>& views, const Tar
   }
   if (best.size() < 3) {
     r.reason = "no three views agree on one rigid motion (the board normals must differ by " +
-               formatFixed(o.min_sample_spread_deg, 0) + " deg or more, and the two sensors must see the same board)";
+               formatFixed(o.min_sample_spread_deg, 0) +
+               " deg or more, and the two sensors must see the same board)";
     return r;
   }
   // Refit on the consensus, then set the tolerances from its residuals' robust spread.
   for (int round = 0; round < kRefineRounds; ++round) {
     R = kabsch(best);
-    const bool scale = static_cast<int>(best.size()) >= kMinViewsForScale && fitOffsets(best, true, &t, &s);
+    const bool scale =
+        static_cast<int>(best.size()) >= kMinViewsForScale && fitOffsets(best, true, &t, &s);
     if (!scale) {
       s = 1.0;
       if (!fitOffsets(best, false, &t, &s)) break;
@@ -213,9 +232,11 @@ ConsistencyReport checkViewConsistency(const std::vector<View>& views, const Tar
       eo.push_back(offsetResidual(*x, t, s) / x->fo);
     }
     if (static_cast<int>(best.size()) > 3) {
-      tol_a = std::clamp(o.inlier_sigmas * kMadToSigma * medianOf(ea), o.min_normal_tolerance_deg * kRadPerDeg,
+      tol_a = std::clamp(o.inlier_sigmas * kMadToSigma * medianOf(ea),
+                         o.min_normal_tolerance_deg * kRadPerDeg,
                          o.max_normal_tolerance_deg * kRadPerDeg);
-      tol_o = std::clamp(o.inlier_sigmas * kMadToSigma * medianOf(eo), o.min_offset_tolerance_m, o.max_offset_tolerance_m);
+      tol_o = std::clamp(o.inlier_sigmas * kMadToSigma * medianOf(eo), o.min_offset_tolerance_m,
+                         o.max_offset_tolerance_m);
     }
     double cost = 0;
     auto in = inliersOf(R, t, s, tol_a, tol_o, &cost);
@@ -243,20 +264,24 @@ ConsistencyReport checkViewConsistency(const std::vector<View>& views, const Tar
     int on = 0;
     for (const auto& p : v.lidar.board_points) {
       const Eigen::Vector3d b = board_T_lidar * p;
-      on += b.x() >= -margin && b.x() <= target.width + margin && b.y() >= -margin && b.y() <= target.height + margin &&
-            std::abs(b.z()) <= margin;
+      on += b.x() >= -margin && b.x() <= target.width + margin && b.y() >= -margin &&
+            b.y() <= target.height + margin && std::abs(b.z()) <= margin;
     }
-    vc.on_board_fraction = v.lidar.board_points.empty() ? 0.0 : static_cast<double>(on) / v.lidar.board_points.size();
+    vc.on_board_fraction =
+        v.lidar.board_points.empty() ? 0.0 : static_cast<double>(on) / v.lidar.board_points.size();
     const bool on_board = vc.on_board_fraction >= o.min_on_board_fraction;
     vc.consistent = planes_agree && on_board;
     if (!planes_agree)
       vc.reason = "the two sensors' board planes disagree with the other views (normal " +
-                  formatFixed(vc.normal_residual_deg, 2) + " deg, offset " + formatFixed(vc.offset_residual_m * 100, 1) +
-                  " cm; allowed " + formatFixed(ta, 2) + " deg, " + formatFixed(to * 100, 1) +
-                  " cm): another object taken for the board, or the board moved between the sensors' frames";
+                  formatFixed(vc.normal_residual_deg, 2) + " deg, offset " +
+                  formatFixed(vc.offset_residual_m * 100, 1) + " cm; allowed " +
+                  formatFixed(ta, 2) + " deg, " + formatFixed(to * 100, 1) +
+                  " cm): another object taken for the board, or the board moved between the "
+                  "sensors' frames";
     else if (!on_board)
-      vc.reason = "only " + formatFixed(vc.on_board_fraction * 100, 0) +
-                  " % of the LiDAR board points land on the camera's board: the LiDAR found another object";
+      vc.reason =
+          "only " + formatFixed(vc.on_board_fraction * 100, 0) +
+          " % of the LiDAR board points land on the camera's board: the LiDAR found another object";
     r.consistent_views += vc.consistent;
   }
   r.ok = r.consistent_views >= 3;

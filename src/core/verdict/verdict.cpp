@@ -13,7 +13,8 @@ constexpr double kSqrtHalf = 0.7071067811865476;
 
 // Camera plane error at a point of the board: the PnP's offset error grows as D^2 / size, its
 // tilt error as D / size over the board's extent.
-double cameraPlaneSigma(const CameraBoardFeatures& c, const Target& target, double min_pixel_sigma_px) {
+double cameraPlaneSigma(const CameraBoardFeatures& c, const Target& target,
+                        double min_pixel_sigma_px) {
   const double fx = c.K(0, 0) > 0 ? c.K(0, 0) : 1.0;
   const double pixel_rad = std::max(c.reprojection_rms_px, min_pixel_sigma_px) / fx;
   const double range = (c.camera_T_board * target.center()).norm();
@@ -47,20 +48,23 @@ const char* verdictName(Verdict verdict) {
 }
 
 std::string VerdictOptions::validate() const {
-  if (min_views < 1 || min_views_to_cross_validate < min_views) return "view counts must be >= 1 and ordered";
+  if (min_views < 1 || min_views_to_cross_validate < min_views)
+    return "view counts must be >= 1 and ordered";
   if (max_leave_one_out_views < 2) return "max_leave_one_out_views must be >= 2";
-  const double all[] = {max_outlier_edge_fraction, doubtful_residual_ratio, failed_residual_ratio, failed_edge_fraction, doubtful_heldout_ratio,
-                        outlier_factor, outlier_min_excess_px, doubtful_inconsistent_fraction,
-                        failed_inconsistent_fraction, doubtful_stddev_translation_m, doubtful_stddev_rotation_deg,
-                        failed_stddev_translation_m, failed_stddev_rotation_deg, method_disagreement_sigmas,
-                        min_pixel_sigma_px};
+  const double all[] = {
+      max_outlier_edge_fraction,     doubtful_residual_ratio,        failed_residual_ratio,
+      failed_edge_fraction,          doubtful_heldout_ratio,         outlier_factor,
+      outlier_min_excess_px,         doubtful_inconsistent_fraction, failed_inconsistent_fraction,
+      doubtful_stddev_translation_m, doubtful_stddev_rotation_deg,   failed_stddev_translation_m,
+      failed_stddev_rotation_deg,    method_disagreement_sigmas,     min_pixel_sigma_px};
   for (double v : all)
     if (!std::isfinite(v) || !(v > 0)) return "verdict thresholds must be finite and > 0";
   return {};
 }
 
-double planeResidualRatio(const std::vector<View>& views, const Target& target, const Eigen::Isometry3d& T,
-                          double plane_scale, const VerdictOptions& o, std::vector<double>* per_view) {
+double planeResidualRatio(const std::vector<View>& views, const Target& target,
+                          const Eigen::Isometry3d& T, double plane_scale, const VerdictOptions& o,
+                          std::vector<double>* per_view) {
   double sum = 0;
   int count = 0;
   if (per_view) per_view->assign(views.size(), 0.0);
@@ -83,10 +87,11 @@ double planeResidualRatio(const std::vector<View>& views, const Target& target, 
   return count ? std::sqrt(sum / count) : 0.0;
 }
 
-VerdictReport judgeSolution(const CalibrationSolution& sol, const std::vector<View>& views, const Target& target,
-                            const ConsistencyReport& consistency,
-                            const std::function<CalibrationSolution(const std::vector<View>&)>& solve,
-                            const VerdictOptions& o) {
+VerdictReport judgeSolution(
+    const CalibrationSolution& sol, const std::vector<View>& views, const Target& target,
+    const ConsistencyReport& consistency,
+    const std::function<CalibrationSolution(const std::vector<View>&)>& solve,
+    const VerdictOptions& o) {
   VerdictReport r;
   std::vector<std::string> failed, doubtful;
   auto name = [&](int id) {
@@ -112,30 +117,39 @@ VerdictReport judgeSolution(const CalibrationSolution& sol, const std::vector<Vi
     failed.push_back(std::to_string(inconsistent) + " of " + std::to_string(usable) +
                      " views disagree with the others: no single calibration explains them");
   else if (bad_fraction > o.doubtful_inconsistent_fraction)
-    doubtful.push_back(std::to_string(inconsistent) + " of " + std::to_string(usable) + " views were left out as inconsistent");
+    doubtful.push_back(std::to_string(inconsistent) + " of " + std::to_string(usable) +
+                       " views were left out as inconsistent");
   else if (inconsistent > 0)
-    r.details.push_back(std::to_string(inconsistent) + " inconsistent view(s) left out before solving");
+    r.details.push_back(std::to_string(inconsistent) +
+                        " inconsistent view(s) left out before solving");
   if (!consistency.checkable && consistency.ok)
     doubtful.push_back("only 3 usable views: nothing to check them against");
 
   const int n = static_cast<int>(views.size());
-  if (n < o.min_views) failed.push_back(std::to_string(n) + " view(s): at least " + std::to_string(o.min_views) + " needed");
+  if (n < o.min_views)
+    failed.push_back(std::to_string(n) + " view(s): at least " + std::to_string(o.min_views) +
+                     " needed");
 
   Matrix6d model_cov = sol.covariance;
   if (sol.success) {
     // Residuals against the noise model.
     std::vector<double> per_view;
-    r.plane_residual_ratio = planeResidualRatio(views, target, sol.camera_T_lidar, sol.plane_scale, o, &per_view);
-    const std::string ratio_text = "the LiDAR board points lie " + formatFixed(r.plane_residual_ratio, 1) +
-                                   "x as far from the camera's board planes as the sensors' noise explains (plane RMS " +
-                                   formatFixed(sol.plane_rms_mm, 1) + " mm)";
-    if (r.plane_residual_ratio > o.failed_residual_ratio) failed.push_back(ratio_text);
-    else if (r.plane_residual_ratio > o.doubtful_residual_ratio) doubtful.push_back(ratio_text);
+    r.plane_residual_ratio =
+        planeResidualRatio(views, target, sol.camera_T_lidar, sol.plane_scale, o, &per_view);
+    const std::string ratio_text =
+        "the LiDAR board points lie " + formatFixed(r.plane_residual_ratio, 1) +
+        "x as far from the camera's board planes as the sensors' noise explains (plane RMS " +
+        formatFixed(sol.plane_rms_mm, 1) + " mm)";
+    if (r.plane_residual_ratio > o.failed_residual_ratio)
+      failed.push_back(ratio_text);
+    else if (r.plane_residual_ratio > o.doubtful_residual_ratio)
+      doubtful.push_back(ratio_text);
     std::vector<double> sizes;
     for (const auto& v : views) sizes.push_back(boardSizePx(v, target));
     if (!sizes.empty()) r.board_size_px = medianOf(sizes);
     if (sol.mlre_px && r.board_size_px && *sol.mlre_px > o.failed_edge_fraction * *r.board_size_px)
-      failed.push_back("LiDAR edges land " + formatFixed(*sol.mlre_px, 1) + " px from the image edges on average, on a board about " +
+      failed.push_back("LiDAR edges land " + formatFixed(*sol.mlre_px, 1) +
+                       " px from the image edges on average, on a board about " +
                        formatFixed(*r.board_size_px, 0) + " px across");
     // Outlier views and edges (MATLAB-style error bars would show them).
     std::vector<double> view_mlre, edge_mlre;
@@ -149,16 +163,19 @@ VerdictReport judgeSolution(const CalibrationSolution& sol, const std::vector<Vi
     for (const auto& vr : sol.views)
       for (int j = 0; j < kNumEdges; ++j) {
         const auto& e = vr.edges[static_cast<size_t>(j)];
-        if (e.mlre_px && *e.mlre_px > std::max(o.outlier_factor * med_edge, med_edge + o.outlier_min_excess_px)) {
+        if (e.mlre_px && *e.mlre_px > std::max(o.outlier_factor * med_edge,
+                                               med_edge + o.outlier_min_excess_px)) {
           name(vr.view_id);
-          outlier_edges.push_back("view " + std::to_string(vr.view_id) + " edge " + edgeName(j) + ": " +
-                                  formatFixed(*e.mlre_px, 1) + " px against a median edge error of " + formatFixed(med_edge, 1) +
+          outlier_edges.push_back("view " + std::to_string(vr.view_id) + " edge " + edgeName(j) +
+                                  ": " + formatFixed(*e.mlre_px, 1) +
+                                  " px against a median edge error of " + formatFixed(med_edge, 1) +
                                   " px (a hand, a wrong line?)");
         }
       }
     // A stray edge or two is what the robust loss is for: named, not doubted. Many are not.
-    const bool many = static_cast<double>(outlier_edges.size()) >
-                      std::max(1.0, o.max_outlier_edge_fraction * static_cast<double>(edge_mlre.size()));
+    const bool many =
+        static_cast<double>(outlier_edges.size()) >
+        std::max(1.0, o.max_outlier_edge_fraction * static_cast<double>(edge_mlre.size()));
     for (const auto& text : outlier_edges) (many ? doubtful : r.details).push_back(text);
     if (!sol.observability.well_conditioned && sol.observability.max_eigenvalue > 0)
       doubtful.push_back("weakly observable: " + sol.observability.weakest_description);
@@ -169,7 +186,8 @@ VerdictReport judgeSolution(const CalibrationSolution& sol, const std::vector<Vi
     cv.view_heldout_plane_ratio.assign(views.size(), 0.0);
     if (n < o.min_views_to_cross_validate) {
       cv.why_not = std::to_string(n) + " views: too few to leave any out";
-      doubtful.push_back("too few views (" + std::to_string(n) + ") to cross-validate: collect at least " +
+      doubtful.push_back("too few views (" + std::to_string(n) +
+                         ") to cross-validate: collect at least " +
                          std::to_string(o.min_views_to_cross_validate));
     } else if (solve) {
       const int folds = std::min(n, o.max_leave_one_out_views);
@@ -194,8 +212,10 @@ VerdictReport judgeSolution(const CalibrationSolution& sol, const std::vector<Vi
           continue;
         }
         deltas.push_back(poseDelta(fold.camera_T_lidar, sol.camera_T_lidar));
-        cv.max_rotation_dev_deg = std::max(cv.max_rotation_dev_deg, rotationErrorDeg(fold.camera_T_lidar, sol.camera_T_lidar));
-        cv.max_translation_dev_m = std::max(cv.max_translation_dev_m, translationErrorM(fold.camera_T_lidar, sol.camera_T_lidar));
+        cv.max_rotation_dev_deg = std::max(
+            cv.max_rotation_dev_deg, rotationErrorDeg(fold.camera_T_lidar, sol.camera_T_lidar));
+        cv.max_translation_dev_m = std::max(
+            cv.max_translation_dev_m, translationErrorM(fold.camera_T_lidar, sol.camera_T_lidar));
         std::vector<double> ratios;
         planeResidualRatio(test, target, fold.camera_T_lidar, fold.plane_scale, o, &ratios);
         for (size_t t = 0; t < test.size(); ++t) {
@@ -230,11 +250,13 @@ VerdictReport judgeSolution(const CalibrationSolution& sol, const std::vector<Vi
       // Prediction against fit: a model that only fits its own views does not generalise.
       if (cv.heldout_mlre_px && sol.mlre_px && *sol.mlre_px > 0 &&
           *cv.heldout_mlre_px > o.doubtful_heldout_ratio * std::max(*sol.mlre_px, 1.0))
-        doubtful.push_back("left-out views' edges are predicted " + formatFixed(*cv.heldout_mlre_px, 1) + " px off against " +
+        doubtful.push_back("left-out views' edges are predicted " +
+                           formatFixed(*cv.heldout_mlre_px, 1) + " px off against " +
                            formatFixed(*sol.mlre_px, 1) + " px fitted");
       if (cv.heldout_plane_ratio > o.doubtful_heldout_ratio * std::max(r.plane_residual_ratio, 1.0))
-        doubtful.push_back("left-out views' planes are predicted " + formatFixed(cv.heldout_plane_ratio, 1) +
-                           "x the noise against " + formatFixed(r.plane_residual_ratio, 1) + "x fitted");
+        doubtful.push_back("left-out views' planes are predicted " +
+                           formatFixed(cv.heldout_plane_ratio, 1) + "x the noise against " +
+                           formatFixed(r.plane_residual_ratio, 1) + "x fitted");
       // Name the views whose prediction is far off the others'.
       std::vector<double> pred;
       for (const auto& m : cv.view_heldout_mlre_px)
@@ -244,8 +266,9 @@ VerdictReport judgeSolution(const CalibrationSolution& sol, const std::vector<Vi
         const auto& m = cv.view_heldout_mlre_px[i];
         if (m && *m > std::max(o.outlier_factor * med_pred, med_pred + o.outlier_min_excess_px)) {
           name(views[i].id);
-          doubtful.push_back("view " + std::to_string(views[i].id) + " is predicted " + formatFixed(*m, 1) +
-                             " px off by the others (median " + formatFixed(med_pred, 1) + " px)");
+          doubtful.push_back("view " + std::to_string(views[i].id) + " is predicted " +
+                             formatFixed(*m, 1) + " px off by the others (median " +
+                             formatFixed(med_pred, 1) + " px)");
         }
       }
     }
@@ -258,18 +281,23 @@ VerdictReport judgeSolution(const CalibrationSolution& sol, const std::vector<Vi
       if (model_cov(i, i) > 0 && cv.covariance(i, i) > 0)
         inflation2 = std::max(inflation2, cv.covariance(i, i) / model_cov(i, i));
     r.covariance = model_cov * inflation2;
-    if (!r.covariance.allFinite() || r.covariance.diagonal().maxCoeff() <= 0) r.covariance = cv.covariance;
+    if (!r.covariance.allFinite() || r.covariance.diagonal().maxCoeff() <= 0)
+      r.covariance = cv.covariance;
     r.stddev_inflation = std::sqrt(inflation2);
     r.stddev = stddevFromCovariance(r.covariance);
     const double st = r.stddev.translation_m.maxCoeff(), sr = r.stddev.rotation_deg.maxCoeff();
-    const std::string sigma_text = "1 sigma " + formatFixed(st * 1e3, 1) + " mm / " + formatFixed(sr, 3) + " deg";
-    if (!std::isfinite(st) || !std::isfinite(sr) || st > o.failed_stddev_translation_m || sr > o.failed_stddev_rotation_deg)
+    const std::string sigma_text =
+        "1 sigma " + formatFixed(st * 1e3, 1) + " mm / " + formatFixed(sr, 3) + " deg";
+    if (!std::isfinite(st) || !std::isfinite(sr) || st > o.failed_stddev_translation_m ||
+        sr > o.failed_stddev_rotation_deg)
       failed.push_back(sigma_text + ": the views do not determine the calibration");
     else if (st > o.doubtful_stddev_translation_m || sr > o.doubtful_stddev_rotation_deg)
-      doubtful.push_back(sigma_text + ": loosely determined; add views with other tilts and distances");
+      doubtful.push_back(sigma_text +
+                         ": loosely determined; add views with other tilts and distances");
     if (r.stddev_inflation > 1.5)
-      r.details.push_back("1 sigma scaled by " + formatFixed(r.stddev_inflation, 1) +
-                          " (residuals beyond the noise model, or the spread of the cross-validation)");
+      r.details.push_back(
+          "1 sigma scaled by " + formatFixed(r.stddev_inflation, 1) +
+          " (residuals beyond the noise model, or the spread of the cross-validation)");
   }
 
   if (!failed.empty()) {
@@ -282,8 +310,10 @@ VerdictReport judgeSolution(const CalibrationSolution& sol, const std::vector<Vi
     r.verdict = Verdict::kGood;
     std::ostringstream why;
     why << "residuals as the noise predicts (" << formatFixed(r.plane_residual_ratio, 1) << "x)";
-    if (r.cross_validation.ran) why << ", left-out views predicted (" << r.cross_validation.solves << " solves)";
-    if (!r.views_to_check.empty()) why << "; " << r.views_to_check.size() << " view(s) named in the details";
+    if (r.cross_validation.ran)
+      why << ", left-out views predicted (" << r.cross_validation.solves << " solves)";
+    if (!r.views_to_check.empty())
+      why << "; " << r.views_to_check.size() << " view(s) named in the details";
     r.reason = why.str();
   }
   std::vector<std::string> all = failed;
@@ -293,8 +323,8 @@ VerdictReport judgeSolution(const CalibrationSolution& sol, const std::vector<Vi
   return r;
 }
 
-void judgeMethodAgreement(const std::vector<CalibrationSolution>& solutions, std::vector<VerdictReport>* verdicts,
-                          const VerdictOptions& o) {
+void judgeMethodAgreement(const std::vector<CalibrationSolution>& solutions,
+                          std::vector<VerdictReport>* verdicts, const VerdictOptions& o) {
   for (size_t a = 0; a < solutions.size(); ++a) {
     auto& va = (*verdicts)[a];
     if (va.verdict == Verdict::kFailed) continue;
@@ -307,10 +337,15 @@ void judgeMethodAgreement(const std::vector<CalibrationSolution>& solutions, std
       for (int i = 0; i < 6; ++i)
         if (c(i, i) > 0) worst = std::max(worst, std::abs(d(i)) / std::sqrt(c(i, i)));
       if (worst > o.method_disagreement_sigmas) {
-        const std::string text = std::string(methodName(solutions[b].method)) + " differs by " +
-                                 formatFixed(rotationErrorDeg(solutions[a].camera_T_lidar, solutions[b].camera_T_lidar), 2) + " deg / " +
-                                 formatFixed(translationErrorM(solutions[a].camera_T_lidar, solutions[b].camera_T_lidar) * 1e3, 0) +
-                                 " mm (" + formatFixed(worst, 1) + " sigma)";
+        const std::string text =
+            std::string(methodName(solutions[b].method)) + " differs by " +
+            formatFixed(rotationErrorDeg(solutions[a].camera_T_lidar, solutions[b].camera_T_lidar),
+                        2) +
+            " deg / " +
+            formatFixed(
+                translationErrorM(solutions[a].camera_T_lidar, solutions[b].camera_T_lidar) * 1e3,
+                0) +
+            " mm (" + formatFixed(worst, 1) + " sigma)";
         va.details.push_back(text);
         if (va.verdict == Verdict::kGood) {
           va.verdict = Verdict::kDoubtful;
@@ -321,16 +356,18 @@ void judgeMethodAgreement(const std::vector<CalibrationSolution>& solutions, std
   }
 }
 
-int chooseMethod(const std::vector<CalibrationSolution>& solutions, const std::vector<VerdictReport>& verdicts,
-                 std::string* why) {
+int chooseMethod(const std::vector<CalibrationSolution>& solutions,
+                 const std::vector<VerdictReport>& verdicts, std::string* why) {
   bool all_edges = true;
   for (size_t i = 0; i < solutions.size(); ++i)
-    if (verdicts[i].verdict != Verdict::kFailed && !verdicts[i].cross_validation.heldout_mlre_px) all_edges = false;
+    if (verdicts[i].verdict != Verdict::kFailed && !verdicts[i].cross_validation.heldout_mlre_px)
+      all_edges = false;
   auto score = [&](size_t i) {
     const auto& cv = verdicts[i].cross_validation;
     if (all_edges && cv.heldout_mlre_px) return *cv.heldout_mlre_px;
     if (cv.ran) return cv.heldout_plane_ratio;
-    return solutions[i].mlre_px && all_edges ? *solutions[i].mlre_px : verdicts[i].plane_residual_ratio;
+    return solutions[i].mlre_px && all_edges ? *solutions[i].mlre_px
+                                             : verdicts[i].plane_residual_ratio;
   };
   int best = -1;
   for (size_t i = 0; i < solutions.size(); ++i) {
@@ -340,9 +377,11 @@ int chooseMethod(const std::vector<CalibrationSolution>& solutions, const std::v
       continue;
     }
     const auto& vb = verdicts[static_cast<size_t>(best)];
-    const bool better_verdict = verdicts[i].verdict == Verdict::kGood && vb.verdict != Verdict::kGood;
+    const bool better_verdict =
+        verdicts[i].verdict == Verdict::kGood && vb.verdict != Verdict::kGood;
     const bool same_verdict = verdicts[i].verdict == vb.verdict;
-    if (better_verdict || (same_verdict && score(i) < score(static_cast<size_t>(best)))) best = static_cast<int>(i);
+    if (better_verdict || (same_verdict && score(i) < score(static_cast<size_t>(best))))
+      best = static_cast<int>(i);
   }
   if (why) {
     std::ostringstream s;
@@ -352,12 +391,14 @@ int chooseMethod(const std::vector<CalibrationSolution>& solutions, const std::v
       s << methodName(solutions[0].method) << ": the method asked for";
     } else {
       s << methodName(solutions[static_cast<size_t>(best)].method) << ": "
-        << (all_edges ? "lowest held-out edge error (MLRE of left-out views)" : "lowest held-out plane residual")
+        << (all_edges ? "lowest held-out edge error (MLRE of left-out views)"
+                      : "lowest held-out plane residual")
         << " among the methods not failed, good before doubtful (";
       for (size_t i = 0; i < solutions.size(); ++i) {
         if (i) s << ", ";
         s << methodName(solutions[i].method) << " " << verdictName(verdicts[i].verdict);
-        if (verdicts[i].verdict != Verdict::kFailed) s << " " << formatFixed(score(i), 2) << (all_edges ? " px" : "x");
+        if (verdicts[i].verdict != Verdict::kFailed)
+          s << " " << formatFixed(score(i), 2) << (all_edges ? " px" : "x");
       }
       s << ")";
     }

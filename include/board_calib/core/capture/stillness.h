@@ -23,12 +23,12 @@ namespace board_calib {
 
 /// One sensor's view of the board at one stamp, in that sensor's frame.
 struct BoardSample {
-  double stamp = 0.0;            ///< s
+  double stamp = 0.0;  ///< s
   bool found = false;
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();   ///< m
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  ///< unit
-  double centre_sigma_m = 0.0;   ///< 1 sigma of the centre from the detector's own noise
-  double normal_sigma_rad = 0.0; ///< 1 sigma of the normal
+  double centre_sigma_m = 0.0;    ///< 1 sigma of the centre from the detector's own noise
+  double normal_sigma_rad = 0.0;  ///< 1 sigma of the normal
 };
 
 /// A LiDAR board as a stillness cue: centroid and plane normal, with the plane fit's noise.
@@ -39,13 +39,17 @@ BoardSample boardSampleOf(const LidarBoardFeatures& features);
 BoardSample boardSampleOf(const CameraBoardFeatures& features, const Target* target);
 
 struct StillnessOptions {
-  double window_s = 0.25;        ///< s, half-width of the window around a moment that must be still
-  int min_frames = 3;            ///< frames of the fastest stream in the window (>= 1 on each side); 1: no check
-  double max_translation_m = 0.03;  ///< m, board centre motion allowed inside the window (beyond noise)
-  double max_rotation_deg = 1.5;    ///< deg, board normal change allowed inside the window (beyond noise)
-  double noise_factor = 3.0;     ///< tolerances widen by this many 1-sigma of the two frames' combined noise
-  double snapshot_interval_s = 0.5;  ///< s, when every stream's typical frame interval exceeds this, each
-                                     ///< frame is its own pose (snapshot recording)
+  double window_s = 0.25;  ///< s, half-width of the window around a moment that must be still
+  int min_frames =
+      3;  ///< frames of the fastest stream in the window (>= 1 on each side); 1: no check
+  double max_translation_m =
+      0.03;  ///< m, board centre motion allowed inside the window (beyond noise)
+  double max_rotation_deg =
+      1.5;  ///< deg, board normal change allowed inside the window (beyond noise)
+  double noise_factor =
+      3.0;  ///< tolerances widen by this many 1-sigma of the two frames' combined noise
+  double snapshot_interval_s = 0.5;  ///< s, when every stream's typical frame interval exceeds
+                                     ///< this, each frame is its own pose (snapshot recording)
   std::string validate() const;
 };
 
@@ -65,27 +69,27 @@ class StreamClock {
 };
 
 enum class StillState {
-  kPending,      ///< the fastest stream has not yet passed the end of the window
+  kPending,  ///< the fastest stream has not yet passed the end of the window
   kStill,
-  kMoving,       ///< a frame in the window disagrees with the one nearest the moment
-  kNoBoard,      ///< a frame in the window does not see the board
-  kTooFewFrames, ///< the fastest stream has too few frames in the window to judge
-  kSnapshot,     ///< every stream sparse: a candidate without a stillness check
+  kMoving,        ///< a frame in the window disagrees with the one nearest the moment
+  kNoBoard,       ///< a frame in the window does not see the board
+  kTooFewFrames,  ///< the fastest stream has too few frames in the window to judge
+  kSnapshot,      ///< every stream sparse: a candidate without a stillness check
 };
 const char* stillStateName(StillState state);
 
 struct StillnessJudgement {
   StillState state = StillState::kPending;
-  std::string why;               ///< in words, with the figures
+  std::string why;  ///< in words, with the figures
   int fastest_stream = -1;
-  int fastest_frames = 0;        ///< frames of the fastest stream inside the window
+  int fastest_frames = 0;  ///< frames of the fastest stream inside the window
 };
 
 /// One stream as the judge sees it: its samples (sorted by stamp) and its clock.
 struct StillnessStream {
   const std::deque<BoardSample>* samples = nullptr;
   const StreamClock* clock = nullptr;
-  std::string name;              ///< "LiDAR", "camera", a sensor name
+  std::string name;  ///< "LiDAR", "camera", a sensor name
   /// false: the stream does not see the board around this moment (a rig sensor the board is
   /// outside of); only its rate counts, for the snapshot rule. The fastest *judged* stream
   /// counts the frames.

@@ -15,7 +15,7 @@ Eigen::Vector3d boardPoint(const CameraBoardFeatures& features);
 
 /// Gap (m) between plane a and plane b mapped with a_T_b, at the midpoint of the two board
 /// points (point_a in a, point_b in b): the MSG offset residual.
-double planeGapM(const Plane& in_a, const Eigen::Vector3d& point_a, const Plane& in_b, const Eigen::Vector3d& point_b,
-                 const Eigen::Isometry3d& a_T_b);
+double planeGapM(const Plane& in_a, const Eigen::Vector3d& point_a, const Plane& in_b,
+                 const Eigen::Vector3d& point_b, const Eigen::Isometry3d& a_T_b);
 
 }  // namespace board_calib

@@ -21,16 +21,18 @@ struct EdgeAssociation {
   /// Per image edge j: mean perpendicular distance (undistorted px) of lidar_edge[j]'s points to
   /// line j; infinite when not scored.
   std::array<double, kNumEdges> mean_px{};
-  int matched = 0;           ///< scored pairs
-  bool relabelled = false;   ///< differs from the detectors' naming (the identity)
+  int matched = 0;          ///< scored pairs
+  bool relabelled = false;  ///< differs from the detectors' naming (the identity)
 };
 
 /// Mean perpendicular distance (undistorted px, with the intrinsic matrix K of the undistorted
 /// image: image.K, or the camera model's) of `lidar_points` projected with camera_T_lidar to
 /// image edge line j; `count` receives the points in front of the camera; infinite when none is.
-double edgeLineDistancePx(const Eigen::Matrix3d& K, const CameraBoardFeatures& image, int image_edge,
-                          const Points3& lidar_points, const Eigen::Isometry3d& camera_T_lidar, int* count);
-inline double edgeLineDistancePx(const CameraBoardFeatures& image, int image_edge, const Points3& lidar_points,
+double edgeLineDistancePx(const Eigen::Matrix3d& K, const CameraBoardFeatures& image,
+                          int image_edge, const Points3& lidar_points,
+                          const Eigen::Isometry3d& camera_T_lidar, int* count);
+inline double edgeLineDistancePx(const CameraBoardFeatures& image, int image_edge,
+                                 const Points3& lidar_points,
                                  const Eigen::Isometry3d& camera_T_lidar, int* count) {
   return edgeLineDistancePx(image.K, image, image_edge, lidar_points, camera_T_lidar, count);
 }
@@ -41,10 +43,12 @@ inline double edgeLineDistancePx(const CameraBoardFeatures& image, int image_edg
 /// does not swap labels back and forth between solver iterations. A LiDAR edge counts when
 /// it is valid and has >= min_lidar_points points; an image edge when its line is valid.
 EdgeAssociation associateEdges(const Eigen::Matrix3d& K, const CameraBoardFeatures& image,
-                               const LidarBoardFeatures& lidar, const Eigen::Isometry3d& camera_T_lidar,
-                               int min_lidar_points = 2);
-inline EdgeAssociation associateEdges(const CameraBoardFeatures& image, const LidarBoardFeatures& lidar,
-                                      const Eigen::Isometry3d& camera_T_lidar, int min_lidar_points = 2) {
+                               const LidarBoardFeatures& lidar,
+                               const Eigen::Isometry3d& camera_T_lidar, int min_lidar_points = 2);
+inline EdgeAssociation associateEdges(const CameraBoardFeatures& image,
+                                      const LidarBoardFeatures& lidar,
+                                      const Eigen::Isometry3d& camera_T_lidar,
+                                      int min_lidar_points = 2) {
   return associateEdges(image.K, image, lidar, camera_T_lidar, min_lidar_points);
 }
 

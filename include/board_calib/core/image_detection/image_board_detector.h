@@ -3,7 +3,8 @@
 //  * plain        (PBPC-Cal): segmentation + sub-pixel edge fitting, corners = line
 //                  intersections (may lie outside the image), pose by PnP on the four corners;
 //  * checkerboard (PPC-Cal):  OpenCV corners + cornerSubPix, pose by PnP, outer edges from pose;
-//  * apriltag_grid (MSG-Cal): libapriltag tag36h11 corners mapped to the grid, pose from all corners.
+//  * apriltag_grid (MSG-Cal): libapriltag tag36h11 corners mapped to the grid, pose from all
+//  corners.
 //
 // Edge naming (features.h): edges are named by the direction of their outward normal in the image
 // (UL ~ up-left, UR, LR, LL), choosing the cyclic assignment closest to a diamond. For the plain
@@ -26,44 +27,63 @@ namespace board_calib {
 
 struct ImageBoardDetectorOptions {
   // --- plain board ---
-  int segmentation_width_px = 480;        ///< px, width of the downscaled image used for segmentation
+  int segmentation_width_px = 480;  ///< px, width of the downscaled image used for segmentation
   double min_board_area_fraction = 0.01;  ///< smallest board area, fraction of the image area
-  double min_solidity = 0.90;             ///< board region area / convex hull area (a board is convex)
-  double max_flat_gradient = 10.0;        ///< grey levels (3x3 max - min, downscaled): below it a pixel is in a flat area
-  double max_interior_texture = 0.35;     ///< interior grey stddev / board-background contrast (a board is uniform)
-  int max_board_candidates = 4;           ///< board-like regions tried, best score first, until one gives a complete board
-  double border_margin_px = 3.0;          ///< px; edge pixels closer than this to the image border are not board edges
-  double coarse_search_px = 10.0;         ///< px, half width of the first edge search around the coarse outline
-  double fine_search_px = 3.0;            ///< px, half width of the refinement search around the fitted line
-  double sample_step_px = 2.0;            ///< px, spacing of edge samples along each edge
-  double corner_exclusion_px = 12.0;      ///< px, edge samples this close to a coarse corner are skipped
-  double min_edge_contrast = 4.0;         ///< grey levels per px, weakest accepted edge gradient (floor of the noise-based threshold)
-  double edge_snr = 3.0;                  ///< an edge gradient peak must exceed this many sigmas of the gradient noise (measured per image)
-  double min_edge_length_px = 24.0;       ///< px, shortest span of edge pixels accepted as a board edge (line direction from >= this)
-  int min_edge_points = 8;                ///< inlier edge samples needed for a valid edge
-  double min_side_coverage = 0.5;         ///< fraction of a side's visible length that must show its edge (the rest may be occluded: hands, legs)
-  double edge_inlier_px = 3.0;            ///< px, edge samples farther than this from the line are outliers (a held board bows ~3 px)
-  double max_edge_rms_px = 1.5;           ///< px, an edge fit worse than this is marked invalid
-  int line_detection_width_px = 640;      ///< px, width of the downscaled image the line segment detector (LSD) runs on; 0 = no line hypotheses
-  int max_line_hypotheses = 6;            ///< quadrilaterals of long straight edges refined at full resolution, best first
-  double max_board_tilt_deg = 70.0;       ///< deg, a plain board turned further from the camera is rejected (no calibration view)
-  double max_board_distance_m = 20.0;     ///< m, a plain board farther away is rejected: a 16-ring LiDAR (2 deg) puts < 2 lines on a 1 m board there
+  double min_solidity = 0.90;  ///< board region area / convex hull area (a board is convex)
+  double max_flat_gradient =
+      10.0;  ///< grey levels (3x3 max - min, downscaled): below it a pixel is in a flat area
+  double max_interior_texture =
+      0.35;  ///< interior grey stddev / board-background contrast (a board is uniform)
+  int max_board_candidates =
+      4;  ///< board-like regions tried, best score first, until one gives a complete board
+  double border_margin_px =
+      3.0;  ///< px; edge pixels closer than this to the image border are not board edges
+  double coarse_search_px =
+      10.0;  ///< px, half width of the first edge search around the coarse outline
+  double fine_search_px = 3.0;  ///< px, half width of the refinement search around the fitted line
+  double sample_step_px = 2.0;  ///< px, spacing of edge samples along each edge
+  double corner_exclusion_px =
+      12.0;                        ///< px, edge samples this close to a coarse corner are skipped
+  double min_edge_contrast = 4.0;  ///< grey levels per px, weakest accepted edge gradient (floor of
+                                   ///< the noise-based threshold)
+  double edge_snr = 3.0;  ///< an edge gradient peak must exceed this many sigmas of the gradient
+                          ///< noise (measured per image)
+  double min_edge_length_px = 24.0;  ///< px, shortest span of edge pixels accepted as a board edge
+                                     ///< (line direction from >= this)
+  int min_edge_points = 8;           ///< inlier edge samples needed for a valid edge
+  double min_side_coverage = 0.5;  ///< fraction of a side's visible length that must show its edge
+                                   ///< (the rest may be occluded: hands, legs)
+  double edge_inlier_px = 3.0;   ///< px, edge samples farther than this from the line are outliers
+                                 ///< (a held board bows ~3 px)
+  double max_edge_rms_px = 1.5;  ///< px, an edge fit worse than this is marked invalid
+  int line_detection_width_px = 640;  ///< px, width of the downscaled image the line segment
+                                      ///< detector (LSD) runs on; 0 = no line hypotheses
+  int max_line_hypotheses =
+      6;  ///< quadrilaterals of long straight edges refined at full resolution, best first
+  double max_board_tilt_deg = 70.0;    ///< deg, a plain board turned further from the camera is
+                                       ///< rejected (no calibration view)
+  double max_board_distance_m = 20.0;  ///< m, a plain board farther away is rejected: a 16-ring
+                                       ///< LiDAR (2 deg) puts < 2 lines on a 1 m board there
   // --- checkerboard ---
-  int fast_check_width_px = 800;          ///< px, images wider than this are searched downscaled first
-  int subpix_window_px = 5;               ///< px, half window of cornerSubPix (clamped to the square size)
+  int fast_check_width_px = 800;  ///< px, images wider than this are searched downscaled first
+  int subpix_window_px = 5;       ///< px, half window of cornerSubPix (clamped to the square size)
   // --- AprilTag grid ---
-  double tag_decimate = 2.0;              ///< libapriltag quad_decimate (1 = full resolution)
-  double tag_sigma = 0.8;                 ///< px, libapriltag quad_sigma: blur before quads (its decimation only subsamples: noise makes false quads); decoding uses the sharp image
-  int tag_threads = 1;                    ///< libapriltag worker threads
-  bool tag_refine_edges = true;           ///< libapriltag refine_edges
-  int tag_max_hamming = 1;                ///< bits corrected per tag (0..2; more = more false ids)
-  int min_tags = 1;                       ///< tags needed for a pose
+  double tag_decimate = 2.0;  ///< libapriltag quad_decimate (1 = full resolution)
+  double tag_sigma = 0.8;  ///< px, libapriltag quad_sigma: blur before quads (its decimation only
+                           ///< subsamples: noise makes false quads); decoding uses the sharp image
+  int tag_threads = 1;     ///< libapriltag worker threads
+  bool tag_refine_edges = true;  ///< libapriltag refine_edges
+  int tag_max_hamming = 1;       ///< bits corrected per tag (0..2; more = more false ids)
+  int min_tags = 1;              ///< tags needed for a pose
   // --- all ---
-  double min_board_size_px = 30.0;        ///< px, smallest board side in the image
-  double max_reprojection_rms_px = 3.0;   ///< px, a pattern pose fitting worse than this is rejected
-  double max_plain_corner_rms_px = 10.0;  ///< px, plain board: corners are extrapolated (often far outside the image) and the board flexes
-  double max_plain_corner_rms_fraction = 0.03;  ///< plain board: corner PnP RMS above this fraction of the mean side length is rejected (a quadrilateral that is no board of the declared width and height)
-  double pixel_sigma_px = 0.2;            ///< px, assumed corner noise floor for the pose covariance
+  double min_board_size_px = 30.0;       ///< px, smallest board side in the image
+  double max_reprojection_rms_px = 3.0;  ///< px, a pattern pose fitting worse than this is rejected
+  double max_plain_corner_rms_px = 10.0;  ///< px, plain board: corners are extrapolated (often far
+                                          ///< outside the image) and the board flexes
+  double max_plain_corner_rms_fraction =
+      0.03;  ///< plain board: corner PnP RMS above this fraction of the mean side length is
+             ///< rejected (a quadrilateral that is no board of the declared width and height)
+  double pixel_sigma_px = 0.2;  ///< px, assumed corner noise floor for the pose covariance
 
   /// Reason the options are inconsistent, empty when valid.
   std::string validate() const;
@@ -75,20 +95,25 @@ struct ImageDetectionDetails {
   std::array<double, kNumEdges> edge_rms_px{};     ///< plain: line fit RMS per edge, px
   std::array<std::string, kNumEdges> edge_reason;  ///< why an edge is invalid (empty when valid)
   Points2 outline_raw;                             ///< plain: coarse board outline, raw px
-  std::vector<std::array<Eigen::Vector2d, 4>> hypotheses_px;  ///< plain: quadrilaterals tried (undistorted px corners)
-  std::vector<std::string> hypothesis_reasons;     ///< plain: per hypothesis, "found" or why it is not the board
-  std::vector<std::array<Eigen::Vector2d, 2>> segments_raw;   ///< plain: line segments (LSD), raw px
-  double noise_sigma = 0.0;                        ///< plain: image noise estimate, grey levels
-  int line_segments = 0, straight_lines = 0, line_quads = 0;  ///< plain: LSD segments, merged lines, quadrilaterals
-  std::vector<int> tag_ids;                        ///< AprilTag: detected ids on the grid
-  std::vector<std::array<Eigen::Vector2d, 4>> tag_corners_raw;  ///< AprilTag: corners, raw px (OpenCV convention)
-  int rejected_tags = 0;                           ///< AprilTag: detections whose id is not on the grid
-  Points2 pattern_raw;                             ///< pattern points (checkerboard/tag corners), raw px
-  std::vector<double> pattern_errors_px;           ///< reprojection error per pattern point (features.pattern order)
+  std::vector<std::array<Eigen::Vector2d, 4>>
+      hypotheses_px;  ///< plain: quadrilaterals tried (undistorted px corners)
+  std::vector<std::string>
+      hypothesis_reasons;  ///< plain: per hypothesis, "found" or why it is not the board
+  std::vector<std::array<Eigen::Vector2d, 2>> segments_raw;  ///< plain: line segments (LSD), raw px
+  double noise_sigma = 0.0;  ///< plain: image noise estimate, grey levels
+  int line_segments = 0, straight_lines = 0,
+      line_quads = 0;        ///< plain: LSD segments, merged lines, quadrilaterals
+  std::vector<int> tag_ids;  ///< AprilTag: detected ids on the grid
+  std::vector<std::array<Eigen::Vector2d, 4>>
+      tag_corners_raw;    ///< AprilTag: corners, raw px (OpenCV convention)
+  int rejected_tags = 0;  ///< AprilTag: detections whose id is not on the grid
+  Points2 pattern_raw;    ///< pattern points (checkerboard/tag corners), raw px
+  std::vector<double>
+      pattern_errors_px;  ///< reprojection error per pattern point (features.pattern order)
   /// Pose covariance, order (rotation vector rad, translation m), from the PnP Jacobian with
   /// sigma = max(residual RMS, pixel_sigma_px). Zero when no pose.
   Eigen::Matrix<double, 6, 6> pose_covariance = Eigen::Matrix<double, 6, 6>::Zero();
-  double time_ms = 0.0;                            ///< detection time
+  double time_ms = 0.0;  ///< detection time
 };
 
 struct ImageDetection {
@@ -101,12 +126,14 @@ struct ImageDetection {
 /// sensor: its four outer corners projected into the image (undistorted px, any cyclic order).
 struct ExpectedBoard {
   std::array<Eigen::Vector2d, kNumEdges> corners_px{};
-  double tolerance_px = 0.0;  ///< px, how far the true corners may lie from these (the prior's projection error)
+  double tolerance_px =
+      0.0;  ///< px, how far the true corners may lie from these (the prior's projection error)
 };
 
 class ImageBoardDetector {
  public:
-  static Expected<ImageBoardDetector> create(const Target& target, const ImageBoardDetectorOptions& options);
+  static Expected<ImageBoardDetector> create(const Target& target,
+                                             const ImageBoardDetectorOptions& options);
   ImageBoardDetector(ImageBoardDetector&&) noexcept;
   ImageBoardDetector& operator=(ImageBoardDetector&&) noexcept;
   ~ImageBoardDetector();
@@ -119,24 +146,28 @@ class ImageBoardDetector {
   /// only hypotheses near `expected` are tried, and a board is accepted only when each of its
   /// corners lies within expected.tolerance_px of an expected corner. Plain boards only (the
   /// pattern boards are found alone); others give "not found" with the reason.
-  ImageDetection detectNear(const cv::Mat& image, const CameraModel& camera, const ExpectedBoard& expected);
+  ImageDetection detectNear(const cv::Mat& image, const CameraModel& camera,
+                            const ExpectedBoard& expected);
 
   const Target& target() const;
   const ImageBoardDetectorOptions& options() const;
 
  private:
   ImageBoardDetector() = default;
-  ImageDetection run(const cv::Mat& image, const CameraModel& camera, const ExpectedBoard* expected);
+  ImageDetection run(const cv::Mat& image, const CameraModel& camera,
+                     const ExpectedBoard* expected);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
 
 /// Debug drawing on a copy of the raw image (bgr8): board outline, edge samples, fitted lines
 /// (drawn curved, through the distortion), corners, tag ids, pattern points, board axes.
-cv::Mat drawImageDetection(const cv::Mat& image, const CameraModel& camera, const ImageDetection& detection);
+cv::Mat drawImageDetection(const cv::Mat& image, const CameraModel& camera,
+                           const ImageDetection& detection);
 
 /// Line through two undistorted points with the outward normal pointing away from `inside`
 /// (a u + b v + c = 0, a^2 + b^2 = 1, inside < 0).
-Eigen::Vector3d lineThrough(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const Eigen::Vector2d& inside);
+Eigen::Vector3d lineThrough(const Eigen::Vector2d& p, const Eigen::Vector2d& q,
+                            const Eigen::Vector2d& inside);
 
 }  // namespace board_calib

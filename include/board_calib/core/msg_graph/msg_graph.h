@@ -93,7 +93,7 @@ struct MsgGraphOptions {
   /// default: on the simulated rig they cut the worst-pair translation error by 17-38% (mean and
   /// max, with and without a noisy sensor) for about twice the solve time (docs/BENCHMARKS.md).
   bool use_line_terms = true;
-  int min_edge_points = 3;       ///< per edge, for a line term
+  int min_edge_points = 3;  ///< per edge, for a line term
 
   RobustLoss loss = RobustLoss::kHuber;
   double loss_scale_sigma = 2.0;  ///< robust loss scale, in whitened units (sigmas)
@@ -101,9 +101,9 @@ struct MsgGraphOptions {
   /// Observations (sensor, pose) whose median whitened residual exceeds this are rejected;
   /// pairwise correspondences likewise before the pairwise re-solve.
   double outlier_gate_sigma = 5.0;
-  int outlier_rounds = 2;         ///< reject-and-resolve rounds (0 disables rejection)
+  int outlier_rounds = 2;  ///< reject-and-resolve rounds (0 disables rejection)
 
-  int max_iterations = 100;       ///< per Ceres solve
+  int max_iterations = 100;  ///< per Ceres solve
   double function_tolerance = 1e-10;
   double gradient_tolerance = 1e-12;
   double parameter_tolerance = 1e-10;
@@ -117,8 +117,8 @@ struct MsgGraphOptions {
 /// A pairwise plane-to-plane solution between sensors a < b.
 struct PairLink {
   int a = 0, b = 0;
-  int shared_views = 0;         ///< board poses both saw with a valid plane
-  int views_used = 0;           ///< after gating
+  int shared_views = 0;  ///< board poses both saw with a valid plane
+  int views_used = 0;    ///< after gating
   bool success = false;
   std::string reason;
   Eigen::Isometry3d a_T_b = Eigen::Isometry3d::Identity();
@@ -132,7 +132,7 @@ struct PairLink {
 
 /// Error around one cycle of pairwise estimates: T_ab * T_bc * T_ca should be the identity.
 struct LoopError {
-  std::vector<int> cycle;   ///< sensor indices
+  std::vector<int> cycle;  ///< sensor indices
   double rotation_deg = 0.0;
   double translation_mm = 0.0;
 };
@@ -169,7 +169,8 @@ struct GraphResiduals {
   double line_rms_mm = 0.0;
 };
 
-/// One camera <- LiDAR pair of the graph: camera_T_lidar = reference_T_camera^-1 * reference_T_lidar.
+/// One camera <- LiDAR pair of the graph: camera_T_lidar = reference_T_camera^-1 *
+/// reference_T_lidar.
 struct PairEstimate {
   int camera = 0;  ///< sensor indices
   int lidar = 0;
@@ -190,28 +191,28 @@ struct MsgSolution {
   /// Joint covariance of every sensor pose (6n x 6n, sensor s at rows/columns 6s..6s+5, header
   /// convention; zero for the reference); empty when not computed or not available.
   Eigen::MatrixXd pose_covariance;
-  std::vector<PairEstimate> pairs;      ///< every camera <- LiDAR pair (camera-major order)
-  std::vector<PairLink> links;          ///< every sensor pair (a < b); unusable ones carry a reason
-  std::vector<LoopError> loops;         ///< every triangle of successful pairwise links
+  std::vector<PairEstimate> pairs;  ///< every camera <- LiDAR pair (camera-major order)
+  std::vector<PairLink> links;      ///< every sensor pair (a < b); unusable ones carry a reason
+  std::vector<LoopError> loops;     ///< every triangle of successful pairwise links
   double loop_rotation_max_deg = 0.0;
   double loop_translation_max_mm = 0.0;
   std::vector<RejectedObservation> rejected;
   GraphResiduals residuals;
   int poses_used = 0;
   double final_cost = 0.0;
-  int iterations = 0;                   ///< summed over the solves
+  int iterations = 0;  ///< summed over the solves
   std::string termination;
   bool used_pairwise_init = true;
   std::vector<std::string> notes;
-  double solve_time_ms = 0.0;           ///< whole call (init, solves, covariance)
-  double graph_time_ms = 0.0;           ///< the global Ceres solves only
+  double solve_time_ms = 0.0;  ///< whole call (init, solves, covariance)
+  double graph_time_ms = 0.0;  ///< the global Ceres solves only
 };
 
 /// Solves the graph. Without `initial_reference_T_sensor` (one pose per sensor) the pairwise +
 /// spanning-tree initialisation is used. Never throws on bad input: success = false + reason.
-MsgSolution solveMsgGraph(const MsgProblem& problem, const MsgGraphOptions& options,
-                          const std::optional<std::vector<Eigen::Isometry3d>>& initial_reference_T_sensor =
-                              std::nullopt);
+MsgSolution solveMsgGraph(
+    const MsgProblem& problem, const MsgGraphOptions& options,
+    const std::optional<std::vector<Eigen::Isometry3d>>& initial_reference_T_sensor = std::nullopt);
 
 /// a_T_b from a solution (p_a = a_T_b * p_b).
 Expected<Eigen::Isometry3d> sensorTSensor(const MsgSolution& solution, int a, int b);

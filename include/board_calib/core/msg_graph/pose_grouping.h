@@ -12,16 +12,17 @@ namespace board_calib {
 namespace multi_sensor {
 
 struct GroupingOptions {
-  double stamp_tolerance_s = 0.05;  ///< s, features of one board pose lie within this of its first stamp
-  int min_sensors = 2;              ///< sensors with a found board needed to keep a board pose
+  double stamp_tolerance_s =
+      0.05;             ///< s, features of one board pose lie within this of its first stamp
+  int min_sensors = 2;  ///< sensors with a found board needed to keep a board pose
   std::string validate() const;
 };
 
 struct GroupingReport {
   std::vector<BoardPoseObservation> poses;  ///< ids 0, 1, ... in stamp order
-  int features_in = 0;       ///< found features given
-  int features_used = 0;     ///< placed in a kept board pose
-  int groups_dropped = 0;    ///< stamp groups with fewer than min_sensors sensors
+  int features_in = 0;                      ///< found features given
+  int features_used = 0;                    ///< placed in a kept board pose
+  int groups_dropped = 0;                   ///< stamp groups with fewer than min_sensors sensors
   int duplicates_dropped = 0;  ///< a second feature of one sensor within a group (the farther one)
 };
 
@@ -29,10 +30,10 @@ struct GroupingReport {
 /// ignored) by stamp. Greedy in stamp order: a group opens at the earliest unassigned feature
 /// and takes, per sensor, the feature closest to that stamp within the tolerance. Fails with a
 /// reason when a stream is keyed to a sensor of the other kind or out of range.
-Expected<GroupingReport> groupByStamp(const std::vector<SensorSpec>& sensors,
-                                      const std::map<int, std::vector<CameraBoardFeatures>>& cameras,
-                                      const std::map<int, std::vector<LidarBoardFeatures>>& lidars,
-                                      const GroupingOptions& options);
+Expected<GroupingReport> groupByStamp(
+    const std::vector<SensorSpec>& sensors,
+    const std::map<int, std::vector<CameraBoardFeatures>>& cameras,
+    const std::map<int, std::vector<LidarBoardFeatures>>& lidars, const GroupingOptions& options);
 
 }  // namespace multi_sensor
 }  // namespace board_calib

@@ -21,7 +21,7 @@ struct PairCalibrationOptions {
   SolverOptions solver = realLidarSolverOptions();
   ConsistencyOptions consistency;
   VerdictOptions verdict;
-  bool cross_validate = true;   ///< false: no left-out solves (faster, doubtful at best)
+  bool cross_validate = true;  ///< false: no left-out solves (faster, doubtful at best)
   std::string validate() const;
 };
 
@@ -32,16 +32,18 @@ struct MethodRun {
 
 struct PairCalibration {
   ConsistencyReport consistency;
-  std::vector<View> used_views;   ///< the consistent views the methods were solved on
-  std::vector<MethodRun> runs;    ///< one per asked method, in order
-  int chosen = -1;                ///< index into runs; -1 when every method failed
-  std::string choice;             ///< why that method, in words
+  std::vector<View> used_views;        ///< the consistent views the methods were solved on
+  std::vector<MethodRun> runs;         ///< one per asked method, in order
+  int chosen = -1;                     ///< index into runs; -1 when every method failed
+  std::string choice;                  ///< why that method, in words
   Verdict verdict = Verdict::kFailed;  ///< of the chosen run (failed when none)
-  std::string reason;             ///< one line
-  ResultFile result;              ///< the chosen run's (or the first run's when all failed), with the verdict
+  std::string reason;                  ///< one line
+  ResultFile result;  ///< the chosen run's (or the first run's when all failed), with the verdict
 
   bool failed() const { return verdict == Verdict::kFailed; }
-  const MethodRun* chosenRun() const { return chosen >= 0 ? &runs[static_cast<size_t>(chosen)] : nullptr; }
+  const MethodRun* chosenRun() const {
+    return chosen >= 0 ? &runs[static_cast<size_t>(chosen)] : nullptr;
+  }
   /// The run the result file shows: the chosen one, or the first when every method failed.
   /// Needs at least one run (calibratePair makes one per asked method).
   const MethodRun& shownRun() const { return runs[chosen >= 0 ? static_cast<size_t>(chosen) : 0]; }
@@ -50,12 +52,14 @@ struct PairCalibration {
 /// Methods by name: "ppc", "pbpc", "msg" or "all".
 Expected<std::vector<Method>> parseMethods(const std::string& name);
 
-PairCalibration calibratePair(const std::vector<View>& views, const std::vector<Method>& methods, const Target& target,
-                              const std::string& camera_frame, const std::string& lidar_frame,
+PairCalibration calibratePair(const std::vector<View>& views, const std::vector<Method>& methods,
+                              const Target& target, const std::string& camera_frame,
+                              const std::string& lidar_frame,
                               const PairCalibrationOptions& options = {},
                               const std::optional<Eigen::Isometry3d>& initial_guess = std::nullopt);
 
-/// The verdict in a few lines for a terminal or a log: VERDICT, reason, method choice, views to check.
+/// The verdict in a few lines for a terminal or a log: VERDICT, reason, method choice, views to
+/// check.
 std::string verdictSummary(const PairCalibration& run);
 
 }  // namespace board_calib

@@ -19,9 +19,9 @@
 namespace board_calib {
 
 struct PairReportInputs {
-  std::string source;          ///< where the views came from, one line (bags, "live session")
-  std::string detection;       ///< optional line on the detectors' hit rates
-  std::string child_frame;     ///< TF child of the snippets; empty: the camera frame
+  std::string source;       ///< where the views came from, one line (bags, "live session")
+  std::string detection;    ///< optional line on the detectors' hit rates
+  std::string child_frame;  ///< TF child of the snippets; empty: the camera frame
   const std::map<int, cv::Mat>* view_images = nullptr;     ///< raw image per view id (optional)
   const std::map<int, LidarCloud>* view_clouds = nullptr;  ///< raw cloud per view id (optional)
   const CameraModel* camera = nullptr;                     ///< needed for the overlays
@@ -29,7 +29,7 @@ struct PairReportInputs {
 
 /// Writes the report folder `dir` (created when missing). Fails with the first file that could
 /// not be written; every file is written atomically.
-Status writePairReport(const std::string& dir, const PairCalibration& run, const PairSession& session,
-                       const PairReportInputs& inputs);
+Status writePairReport(const std::string& dir, const PairCalibration& run,
+                       const PairSession& session, const PairReportInputs& inputs);
 
 }  // namespace board_calib

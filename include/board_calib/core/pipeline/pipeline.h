@@ -14,7 +14,8 @@ namespace board_calib {
 
 struct PipelineOptions {
   LidarBoardDetectorOptions lidar;
-  StaticMemoryOptions lidar_memory;  ///< enabled: clouds go through a LidarBoardTracker (static planes are background)
+  StaticMemoryOptions lidar_memory;  ///< enabled: clouds go through a LidarBoardTracker (static
+                                     ///< planes are background)
   ImageBoardDetectorOptions image;
   SessionOptions session;
   bool keep_view_frames = true;  ///< keep the raw image and cloud of every accepted view (reports)
@@ -47,8 +48,8 @@ class CalibrationPipeline {
   ~CalibrationPipeline();
 
   /// A raw image with the intrinsics valid at its time. Bad intrinsics are reported, not thrown.
-  FrameOutcome addImage(const cv::Mat& image, const CameraIntrinsics& intrinsics, const std::string& frame_id,
-                        double stamp);
+  FrameOutcome addImage(const cv::Mat& image, const CameraIntrinsics& intrinsics,
+                        const std::string& frame_id, double stamp);
   FrameOutcome addCloud(const LidarCloud& cloud);
   /// No more frames: judges the images still waiting for their still window.
   SessionEvent finish();

@@ -24,49 +24,49 @@ struct RigCalibrationOptions {
   multi_sensor::MsgGraphOptions graph;
   ConsistencyOptions consistency;
   VerdictOptions verdict;
-  bool cross_validate = true;             ///< false: no left-out solves (faster, doubtful at best)
+  bool cross_validate = true;  ///< false: no left-out solves (faster, doubtful at best)
   /// Loop closure of the pairwise estimates: they are independent solves, so a loop's error is
   /// their noise added up; beyond this many times the graph's worst pair 1 sigma (and these
   /// floors) the pairwise links contradict each other.
   double loop_sigmas = 5.0;
-  double min_loop_rotation_deg = 0.5;     ///< deg, floor of the loop tolerance
-  double min_loop_translation_m = 0.02;   ///< m
+  double min_loop_rotation_deg = 0.5;    ///< deg, floor of the loop tolerance
+  double min_loop_translation_m = 0.02;  ///< m
   /// Known extrinsics (a factory stereo calibration) against the graph: beyond this many of the
   /// graph's 1 sigma of that transform, plus these floors for the known value's own error.
   double known_sigmas = 3.0;
-  double known_floor_rotation_deg = 0.1;  ///< deg
+  double known_floor_rotation_deg = 0.1;     ///< deg
   double known_floor_translation_m = 0.005;  ///< m
   std::string validate() const;
 };
 
 /// One camera <- LiDAR pair of the graph, judged as a pair run is.
 struct RigPairRun {
-  int camera = 0, lidar = 0;           ///< sensor indices (MsgProblem order)
+  int camera = 0, lidar = 0;  ///< sensor indices (MsgProblem order)
   std::string camera_frame, lidar_frame;
-  ConsistencyReport consistency;       ///< of the poses both sensors saw (view id = pose id)
-  std::vector<View> views;             ///< the consistent views the verdict judged
-  CalibrationSolution solution;        ///< the graph's pair with its residuals on those views
+  ConsistencyReport consistency;  ///< of the poses both sensors saw (view id = pose id)
+  std::vector<View> views;        ///< the consistent views the verdict judged
+  CalibrationSolution solution;   ///< the graph's pair with its residuals on those views
   VerdictReport verdict;
 };
 
 struct RigCalibration {
-  multi_sensor::MsgProblem problem;             ///< as solved: inconsistent observations removed
+  multi_sensor::MsgProblem problem;  ///< as solved: inconsistent observations removed
   multi_sensor::MsgSolution solution;
-  std::vector<RigPairRun> pairs;       ///< solution.pairs' order
-  std::vector<std::string> left_out;   ///< observations removed before solving, with the reason
+  std::vector<RigPairRun> pairs;          ///< solution.pairs' order
+  std::vector<std::string> left_out;      ///< observations removed before solving, with the reason
   std::vector<std::string> rig_findings;  ///< loop and known-extrinsic checks, in words
-  Verdict verdict = Verdict::kFailed;  ///< overall: the worst pair, or the rig's own checks
-  std::string reason;                  ///< one line
-  std::vector<int> views_to_check;     ///< pose ids
-  ResultFile result;                   ///< msgResultFile + verdicts (overall and per pair)
+  Verdict verdict = Verdict::kFailed;     ///< overall: the worst pair, or the rig's own checks
+  std::string reason;                     ///< one line
+  std::vector<int> views_to_check;        ///< pose ids
+  ResultFile result;                      ///< msgResultFile + verdicts (overall and per pair)
 
   bool failed() const { return verdict == Verdict::kFailed; }
 };
 
 /// Runs the whole rig calibration on `problem` (the rig's sensors and captured poses). `rig`
 /// supplies the known extrinsics (may be empty); `target` the board for the noise model.
-RigCalibration calibrateRig(const multi_sensor::MsgProblem& problem, const RigConfig& rig, const Target& target,
-                            const RigCalibrationOptions& options = {});
+RigCalibration calibrateRig(const multi_sensor::MsgProblem& problem, const RigConfig& rig,
+                            const Target& target, const RigCalibrationOptions& options = {});
 
 /// The verdict in a few lines for a terminal or a log: VERDICT, reason, each pair, poses to check.
 std::string rigVerdictSummary(const RigCalibration& run);

@@ -28,7 +28,8 @@ Expected<RigCapture> parseRigCapture(const std::string& name);
 struct RigPipelineOptions {
   ImageBoardDetectorOptions image;
   LidarBoardDetectorOptions lidar;
-  multi_sensor::RigSessionOptions session;  ///< stamp_tolerance_s comes from the rig file (rigPipelineOptionsFor)
+  multi_sensor::RigSessionOptions
+      session;  ///< stamp_tolerance_s comes from the rig file (rigPipelineOptionsFor)
   RigCapture capture = RigCapture::kStill;
   std::string validate() const;
 };
@@ -39,14 +40,15 @@ RigPipelineOptions rigPipelineOptionsFor(const RigConfig& rig);
 /// What one sensor saw (for logs and the report).
 struct RigSensorStats {
   std::string name;
-  std::string frame_id;              ///< from the first frame (the name until then)
+  std::string frame_id;  ///< from the first frame (the name until then)
   int frames = 0, found = 0;
   std::map<std::string, int> failures;  ///< reason -> count
 };
 
 class RigPipeline {
  public:
-  static Expected<RigPipeline> create(const RigConfig& rig, const Target& target, const RigPipelineOptions& options);
+  static Expected<RigPipeline> create(const RigConfig& rig, const Target& target,
+                                      const RigPipelineOptions& options);
   RigPipeline(RigPipeline&&) noexcept;
   RigPipeline& operator=(RigPipeline&&) noexcept;
   ~RigPipeline();

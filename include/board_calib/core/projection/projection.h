@@ -24,49 +24,52 @@ const char* colorModeName(ColorMode mode);
 Expected<ColorMode> parseColorMode(const std::string& name);
 
 struct ProjectionOptions {
-  double min_depth_m = 0.3;        ///< m, points nearer to the camera (along its z) are dropped
-  double max_depth_m = 30.0;       ///< m, points farther are dropped; also the top of the depth colour scale
+  double min_depth_m = 0.3;  ///< m, points nearer to the camera (along its z) are dropped
+  double max_depth_m =
+      30.0;  ///< m, points farther are dropped; also the top of the depth colour scale
   /// Occlusion culling: the image is split into square cells of this size and a point is
   /// dropped when the nearest point of its cell is closer by more than occlusion_tolerance_m
   /// (the LiDAR sees things the camera cannot, e.g. behind the board's edge). 0 disables it.
-  int zbuffer_cell_px = 6;         ///< px
+  int zbuffer_cell_px = 6;             ///< px
   double occlusion_tolerance_m = 0.3;  ///< m
-  double margin_px = 0.0;          ///< px, how far outside the image a projected point is still kept
+  double margin_px = 0.0;  ///< px, how far outside the image a projected point is still kept
   std::string validate() const;
 };
 
 /// One visible point after culling.
 struct ProjectedPoint {
-  float u = 0, v = 0;    ///< raw (distorted) px
-  float depth = 0;       ///< m, camera z
+  float u = 0, v = 0;  ///< raw (distorted) px
+  float depth = 0;     ///< m, camera z
   float intensity = 0;
-  int index = 0;         ///< index into LidarCloud::points
+  int index = 0;  ///< index into LidarCloud::points
 };
 
 struct ProjectedCloud {
   std::vector<ProjectedPoint> points;
-  int invalid = 0;        ///< NaN or zero-range returns
-  int out_of_range = 0;   ///< behind the camera or outside [min_depth_m, max_depth_m]
-  int outside_image = 0;  ///< in front but not inside the image (or folding back through distortion)
-  int occluded = 0;       ///< removed by the z-buffer
+  int invalid = 0;       ///< NaN or zero-range returns
+  int out_of_range = 0;  ///< behind the camera or outside [min_depth_m, max_depth_m]
+  int outside_image =
+      0;             ///< in front but not inside the image (or folding back through distortion)
+  int occluded = 0;  ///< removed by the z-buffer
 };
 
 /// Projects a cloud into the image with camera_T_lidar (p_camera = camera_T_lidar * p_lidar).
 /// Culls invalid, behind-camera and far-off-axis points by the undistorted ray before
 /// distorting (CameraModel::isVisible), then applies the z-buffer.
 Expected<ProjectedCloud> projectCloud(const LidarCloud& cloud, const CameraModel& camera,
-                                      const Eigen::Isometry3d& camera_T_lidar, const ProjectionOptions& options);
+                                      const Eigen::Isometry3d& camera_T_lidar,
+                                      const ProjectionOptions& options);
 
 struct OverlayOptions {
   ColorMode color_mode = ColorMode::kDepth;
-  double depth_min_m = 0.3;     ///< m, colour scale start (ColorMode::kDepth)
-  double depth_max_m = 30.0;    ///< m, colour scale end
+  double depth_min_m = 0.3;   ///< m, colour scale start (ColorMode::kDepth)
+  double depth_max_m = 30.0;  ///< m, colour scale end
   /// Intensity colour scale; when intensity_max <= intensity_min the scale is taken from the
   /// 2nd and 98th percentiles of the visible points.
   double intensity_min = 0.0;
   double intensity_max = 0.0;
-  int point_radius_px = 2;      ///< px, 0 draws single pixels
-  double alpha = 1.0;           ///< opacity of the drawn points, 0..1
+  int point_radius_px = 2;          ///< px, 0 draws single pixels
+  double alpha = 1.0;               ///< opacity of the drawn points, 0..1
   cv::Vec3b flat_color{0, 255, 0};  ///< BGR for ColorMode::kFlat
   std::string validate() const;
 };
@@ -77,7 +80,8 @@ const std::vector<cv::Vec3b>& colorTable();
 
 /// Draws projected points onto a bgr8 image (mono8 is converted to bgr8 first). Points are
 /// drawn far to near so nearer points stay on top.
-Status drawProjectedCloud(const ProjectedCloud& projected, const OverlayOptions& options, cv::Mat* image);
+Status drawProjectedCloud(const ProjectedCloud& projected, const OverlayOptions& options,
+                          cv::Mat* image);
 
 /// Draws a line a*u + b*v + c = 0 given in *undistorted* pixels onto the raw image: the line is
 /// sampled every sample_step_px, each sample distorted, and the visible samples joined.
@@ -87,10 +91,11 @@ struct LineStyle {
   int thickness_px = 2;          ///< px
   double sample_step_px = 8.0;   ///< px, along the undistorted line
 };
-int drawUndistortedLine(const Eigen::Vector3d& line, const CameraModel& camera, const LineStyle& style, cv::Mat* image);
+int drawUndistortedLine(const Eigen::Vector3d& line, const CameraModel& camera,
+                        const LineStyle& style, cv::Mat* image);
 /// Same for the segment between two undistorted pixels.
-int drawUndistortedSegment(const Eigen::Vector2d& from, const Eigen::Vector2d& to, const CameraModel& camera,
-                           const LineStyle& style, cv::Mat* image);
+int drawUndistortedSegment(const Eigen::Vector2d& from, const Eigen::Vector2d& to,
+                           const CameraModel& camera, const LineStyle& style, cv::Mat* image);
 
 /// The "projected edges" check: LiDAR edge points projected with an estimate against the
 /// image edge lines.
@@ -101,7 +106,7 @@ struct EdgeCheckOptions {
   double residual_scale_px = 5.0;  ///< px, residual drawn fully magenta (0 px is white)
   int point_radius_px = 4;         ///< px
   LineStyle line_style;
-  bool annotate = true;            ///< write the MLRE in the image's top-left corner
+  bool annotate = true;  ///< write the MLRE in the image's top-left corner
   std::string validate() const;
 };
 
@@ -112,21 +117,24 @@ struct EdgePointCheck {
 
 struct EdgeCheck {
   std::array<std::vector<EdgePointCheck>, kNumEdges> points;  ///< per LiDAR edge, visible points
-  std::array<int, kNumEdges> image_edge{{-1, -1, -1, -1}};    ///< image line each LiDAR edge was scored against
-  std::array<double, kNumEdges> mean_residual_px{};           ///< per LiDAR edge, NaN when empty
-  double mlre_px = 0.0;  ///< mean over all scored points
-  int num_points = 0;    ///< scored points
+  std::array<int, kNumEdges> image_edge{
+      {-1, -1, -1, -1}};  ///< image line each LiDAR edge was scored against
+  std::array<double, kNumEdges> mean_residual_px{};  ///< per LiDAR edge, NaN when empty
+  double mlre_px = 0.0;                              ///< mean over all scored points
+  int num_points = 0;                                ///< scored points
 };
 
 /// Scores the LiDAR edge points against the image lines (undistorted px). Fails with a reason
 /// when nothing can be scored (no valid edges, all points behind the camera or off-image).
-Expected<EdgeCheck> checkProjectedEdges(const LidarBoardFeatures& lidar, const CameraBoardFeatures& image,
-                                        const CameraModel& camera, const Eigen::Isometry3d& camera_T_lidar,
+Expected<EdgeCheck> checkProjectedEdges(const LidarBoardFeatures& lidar,
+                                        const CameraBoardFeatures& image, const CameraModel& camera,
+                                        const Eigen::Isometry3d& camera_T_lidar,
                                         const EdgeCheckOptions& options);
 
 /// Draws the image lines and the scored points (green -> red by residual) and the MLRE.
-Status drawEdgeCheck(const CameraBoardFeatures& image, const EdgeCheck& check, const CameraModel& camera,
-                     const EdgeCheckOptions& options, cv::Mat* bgr_image);
+Status drawEdgeCheck(const CameraBoardFeatures& image, const EdgeCheck& check,
+                     const CameraModel& camera, const EdgeCheckOptions& options,
+                     cv::Mat* bgr_image);
 
 /// A LiDAR point with the colour of the image pixel it projects to.
 struct ColoredPoint {
@@ -136,13 +144,14 @@ struct ColoredPoint {
 };
 
 struct ColoredCloud {
-  std::string frame_id;  ///< the LiDAR frame
-  double stamp = 0.0;    ///< s
+  std::string frame_id;              ///< the LiDAR frame
+  double stamp = 0.0;                ///< s
   std::vector<ColoredPoint> points;  ///< only points the camera sees (after the z-buffer)
 };
 
 /// Colours the visible points of `cloud` from a bgr8 or mono8 image (bilinear sampling).
-Expected<ColoredCloud> colorCloud(const LidarCloud& cloud, const ProjectedCloud& projected, const cv::Mat& image);
+Expected<ColoredCloud> colorCloud(const LidarCloud& cloud, const ProjectedCloud& projected,
+                                  const cv::Mat& image);
 
 /// The four image corners' viewing rays scaled to depth_m (camera frame; top-left, top-right,
 /// bottom-right, bottom-left): the far face of the camera frustum, for markers.

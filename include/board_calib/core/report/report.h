@@ -18,8 +18,9 @@ std::vector<std::string> consistencyNotes(const std::vector<View>& views, const 
                                           const CalibrationSolution& solution);
 
 /// The contract result file, with quality figures and notes.
-ResultFile makeResultFile(const CalibrationSolution& solution, const std::vector<View>& views, const Target& target,
-                          const std::string& camera_frame, const std::string& lidar_frame);
+ResultFile makeResultFile(const CalibrationSolution& solution, const std::vector<View>& views,
+                          const Target& target, const std::string& camera_frame,
+                          const std::string& lidar_frame);
 
 /// Multi-line human-readable summary: pose, quality figures with their meaning, notes.
 std::string solutionSummary(const CalibrationSolution& solution);

@@ -15,8 +15,8 @@
 namespace board_calib {
 
 struct PlotOptions {
-  int width = 960;                ///< px, chart width
-  int height = 420;               ///< px, chart height
+  int width = 960;   ///< px, chart width
+  int height = 420;  ///< px, chart height
   /// An edge whose MLRE exceeds this multiple of the median edge MLRE (of the same solution)
   /// is flagged as an outlier. Relative to the median, so it follows the data's own noise
   /// (pixel size, LiDAR spacing) instead of a pixel constant.
@@ -31,14 +31,15 @@ struct PlotOptions {
 /// One edge flagged by plotEdgeErrors.
 struct EdgeOutlier {
   int view_id = 0;
-  int edge = 0;             ///< image edge index (edgeName)
+  int edge = 0;  ///< image edge index (edgeName)
   double mlre_px = 0.0;
-  double median_px = 0.0;   ///< median edge MLRE of the solution
+  double median_px = 0.0;  ///< median edge MLRE of the solution
 };
 
 /// Outlier edges of a solution: used edges with an MLRE above options.outlier_factor x the
 /// median edge MLRE. Empty when fewer than 3 edges have an MLRE (no meaningful median).
-std::vector<EdgeOutlier> findEdgeOutliers(const CalibrationSolution& solution, const PlotOptions& options);
+std::vector<EdgeOutlier> findEdgeOutliers(const CalibrationSolution& solution,
+                                          const PlotOptions& options);
 
 /// Bar chart: for every view, one bar per edge (UL, UR, LR, LL) with its MLRE (px); the mean
 /// MLRE and the outlier threshold as horizontal lines; outliers drawn red and labelled.
@@ -54,12 +55,12 @@ Expected<cv::Mat> plotPoseCoverage(const std::vector<View>& views, const PlotOpt
 /// Small multiples, one panel per figure (MLRE px, plane RMS mm, max 1 sigma translation mm,
 /// max 1 sigma rotation deg), one bar per successful method; `chosen` (index into solutions,
 /// or -1) is outlined. Fails when no solution succeeded.
-Expected<cv::Mat> plotMethodComparison(const std::vector<CalibrationSolution>& solutions, int chosen,
-                                       const PlotOptions& options);
+Expected<cv::Mat> plotMethodComparison(const std::vector<CalibrationSolution>& solutions,
+                                       int chosen, const PlotOptions& options);
 
 /// What writeReportFigures wrote (file names relative to the report folder).
 struct ReportFigures {
-  std::string edge_errors;        ///< empty when not drawn
+  std::string edge_errors;  ///< empty when not drawn
   std::string pose_coverage;
   std::string method_comparison;
   std::vector<std::string> skipped;  ///< "figure: reason" for each figure not drawn
@@ -70,12 +71,13 @@ struct ReportFigures {
 /// pose_coverage.png, methods.png when there is more than one solution). Fails only when a
 /// file cannot be written; a figure without data is listed in `skipped` with the reason.
 Expected<ReportFigures> writeReportFigures(const std::string& dir, const std::vector<View>& views,
-                                           const std::vector<CalibrationSolution>& solutions, int chosen,
-                                           const PlotOptions& options = PlotOptions{});
+                                           const std::vector<CalibrationSolution>& solutions,
+                                           int chosen, const PlotOptions& options = PlotOptions{});
 
 /// The Markdown section linking the figures, listing the outlier edges, and linking every
 /// overlay image (names relative to the report folder).
-std::string reportFiguresMarkdown(const ReportFigures& figures, const std::vector<std::string>& overlay_files,
+std::string reportFiguresMarkdown(const ReportFigures& figures,
+                                  const std::vector<std::string>& overlay_files,
                                   const PlotOptions& options = PlotOptions{});
 
 /// The report folder's overlay images (`overlay_*.jpg` / `.png`), sorted by the number in
@@ -85,7 +87,7 @@ std::vector<std::string> listOverlayFiles(const std::string& dir);
 /// writeReportFigures, then appends reportFiguresMarkdown (with listOverlayFiles) to
 /// `dir`/report.md. Returns what was written.
 Expected<ReportFigures> appendReportFigures(const std::string& dir, const std::vector<View>& views,
-                                            const std::vector<CalibrationSolution>& solutions, int chosen,
-                                            const PlotOptions& options = PlotOptions{});
+                                            const std::vector<CalibrationSolution>& solutions,
+                                            int chosen, const PlotOptions& options = PlotOptions{});
 
 }  // namespace board_calib

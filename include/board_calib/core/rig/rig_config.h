@@ -14,10 +14,11 @@
 namespace board_calib {
 
 struct RigCamera {
-  std::string name;               ///< sensor name (used in `reference`, `known_extrinsics`)
+  std::string name;  ///< sensor name (used in `reference`, `known_extrinsics`)
   std::string image_topic;
   std::string camera_info_topic;
-  std::string features_topic;     ///< board features for the calibrator nodelet (default NAME/camera_board)
+  std::string
+      features_topic;  ///< board features for the calibrator nodelet (default NAME/camera_board)
   double pixel_sigma_px = 0.0;    ///< px, noise.pixel_sigma_px (<= 0: graph default)
   double normal_sigma_deg = 0.0;  ///< deg, noise.normal_sigma_deg (<= 0: graph default)
   double offset_sigma_m = 0.0;    ///< m, noise.offset_sigma_m (<= 0: graph default)
@@ -26,7 +27,8 @@ struct RigCamera {
 struct RigLidar {
   std::string name;
   std::string cloud_topic;
-  std::string features_topic;     ///< board features for the calibrator nodelet (default NAME/lidar_board)
+  std::string
+      features_topic;  ///< board features for the calibrator nodelet (default NAME/lidar_board)
   double normal_sigma_deg = 0.0;  ///< deg, noise.normal_sigma_deg (<= 0: graph default)
   double offset_sigma_m = 0.0;    ///< m, noise.offset_sigma_m (<= 0: graph default)
   double edge_sigma_m = 0.0;      ///< m, noise.edge_sigma_m (<= 0: graph default)
@@ -39,12 +41,13 @@ struct KnownExtrinsic {
 };
 
 struct RigConfig {
-  std::string target_path;        ///< absolute or relative to the working directory (resolved)
-  std::string reference;          ///< sensor name whose pose is the identity
+  std::string target_path;  ///< absolute or relative to the working directory (resolved)
+  std::string reference;    ///< sensor name whose pose is the identity
   std::vector<RigCamera> cameras;
   std::vector<RigLidar> lidars;
   std::vector<KnownExtrinsic> known_extrinsics;
-  double stamp_tolerance_s = 0.05;  ///< s, features of one board pose lie within this of its first stamp
+  double stamp_tolerance_s =
+      0.05;  ///< s, features of one board pose lie within this of its first stamp
 
   /// Empty when usable; otherwise the reason (duplicate names, unknown reference...).
   std::string validate() const;

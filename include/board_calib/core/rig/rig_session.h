@@ -13,9 +13,9 @@
 // are better (more sensors, closer stamps). Why candidates were skipped is counted in words.
 #pragma once
 
+#include <board_calib/core/capture/stillness.h>
 #include <board_calib/core/msg_graph/msg_graph.h>
 #include <board_calib/core/rig/rig_config.h>
-#include <board_calib/core/capture/stillness.h>
 #include <board_calib/core/session/session.h>
 
 #include <deque>
@@ -30,20 +30,25 @@ namespace board_calib {
 namespace multi_sensor {
 
 struct RigSessionOptions {
-  double stamp_tolerance_s = 0.05;      ///< s, a sensor's feature belongs to a pose within this of its moment
-  bool auto_capture = true;             ///< capture on stillness; false: only captureNow()
-  int still_frames_required = 2;        ///< frames of the fastest stream seeing the board in the still window,
-                                        ///< on both sides of the moment (1 = no stillness check)
-  double still_window_s = 0.25;         ///< s, the board must be still this long before and after the moment
-  double still_max_translation_m = 0.03;  ///< m, board centre motion allowed inside the window (beyond noise)
-  double still_max_rotation_deg = 1.5;    ///< deg, board normal change allowed inside the window (beyond noise)
-  double snapshot_interval_s = 0.5;     ///< s, every stream sparser than this: one frame per pose
-  double min_pose_rotation_deg = 5.0;   ///< deg, a new pose's normal must differ this much ...
-  double min_pose_translation_m = 0.20; ///< m, ... or its centre move this much (in every sensor that saw both)
-  int min_sensors = 2;                  ///< sensors that must see the board for a pose to be kept
-  int max_poses = 300;                  ///< poses kept at most
-  double history_s = 3.0;               ///< s, features kept per stream for assembly and judgement
-  std::string validate() const;         ///< empty when usable
+  double stamp_tolerance_s =
+      0.05;                  ///< s, a sensor's feature belongs to a pose within this of its moment
+  bool auto_capture = true;  ///< capture on stillness; false: only captureNow()
+  int still_frames_required = 2;  ///< frames of the fastest stream seeing the board in the still
+                                  ///< window, on both sides of the moment (1 = no stillness check)
+  double still_window_s =
+      0.25;  ///< s, the board must be still this long before and after the moment
+  double still_max_translation_m =
+      0.03;  ///< m, board centre motion allowed inside the window (beyond noise)
+  double still_max_rotation_deg =
+      1.5;  ///< deg, board normal change allowed inside the window (beyond noise)
+  double snapshot_interval_s = 0.5;    ///< s, every stream sparser than this: one frame per pose
+  double min_pose_rotation_deg = 5.0;  ///< deg, a new pose's normal must differ this much ...
+  double min_pose_translation_m =
+      0.20;                ///< m, ... or its centre move this much (in every sensor that saw both)
+  int min_sensors = 2;     ///< sensors that must see the board for a pose to be kept
+  int max_poses = 300;     ///< poses kept at most
+  double history_s = 3.0;  ///< s, features kept per stream for assembly and judgement
+  std::string validate() const;  ///< empty when usable
   StillnessOptions stillness() const;
 };
 
@@ -61,25 +66,26 @@ struct RigSensorCounts {
   int messages = 0;
   int found = 0;
   std::string last_reason;  ///< newest "not found" reason
-  double newest_stamp = -std::numeric_limits<double>::infinity();  ///< s, newest message (since a restart)
-  bool board_now = false;   ///< the newest message saw the board
+  double newest_stamp =
+      -std::numeric_limits<double>::infinity();  ///< s, newest message (since a restart)
+  bool board_now = false;                        ///< the newest message saw the board
 };
 
 /// One sensor's part in the session, for diagnostics and the panel.
 struct RigSensorHealth {
   std::string name;
-  std::string frame;            ///< from its features (the sensor name until one arrived)
+  std::string frame;  ///< from its features (the sensor name until one arrived)
   RigSensorCounts counts;
-  std::vector<int> pose_ids;    ///< captured poses it takes part in
-  std::string why_no_pose;      ///< when in no pose: why, in words (empty otherwise)
+  std::vector<int> pose_ids;  ///< captured poses it takes part in
+  std::string why_no_pose;    ///< when in no pose: why, in words (empty otherwise)
 };
 
 class RigSession {
  public:
   /// `names` are the rig's sensor names, `sensors` the specs in the same (MsgProblem) order;
   /// `target` (when known) sizes the cameras' stillness noise.
-  RigSession(std::vector<std::string> names, std::vector<SensorSpec> sensors, RigSessionOptions options,
-             std::optional<Target> target = std::nullopt);
+  RigSession(std::vector<std::string> names, std::vector<SensorSpec> sensors,
+             RigSessionOptions options, std::optional<Target> target = std::nullopt);
 
   /// Feed one camera / LiDAR feature of sensor `sensor` (its index in the specs). Features of
   /// the wrong kind or index give a kRejected event naming the problem.
@@ -127,7 +133,7 @@ class RigSession {
   struct Stream {
     std::vector<CameraBoardFeatures> cameras;  // found features, stamp order
     std::vector<LidarBoardFeatures> lidars;
-    std::deque<BoardSample> samples;           // every frame (found or not), for the stillness judge
+    std::deque<BoardSample> samples;  // every frame (found or not), for the stillness judge
     StreamClock clock;
   };
   struct Candidate {
@@ -149,7 +155,8 @@ class RigSession {
   std::string whyNoPose(size_t sensor) const;  // empty unless a specific reason is known
   std::optional<Summary> summaryOf(int sensor, const BoardPoseObservation& o) const;
   static std::optional<Summary> summarize(const CameraBoardFeatures& f);  // nullopt unless found
-  static std::optional<Summary> summarize(const LidarBoardFeatures& f);   // nullopt unless found with points
+  static std::optional<Summary> summarize(
+      const LidarBoardFeatures& f);  // nullopt unless found with points
 
   std::vector<std::string> names_;
   std::vector<SensorSpec> sensors_;

@@ -14,7 +14,8 @@ namespace board_calib {
 /// consistency, the graph residuals, the consistency with each known extrinsic of the rig
 /// (a stereo pair: the paper's factory-stereo check) and the solver's notes. `solution` must
 /// be successful and use the rig's sensor order.
-std::string rigSolutionSummary(const RigConfig& rig, const multi_sensor::MsgSolution& solution, const ResultFile& result);
+std::string rigSolutionSummary(const RigConfig& rig, const multi_sensor::MsgSolution& solution,
+                               const ResultFile& result);
 
 /// "t [x, y, z] m, q_xyzw [qx, qy, qz, qw]".
 std::string poseLine(const Eigen::Isometry3d& T);

@@ -22,21 +22,25 @@
 namespace board_calib {
 
 struct SessionOptions {
-  double sync_tolerance_s = 0.05;          ///< s, max |t_camera - t_lidar| for one view
-  int still_frames_required = 2;           ///< frames of the fastest stream in the still window, on both
-                                           ///< sides of the image (1 = no stillness check)
-  double still_window_s = 0.25;            ///< s, the board must be still this long before and after the image
-  double still_max_translation_m = 0.03;   ///< m, max board centre motion inside the window (beyond noise)
-  double still_max_rotation_deg = 1.5;     ///< deg, max board normal change inside the window (beyond noise)
-  double snapshot_interval_s = 0.5;        ///< s, both streams sparser than this: one frame per pose
-  double min_view_rotation_deg = 5.0;      ///< deg, a new view's normal must differ this much ...
-  double min_view_translation_m = 0.20;    ///< m, ... or its centre move this much from every kept view
-  double max_size_mismatch = 0.15;         ///< relative, LiDAR-measured board size vs the target
-  double max_plane_angle_deg = 5.0;        ///< deg, plane agreement once an estimate exists
-  double max_plane_offset_m = 0.15;        ///< m, plane agreement once an estimate exists
-  int min_board_points = 30;               ///< LiDAR board points a view needs
-  int max_views = 200;                     ///< views kept at most
-  int history = 400;                       ///< features kept per stream at most (also pruned by time)
+  double sync_tolerance_s = 0.05;  ///< s, max |t_camera - t_lidar| for one view
+  int still_frames_required = 2;   ///< frames of the fastest stream in the still window, on both
+                                   ///< sides of the image (1 = no stillness check)
+  double still_window_s =
+      0.25;  ///< s, the board must be still this long before and after the image
+  double still_max_translation_m =
+      0.03;  ///< m, max board centre motion inside the window (beyond noise)
+  double still_max_rotation_deg =
+      1.5;  ///< deg, max board normal change inside the window (beyond noise)
+  double snapshot_interval_s = 0.5;    ///< s, both streams sparser than this: one frame per pose
+  double min_view_rotation_deg = 5.0;  ///< deg, a new view's normal must differ this much ...
+  double min_view_translation_m =
+      0.20;                          ///< m, ... or its centre move this much from every kept view
+  double max_size_mismatch = 0.15;   ///< relative, LiDAR-measured board size vs the target
+  double max_plane_angle_deg = 5.0;  ///< deg, plane agreement once an estimate exists
+  double max_plane_offset_m = 0.15;  ///< m, plane agreement once an estimate exists
+  int min_board_points = 30;         ///< LiDAR board points a view needs
+  int max_views = 200;               ///< views kept at most
+  int history = 400;                 ///< features kept per stream at most (also pruned by time)
   std::string validate() const;
   StillnessOptions stillness() const;
 };
@@ -59,17 +63,17 @@ const char* sessionEventName(SessionEvent::Kind kind);
 /// Where the kept views leave gaps, with advice for the next board pose.
 struct CoverageReport {
   int views = 0;
-  double tilt_span_deg = 0.0;     ///< spread of board normals (max pairwise angle)
+  double tilt_span_deg = 0.0;                   ///< spread of board normals (max pairwise angle)
   double range_min_m = 0.0, range_max_m = 0.0;  ///< distances of the board centres
-  double image_coverage = 0.0;    ///< fraction of a 3x3 image grid visited by board centres
+  double image_coverage = 0.0;  ///< fraction of a 3x3 image grid visited by board centres
   std::vector<std::string> advice;
 };
 
 /// Why candidates were not captured, counted by kind ("board moving", "no cloud within the sync
 /// tolerance", "pose already taken", a gate's reason...), for diagnostics and logs.
 struct CaptureStats {
-  int candidates = 0;   ///< images with the board that were judged
-  int captured = 0;     ///< views accepted (a hold's later, better frame counts once more)
+  int candidates = 0;  ///< images with the board that were judged
+  int captured = 0;    ///< views accepted (a hold's later, better frame counts once more)
   std::map<std::string, int> skipped;  ///< kind -> count
   std::string last_stillness;          ///< the last judgement in words
   std::string summary() const;         ///< one line, most frequent reasons first
@@ -135,12 +139,13 @@ class PairSession {
   std::optional<Eigen::Isometry3d> estimate_;
   std::deque<LidarBoardFeatures> lidar_;
   std::deque<CameraBoardFeatures> camera_;
-  std::deque<BoardSample> lidar_samples_, camera_samples_;  ///< stillness cues, parallel to the above
+  std::deque<BoardSample> lidar_samples_,
+      camera_samples_;  ///< stillness cues, parallel to the above
   StreamClock lidar_clock_, camera_clock_;
   std::deque<CameraBoardFeatures> pending_;  ///< images with the board awaiting their judgement
-  std::optional<View> last_pair_;  ///< newest synchronised pair (manual capture)
-  int hold_view_id_ = -1;          ///< view taken in the current hold, -1 when none
-  BoardSample hold_reference_;     ///< camera board of the current hold
+  std::optional<View> last_pair_;            ///< newest synchronised pair (manual capture)
+  int hold_view_id_ = -1;                    ///< view taken in the current hold, -1 when none
+  BoardSample hold_reference_;               ///< camera board of the current hold
   CaptureStats stats_;
   std::vector<SessionView> views_;
   int next_id_ = 0;

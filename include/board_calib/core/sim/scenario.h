@@ -19,9 +19,10 @@ struct CameraSensor {
   std::string name;      ///< topic namespace: /<name>/image_raw, /<name>/camera_info
   std::string frame_id;  ///< optical frame (z forward, x right, y down)
   CameraIntrinsics intrinsics;
-  Eigen::Isometry3d rig_T_sensor = Eigen::Isometry3d::Identity();  ///< optical frame in the rig frame
-  double rate_hz = 10.0;         ///< Hz
-  double stamp_offset_s = 0.0;   ///< s, phase of the first frame after the recording starts
+  Eigen::Isometry3d rig_T_sensor =
+      Eigen::Isometry3d::Identity();  ///< optical frame in the rig frame
+  double rate_hz = 10.0;              ///< Hz
+  double stamp_offset_s = 0.0;        ///< s, phase of the first frame after the recording starts
   RenderOptions render;
 };
 
@@ -36,20 +37,22 @@ struct LidarSensor {
 /// How the person waves the board: N poses in front of the rig (rig +x forward, +z up).
 struct MotionSpec {
   int poses = 20;
-  double min_distance_m = 1.5;       ///< m, board centre from the rig origin
-  double max_distance_m = 6.0;       ///< m
-  double max_azimuth_deg = 20.0;     ///< deg, board centre direction left/right of rig +x
-  double max_elevation_deg = 8.0;    ///< deg, board centre direction above/below the rig's horizon
-  double min_roll_deg = 30.0;        ///< deg, diamond-like roll about the viewing axis (magnitude)
-  double max_roll_deg = 60.0;        ///< deg
-  double max_tilt_deg = 25.0;        ///< deg, extra yaw / pitch of the board away from facing the rig
-  double min_edge_slope_deg = 15.0;  ///< deg, min angle between any board edge and every LiDAR's scan plane
-  double min_board_height_m = 0.2;   ///< m, lowest board corner above the floor
-  double hold_s = 1.5;               ///< s, the board is still this long at each pose
-  double move_s = 1.0;               ///< s, smooth move between poses
-  int still_frames_per_hold = 0;     ///< per sensor: keep only the last N frames of each hold (0 = all)
-  int frames_per_move = -1;          ///< per sensor: keep N evenly spread frames of each move (-1 = all)
-  double image_margin_px = 20.0;     ///< px, board corners stay this far inside every image
+  double min_distance_m = 1.5;     ///< m, board centre from the rig origin
+  double max_distance_m = 6.0;     ///< m
+  double max_azimuth_deg = 20.0;   ///< deg, board centre direction left/right of rig +x
+  double max_elevation_deg = 8.0;  ///< deg, board centre direction above/below the rig's horizon
+  double min_roll_deg = 30.0;      ///< deg, diamond-like roll about the viewing axis (magnitude)
+  double max_roll_deg = 60.0;      ///< deg
+  double max_tilt_deg = 25.0;      ///< deg, extra yaw / pitch of the board away from facing the rig
+  double min_edge_slope_deg =
+      15.0;  ///< deg, min angle between any board edge and every LiDAR's scan plane
+  double min_board_height_m = 0.2;  ///< m, lowest board corner above the floor
+  double hold_s = 1.5;              ///< s, the board is still this long at each pose
+  double move_s = 1.0;              ///< s, smooth move between poses
+  int still_frames_per_hold =
+      0;                     ///< per sensor: keep only the last N frames of each hold (0 = all)
+  int frames_per_move = -1;  ///< per sensor: keep N evenly spread frames of each move (-1 = all)
+  double image_margin_px = 20.0;  ///< px, board corners stay this far inside every image
   std::string validate() const;
 };
 
@@ -73,17 +76,17 @@ Expected<Scenario> loadScenario(const std::string& path);
 
 /// One sensor message to produce.
 struct Frame {
-  double stamp = 0.0;       ///< s since the recording start
+  double stamp = 0.0;  ///< s since the recording start
   bool is_camera = false;
-  int sensor = 0;           ///< index into Scenario::cameras or Scenario::lidars
-  int pose = -1;            ///< index of the held pose, -1 while the board moves
-  bool still = false;       ///< the board does not move during this frame
+  int sensor = 0;      ///< index into Scenario::cameras or Scenario::lidars
+  int pose = -1;       ///< index of the held pose, -1 while the board moves
+  bool still = false;  ///< the board does not move during this frame
   Eigen::Isometry3d world_T_board = Eigen::Isometry3d::Identity();
 };
 
 struct Timeline {
   std::vector<Eigen::Isometry3d> world_T_board_poses;  ///< the held poses
-  std::vector<Frame> frames;                            ///< sorted by stamp
+  std::vector<Frame> frames;                           ///< sorted by stamp
   double duration_s = 0.0;
 };
 
@@ -100,15 +103,16 @@ Eigen::Isometry3d worldTLidar(const Scenario& scenario, int lidar);
 /// `sensors:` in the rig frame and `pairs:` for every camera<->LiDAR pair.
 ResultFile groundTruth(const Scenario& scenario);
 
-/// Produces frame data (keeps a pointer: the scenario must outlive it), reusing the noise-free render of a camera while the board is still.
-/// Frame noise is seeded from the scenario seed and the frame index, so any frame can be
-/// regenerated on its own.
+/// Produces frame data (keeps a pointer: the scenario must outlive it), reusing the noise-free
+/// render of a camera while the board is still. Frame noise is seeded from the scenario seed and
+/// the frame index, so any frame can be regenerated on its own.
 class FrameGenerator {
  public:
   /// Fails when a camera's intrinsics are invalid.
   static Expected<FrameGenerator> create(const Scenario& scenario);
   cv::Mat image(const Frame& frame, size_t frame_index);
-  LidarCloud cloud(const Frame& frame, size_t frame_index, std::vector<ReturnOrigin>* origins = nullptr);
+  LidarCloud cloud(const Frame& frame, size_t frame_index,
+                   std::vector<ReturnOrigin>* origins = nullptr);
   const CameraModel& cameraModel(int camera) const { return models_[static_cast<size_t>(camera)]; }
 
  private:

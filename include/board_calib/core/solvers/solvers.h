@@ -47,9 +47,9 @@ Expected<PbpcSchedule> parsePbpcSchedule(const std::string& name);
 
 struct SolverOptions {
   RobustLoss loss = RobustLoss::kHuber;
-  double loss_scale_m = 0.05;        ///< m, scale of the robust loss on point residuals
-  int max_iterations = 100;          ///< per Ceres solve
-  double function_tolerance = 1e-10; ///< relative cost change to stop
+  double loss_scale_m = 0.05;         ///< m, scale of the robust loss on point residuals
+  int max_iterations = 100;           ///< per Ceres solve
+  double function_tolerance = 1e-10;  ///< relative cost change to stop
   double gradient_tolerance = 1e-12;
   double parameter_tolerance = 1e-10;
   int num_threads = 1;
@@ -125,47 +125,47 @@ struct ResidualStats {
 };
 
 struct EdgeResidual {
-  bool used = false;             ///< both sides valid and the edge contributed line terms
-  int lidar_edge = -1;           ///< LiDAR edge index matched to this image edge (re-association)
-  ResidualStats distance;        ///< point to back-projected plane, m
-  std::optional<double> mlre_px; ///< mean perpendicular pixel distance to the image line
+  bool used = false;              ///< both sides valid and the edge contributed line terms
+  int lidar_edge = -1;            ///< LiDAR edge index matched to this image edge (re-association)
+  ResidualStats distance;         ///< point to back-projected plane, m
+  std::optional<double> mlre_px;  ///< mean perpendicular pixel distance to the image line
 };
 
 struct ViewResidual {
   int view_id = 0;
   bool used = false;
-  std::string reason;            ///< why the view was skipped, or empty
-  ResidualStats plane;           ///< LiDAR board points to the camera plane, m
+  std::string reason;                         ///< why the view was skipped, or empty
+  ResidualStats plane;                        ///< LiDAR board points to the camera plane, m
   std::array<EdgeResidual, kNumEdges> edges;  ///< indexed by the image edge
-  std::optional<double> mlre_px; ///< over all edges of the view
+  std::optional<double> mlre_px;              ///< over all edges of the view
 };
 
 struct Observability {
-  double min_eigenvalue = 0.0;   ///< of the information matrix (inverse covariance), SI units
+  double min_eigenvalue = 0.0;  ///< of the information matrix (inverse covariance), SI units
   double max_eigenvalue = 0.0;
   double condition_number = 0.0;
   Vector6d weakest_direction = Vector6d::Zero();  ///< unit eigenvector, covariance order
-  std::string weakest_description;  ///< e.g. "translation along camera z"
+  std::string weakest_description;                ///< e.g. "translation along camera z"
   bool well_conditioned = false;
 };
 
 struct CalibrationSolution {
   bool success = false;
-  std::string reason;            ///< why it failed, empty on success
+  std::string reason;  ///< why it failed, empty on success
   Method method = Method::kPbpc;
   Eigen::Isometry3d camera_T_lidar = Eigen::Isometry3d::Identity();  ///< p_camera = T * p_lidar
-  Eigen::Isometry3d initial_guess = Eigen::Isometry3d::Identity();  ///< where Ceres started
+  Eigen::Isometry3d initial_guess = Eigen::Isometry3d::Identity();   ///< where Ceres started
   bool used_closed_form_init = false;
   int views_used = 0;
-  double final_cost = 0.0;       ///< Ceres cost of the last solve
-  int iterations = 0;            ///< summed over the solves
-  std::string termination;       ///< Ceres termination of the last solve
-  std::optional<double> mlre_px; ///< over every used edge, undistorted px
-  double plane_rms_mm = 0.0;     ///< RMS point-to-camera-plane distance of every used board point
-  double line_rms_mm = 0.0;      ///< RMS LiDAR edge point to back-projected image line plane distance
-  double plane_scale = 1.0;      ///< estimated camera plane offset factor (1 when not estimated)
+  double final_cost = 0.0;        ///< Ceres cost of the last solve
+  int iterations = 0;             ///< summed over the solves
+  std::string termination;        ///< Ceres termination of the last solve
+  std::optional<double> mlre_px;  ///< over every used edge, undistorted px
+  double plane_rms_mm = 0.0;      ///< RMS point-to-camera-plane distance of every used board point
+  double line_rms_mm = 0.0;  ///< RMS LiDAR edge point to back-projected image line plane distance
+  double plane_scale = 1.0;  ///< estimated camera plane offset factor (1 when not estimated)
   Matrix6d covariance = Matrix6d::Zero();  ///< see the convention at the top
-  PoseStddev stddev;             ///< 1 sigma, mm is translation_m * 1000
+  PoseStddev stddev;                       ///< 1 sigma, mm is translation_m * 1000
   Observability observability;
   std::vector<ViewResidual> views;  ///< one entry per input view, in input order
   std::vector<std::string> notes;
@@ -174,7 +174,8 @@ struct CalibrationSolution {
 
 /// Calibrates camera_T_lidar from views of one camera and one LiDAR. Without a guess the
 /// closed-form initialiser is used. Never throws on bad input: success = false with a reason.
-CalibrationSolution calibrate(const std::vector<View>& views, Method method, const SolverOptions& options,
+CalibrationSolution calibrate(const std::vector<View>& views, Method method,
+                              const SolverOptions& options,
                               const std::optional<Eigen::Isometry3d>& initial_guess = std::nullopt);
 
 /// Closed-form camera_T_lidar: rotation from the plane normals (SVD), translation from the plane
@@ -190,12 +191,14 @@ Expected<Eigen::Isometry3d> closedFormInitialGuess(const std::vector<View>& view
 std::optional<double> meanLineReprojectionErrorPx(const std::vector<View>& views,
                                                   const Eigen::Isometry3d& camera_T_lidar);
 /// The same for one view (over its valid edges).
-std::optional<double> viewLineReprojectionErrorPx(const View& view, const Eigen::Isometry3d& camera_T_lidar);
+std::optional<double> viewLineReprojectionErrorPx(const View& view,
+                                                  const Eigen::Isometry3d& camera_T_lidar);
 /// The same for one image edge of one view.
 std::optional<double> edgeLineReprojectionErrorPx(const View& view, int edge,
                                                   const Eigen::Isometry3d& camera_T_lidar);
 /// RMS distance (m) of the LiDAR board points, mapped with camera_T_lidar, to the camera planes.
-std::optional<double> planeRmsM(const std::vector<View>& views, const Eigen::Isometry3d& camera_T_lidar);
+std::optional<double> planeRmsM(const std::vector<View>& views,
+                                const Eigen::Isometry3d& camera_T_lidar);
 
 // ------------------------------------------------------------------------------------------
 // Generic plane-to-plane (MSG pairwise) solver, reusable for any two sensors.
@@ -219,9 +222,10 @@ struct PairwiseSolution {
   double final_cost = 0.0;
   int iterations = 0;
   std::string termination;
-  double normal_rms_deg = 0.0;   ///< angle between n_a and R n_b
-  double offset_rms_mm = 0.0;    ///< plane gap: at the sensor origin (n_a . t + d_b - d_a) for
-                                 ///< solvePlaneToPlane, at the boards for calibrate(kMsgPair) and the graph
+  double normal_rms_deg = 0.0;  ///< angle between n_a and R n_b
+  double offset_rms_mm =
+      0.0;  ///< plane gap: at the sensor origin (n_a . t + d_b - d_a) for
+            ///< solvePlaneToPlane, at the boards for calibrate(kMsgPair) and the graph
   Matrix6d covariance = Matrix6d::Zero();  ///< see the convention at the top (frame a)
   PoseStddev stddev;
   Observability observability;
@@ -229,17 +233,17 @@ struct PairwiseSolution {
 };
 
 /// Closed-form a_T_b from plane correspondences (Kabsch on normals, least squares on offsets).
-Expected<Eigen::Isometry3d> closedFormPlaneToPlane(const std::vector<PlaneCorrespondence>& correspondences,
-                                                   const SolverOptions& options);
+Expected<Eigen::Isometry3d> closedFormPlaneToPlane(
+    const std::vector<PlaneCorrespondence>& correspondences, const SolverOptions& options);
 
 /// Plane-to-plane solve (Ceres, quaternion manifold). Needs >= 3 correspondences whose normals
 /// span 3D. Uses loss, msg_* sigmas, iteration and tolerance options of SolverOptions. Planes
 /// alone carry no board position, so offsets are compared at the sensor origin (the normal error
 /// times the board distance enters them); calibrate(..., kMsgPair) and the MSG graph, which have
 /// the board points, compare them at the boards instead and are more accurate.
-PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& correspondences,
-                                   const SolverOptions& options,
-                                   const std::optional<Eigen::Isometry3d>& initial_guess = std::nullopt);
+PairwiseSolution solvePlaneToPlane(
+    const std::vector<PlaneCorrespondence>& correspondences, const SolverOptions& options,
+    const std::optional<Eigen::Isometry3d>& initial_guess = std::nullopt);
 
 /// Board points of one plane correspondence (core/common/board_geometry.h boardPoint, in a and
 /// in b); zero = the sensor origin.
@@ -251,9 +255,10 @@ struct BoardPointPair {
 /// solvePlaneToPlane with the offset residual measured at the boards (the MSG graph's pairwise
 /// links); `points` is empty (offsets compared at the origins, as the overload above) or
 /// parallel to `correspondences`.
-PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& correspondences,
-                                   const std::vector<BoardPointPair>& points, const SolverOptions& options,
-                                   const std::optional<Eigen::Isometry3d>& initial_guess = std::nullopt);
+PairwiseSolution solvePlaneToPlane(
+    const std::vector<PlaneCorrespondence>& correspondences,
+    const std::vector<BoardPointPair>& points, const SolverOptions& options,
+    const std::optional<Eigen::Isometry3d>& initial_guess = std::nullopt);
 
 /// Camera plane (a) and LiDAR plane (b) of every view where both were found.
 std::vector<PlaneCorrespondence> planeCorrespondences(const std::vector<View>& views);
@@ -264,23 +269,23 @@ std::vector<PlaneCorrespondence> planeCorrespondences(const std::vector<View>& v
 
 struct RobustnessOptions {
   int trials = 100;
-  double rotation_sigma_deg = 90.0;    ///< deg, per axis of the rotation vector
-  double translation_sigma_m = 0.5;    ///< m, per axis
+  double rotation_sigma_deg = 90.0;  ///< deg, per axis of the rotation vector
+  double translation_sigma_m = 0.5;  ///< m, per axis
   /// false: guesses drawn around the identity (zero-mean, as the paper); true: around the
   /// reference (perturbations of it).
   bool around_reference = false;
   unsigned seed = 1;
-  double converged_rotation_deg = 0.5;   ///< a trial converged if within this of the reference
-  double converged_translation_m = 0.02; ///< m
+  double converged_rotation_deg = 0.5;    ///< a trial converged if within this of the reference
+  double converged_translation_m = 0.02;  ///< m
   std::string validate() const;
 };
 
 struct RobustnessReport {
-  bool success = false;                 ///< false if the routine could not run (reason)
+  bool success = false;  ///< false if the routine could not run (reason)
   std::string reason;
   int trials = 0;
   int converged = 0;
-  double convergence_rate = 0.0;        ///< converged / trials
+  double convergence_rate = 0.0;  ///< converged / trials
   /// Reference the trials are compared with: the caller's, or the closed-form-initialised solve.
   Eigen::Isometry3d reference = Eigen::Isometry3d::Identity();
   /// Spread of the converged results around their mean (max and RMS deviation).
@@ -295,8 +300,9 @@ struct RobustnessReport {
 
 /// Starts Ceres from `trials` random guesses (not from the closed-form initialiser) and reports
 /// how often it reaches the reference.
-RobustnessReport evaluateRandomInitialisation(const std::vector<View>& views, Method method,
-                                              const SolverOptions& options, const RobustnessOptions& robustness,
-                                              const std::optional<Eigen::Isometry3d>& reference = std::nullopt);
+RobustnessReport evaluateRandomInitialisation(
+    const std::vector<View>& views, Method method, const SolverOptions& options,
+    const RobustnessOptions& robustness,
+    const std::optional<Eigen::Isometry3d>& reference = std::nullopt);
 
 }  // namespace board_calib

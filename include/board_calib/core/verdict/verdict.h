@@ -28,21 +28,24 @@ enum class Verdict { kGood, kDoubtful, kFailed };
 const char* verdictName(Verdict verdict);
 
 struct VerdictOptions {
-  int min_views = 3;                        ///< fewer: failed
-  int min_views_to_cross_validate = 5;      ///< fewer: at best doubtful
-  int max_leave_one_out_views = 40;         ///< more views: that many folds instead of one view each
-  double doubtful_residual_ratio = 3.0;     ///< plane residual RMS / noise model
+  int min_views = 3;                     ///< fewer: failed
+  int min_views_to_cross_validate = 5;   ///< fewer: at best doubtful
+  int max_leave_one_out_views = 40;      ///< more views: that many folds instead of one view each
+  double doubtful_residual_ratio = 3.0;  ///< plane residual RMS / noise model
   double failed_residual_ratio = 10.0;
-  double failed_edge_fraction = 0.1;        ///< MLRE above this fraction of the board's size in the image: failed
-  double doubtful_heldout_ratio = 2.0;      ///< held-out error / in-sample error
-  double outlier_factor = 5.0;              ///< a view's or edge's error this many times the median ...
-  double outlier_min_excess_px = 5.0;       ///< ... and this far above it is named
-  double max_outlier_edge_fraction = 0.1;   ///< more named edges than this fraction (and more than 1): doubtful
+  double failed_edge_fraction =
+      0.1;  ///< MLRE above this fraction of the board's size in the image: failed
+  double doubtful_heldout_ratio = 2.0;  ///< held-out error / in-sample error
+  double outlier_factor = 5.0;          ///< a view's or edge's error this many times the median ...
+  double outlier_min_excess_px = 5.0;   ///< ... and this far above it is named
+  double max_outlier_edge_fraction =
+      0.1;  ///< more named edges than this fraction (and more than 1): doubtful
   double doubtful_inconsistent_fraction = 0.2;  ///< views dropped by the consistency check
-  double failed_inconsistent_fraction = 0.4;  ///< at this or more: the consensus is barely a majority
+  double failed_inconsistent_fraction =
+      0.4;  ///< at this or more: the consensus is barely a majority
   double doubtful_stddev_translation_m = 0.02;  ///< 1 sigma (inflated) beyond this: doubtful
   double doubtful_stddev_rotation_deg = 0.3;
-  double failed_stddev_translation_m = 0.10;    ///< beyond this: failed, the data do not determine it
+  double failed_stddev_translation_m = 0.10;  ///< beyond this: failed, the data do not determine it
   double failed_stddev_rotation_deg = 1.0;
   double method_disagreement_sigmas = 3.0;  ///< other methods further than this: doubtful
   double min_pixel_sigma_px = 0.3;          ///< px, floor of a camera board pose's pixel noise
@@ -53,49 +56,51 @@ struct CrossValidation {
   bool ran = false;
   std::string why_not;
   int solves = 0, failed_solves = 0;
-  Matrix6d covariance = Matrix6d::Zero();      ///< grouped jackknife, solvers.h convention
-  double max_rotation_dev_deg = 0.0;           ///< largest left-out solve's distance to the full solve
+  Matrix6d covariance = Matrix6d::Zero();  ///< grouped jackknife, solvers.h convention
+  double max_rotation_dev_deg = 0.0;       ///< largest left-out solve's distance to the full solve
   double max_translation_dev_m = 0.0;
-  std::optional<double> heldout_mlre_px;       ///< mean over the left-out views' edges
-  double heldout_plane_ratio = 0.0;            ///< left-out plane residual / noise model
+  std::optional<double> heldout_mlre_px;  ///< mean over the left-out views' edges
+  double heldout_plane_ratio = 0.0;       ///< left-out plane residual / noise model
   std::vector<std::optional<double>> view_heldout_mlre_px;  ///< per input view
-  std::vector<double> view_heldout_plane_ratio;             ///< per input view (0 when not predicted)
+  std::vector<double> view_heldout_plane_ratio;  ///< per input view (0 when not predicted)
 };
 
 struct VerdictReport {
   Verdict verdict = Verdict::kFailed;
-  std::string reason;                 ///< one line
-  std::vector<std::string> details;   ///< every finding, in words
-  std::vector<int> views_to_check;    ///< view ids named in the details
-  double plane_residual_ratio = 0.0;  ///< in-sample plane residual / noise model
+  std::string reason;                   ///< one line
+  std::vector<std::string> details;     ///< every finding, in words
+  std::vector<int> views_to_check;      ///< view ids named in the details
+  double plane_residual_ratio = 0.0;    ///< in-sample plane residual / noise model
   std::optional<double> board_size_px;  ///< median board size in the image
   CrossValidation cross_validation;
   Matrix6d covariance = Matrix6d::Zero();  ///< reported: the model's, inflated (see the header)
   PoseStddev stddev;
-  double stddev_inflation = 1.0;      ///< factor on the model's 1 sigma
+  double stddev_inflation = 1.0;  ///< factor on the model's 1 sigma
 };
 
 /// Plane residual RMS of every view against its noise model (1 = as expected). `views` are the
 /// views the solution used, in the solution's order.
-double planeResidualRatio(const std::vector<View>& views, const Target& target, const Eigen::Isometry3d& camera_T_lidar,
-                          double plane_scale, const VerdictOptions& options, std::vector<double>* per_view = nullptr);
+double planeResidualRatio(const std::vector<View>& views, const Target& target,
+                          const Eigen::Isometry3d& camera_T_lidar, double plane_scale,
+                          const VerdictOptions& options, std::vector<double>* per_view = nullptr);
 
 /// Judges one solution on `views` (the consistent views it was solved on); `consistency` is the
 /// check they passed (inconsistent views count against the verdict); `solve` re-solves a subset
 /// for the cross-validation (the same method, options and start as the solution).
-VerdictReport judgeSolution(const CalibrationSolution& solution, const std::vector<View>& views, const Target& target,
-                            const ConsistencyReport& consistency,
-                            const std::function<CalibrationSolution(const std::vector<View>&)>& solve,
-                            const VerdictOptions& options = {});
+VerdictReport judgeSolution(
+    const CalibrationSolution& solution, const std::vector<View>& views, const Target& target,
+    const ConsistencyReport& consistency,
+    const std::function<CalibrationSolution(const std::vector<View>&)>& solve,
+    const VerdictOptions& options = {});
 
 /// Adds the agreement between methods to each verdict (only where both solutions are usable).
-void judgeMethodAgreement(const std::vector<CalibrationSolution>& solutions, std::vector<VerdictReport>* verdicts,
-                          const VerdictOptions& options = {});
+void judgeMethodAgreement(const std::vector<CalibrationSolution>& solutions,
+                          std::vector<VerdictReport>* verdicts, const VerdictOptions& options = {});
 
 /// The method to report: not failed, good before doubtful, then the lowest held-out error
 /// (edge MLRE when every candidate has it, else the plane ratio). -1 when all failed. `why`
 /// says so in words.
-int chooseMethod(const std::vector<CalibrationSolution>& solutions, const std::vector<VerdictReport>& verdicts,
-                 std::string* why);
+int chooseMethod(const std::vector<CalibrationSolution>& solutions,
+                 const std::vector<VerdictReport>& verdicts, std::string* why);
 
 }  // namespace board_calib
