@@ -23,7 +23,7 @@
 #include <vector>
 
 using namespace board_calib;
-using namespace board_calib::msg;
+using namespace board_calib::multi_sensor;
 
 namespace {
 

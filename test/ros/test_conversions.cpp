@@ -1,4 +1,5 @@
 #include <board_calib/conversions.h>
+#include <board_calib/core/pipeline/rig_calibration.h>
 #include <board_calib/core/transform.h>
 
 #include <gtest/gtest.h>
@@ -388,30 +389,35 @@ TEST(ResultConversions, PairSolutionTakesTheVerdictsUncertaintyAndFailure) {
 }
 
 TEST(ResultConversions, RigPairAndSensorPose) {
-  board_calib::msg::MsgSolution s;
+  board_calib::multi_sensor::MsgSolution s;
   s.poses_used = 9;
   board_calib::PairEntry entry;
   entry.camera_frame = "cam";
   entry.lidar_frame = "lidar";
   entry.camera_T_lidar.translation() = Eigen::Vector3d(0.5, 0.0, 0.0);
-  board_calib::msg::PairEstimate estimate;
-  auto m = board_calib::toPairResultMsg(entry, estimate, s, ros::Time(3.0));
+  entry.verdict = "good";
+  board_calib::RigPairRun run;
+  run.verdict.verdict = board_calib::Verdict::kGood;
+  auto m = board_calib::toPairResultMsg(entry, run, s, ros::Time(3.0));
   EXPECT_TRUE(m.success);
+  EXPECT_EQ(m.verdict, "good");
   EXPECT_EQ(m.method, "msg");
   EXPECT_EQ(m.views_used, 9u);
   EXPECT_DOUBLE_EQ(m.camera_T_lidar.translation.x, 0.5);
   EXPECT_TRUE(std::isnan(m.mlre_px));                  // no shared edges measured
   EXPECT_TRUE(std::isnan(m.stddev_translation_m[0]));  // no covariance: unknown, not zero
-  estimate.has_covariance = true;
-  estimate.stddev.rotation_deg = Eigen::Vector3d(0.1, 0.2, 0.3);
-  estimate.covariance(5, 4) = 2e-6;
-  m = board_calib::toPairResultMsg(entry, estimate, s, ros::Time(3.0));
+  run.verdict.covariance(5, 5) = 1e-5;
+  run.verdict.covariance(5, 4) = 2e-6;
+  run.verdict.stddev.rotation_deg = Eigen::Vector3d(0.1, 0.2, 0.3);
+  m = board_calib::toPairResultMsg(entry, run, s, ros::Time(3.0));
   EXPECT_DOUBLE_EQ(m.stddev_rotation_deg[1], 0.2);
   EXPECT_DOUBLE_EQ(m.covariance[5 * 6 + 4], 2e-6);  // row-major
+  run.verdict.verdict = board_calib::Verdict::kFailed;
+  EXPECT_FALSE(board_calib::toPairResultMsg(entry, run, s, ros::Time(3.0)).success);  // failed: no success
 
-  board_calib::msg::SensorEstimate sensor;
+  board_calib::multi_sensor::SensorEstimate sensor;
   sensor.frame = "os1";
-  sensor.kind = board_calib::msg::SensorKind::kLidar;
+  sensor.kind = board_calib::multi_sensor::SensorKind::kLidar;
   sensor.reference_T_sensor.translation() = Eigen::Vector3d(0.0, 0.0, 0.16);
   sensor.stddev.translation_m = Eigen::Vector3d(0.001, 0.002, 0.003);
   sensor.observations = 14;
