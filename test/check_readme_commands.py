@@ -133,6 +133,10 @@ CASES = {
     "scripts/build.sh bench_lidar_detector test_lidar_detector test_lidar_detector_real": {
         "kind": "run", "expect": r"built in", "timeout": 900},
     "ws/ci/devel/lib/board_calib/bench_lidar_detector --repeat 3 [--no-sparse]": {"kind": "dev"},
+    "scripts/build.sh bench_msg_graph": {"kind": "run", "expect": r"built in", "timeout": 900},
+    "ws/ci/devel/lib/board_calib/bench_msg_graph --scenes 10 --trials 100": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/bench_msg_graph --scenario test/data/msg_rig_checker_scenario.yaml --scenes 5": {
+        "kind": "dev"},
     "ws/ci/devel/lib/board_calib/bench_lidar_detector --sim-table config/scenarios/plain_vlp16_outdoor_far.yaml": {
         "kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_lidar_detector --gtest_filter='*Scenario*'": {"kind": "dev"},

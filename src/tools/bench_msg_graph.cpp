@@ -88,22 +88,6 @@ struct Variant {
   MsgGraphOptions options;
 };
 
-// The views of one camera <- LiDAR pair of a graph problem (board poses both saw).
-std::vector<View> pairViews(const MsgProblem& problem, int camera, int lidar) {
-  std::vector<View> views;
-  for (const auto& pose : problem.poses) {
-    const auto c = pose.cameras.find(camera);
-    const auto l = pose.lidars.find(lidar);
-    if (c == pose.cameras.end() || l == pose.lidars.end() || !c->second.found || !l->second.found)
-      continue;
-    View v;
-    v.id = pose.id;
-    v.camera = c->second;
-    v.lidar = l->second;
-    views.push_back(std::move(v));
-  }
-  return views;
-}
 
 // One board pose per hold of a simulated rig recording: each sensor's first still frame of the
 // hold through the detectors (the image with 2 grey levels of noise).

@@ -145,7 +145,7 @@ TEST_F(RigSessionTest, APoseSeenByOneSensorIsRejectedWithTheReason) {
 TEST_F(RigSessionTest, HealthNamesThePosesEachSensorJoinedAndWhyNot) {
   RigSession session = makeSession();
   // Sensors 0 (left), 2 (vlp32), 3 (os1) see every hold; right (1) sends nothing.
-  play(session, scene, 4, 0, 100.0, {0, 2, 3});
+  play(session, scene, kHoldFrames, 3, 100.0, {0, 2, 3});
   session.flush();
   const size_t poses = session.poses().size();
   ASSERT_EQ(poses, scene.problem.poses.size());

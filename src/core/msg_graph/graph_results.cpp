@@ -224,8 +224,7 @@ Expected<StereoConsistency> stereoConsistency(const MsgSolution& solution, int c
   return c;
 }
 
-std::optional<double> pairMlrePx(const MsgProblem& problem, int camera, int lidar,
-                                 const Eigen::Isometry3d& camera_T_lidar) {
+std::vector<View> pairViews(const MsgProblem& problem, int camera, int lidar) {
   std::vector<View> views;
   for (const auto& pose : problem.poses) {
     const auto c = pose.cameras.find(camera);
@@ -238,7 +237,12 @@ std::optional<double> pairMlrePx(const MsgProblem& problem, int camera, int lida
     v.lidar = l->second;
     views.push_back(std::move(v));
   }
-  return meanLineReprojectionErrorPx(views, camera_T_lidar);
+  return views;
+}
+
+std::optional<double> pairMlrePx(const MsgProblem& problem, int camera, int lidar,
+                                 const Eigen::Isometry3d& camera_T_lidar) {
+  return meanLineReprojectionErrorPx(pairViews(problem, camera, lidar), camera_T_lidar);
 }
 
 ResultFile msgResultFile(const MsgProblem& problem, const MsgSolution& solution) {

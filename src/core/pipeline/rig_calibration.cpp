@@ -15,25 +15,10 @@ namespace {
 using multi_sensor::BoardPoseObservation;
 using multi_sensor::MsgProblem;
 using multi_sensor::MsgSolution;
+using multi_sensor::pairViews;
 
 int rank(Verdict v) { return v == Verdict::kFailed ? 2 : v == Verdict::kDoubtful ? 1 : 0; }
 
-// The views of one camera <- LiDAR pair: the poses both saw, view id = pose id.
-std::vector<View> pairViews(const MsgProblem& problem, int camera, int lidar) {
-  std::vector<View> views;
-  for (const auto& pose : problem.poses) {
-    const auto c = pose.cameras.find(camera);
-    const auto l = pose.lidars.find(lidar);
-    if (c == pose.cameras.end() || l == pose.lidars.end() || !c->second.found || !l->second.found)
-      continue;
-    View v;
-    v.id = pose.id;
-    v.camera = c->second;
-    v.lidar = l->second;
-    views.push_back(std::move(v));
-  }
-  return views;
-}
 
 std::vector<std::pair<int, int>> cameraLidarPairs(const MsgProblem& problem) {
   std::vector<std::pair<int, int>> pairs;

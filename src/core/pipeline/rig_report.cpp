@@ -172,14 +172,7 @@ std::vector<RigPairEvaluation> evaluateRigPairs(const multi_sensor::MsgProblem& 
     p.folder = pair.camera_frame + "__" + pair.lidar_frame;
     const int c = sensorIndexOfFrame(solution, pair.camera_frame);
     const int l = sensorIndexOfFrame(solution, pair.lidar_frame);
-    for (const auto& pose : problem.poses) {
-      const auto cam = pose.cameras.find(c);
-      const auto lid = pose.lidars.find(l);
-      if (cam == pose.cameras.end() || lid == pose.lidars.end() || !cam->second.found ||
-          !lid->second.found)
-        continue;
-      p.views.push_back(View{pose.id, lid->second, cam->second});
-    }
+    p.views = multi_sensor::pairViews(problem, c, l);
     // msgResultFile keeps the solution's pair order.
     const multi_sensor::PairEstimate* est =
         i < solution.pairs.size() ? &solution.pairs[i] : nullptr;

@@ -230,6 +230,10 @@ struct StereoConsistency {
 Expected<StereoConsistency> stereoConsistency(const MsgSolution& solution, int camera1, int camera2,
                                               const Eigen::Isometry3d& known_camera1_T_camera2);
 
+/// The views of one camera <- LiDAR pair: the board poses where both found the board, view id =
+/// pose id (what the pair solvers, the verdict and the report judge the pair on).
+std::vector<View> pairViews(const MsgProblem& problem, int camera, int lidar);
+
 /// Mean line reprojection error (px) of one camera<->LiDAR pair over the board poses both saw
 /// with edges (edges paired as by the solvers: core/common/edge_association.h); nullopt when
 /// none is usable.
