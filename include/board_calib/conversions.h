@@ -17,6 +17,7 @@
 #include <board_calib/SensorPose.h>
 #include <geometry_msgs/Point.h>
 #include <geometry_msgs/Pose.h>
+#include <visualization_msgs/MarkerArray.h>
 #include <geometry_msgs/Transform.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
@@ -89,6 +90,12 @@ CalibrationResult toResultMsg(const CalibrationSolution& solution, const Verdict
 CalibrationResult toPairResultMsg(const PairEntry& pair, const RigPairRun& run,
                                   const multi_sensor::MsgSolution& solution,
                                   const ros::Time& stamp);
+/// One POINTS marker per view (its LiDAR board points, in the LiDAR frame), coloured by the
+/// view's plane residual under `solution` relative to the median view's: green at or below the
+/// median, red at 3x or worse (the report's outlier factor); white before any solve (null).
+/// Relative, because the absolute plane RMS follows the LiDAR's range noise. A DELETEALL first.
+visualization_msgs::MarkerArray toViewMarkers(const std::vector<View>& views,
+                                              const CalibrationSolution* solution);
 /// One sensor's pose of a rig solve.
 SensorPose toSensorPoseMsg(const multi_sensor::SensorEstimate& sensor);
 

@@ -80,6 +80,63 @@ CalibrationResult toPairResultMsg(const PairEntry& p, const RigPairRun& pair,
   return m;
 }
 
+visualization_msgs::MarkerArray toViewMarkers(const std::vector<View>& views,
+                                              const CalibrationSolution* solution) {
+  // One marker per kept view: its LiDAR board points, coloured by the view's plane residual
+  // under the last solution relative to the median view's (green at or below the median, red
+  // at kRedAtMedianFactor x the median or worse), white before any solve. Relative, because
+  // the absolute plane RMS follows the LiDAR's range noise and a declared-size bias: an
+  // absolute scale painted every view of a noisy real LiDAR red.
+  constexpr double kRedAtMedianFactor = 3.0;  // the report's outlier factor for edges
+  std::vector<double> rms;
+  if (solution)
+    for (const auto& vr : solution->views)
+      if (vr.used) rms.push_back(vr.plane.rms_m);
+  double median_rms = 0.0;
+  if (!rms.empty()) {
+    std::nth_element(rms.begin(), rms.begin() + rms.size() / 2, rms.end());
+    median_rms = rms[rms.size() / 2];
+  }
+  visualization_msgs::MarkerArray array;
+  visualization_msgs::Marker clear;
+  clear.action = visualization_msgs::Marker::DELETEALL;
+  array.markers.push_back(clear);
+  for (const auto& v : views) {
+    visualization_msgs::Marker m;
+    m.header.frame_id = v.lidar.frame_id;
+    m.header.stamp = ros::Time(0);
+    m.ns = "views";
+    m.id = v.id;
+    m.type = visualization_msgs::Marker::POINTS;
+    m.scale.x = m.scale.y = 0.02;
+    m.pose.orientation.w = 1.0;
+    m.color.a = 1.0;
+    m.color.r = m.color.g = m.color.b = 1.0;
+    if (solution) {
+      for (const auto& vr : solution->views)
+        if (vr.view_id == v.id && vr.used) {
+          const double x =
+              median_rms > 0
+                  ? std::clamp((vr.plane.rms_m / median_rms - 1.0) / (kRedAtMedianFactor - 1.0),
+                               0.0, 1.0)
+                  : 0.0;
+          m.color.r = static_cast<float>(x);
+          m.color.g = static_cast<float>(1.0 - x);
+          m.color.b = 0.0f;
+        }
+    }
+    for (const auto& p : v.lidar.board_points) {
+      geometry_msgs::Point q;
+      q.x = p.x();
+      q.y = p.y();
+      q.z = p.z();
+      m.points.push_back(q);
+    }
+    array.markers.push_back(m);
+  }
+  return array;
+}
+
 SensorPose toSensorPoseMsg(const multi_sensor::SensorEstimate& s) {
   SensorPose p;
   p.frame = s.frame;

@@ -430,3 +430,32 @@ TEST(ResultConversions, RigPairAndSensorPose) {
   EXPECT_EQ(p.poses_used, 14u);
   EXPECT_EQ(p.poses_rejected, 0u);
 }
+
+// The calibrator's view markers: white before a solve; after it, the median view green and a
+// view at 3x the median plane RMS red.
+TEST(ResultConversions, ViewMarkersColouredByPlaneResidualRelativeToTheMedian) {
+  std::vector<board_calib::View> views(3);
+  for (int i = 0; i < 3; ++i) {
+    views[i].id = 10 + i;
+    views[i].lidar.frame_id = "lidar";
+    views[i].lidar.board_points = {Eigen::Vector3d(1.0, 0.0, 0.0), Eigen::Vector3d(1.0, 0.1, 0.0)};
+  }
+  auto before = board_calib::toViewMarkers(views, nullptr);
+  ASSERT_EQ(before.markers.size(), 4u);  // DELETEALL + one per view
+  EXPECT_EQ(before.markers[0].action, visualization_msgs::Marker::DELETEALL);
+  EXPECT_FLOAT_EQ(before.markers[1].color.b, 1.0f);
+  EXPECT_EQ(before.markers[1].points.size(), 2u);
+  board_calib::CalibrationSolution solution;
+  const double rms[3] = {0.01, 0.01, 0.03};
+  for (int i = 0; i < 3; ++i) {
+    board_calib::ViewResidual r;
+    r.view_id = 10 + i;
+    r.used = true;
+    r.plane.rms_m = rms[i];
+    solution.views.push_back(r);
+  }
+  auto after = board_calib::toViewMarkers(views, &solution);
+  EXPECT_FLOAT_EQ(after.markers[1].color.g, 1.0f);  // at the median
+  EXPECT_FLOAT_EQ(after.markers[3].color.r, 1.0f);  // 3x the median
+  EXPECT_FLOAT_EQ(after.markers[3].color.g, 0.0f);
+}
