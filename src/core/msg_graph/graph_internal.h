@@ -5,6 +5,7 @@
 
 #include "msg_costs.h"
 
+#include <board_calib/core/common/ceres_helpers.h>
 #include <board_calib/core/msg_graph/msg_graph.h>
 #include <board_calib/core/transform.h>
 
@@ -124,12 +125,7 @@ class Graph {
   // unmatched.
   std::array<int, kNumEdges> matchedLines(size_t p, int c, int l) const;
 
-  struct StageResult {
-    bool usable = false;
-    double cost = 0.0;
-    int iterations = 0;
-    std::string termination, message;
-  };
+  using StageResult = ceres_common::SolveOutcome;
   // Builds and solves one stage. `planes_only`: squared loss, no corner or line terms.
   StageResult solve(bool planes_only, int reference, bool keep_problem);
   ceres::Problem* keptProblem() { return problem_kept_.get(); }

@@ -160,14 +160,7 @@ Graph::StageResult Graph::solve(bool planes_only, int reference, bool keep_probl
     so.linear_solver_type = ceres::DENSE_QR;
   }
   ceres_common::applyStopCriteria(options_, &so);
-  ceres::Solver::Summary summary;
-  ceres::Solve(so, problem.get(), &summary);
-  StageResult r;
-  r.usable = summary.IsSolutionUsable();
-  r.cost = summary.final_cost;
-  r.iterations = static_cast<int>(summary.iterations.size());
-  r.termination = ceres::TerminationTypeToString(summary.termination_type);
-  r.message = summary.message;
+  StageResult r = ceres_common::solveAndSummarize(so, problem.get());
   if (keep_problem) problem_kept_ = std::move(problem);
   return r;
 }

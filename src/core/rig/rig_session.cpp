@@ -71,15 +71,7 @@ std::string RigSessionOptions::validate() const {
   return "";
 }
 
-StillnessOptions RigSessionOptions::stillness() const {
-  StillnessOptions o;
-  o.window_s = still_window_s;
-  o.min_frames = still_frames_required;
-  o.max_translation_m = still_max_translation_m;
-  o.max_rotation_deg = still_max_rotation_deg;
-  o.snapshot_interval_s = snapshot_interval_s;
-  return o;
-}
+StillnessOptions RigSessionOptions::stillness() const { return stillnessOf(*this); }
 
 RigSessionOptions rigSessionOptionsFor(const RigConfig& rig) {
   RigSessionOptions o;

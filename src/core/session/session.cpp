@@ -48,15 +48,7 @@ std::string SessionOptions::validate() const {
   return {};
 }
 
-StillnessOptions SessionOptions::stillness() const {
-  StillnessOptions o;
-  o.window_s = still_window_s;
-  o.min_frames = still_frames_required;
-  o.max_translation_m = still_max_translation_m;
-  o.max_rotation_deg = still_max_rotation_deg;
-  o.snapshot_interval_s = snapshot_interval_s;
-  return o;
-}
+StillnessOptions SessionOptions::stillness() const { return stillnessOf(*this); }
 
 std::string CaptureStats::summary() const {
   std::vector<std::pair<int, std::string>> order;

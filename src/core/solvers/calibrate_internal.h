@@ -3,6 +3,8 @@
 // orchestration (calibrate.cpp).
 #pragma once
 
+#include <board_calib/core/common/ceres_helpers.h>
+
 #include <board_calib/core/solvers/solvers.h>
 #include <board_calib/core/transform.h>
 
@@ -77,13 +79,7 @@ struct Pose {
   }
 };
 
-struct SolveOutcome {
-  bool usable = false;
-  double cost = 0.0;
-  int iterations = 0;
-  std::string termination;
-  std::string message;
-};
+using SolveOutcome = ceres_common::SolveOutcome;
 
 // Per-view error of the camera plane (PPC): variance of its offset (m^2) and of its tilt about
 // each in-plane axis (rad^2), shared by all points of the view, at the reference distance and

@@ -117,15 +117,7 @@ SolveOutcome solveWeighted(const std::vector<Cluster>& clusters,
   ceres::Solver::Options solver_options;
   solver_options.linear_solver_type = ceres::DENSE_QR;
   solvers_detail::applyStopCriteria(options, &solver_options);
-  ceres::Solver::Summary summary;
-  ceres::Solve(solver_options, &problem, &summary);
-  SolveOutcome out;
-  out.usable = summary.IsSolutionUsable();
-  out.cost = summary.final_cost;
-  out.iterations = static_cast<int>(summary.iterations.size());
-  out.termination = ceres::TerminationTypeToString(summary.termination_type);
-  out.message = summary.message;
-  return out;
+  return ceres_common::solveAndSummarize(solver_options, &problem);
 }
 
 double residualOf(const Cluster& cl, const Eigen::Isometry3d& T, double s,

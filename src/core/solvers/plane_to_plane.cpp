@@ -95,13 +95,9 @@ std::vector<ViewScale> distanceScales(const std::vector<BoardPointPair>& points)
   return scales;
 }
 
-struct PairOutcome {
-  bool usable = false;
+struct PairOutcome : ceres_common::SolveOutcome {
   bool covariance_ok = false;
   Matrix6d covariance = Matrix6d::Zero();
-  double cost = 0.0;
-  int iterations = 0;
-  std::string termination, message;
 };
 
 // One solve; with `covariance`, also the cluster-robust covariance of the solved problem (each
@@ -143,14 +139,8 @@ PairOutcome solvePair(const std::vector<PlaneCorrespondence>& c,
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::DENSE_QR;
   solvers_detail::applyStopCriteria(options, &so);
-  ceres::Solver::Summary summary;
-  ceres::Solve(so, &problem, &summary);
   PairOutcome out;
-  out.usable = summary.IsSolutionUsable();
-  out.cost = summary.final_cost;
-  out.iterations = static_cast<int>(summary.iterations.size());
-  out.termination = ceres::TerminationTypeToString(summary.termination_type);
-  out.message = summary.message;
+  static_cast<ceres_common::SolveOutcome&>(out) = ceres_common::solveAndSummarize(so, &problem);
   if (covariance && out.usable)
     out.covariance_ok =
         solvers_detail::clusterRobustCovariance(&problem, {q, t}, blocks, &out.covariance);

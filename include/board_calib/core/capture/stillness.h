@@ -101,4 +101,18 @@ struct StillnessStream {
 StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, double stamp,
                                   const StillnessOptions& options, bool ended);
 
+/// The stillness settings of a session's options: the pair and the rig session name them alike
+/// (still_window_s, still_frames_required, still_max_translation_m, still_max_rotation_deg,
+/// snapshot_interval_s).
+template <typename SessionOptions>
+StillnessOptions stillnessOf(const SessionOptions& s) {
+  StillnessOptions o;
+  o.window_s = s.still_window_s;
+  o.min_frames = s.still_frames_required;
+  o.max_translation_m = s.still_max_translation_m;
+  o.max_rotation_deg = s.still_max_rotation_deg;
+  o.snapshot_interval_s = s.snapshot_interval_s;
+  return o;
+}
+
 }  // namespace board_calib

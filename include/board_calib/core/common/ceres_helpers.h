@@ -7,6 +7,7 @@
 #include <board_calib/core/solvers/solvers.h>
 
 #include <mutex>
+#include <string>
 
 namespace board_calib {
 namespace ceres_common {
@@ -41,6 +42,29 @@ void applyStopCriteria(const Options& options, ceres::Solver::Options* so) {
   so->num_threads = options.num_threads;
   so->logging_type = ceres::SILENT;
   quietCeresLogging();
+}
+
+/// What every solve reports of a Ceres run.
+struct SolveOutcome {
+  bool usable = false;
+  double cost = 0.0;
+  int iterations = 0;
+  std::string termination;
+  std::string message;
+};
+
+/// Runs Ceres on `problem` and keeps what the solvers report of it.
+inline SolveOutcome solveAndSummarize(const ceres::Solver::Options& options,
+                                      ceres::Problem* problem) {
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, problem, &summary);
+  SolveOutcome out;
+  out.usable = summary.IsSolutionUsable();
+  out.cost = summary.final_cost;
+  out.iterations = static_cast<int>(summary.iterations.size());
+  out.termination = ceres::TerminationTypeToString(summary.termination_type);
+  out.message = summary.message;
+  return out;
 }
 
 }  // namespace ceres_common
