@@ -4,8 +4,8 @@
 // the result file and an optional report folder. Bad input ends with a one-line reason and a
 // non-zero exit.
 #include "calibrate_rig.h"
+#include "pair_bags.h"
 
-#include <board_calib/bag_reader.h>
 #include <board_calib/core/file_io.h>
 #include <board_calib/core/pipeline/pair_calibration.h>
 #include <board_calib/core/pipeline/pair_report.h>
@@ -14,8 +14,6 @@
 #include <board_calib/core/report/report.h>
 #include <board_calib/core/report/report_plots.h>
 #include <board_calib/core/transform.h>
-
-#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -41,7 +39,7 @@ const char* kUsage =
     "         [--still-frames N] [--sync-tolerance S] [--loss none|huber|cauchy|tukey] "
     "[--loss-scale M]\n"
     "         [--child-frame F] [--save-session FILE] [--load-session FILE] [--truth TRUTH.yaml]\n"
-    "         [--check-truth ROT_DEG TRANS_M] [--edge-shift STEPS] [--quiet]\n"
+    "         [--check-truth ROT_DEG TRANS_M] [--edge-shift STEPS] [--no-second-chance] [--quiet]\n"
     "       calibrate_bag --config RIG.yaml --bag FILE [--bag FILE...] --method msg [--output "
     "result.yaml]\n"
     "         [--report DIR] [--truth TRUTH.yaml [--check-truth ROT_DEG TRANS_M]] [--capture "
@@ -65,6 +63,11 @@ const char* kUsage =
     "  --edge-shift STEPS  shift LiDAR edge points outward by STEPS horizontal steps (default 0: "
     "beam\n"
     "                      divergence cancels the extremes' inset)\n"
+    "  --no-second-chance  no second pass (default: when the first calibration is not failed, the "
+    "bags\n"
+    "                      are read again and frames whose board one sensor missed are searched "
+    "where\n"
+    "                      the first result puts the other sensor's board, then solved again)\n"
     "  --loss, --loss-scale  robust loss on point residuals (default tukey, 0.02 m)\n"
     "  --capture MODE      rig: 'still' (default) captures one pose per hold, as the calibrator's "
     "rig mode\n"
@@ -81,6 +84,7 @@ struct Args {
   std::string loss;
   double loss_scale = -1;
   bool quiet = false;
+  bool second_chance = true;
   std::string config;  // multi-sensor rig (MSG-Cal): everything else comes from the rig file
   double check_rot_deg = 0, check_trans_m = 0;
   double edge_shift = -1;         // horizontal steps; < 0: solver default
@@ -178,6 +182,8 @@ Args parseArgs(int argc, char** argv) {
       a.still_frames = parseCount(f, need(i, f), 1, static_cast<int>(kMaxStillFrames));
     else if (f == "--quiet")
       a.quiet = true;
+    else if (f == "--no-second-chance")
+      a.second_chance = false;
     else if (f == "--edge-shift")
       a.edge_shift = parseInRange(f, need(i, f), 0, kMaxEdgeShiftSteps, true);
     else if (f == "--config")
@@ -218,72 +224,72 @@ Args parseArgs(int argc, char** argv) {
   return a;
 }
 
-void progress(bool quiet, size_t done, size_t total, size_t views) {
-  if (quiet || total == 0) return;
-  // A redrawn bar on a terminal; a line per quarter in logs.
-  if (!isatty(STDERR_FILENO)) {
-    if (done == total || (4 * done / total) != (4 * (done - 1) / total))
-      std::cerr << "calibrate_bag: " << done << "/" << total << " frames, " << views << " views\n";
-    return;
-  }
-  constexpr int kWidth = 30;
-  const int filled = static_cast<int>(kWidth * done / total);
-  std::cerr << "\r[" << std::string(filled, '#') << std::string(kWidth - filled, '.') << "] "
-            << done << "/" << total << " frames, " << views << " views" << std::flush;
-  if (done == total) std::cerr << "\n";
+// Streams the bags through the pipeline; a failure ends the tool.
+void readBags(const Args& args, CalibrationPipeline* pipeline, std::string* camera_frame,
+              std::string* lidar_frame) {
+  const PairBagArgs bag_args{args.bags, args.image_topic, args.info_topic, args.cloud_topic,
+                             args.quiet};
+  if (const std::string why = readPairBags(bag_args, pipeline, camera_frame, lidar_frame);
+      !why.empty())
+    fail(why);
 }
 
-// Streams the bags through the pipeline (the one bag-reading loop, bag_reader.h).
-void readPairBags(const Args& args, CalibrationPipeline* pipeline, std::string* camera_frame,
-                  std::string* lidar_frame) {
-  auto counts = bagTopicCounts(args.bags);
-  if (!counts) fail(counts.error());
-  const size_t total = (*counts)[args.image_topic] + (*counts)[args.cloud_topic];
-  size_t done = 0;
-  bool have_intrinsics = false;
-  std::map<std::string, int> bad_messages;
+// The session's views solved by every method, with the verdict.
+PairCalibration solveSession(const Args& args, const PairSession& session,
+                             const std::vector<Method>& methods, const Target& target,
+                             const PairCalibrationOptions& run_options, std::string* camera_frame,
+                             std::string* lidar_frame) {
+  const std::vector<View> views = session.plainViews();
+  if (views.empty())
+    fail("no view has the board in both sensors at the same time (check --sync-tolerance)");
+  if (camera_frame->empty()) *camera_frame = views.front().camera.frame_id;
+  if (lidar_frame->empty()) *lidar_frame = views.front().lidar.frame_id;
+  PairCalibration run =
+      calibratePair(views, methods, target, *camera_frame, *lidar_frame, run_options, args.guess);
+  if (run.runs.empty()) fail("calibration failed: " + run.reason);  // refused before any solve
+  return run;
+}
 
-  BagTopics topics{{args.image_topic}, {args.info_topic}, {args.cloud_topic}};
-  BagFrameCallbacks cb;
-  cb.on_image = [&](const ImageFrame& f, const CameraIntrinsics& intrinsics) {
-    have_intrinsics = true;
-    pipeline->addImage(f.image, intrinsics, f.frame_id, f.stamp);
-    if (camera_frame->empty()) *camera_frame = f.frame_id;
-    progress(args.quiet, ++done, total, pipeline->session().views().size());
-  };
-  cb.on_cloud = [&](const std::string&, const LidarCloud& c) {
-    pipeline->addCloud(c);
-    if (lidar_frame->empty()) *lidar_frame = c.frame_id;
-    progress(args.quiet, ++done, total, pipeline->session().views().size());
-  };
-  cb.on_bad_message = [&](const std::string& topic, const std::string& why) {
-    if (bad_messages[topic + ": " + why]++ == 0 && !args.quiet)
-      std::cerr << "\ncalibrate_bag: skipping a message on " << topic << ": " << why << "\n";
-  };
-  const auto read = readBagFrames(args.bags, topics, cb);
-  if (!read) fail(read.error());
-  pipeline->finish();
-  if (!have_intrinsics) fail("no valid camera_info on '" + args.info_topic + "'");
-  if (const auto dropped = read->images_dropped.find(args.image_topic);
-      dropped != read->images_dropped.end())
-    std::cerr << "calibrate_bag: warning: " << dropped->second
-              << " images arrived before the first camera_info on " << args.info_topic
-              << " and were skipped (was camera_info recorded after the images?)\n";
-  const PipelineStats& st = pipeline->stats();
-  if (!args.quiet) {
-    std::cerr << "calibrate_bag: board found in " << st.images_with_board << "/" << st.images
-              << " images and " << st.clouds_with_board << "/" << st.clouds << " clouds; "
-              << pipeline->session().views().size() << " views kept\n"
-              << "  capture: " << pipeline->session().captureStats().summary() << "\n";
-    for (const auto& [why, n] : st.image_failures)
-      std::cerr << "  image: " << n << " x " << why << "\n";
-    for (const auto& [why, n] : st.cloud_failures)
-      std::cerr << "  cloud: " << n << " x " << why << "\n";
+// Second chance (issue 14, 3b): the bags read again with the first result as the prior, frames
+// whose board one sensor missed searched where it puts the other sensor's board, and the
+// session solved again with every check. Its result replaces the first unless its verdict is
+// worse.
+void secondPass(const Args& args, const std::vector<Method>& methods, const Target& target,
+                PipelineOptions options, const PairCalibrationOptions& run_options,
+                std::optional<CalibrationPipeline>* pipeline, PairCalibration* run) {
+  std::string why_not;
+  options.prior =
+      secondChancePrior(*run, (*pipeline)->sightings(), options.second_chance, &why_not);
+  const size_t first_views = run->used_views.size();
+  const int candidates =
+      secondChanceCandidates((*pipeline)->sightings(), secondChanceWindowS(options.session));
+  if (options.prior && candidates == 0)
+    why_not = "no frame where one sensor found the board and the other did not";
+  if (!options.prior || candidates == 0) {
+    if (!args.quiet) std::cerr << "calibrate_bag: second chance not run: " << why_not << "\n";
+    return;
   }
-  if (st.images_with_board == 0)
-    fail("the board was never found in the images (" + args.image_topic + ")");
-  if (st.clouds_with_board == 0)
-    fail("the board was never found in the clouds (" + args.cloud_topic + ")");
+  if (!args.quiet)
+    std::cerr << "calibrate_bag: first pass: " << (*pipeline)->session().views().size()
+              << " views, " << first_views << " consistent, verdict " << verdictName(run->verdict)
+              << "; " << candidates
+              << " frame(s) where one sensor missed the board: second pass with that result as "
+                 "the prior\n";
+  auto p = CalibrationPipeline::create(target, options);
+  if (!p) fail(p.error());
+  std::string camera_frame = run->result.camera_frame, lidar_frame = run->result.lidar_frame;
+  readBags(args, &*p, &camera_frame, &lidar_frame);
+  PairCalibration second =
+      solveSession(args, p->session(), methods, target, run_options, &camera_frame, &lidar_frame);
+  std::cout << p->stats().second_chance.summary() << "; views " << first_views << " -> "
+            << second.used_views.size() << ", verdict " << verdictName(run->verdict) << " -> "
+            << verdictName(second.verdict) << "\n";
+  if (static_cast<int>(second.verdict) > static_cast<int>(run->verdict)) {
+    std::cout << "second chance: its verdict is worse; the first pass's result is kept\n";
+    return;
+  }
+  *run = std::move(second);
+  pipeline->emplace(std::move(*p));
 }
 
 // Errors of every method against a truth file; --check-truth fails on the reported one.
@@ -422,27 +428,22 @@ int main(int argc, char** argv) {
     auto p = CalibrationPipeline::create(*target, options);
     if (!p) fail(p.error());
     pipeline.emplace(std::move(*p));
-
-    readPairBags(args, &*pipeline, &camera_frame, &lidar_frame);
+    readBags(args, &*pipeline, &camera_frame, &lidar_frame);
     session = &pipeline->session();
   }
-
-  const std::vector<View> views = session->plainViews();
-  if (views.empty())
-    fail("no view has the board in both sensors at the same time (check --sync-tolerance)");
-  if (camera_frame.empty()) camera_frame = views.front().camera.frame_id;
-  if (lidar_frame.empty()) lidar_frame = views.front().lidar.frame_id;
+  // Consistency, every method, the verdict and the choice: the same run as the live calibrator's.
+  PairCalibrationOptions run_options;
+  run_options.solver = solver;
+  PairCalibration run =
+      solveSession(args, *session, methods, *target, run_options, &camera_frame, &lidar_frame);
+  if (pipeline && args.second_chance) {
+    secondPass(args, methods, *target, options, run_options, &pipeline, &run);
+    session = &pipeline->session();
+  }
   if (!args.save_session.empty()) {
     const Status st = session->save(args.save_session);
     if (!st) fail(st.reason);
   }
-
-  // Consistency, every method, the verdict and the choice: the same run as the live calibrator's.
-  PairCalibrationOptions run_options;
-  run_options.solver = solver;
-  const PairCalibration run =
-      calibratePair(views, methods, *target, camera_frame, lidar_frame, run_options, args.guess);
-  if (run.runs.empty()) fail("calibration failed: " + run.reason);  // refused before any solve
   std::vector<CalibrationSolution> solutions;
   for (const auto& r : run.runs) solutions.push_back(r.solution);
   printRun(run);

@@ -182,6 +182,9 @@ void extractEdges(const LidarCloud& cloud, const std::vector<ValidPoint>& pts,
 struct History {
   std::function<bool(const LidarBoardCandidate&)> is_static;
   bool strict_ambiguity = false;
+  /// Second chance: why a candidate lies outside the expected region (empty: inside); unset
+  /// when the whole cloud is searched.
+  std::function<std::string(const LidarBoardCandidate&)> outside_expected;
 };
 
 /// The detector's stages on one cloud; `history` may be null (single-cloud rules).

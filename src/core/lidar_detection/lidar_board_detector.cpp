@@ -67,6 +67,33 @@ bool dropStatic(const History& history, std::vector<Candidate>* candidates,
   return false;
 }
 
+// Second chance: candidates outside the expected region are rejected with the reason; fails
+// (with the nearest one's reason) when none is left.
+bool keepExpected(const History& history, std::vector<Candidate>* candidates,
+                  LidarBoardDetection* det) {
+  std::string first_reason;
+  for (auto& c : *candidates) {
+    if (c.info.score < 0) continue;
+    std::string why = history.outside_expected(c.info);
+    if (why.empty()) continue;
+    if (first_reason.empty()) first_reason = why;
+    c.info.score = -1.0;
+    c.info.rejected_because = std::move(why);
+  }
+  std::stable_sort(candidates->begin(), candidates->end(),
+                   [](const Candidate& a, const Candidate& b) {
+                     return (a.info.score >= 0) > (b.info.score >= 0);
+                   });
+  if (candidates->front().info.score >= 0) return true;
+  for (const auto& c : *candidates) det->candidates.push_back(c.info);
+  *det = failure(std::move(*det), LidarDetectionCode::kWrongSize,
+                 first_reason.empty()
+                     ? "no board-sized plane near the back-projected image board"
+                     : "no board-sized plane near the back-projected image board (best: " +
+                           first_reason + ")");
+  return false;
+}
+
 // The best candidate must be board-like and, unless told otherwise, clearly ahead of any other
 // board-like plane elsewhere.
 bool chooseBest(const std::vector<Candidate>& candidates, const Target& target,
@@ -193,6 +220,8 @@ LidarBoardDetection detectImpl(const LidarCloud& cloud, const Target& target,
     return failure(std::move(det), LidarDetectionCode::kNoPlane,
                    "no planar region with at least " + std::to_string(options.min_board_points) +
                        " points among " + std::to_string(pts.size()) + " valid points");
+  if (history && history->outside_expected && !keepExpected(*history, &candidates, &det))
+    return det;
   if (history && history->is_static && !dropStatic(*history, &candidates, &det)) return det;
   for (const auto& c : candidates) det.candidates.push_back(c.info);
   if (!chooseBest(candidates, target, options, history, &det)) return det;
@@ -292,6 +321,35 @@ LidarBoardDetection detectLidarBoard(const LidarCloud& cloud, const Target& targ
                                      const LidarBoardDetectorOptions& options,
                                      const BackgroundModel* background) {
   return lidar_detail::detectImpl(cloud, target, options, background, nullptr);
+}
+
+LidarBoardDetection detectLidarBoardNear(const LidarCloud& cloud, const Target& target,
+                                         const LidarBoardDetectorOptions& options,
+                                         const ExpectedLidarBoard& expected) {
+  const auto& q = expected.corners;
+  const Eigen::Vector3d centre = 0.25 * (q[0] + q[1] + q[2] + q[3]);
+  Eigen::Vector3d normal = (q[2] - q[0]).cross(q[3] - q[1]);
+  const bool flat = normal.norm() > 1e-9;
+  if (flat) normal.normalize();
+  lidar_detail::History history;
+  history.outside_expected = [&](const LidarBoardCandidate& c) -> std::string {
+    if (!flat) return "no expected board";
+    const double off_plane = std::abs(normal.dot(c.centroid - centre));
+    // In-plane distance outside the expected quadrilateral (negative inside).
+    double outside = -std::numeric_limits<double>::infinity();
+    for (int j = 0; j < kNumEdges; ++j) {
+      const Eigen::Vector3d a = q[j], b = q[(j + 1) % kNumEdges];
+      Eigen::Vector3d out = normal.cross(b - a).normalized();
+      if (out.dot(centre - a) > 0) out = -out;
+      outside = std::max(outside, out.dot(c.centroid - a));
+    }
+    if (off_plane <= expected.tolerance_m && outside <= expected.tolerance_m) return {};
+    return lidar_detail::fmt(
+        "centroid %.2f m off the expected plane and %.2f m outside the expected board "
+        "(tolerance %.2f m)",
+        off_plane, std::max(outside, 0.0), expected.tolerance_m);
+  };
+  return lidar_detail::detectImpl(cloud, target, options, nullptr, &history);
 }
 
 }  // namespace board_calib

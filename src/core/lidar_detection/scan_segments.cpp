@@ -166,297 +166,372 @@ std::vector<double> lineGaps(const std::vector<Eigen::Vector3d>& points,
   return gap;
 }
 
-std::vector<SegmentRegion> segmentRegions(const std::vector<Eigen::Vector3d>& points,
-                                          const std::vector<int>& line, const SegmentOptions& o) {
-  std::vector<SegmentRegion> out;
-  if (points.empty()) return out;
-  const int lines = *std::max_element(line.begin(), line.end()) + 1;
+namespace {
+
+// Segments of every scan line and each line's elevation.
+struct LineSegments {
+  std::vector<Segment> segments;
+  std::vector<std::vector<int>> of_line;   // line -> segment ids
+  std::vector<double> line_elevation;      // rad
+  std::vector<std::vector<int>> down, up;  // segment -> linked segments on the adjacent lines
+};
+
+// The runs of one scan line (points in azimuth order) that stand in front of their
+// surroundings and are no wider than a board.
+void addRunsOfLine(const std::vector<Eigen::Vector3d>& points, int l,
+                   std::vector<std::pair<double, int>> pts, const SegmentOptions& o,
+                   LineSegments* out) {
+  sortByAzimuth(&pts);
+  const auto& p0 = points[static_cast<size_t>(pts[pts.size() / 2].second)];
+  out->line_elevation[static_cast<size_t>(l)] = std::atan2(p0.z(), std::hypot(p0.x(), p0.y()));
+  std::vector<double> steps;
+  steps.reserve(pts.size());
+  for (size_t k = 1; k < pts.size(); ++k)
+    if (pts[k].first > pts[k - 1].first) steps.push_back(pts[k].first - pts[k - 1].first);
+  const double step = std::max(median(steps), 1e-5);
+  std::vector<double> range(pts.size());
+  for (size_t k = 0; k < pts.size(); ++k)
+    range[k] = points[static_cast<size_t>(pts[k].second)].norm();
+  // In front of its surroundings: the neighbours beyond a range jump are farther (a gap in
+  // azimuth means no return there, which counts as far).
+  auto farther = [&](size_t inside, long outside) {
+    if (outside < 0 || outside >= static_cast<long>(pts.size())) return true;
+    const double daz = std::abs(pts[static_cast<size_t>(outside)].first - pts[inside].first);
+    return daz > kMaxGapSteps * step || range[static_cast<size_t>(outside)] > range[inside];
+  };
+  size_t begin = 0;
+  for (size_t k = 1; k <= pts.size(); ++k) {
+    bool split = k == pts.size();
+    if (!split) {
+      const double daz = pts[k].first - pts[k - 1].first;
+      const double jump = std::abs(range[k] - range[k - 1]);
+      split = daz > kMaxGapSteps * step ||
+              jump > std::max(kJumpSigmas * o.range_noise_m, kMaxRangeSlope * range[k] * daz);
+    }
+    if (!split) continue;
+    const size_t end = k;  // run [begin, end)
+    const bool front =
+        farther(begin, static_cast<long>(begin) - 1) && farther(end - 1, static_cast<long>(end));
+    // Width across the view: the chord would miss a whole ring on the ground (it closes on
+    // itself) and a path length sums the range noise.
+    const double az_span = pts[end - 1].first - pts[begin].first;
+    const double chord =
+        2.0 * std::min(range[begin], range[end - 1]) * std::sin(0.5 * std::min(az_span, kPi));
+    if (end - begin >= 2 && front && az_span < kPi && chord <= o.max_length_m) {
+      Segment seg;
+      seg.line = l;
+      seg.az_lo = pts[begin].first;
+      seg.az_hi = pts[end - 1].first;
+      seg.step = step;
+      for (size_t q = begin; q < end; ++q) {
+        seg.points.push_back(pts[q].second);
+        seg.stats.add(points[static_cast<size_t>(pts[q].second)]);
+      }
+      out->of_line[static_cast<size_t>(l)].push_back(static_cast<int>(out->segments.size()));
+      out->segments.push_back(std::move(seg));
+    }
+    begin = k;
+  }
+}
+
+LineSegments splitIntoSegments(const std::vector<Eigen::Vector3d>& points,
+                               const std::vector<int>& line, int lines, const SegmentOptions& o) {
+  LineSegments out;
+  out.of_line.resize(static_cast<size_t>(lines));
+  out.line_elevation.assign(static_cast<size_t>(lines), 0.0);
   // Points of each line in azimuth order.
   std::vector<std::vector<std::pair<double, int>>> by_line(static_cast<size_t>(lines));
   for (size_t i = 0; i < points.size(); ++i)
     by_line[static_cast<size_t>(line[i])].emplace_back(std::atan2(points[i].y(), points[i].x()),
                                                        static_cast<int>(i));
-  std::vector<Segment> segments;
-  std::vector<std::vector<int>> segments_of_line(static_cast<size_t>(lines));
-  std::vector<double> line_elevation(static_cast<size_t>(lines), 0.0);
-  for (int l = 0; l < lines; ++l) {
-    auto& pts = by_line[static_cast<size_t>(l)];
-    if (pts.size() < 2) continue;
-    sortByAzimuth(&pts);
-    const auto& p0 = points[static_cast<size_t>(pts[pts.size() / 2].second)];
-    line_elevation[static_cast<size_t>(l)] = std::atan2(p0.z(), std::hypot(p0.x(), p0.y()));
-    std::vector<double> steps;
-    steps.reserve(pts.size());
-    for (size_t k = 1; k < pts.size(); ++k)
-      if (pts[k].first > pts[k - 1].first) steps.push_back(pts[k].first - pts[k - 1].first);
-    const double step = std::max(median(steps), 1e-5);
-    std::vector<double> range(pts.size());
-    for (size_t k = 0; k < pts.size(); ++k)
-      range[k] = points[static_cast<size_t>(pts[k].second)].norm();
-    size_t begin = 0;
-    for (size_t k = 1; k <= pts.size(); ++k) {
-      bool split = k == pts.size();
-      if (!split) {
-        const double daz = pts[k].first - pts[k - 1].first;
-        const double jump = std::abs(range[k] - range[k - 1]);
-        split = daz > kMaxGapSteps * step ||
-                jump > std::max(kJumpSigmas * o.range_noise_m, kMaxRangeSlope * range[k] * daz);
-      }
-      if (!split) continue;
-      const size_t end = k;  // run [begin, end)
-      const size_t n = end - begin;
-      // In front of its surroundings: the neighbours beyond a range jump are farther (a gap in
-      // azimuth means no return there, which counts as far).
-      auto farther = [&](size_t inside, long outside) {
-        if (outside < 0 || outside >= static_cast<long>(pts.size())) return true;
-        const double daz = std::abs(pts[static_cast<size_t>(outside)].first - pts[inside].first);
-        return daz > kMaxGapSteps * step || range[static_cast<size_t>(outside)] > range[inside];
-      };
-      const bool front =
-          farther(begin, static_cast<long>(begin) - 1) && farther(end - 1, static_cast<long>(end));
-      if (n >= 2 && front) {
-        // Width across the view: the chord would miss a whole ring on the ground (it closes on
-        // itself) and a path length sums the range noise.
-        const double az_span = pts[end - 1].first - pts[begin].first;
-        const double chord =
-            2.0 * std::min(range[begin], range[end - 1]) * std::sin(0.5 * std::min(az_span, kPi));
-        if (az_span < kPi && chord <= o.max_length_m) {
-          {
-            Segment seg;
-            seg.line = l;
-            seg.az_lo = pts[begin].first;
-            seg.az_hi = pts[end - 1].first;
-            seg.step = step;
-            for (size_t q = begin; q < end; ++q) {
-              seg.points.push_back(pts[q].second);
-              seg.stats.add(points[static_cast<size_t>(pts[q].second)]);
-            }
-            segments_of_line[static_cast<size_t>(l)].push_back(static_cast<int>(segments.size()));
-            segments.push_back(std::move(seg));
-          }
-        }
-      }
-      begin = k;
-    }
-  }
+  for (int l = 0; l < lines; ++l)
+    if (by_line[static_cast<size_t>(l)].size() >= 2)
+      addRunsOfLine(points, l, std::move(by_line[static_cast<size_t>(l)]), o, &out);
   // Links between segments of adjacent lines that overlap in azimuth.
-  std::vector<std::vector<int>> down(segments.size()), up(segments.size());
+  out.down.resize(out.segments.size());
+  out.up.resize(out.segments.size());
   for (int l = 0; l + 1 < lines; ++l) {
-    for (int a : segments_of_line[static_cast<size_t>(l)])
-      for (int b : segments_of_line[static_cast<size_t>(l + 1)]) {
-        const Segment& sa = segments[static_cast<size_t>(a)];
-        const Segment& sb = segments[static_cast<size_t>(b)];
+    for (int a : out.of_line[static_cast<size_t>(l)])
+      for (int b : out.of_line[static_cast<size_t>(l + 1)]) {
+        const Segment& sa = out.segments[static_cast<size_t>(a)];
+        const Segment& sb = out.segments[static_cast<size_t>(b)];
         const double margin = kLinkMarginSteps * std::max(sa.step, sb.step);
         if (sa.az_hi + margin < sb.az_lo || sb.az_hi + margin < sa.az_lo) continue;
-        up[static_cast<size_t>(a)].push_back(b);
-        down[static_cast<size_t>(b)].push_back(a);
+        out.up[static_cast<size_t>(a)].push_back(b);
+        out.down[static_cast<size_t>(b)].push_back(a);
       }
   }
-  auto statsOf = [&](const std::vector<int>& segs) {
-    PlaneStats s;
-    for (int k : segs) s.add(segments[static_cast<size_t>(k)].stats);
-    return s;
-  };
+  return out;
+}
+
+// Planar regions grown over linked segments, largest segments first.
+class RegionGrower {
+ public:
+  RegionGrower(const std::vector<Eigen::Vector3d>& points, LineSegments* ls,
+               const SegmentOptions& o)
+      : points_(points), ls_(*ls), seg_(ls->segments), o_(o) {}
+
+  // The region seeded at segment s, or false when it has no flat seed or is no plane.
+  bool grow(int s, int id, SegmentRegion* r) {
+    const std::vector<int> seed = seedTriple(s);
+    if (seed.empty()) return false;
+    std::vector<int> members = seed;
+    for (int k : seed) seg_[static_cast<size_t>(k)].region = id;
+    PlaneFit plane = trimmedFit(seed);
+    PlaneStats stats;
+    std::vector<int> region_points;
+    for (int k : seed) addInPlane(k, plane, &stats, &region_points);
+    plane = fitPlane(stats);
+    for (size_t head = 0; head < members.size(); ++head) {
+      const int cur = members[head];
+      for (const auto* links :
+           {&ls_.down[static_cast<size_t>(cur)], &ls_.up[static_cast<size_t>(cur)]})
+        for (int nb : *links) {
+          Segment& seg = seg_[static_cast<size_t>(nb)];
+          if (seg.region >= 0 || !fitsPlane(seg, plane)) continue;
+          seg.region = id;
+          members.push_back(nb);
+          addInPlane(nb, plane, &stats, &region_points);
+          plane = fitPlane(stats);
+        }
+    }
+    if (std::sqrt(plane.eigenvalues[0]) > o_.max_rms_m) return false;
+    r->points = std::move(region_points);
+    return describe(members, r);
+  }
+
+ private:
   // A segment lies on a plane when most of its points do: its ends may be mixed returns that
   // blend the board with what is behind it. Only the points within the band join a region.
-  auto inPlane = [&](int i, const PlaneFit& f) {
-    return std::abs(f.normal().dot(points[static_cast<size_t>(i)]) - f.offset()) <= o.plane_band_m;
-  };
-  auto fitsPlane = [&](const Segment& seg, const PlaneFit& f) {
+  bool inPlane(int i, const PlaneFit& f) const {
+    return std::abs(f.normal().dot(points_[static_cast<size_t>(i)]) - f.offset()) <=
+           o_.plane_band_m;
+  }
+  bool fitsPlane(const Segment& seg, const PlaneFit& f) const {
     int in = 0;
     for (int i : seg.points) in += inPlane(i, f);
     return in >= 2 && in >= kMinInPlaneFraction * static_cast<double>(seg.points.size());
-  };
-  auto trimmedFit = [&](const std::vector<int>& segs) {
-    PlaneFit f = fitPlane(statsOf(segs));
+  }
+  PlaneFit trimmedFit(const std::vector<int>& segs) const {
+    PlaneStats all;
+    for (int k : segs) all.add(seg_[static_cast<size_t>(k)].stats);
+    PlaneFit f = fitPlane(all);
     for (int round = 0; round < 2; ++round) {
       PlaneStats s;
       for (int k : segs)
-        for (int i : segments[static_cast<size_t>(k)].points)
-          if (inPlane(i, f)) s.add(points[static_cast<size_t>(i)]);
+        for (int i : seg_[static_cast<size_t>(k)].points)
+          if (inPlane(i, f)) s.add(points_[static_cast<size_t>(i)]);
       if (s.n < 3) break;
       f = fitPlane(s);
     }
     return f;
-  };
-  std::vector<int> order(segments.size());
-  std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(), [&](int a, int b) {
-    return segments[static_cast<size_t>(a)].points.size() >
-           segments[static_cast<size_t>(b)].points.size();
-  });
-  for (int s : order) {
-    if (segments[static_cast<size_t>(s)].region >= 0) continue;
-    // Seed: this segment with one unassigned neighbour below and one above, the flattest triple.
+  }
+  void addInPlane(int k, const PlaneFit& plane, PlaneStats* stats, std::vector<int>* pts) const {
+    for (int i : seg_[static_cast<size_t>(k)].points)
+      if (inPlane(i, plane)) {
+        stats->add(points_[static_cast<size_t>(i)]);
+        pts->push_back(i);
+      }
+  }
+  // Segment s with one unassigned neighbour below and one above: the flattest triple.
+  std::vector<int> seedTriple(int s) const {
     double best_rms = std::numeric_limits<double>::infinity();
     std::vector<int> seed;
-    for (int a : down[static_cast<size_t>(s)]) {
-      if (segments[static_cast<size_t>(a)].region >= 0) continue;
-      for (int b : up[static_cast<size_t>(s)]) {
-        if (segments[static_cast<size_t>(b)].region >= 0) continue;
+    for (int a : ls_.down[static_cast<size_t>(s)]) {
+      if (seg_[static_cast<size_t>(a)].region >= 0) continue;
+      for (int b : ls_.up[static_cast<size_t>(s)]) {
+        if (seg_[static_cast<size_t>(b)].region >= 0) continue;
         const std::vector<int> triple = {a, s, b};
         // Cheap test first: the untrimmed fit from the segments' sums. A few mixed returns at
         // the runs' ends raise its RMS, not by a factor kUntrimmedRmsFactor.
-        PlaneStats all = segments[static_cast<size_t>(a)].stats;
-        all.add(segments[static_cast<size_t>(s)].stats);
-        all.add(segments[static_cast<size_t>(b)].stats);
-        if (std::sqrt(fitPlane(all).eigenvalues[0]) > kUntrimmedRmsFactor * o.max_rms_m) continue;
+        PlaneStats all = seg_[static_cast<size_t>(a)].stats;
+        all.add(seg_[static_cast<size_t>(s)].stats);
+        all.add(seg_[static_cast<size_t>(b)].stats);
+        if (std::sqrt(fitPlane(all).eigenvalues[0]) > kUntrimmedRmsFactor * o_.max_rms_m) continue;
         const PlaneFit f = trimmedFit(triple);
         const double rms = std::sqrt(f.eigenvalues[0]);
-        if (rms < best_rms && rms <= o.max_rms_m &&
+        if (rms < best_rms && rms <= o_.max_rms_m &&
             std::all_of(triple.begin(), triple.end(),
-                        [&](int k) { return fitsPlane(segments[static_cast<size_t>(k)], f); })) {
+                        [&](int k) { return fitsPlane(seg_[static_cast<size_t>(k)], f); })) {
           best_rms = rms;
           seed = triple;
         }
       }
     }
-    if (seed.empty()) continue;
-    const int id = static_cast<int>(out.size());
-    std::vector<int> members = seed;
-    for (int k : seed) segments[static_cast<size_t>(k)].region = id;
-    PlaneFit plane = trimmedFit(seed);
-    PlaneStats stats;
-    std::vector<int> region_points;
-    for (int k : seed)
-      for (int i : segments[static_cast<size_t>(k)].points)
-        if (inPlane(i, plane)) {
-          stats.add(points[static_cast<size_t>(i)]);
-          region_points.push_back(i);
-        }
-    plane = fitPlane(stats);
-    for (size_t head = 0; head < members.size(); ++head) {
-      const int cur = members[head];
-      for (const auto* links : {&down[static_cast<size_t>(cur)], &up[static_cast<size_t>(cur)]})
-        for (int nb : *links) {
-          Segment& seg = segments[static_cast<size_t>(nb)];
-          if (seg.region >= 0 || !fitsPlane(seg, plane)) continue;
-          seg.region = id;
-          members.push_back(nb);
-          for (int i : seg.points)
-            if (inPlane(i, plane)) {
-              stats.add(points[static_cast<size_t>(i)]);
-              region_points.push_back(i);
-            }
-          plane = fitPlane(stats);
-        }
-    }
-    if (std::sqrt(plane.eigenvalues[0]) > o.max_rms_m) continue;
-    SegmentRegion r;
+    return seed;
+  }
+  // Lines, column and line steps of a region; false with fewer lines than asked.
+  bool describe(const std::vector<int>& members, SegmentRegion* r) const {
     std::vector<int> region_lines;
     std::vector<double> steps;
-    r.points = std::move(region_points);
     for (int k : members) {
-      const Segment& seg = segments[static_cast<size_t>(k)];
+      const Segment& seg = seg_[static_cast<size_t>(k)];
       region_lines.push_back(seg.line);
       steps.push_back(seg.step);
     }
     std::sort(region_lines.begin(), region_lines.end());
     region_lines.erase(std::unique(region_lines.begin(), region_lines.end()), region_lines.end());
-    r.lines = static_cast<int>(region_lines.size());
-    if (r.lines < o.min_lines) continue;
+    r->lines = static_cast<int>(region_lines.size());
+    if (r->lines < o_.min_lines) return false;
     std::vector<double> gaps;
     for (size_t k = 1; k < region_lines.size(); ++k)
-      gaps.push_back(line_elevation[static_cast<size_t>(region_lines[k])] -
-                     line_elevation[static_cast<size_t>(region_lines[k - 1])]);
-    r.column_step_rad = median(steps);
-    r.line_step_rad = median(gaps);
-    out.push_back(std::move(r));
+      gaps.push_back(ls_.line_elevation[static_cast<size_t>(region_lines[k])] -
+                     ls_.line_elevation[static_cast<size_t>(region_lines[k - 1])]);
+    r->column_step_rad = median(steps);
+    r->line_step_rad = median(gaps);
+    return true;
+  }
+
+  const std::vector<Eigen::Vector3d>& points_;
+  const LineSegments& ls_;
+  std::vector<Segment>& seg_;
+  const SegmentOptions& o_;
+};
+
+}  // namespace
+
+std::vector<SegmentRegion> segmentRegions(const std::vector<Eigen::Vector3d>& points,
+                                          const std::vector<int>& line, const SegmentOptions& o) {
+  std::vector<SegmentRegion> out;
+  if (points.empty()) return out;
+  const int lines = *std::max_element(line.begin(), line.end()) + 1;
+  LineSegments ls = splitIntoSegments(points, line, lines, o);
+  std::vector<int> order(ls.segments.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int a, int b) {
+    return ls.segments[static_cast<size_t>(a)].points.size() >
+           ls.segments[static_cast<size_t>(b)].points.size();
+  });
+  RegionGrower grower(points, &ls, o);
+  for (int s : order) {
+    if (ls.segments[static_cast<size_t>(s)].region >= 0) continue;
+    SegmentRegion r;
+    if (grower.grow(s, static_cast<int>(out.size()), &r)) out.push_back(std::move(r));
   }
   return out;
 }
+
+namespace {
+
+// The declared rectangle at one angle: its data in the rotated frame (x along the width).
+struct RectangleAtAngle {
+  RectangleAtAngle(double angle, double width, double height)
+      : c(std::cos(angle)), s(std::sin(angle)), half(width / 2, height / 2) {}
+  Eigen::Vector2d rot(const Eigen::Vector2d& p) const {
+    return Eigen::Vector2d(c * p.x() + s * p.y(), -s * p.x() + c * p.y());
+  }
+  double c, s;
+  Eigen::Vector2d half;
+};
+
+// Moves the centre (within [c_lo, c_hi]) so the extremes, moved out by their insets, lie on
+// the sides that own them; returns the sum of squared boundary residuals.
+double fitCentre(const RectangleAtAngle& r, const Points2& extremes,
+                 const std::vector<double>& insets, const Eigen::Vector2d& c_lo,
+                 const Eigen::Vector2d& c_hi, Eigen::Vector2d* centre) {
+  const Eigen::Vector2d& half = r.half;
+  // Inset of an extreme perpendicular to a side: its inset along u times |u . side normal|.
+  const double inset_x = std::abs(r.c), inset_y = std::abs(r.s);
+  double cost = 0.0;
+  for (int round = 0; round < kAssignRounds; ++round) {
+    Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+    Eigen::Vector2i n = Eigen::Vector2i::Zero();
+    cost = 0.0;
+    for (size_t k = 0; k < extremes.size(); ++k) {
+      const Eigen::Vector2d q = r.rot(extremes[k]);
+      const double b = k < insets.size() ? insets[k] : 0.0;
+      const Eigen::Vector2d& m = *centre;
+      // Distances to the four sides (positive inside); the nearest side owns the extreme.
+      const double d[4] = {m.x() + half.x() - q.x(), q.x() - (m.x() - half.x()),
+                           m.y() + half.y() - q.y(), q.y() - (m.y() - half.y())};
+      int side = 0;
+      for (int j = 1; j < 4; ++j)
+        if (std::abs(d[j]) < std::abs(d[side])) side = j;
+      const int axis = side / 2;
+      const double inset = b * (axis == 0 ? inset_x : inset_y);
+      const double residual = d[side] - inset;
+      cost += residual * residual;
+      // The centre coordinate that puts this extreme exactly at its inset.
+      const double want = side == 0   ? q.x() + inset - half.x()
+                          : side == 1 ? q.x() - inset + half.x()
+                          : side == 2 ? q.y() + inset - half.y()
+                                      : q.y() - inset + half.y();
+      sum[axis] += want;
+      ++n[axis];
+    }
+    for (int a = 0; a < 2; ++a)
+      if (n[a] > 0) (*centre)[a] = std::clamp(sum[a] / n[a], c_lo[a], c_hi[a]);
+  }
+  return cost;
+}
+
+// Cost of the rectangle at `angle` (infinite when no centre keeps every board point inside);
+// fills `fit` when given.
+double evaluateRectangle(const Points2& board, const Points2& extremes,
+                         const std::vector<double>& insets, double width, double height,
+                         double inside_tol_m, double angle, RectangleFit* fit) {
+  const RectangleAtAngle r(angle, width, height);
+  Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity()),
+                  hi = -lo;
+  for (const auto& p : board) {
+    const Eigen::Vector2d q = r.rot(p);
+    lo = lo.cwiseMin(q);
+    hi = hi.cwiseMax(q);
+  }
+  // Centres that keep every board point inside (within the tolerance).
+  const Eigen::Vector2d c_lo = hi - r.half - Eigen::Vector2d::Constant(inside_tol_m);
+  const Eigen::Vector2d c_hi = lo + r.half + Eigen::Vector2d::Constant(inside_tol_m);
+  if ((c_lo.array() > c_hi.array()).any()) return std::numeric_limits<double>::infinity();
+  Eigen::Vector2d centre = 0.5 * (c_lo + c_hi);
+  const double cost = fitCentre(r, extremes, insets, c_lo, c_hi, &centre);
+  if (!fit) return cost;
+  fit->ok = true;
+  fit->angle = angle;
+  const Eigen::Matrix2d back = (Eigen::Matrix2d() << r.c, -r.s, r.s, r.c).finished();  // -> uv
+  fit->centre = back * centre;
+  fit->rms_m = extremes.empty() ? 0.0 : std::sqrt(cost / extremes.size());
+  double worst = 0.0;
+  for (const auto& p : board) {
+    const Eigen::Vector2d q = r.rot(p) - centre;
+    worst = std::max({worst, std::abs(q.x()) - r.half.x(), std::abs(q.y()) - r.half.y()});
+  }
+  fit->worst_outside_m = worst;
+  const double sx[4] = {1, -1, -1, 1}, sy[4] = {1, 1, -1, -1};
+  for (int j = 0; j < 4; ++j)
+    fit->corners[j] = back * (centre + Eigen::Vector2d(sx[j] * r.half.x(), sy[j] * r.half.y()));
+  return cost;
+}
+
+}  // namespace
 
 RectangleFit fitRectangle(const Points2& board, const Points2& extremes,
                           const std::vector<double>& insets, double width, double height,
                           double inside_tol_m) {
   RectangleFit best;
-  double best_cost = std::numeric_limits<double>::infinity();
   if (board.empty()) return best;
-  auto evaluate = [&](double angle, RectangleFit* fit) {
-    const double c = std::cos(angle), s = std::sin(angle);
-    auto rot = [&](const Eigen::Vector2d& p) {
-      return Eigen::Vector2d(c * p.x() + s * p.y(), -s * p.x() + c * p.y());
-    };
-    Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity()),
-                    hi = -lo;
-    for (const auto& p : board) {
-      const Eigen::Vector2d q = rot(p);
-      lo = lo.cwiseMin(q);
-      hi = hi.cwiseMax(q);
-    }
-    const Eigen::Vector2d half(width / 2, height / 2);
-    // Centres that keep every board point inside (within the tolerance).
-    const Eigen::Vector2d c_lo = hi - half - Eigen::Vector2d::Constant(inside_tol_m);
-    const Eigen::Vector2d c_hi = lo + half + Eigen::Vector2d::Constant(inside_tol_m);
-    if ((c_lo.array() > c_hi.array()).any()) return std::numeric_limits<double>::infinity();
-    Eigen::Vector2d centre = 0.5 * (c_lo + c_hi);
-    // Inset of an extreme perpendicular to a side: its inset along u times |u . side normal|.
-    const double inset_x = std::abs(c), inset_y = std::abs(s);
-    double cost = 0.0;
-    for (int round = 0; round < kAssignRounds; ++round) {
-      Eigen::Vector2d sum = Eigen::Vector2d::Zero();
-      Eigen::Vector2i n = Eigen::Vector2i::Zero();
-      cost = 0.0;
-      for (size_t k = 0; k < extremes.size(); ++k) {
-        const Eigen::Vector2d q = rot(extremes[k]);
-        const double b = k < insets.size() ? insets[k] : 0.0;
-        // Distances to the four sides (positive inside); the nearest side owns the extreme.
-        const double d[4] = {centre.x() + half.x() - q.x(), q.x() - (centre.x() - half.x()),
-                             centre.y() + half.y() - q.y(), q.y() - (centre.y() - half.y())};
-        int side = 0;
-        for (int j = 1; j < 4; ++j)
-          if (std::abs(d[j]) < std::abs(d[side])) side = j;
-        const int axis = side / 2;
-        const double inset = b * (axis == 0 ? inset_x : inset_y);
-        const double residual = d[side] - inset;
-        cost += residual * residual;
-        // The centre coordinate that puts this extreme exactly at its inset.
-        const double want = side == 0   ? q.x() + inset - half.x()
-                            : side == 1 ? q.x() - inset + half.x()
-                            : side == 2 ? q.y() + inset - half.y()
-                                        : q.y() - inset + half.y();
-        sum[axis] += want;
-        ++n[axis];
-      }
-      for (int a = 0; a < 2; ++a)
-        if (n[a] > 0) centre[a] = std::clamp(sum[a] / n[a], c_lo[a], c_hi[a]);
-    }
-    if (fit) {
-      fit->ok = true;
-      fit->angle = angle;
-      const Eigen::Matrix2d back = (Eigen::Matrix2d() << c, -s, s, c).finished();  // rotated -> uv
-      fit->centre = back * centre;
-      fit->rms_m = extremes.empty() ? 0.0 : std::sqrt(cost / extremes.size());
-      double worst = 0.0;
-      for (const auto& p : board) {
-        const Eigen::Vector2d q = rot(p) - centre;
-        worst = std::max({worst, std::abs(q.x()) - half.x(), std::abs(q.y()) - half.y()});
-      }
-      fit->worst_outside_m = worst;
-      const double sx[4] = {1, -1, -1, 1}, sy[4] = {1, 1, -1, -1};
-      for (int j = 0; j < 4; ++j)
-        fit->corners[j] = back * (centre + Eigen::Vector2d(sx[j] * half.x(), sy[j] * half.y()));
-    }
-    return cost;
+  auto cost = [&](double angle) {
+    return evaluateRectangle(board, extremes, insets, width, height, inside_tol_m, angle, nullptr);
   };
+  double best_cost = std::numeric_limits<double>::infinity();
   double best_angle = 0.0;
+  // Coarse over half a turn (a rectangle repeats), then fine around the best.
   for (double a = 0.0; a < kPi; a += kAngleStepCoarse) {
-    const double cost = evaluate(a, nullptr);
-    if (cost < best_cost) {
-      best_cost = cost;
+    const double c = cost(a);
+    if (c < best_cost) {
+      best_cost = c;
       best_angle = a;
     }
   }
   if (!std::isfinite(best_cost)) return best;
   for (double a = best_angle - kAngleStepCoarse; a <= best_angle + kAngleStepCoarse;
        a += kAngleStepFine) {
-    const double cost = evaluate(a, nullptr);
-    if (cost < best_cost) {
-      best_cost = cost;
+    const double c = cost(a);
+    if (c < best_cost) {
+      best_cost = c;
       best_angle = a;
     }
   }
-  evaluate(best_angle, &best);
+  evaluateRectangle(board, extremes, insets, width, height, inside_tol_m, best_angle, &best);
   return best;
 }
 

@@ -22,6 +22,7 @@ std::string PipelineOptions::validate() const {
   if (auto why = image.validate(); !why.empty()) return "image detector: " + why;
   if (auto why = session.validate(); !why.empty()) return "session: " + why;
   if (frame_history < 1) return "frame_history must be >= 1";
+  if (auto why = second_chance.validate(); !why.empty()) return "second chance: " + why;
   return {};
 }
 
@@ -43,6 +44,57 @@ struct CalibrationPipeline::Impl {
   std::deque<std::pair<double, LidarCloud>> recent_clouds;
   std::map<int, cv::Mat> view_images;
   std::map<int, LidarCloud> view_clouds;
+  BoardSightings sightings;
+
+  // Second chance for an image the whole-image search missed; true when the board was found.
+  bool retryImage(const cv::Mat& image, ImageDetection* det) {
+    if (!options.prior) return false;
+    SecondChanceStats& sc = stats.second_chance;
+    ++sc.images_tried;
+    std::string why;
+    const auto expected =
+        expectedImageBoard(*options.prior, det->features.stamp, options.session.sync_tolerance_s,
+                           *camera, options.second_chance, &why);
+    ImageDetection near;
+    if (expected) {
+      near = image_detector.detectNear(image, *camera, *expected);
+      if (!near.features.found) why = "near the projected LiDAR board: " + near.features.reason;
+    }
+    if (!expected || !near.features.found) {
+      sc.images_not_recovered[why]++;
+      return false;
+    }
+    near.features.frame_id = det->features.frame_id;
+    near.features.stamp = det->features.stamp;
+    *det = std::move(near);
+    ++sc.images_recovered;
+    return true;
+  }
+
+  // Second chance for a cloud whose board was not found alone; true when it was found.
+  bool retryCloud(const LidarCloud& cloud, LidarBoardDetection* det) {
+    if (!options.prior) return false;
+    SecondChanceStats& sc = stats.second_chance;
+    ++sc.clouds_tried;
+    std::string why;
+    const auto expected =
+        expectedLidarBoard(*options.prior, cloud.stamp, secondChanceWindowS(options.session),
+                           target, options.second_chance, &why);
+    LidarBoardDetection near;
+    if (expected) {
+      near = detectLidarBoardNear(cloud, target, options.lidar, *expected);
+      if (!near.features.found)
+        why = std::string("near the back-projected image board: ") +
+              lidarDetectionCodeName(near.code);
+    }
+    if (!expected || !near.features.found) {
+      sc.clouds_not_recovered[why]++;
+      return false;
+    }
+    *det = std::move(near);
+    ++sc.clouds_recovered;
+    return true;
+  }
 
   // Raw frames wait until the session has judged them: the still window plus the sync tolerance.
   // Images still waiting for their judgement keep their frames (a snapshot recording judges its
@@ -114,16 +166,21 @@ FrameOutcome CalibrationPipeline::addImage(const cv::Mat& image, const CameraInt
   }
   const auto start = std::chrono::steady_clock::now();
   ImageDetection det = d.image_detector.detect(image, *d.camera);
-  out.detect_ms = elapsedMs(start);
-  d.stats.image_ms += out.detect_ms;
   det.features.frame_id = frame_id;
   det.features.stamp = stamp;
+  if (!det.features.found) d.retryImage(image, &det);
+  out.detect_ms = elapsedMs(start);
+  d.stats.image_ms += out.detect_ms;
   out.board_found = det.features.found;
   out.detection = det.features.reason;
-  if (det.features.found)
+  if (det.features.found) {
     ++d.stats.images_with_board;
-  else
+    d.sightings.images[stamp] =
+        imageSighting(det.features, *d.camera, d.target, d.options.second_chance);
+  } else {
     d.stats.image_failures[det.features.reason]++;
+    d.sightings.images_missed.push_back(stamp);
+  }
   if (d.options.keep_view_frames) {
     d.recent_images.emplace_back(stamp, image);
     d.trimFrames(d.recent_images);
@@ -140,16 +197,20 @@ FrameOutcome CalibrationPipeline::addCloud(const LidarCloud& cloud) {
   const auto start = std::chrono::steady_clock::now();
   LidarBoardDetection det =
       d.tracker ? d.tracker->detect(cloud) : detectLidarBoard(cloud, d.target, d.options.lidar);
+  if (!det.features.found) d.retryCloud(cloud, &det);
   out.detect_ms = elapsedMs(start);
   d.stats.cloud_ms += out.detect_ms;
   det.features.frame_id = cloud.frame_id;
   det.features.stamp = cloud.stamp;
   out.board_found = det.features.found;
   out.detection = det.features.reason;
-  if (det.features.found)
+  if (det.features.found) {
     ++d.stats.clouds_with_board;
-  else
+    d.sightings.clouds[cloud.stamp] = lidarSighting(det.features);
+  } else {
     d.stats.cloud_failures[std::string(lidarDetectionCodeName(det.code))]++;
+    d.sightings.clouds_missed.push_back(cloud.stamp);
+  }
   if (d.options.keep_view_frames) {
     d.recent_clouds.emplace_back(cloud.stamp, cloud);
     d.trimFrames(d.recent_clouds);
@@ -169,10 +230,12 @@ PairSession& CalibrationPipeline::session() { return impl_->session; }
 const PairSession& CalibrationPipeline::session() const { return impl_->session; }
 const PipelineStats& CalibrationPipeline::stats() const { return impl_->stats; }
 const Target& CalibrationPipeline::target() const { return impl_->target; }
+const PipelineOptions& CalibrationPipeline::options() const { return impl_->options; }
 const std::map<int, cv::Mat>& CalibrationPipeline::viewImages() const { return impl_->view_images; }
 const std::map<int, LidarCloud>& CalibrationPipeline::viewClouds() const {
   return impl_->view_clouds;
 }
+const BoardSightings& CalibrationPipeline::sightings() const { return impl_->sightings; }
 const CameraModel* CalibrationPipeline::cameraModel() const {
   return impl_->camera ? &*impl_->camera : nullptr;
 }

@@ -13,6 +13,7 @@
 #include <board_calib/core/lidar_detection/lidar_cloud.h>
 #include <board_calib/core/target.h>
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -169,6 +170,22 @@ class BackgroundModel {
 LidarBoardDetection detectLidarBoard(const LidarCloud& cloud, const Target& target,
                                      const LidarBoardDetectorOptions& options = {},
                                      const BackgroundModel* background = nullptr);
+
+/// Where a prior extrinsic puts the board the camera saw (its four outer corners in the LiDAR
+/// frame): the region a second-chance search is restricted to.
+struct ExpectedLidarBoard {
+  std::array<Eigen::Vector3d, kNumEdges> corners{};  ///< m, LiDAR frame, in cyclic order
+  double tolerance_m = 0.0;  ///< m, how far the board may lie from this quadrilateral (prior error
+                             ///< and sampling)
+};
+
+/// Second chance inside the back-projected image board (issue 14, 3b): the same stages and
+/// size/shape checks as detectLidarBoard, but only candidates whose centroid lies within
+/// expected.tolerance_m of the expected quadrilateral (in its plane and off it) compete, so
+/// board-like planes elsewhere neither win nor make the frame ambiguous.
+LidarBoardDetection detectLidarBoardNear(const LidarCloud& cloud, const Target& target,
+                                         const LidarBoardDetectorOptions& options,
+                                         const ExpectedLidarBoard& expected);
 
 /// Memory of board-like planes over a session: the board is what moves; a planar candidate
 /// that stays put (door, poster, screen, cabinet) is background.

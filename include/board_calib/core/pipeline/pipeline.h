@@ -5,10 +5,12 @@
 
 #include <board_calib/core/image_detection/image_board_detector.h>
 #include <board_calib/core/lidar_detection/lidar_board_detector.h>
+#include <board_calib/core/pipeline/second_chance.h>
 #include <board_calib/core/session/session.h>
 
 #include <map>
 #include <memory>
+#include <optional>
 
 namespace board_calib {
 
@@ -20,6 +22,10 @@ struct PipelineOptions {
   SessionOptions session;
   bool keep_view_frames = true;  ///< keep the raw image and cloud of every accepted view (reports)
   int frame_history = 64;        ///< raw frames kept per stream at most until their view is decided
+  /// Second pass (issue 14, 3b): a frame whose board is not found alone is searched again where
+  /// this prior (a first calibration and the first pass's boards) puts it. Unset: first pass.
+  std::optional<SecondChancePrior> prior;
+  SecondChanceOptions second_chance;
   std::string validate() const;
 };
 
@@ -38,6 +44,7 @@ struct PipelineStats {
   std::map<std::string, int> image_failures;  ///< reason -> count
   std::map<std::string, int> cloud_failures;  ///< reason -> count
   double image_ms = 0.0, cloud_ms = 0.0;      ///< total detection time
+  SecondChanceStats second_chance;            ///< second pass only
 };
 
 class CalibrationPipeline {
@@ -58,11 +65,14 @@ class CalibrationPipeline {
   const PairSession& session() const;
   const PipelineStats& stats() const;
   const Target& target() const;
+  const PipelineOptions& options() const;
   /// Frames of accepted views (when keep_view_frames): view id -> raw image / cloud.
   const std::map<int, cv::Mat>& viewImages() const;
   const std::map<int, LidarCloud>& viewClouds() const;
   /// Camera model of the last image (for reports); nullptr before the first valid image.
   const CameraModel* cameraModel() const;
+  /// Every board found so far (alone or by the second chance): a second pass's prior.
+  const BoardSightings& sightings() const;
 
  private:
   CalibrationPipeline() = default;

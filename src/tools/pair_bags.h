@@ -1,0 +1,24 @@
+// calibrate_bag, pair mode: the bags streamed through the offline pipeline, once for the first
+// pass and again for the second chance (re-read, not kept: a recording may not fit in memory).
+#pragma once
+
+#include <board_calib/core/pipeline/pipeline.h>
+
+#include <string>
+#include <vector>
+
+namespace board_calib {
+
+struct PairBagArgs {
+  std::vector<std::string> bags;
+  std::string image_topic, info_topic, cloud_topic;
+  bool quiet = false;
+};
+
+/// Streams the bags through `pipeline` and prints its detection figures (unless quiet). Sets
+/// the frames of the first image and cloud when still empty. Returns the one-line failure
+/// reason, empty on success.
+std::string readPairBags(const PairBagArgs& args, CalibrationPipeline* pipeline,
+                         std::string* camera_frame, std::string* lidar_frame);
+
+}  // namespace board_calib
