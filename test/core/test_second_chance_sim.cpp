@@ -63,8 +63,8 @@ void occludeLowestCorner(const sim::Scenario& s, const CameraModel& camera, cons
     min_v = std::min(min_v, p.y());
   }
   const double board_px = max_u - min_u;
-  const int leg = static_cast<int>(board_px / 8);
-  const int top = static_cast<int>(lowest->y() - 0.2 * (lowest->y() - min_v));
+  const int leg = static_cast<int>(board_px / 6);
+  const int top = static_cast<int>(lowest->y() - 0.25 * (lowest->y() - min_v));
   for (int k : {-1, 1}) {
     const int u = static_cast<int>(lowest->x() + k * 0.6 * leg);
     cv::rectangle(*image, cv::Point(u - leg / 2, top), cv::Point(u + leg / 2, image->rows),
