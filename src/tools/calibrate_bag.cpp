@@ -137,6 +137,18 @@ int parseCount(const std::string& flag, const std::string& text, int min, int ma
   return static_cast<int>(v);
 }
 
+// --initial-guess x y z qx qy qz qw: the quaternion must be a unit one (typed to 4 decimals).
+Eigen::Isometry3d parseGuess(const double (&v)[7]) {
+  const Eigen::Vector4d q(v[3], v[4], v[5], v[6]);
+  if (std::abs(q.norm() - 1.0) > kQuaternionNormTolerance) {
+    std::ostringstream s;
+    s << "--initial-guess quaternion (qx qy qz qw) = (" << v[3] << " " << v[4] << " " << v[5] << " "
+      << v[6] << ") has norm " << q.norm() << ", not 1";
+    fail(s.str(), kExitUsage);
+  }
+  return makeTransform(Eigen::Vector3d(v[0], v[1], v[2]), q);
+}
+
 Args parseArgs(int argc, char** argv) {
   Args a;
   auto need = [&](int& i, const std::string& flag) -> std::string {
@@ -196,14 +208,7 @@ Args parseArgs(int argc, char** argv) {
     } else if (f == "--initial-guess") {
       double v[7];
       for (double& x : v) x = parseNumber(f, need(i, f));
-      const Eigen::Vector4d q(v[3], v[4], v[5], v[6]);
-      if (std::abs(q.norm() - 1.0) > kQuaternionNormTolerance) {
-        std::ostringstream s;
-        s << "--initial-guess quaternion (qx qy qz qw) = (" << v[3] << " " << v[4] << " " << v[5]
-          << " " << v[6] << ") has norm " << q.norm() << ", not 1";
-        fail(s.str(), kExitUsage);
-      }
-      a.guess = makeTransform(Eigen::Vector3d(v[0], v[1], v[2]), q);
+      a.guess = parseGuess(v);
     } else {
       fail("unknown option '" + f + "' (see --help)", kExitUsage);
     }
@@ -373,6 +378,18 @@ void loadSavedSession(const Args& args, std::optional<Target>* target, PairSessi
   if (session->views().empty()) fail("session '" + args.load_session + "' holds no views");
 }
 
+// The result file; a failed result is kept for inspection only, under a name no tool mistakes
+// for a calibration.
+void writeOutput(const Args& args, const PairCalibration& run) {
+  const std::string output =
+      run.failed() && !args.output.empty() ? failedResultPath(args.output) : args.output;
+  if (output.empty()) return;
+  const Status st = writeResultFile(output, run.result);
+  if (!st) fail(st.reason);
+  std::cout << (run.failed() ? "FAILED result written for inspection to " : "result written to ")
+            << output << "\n";
+}
+
 // Every method with its verdict, the side-by-side table, the verdict and the notes.
 void printRun(const PairCalibration& run) {
   std::vector<CalibrationSolution> solutions;
@@ -448,16 +465,7 @@ int main(int argc, char** argv) {
   for (const auto& r : run.runs) solutions.push_back(r.solution);
   printRun(run);
   const CalibrationSolution& chosen = run.shownRun().solution;
-  const ResultFile& result = run.result;
-  // A failed result is kept for inspection only, under a name no tool mistakes for a calibration.
-  const std::string output =
-      run.failed() && !args.output.empty() ? failedResultPath(args.output) : args.output;
-  if (!output.empty()) {
-    const Status st = writeResultFile(output, result);
-    if (!st) fail(st.reason);
-    std::cout << (run.failed() ? "FAILED result written for inspection to " : "result written to ")
-              << output << "\n";
-  }
+  writeOutput(args, run);
 
   const std::string child = args.child_frame.empty() ? camera_frame : args.child_frame;
 

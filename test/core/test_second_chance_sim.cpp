@@ -162,6 +162,45 @@ const Session& session() {
   return *once;
 }
 
+// The boards the second pass found that the first did not, against the truth.
+struct Recovered {
+  double worst_px = 0;          // image corner error, px
+  double worst_off_plane = 0;   // LiDAR board points' centroid from the true plane, m
+  double worst_outside = -1e9;  // ... outside the true board's rectangle (< 0: inside), m
+};
+
+Recovered recoveredAgainstTruth(const sim::Scenario& s, const std::vector<Recorded>& frames,
+                                const CalibrationPipeline& first,
+                                const CalibrationPipeline& second) {
+  const Target& target = s.scene.target;
+  const CameraModel camera = *CameraModel::create(s.cameras.front().intrinsics);
+  Recovered r;
+  for (const auto& sv : second.session().views()) {
+    const View& v = sv.view;
+    if (!first.sightings().images.count(v.camera.stamp)) {
+      const sim::Frame& f = frameAt(frames, v.camera.stamp, true);
+      const Eigen::Isometry3d T = sim::worldTCamera(s, 0).inverse() * f.world_T_board;
+      std::array<Eigen::Vector2d, 4> px;
+      for (int j = 0; j < 4; ++j)
+        camera.projectUndistorted(T * target.outerCorners()[static_cast<size_t>(j)],
+                                  &px[static_cast<size_t>(j)]);
+      r.worst_px = std::max(r.worst_px, cornerErrorPx(v.camera, px));
+    }
+    if (!first.sightings().clouds.count(v.lidar.stamp)) {
+      const sim::Frame& f = frameAt(frames, v.lidar.stamp, false);
+      const Eigen::Isometry3d board_T_lidar =
+          (sim::worldTLidar(s, 0).inverse() * f.world_T_board).inverse();
+      Eigen::Vector3d c = Eigen::Vector3d::Zero();
+      for (const auto& p : v.lidar.board_points) c += board_T_lidar * p;
+      c /= static_cast<double>(v.lidar.board_points.size());
+      r.worst_off_plane = std::max(r.worst_off_plane, std::abs(c.z()));
+      r.worst_outside =
+          std::max({r.worst_outside, -c.x(), c.x() - target.width, -c.y(), c.y() - target.height});
+    }
+  }
+  return r;
+}
+
 }  // namespace
 
 TEST(SecondChanceSim, RecoversViewsNeverAWrongBoardNoWorseExtrinsic) {
@@ -202,31 +241,9 @@ TEST(SecondChanceSim, RecoversViewsNeverAWrongBoardNoWorseExtrinsic) {
   EXPECT_GT(run2.used_views.size(), run1.used_views.size());
 
   // Every board the second pass found that the first did not is the true board.
-  const CameraModel camera = *CameraModel::create(s.cameras.front().intrinsics);
-  double worst_px = 0, worst_off_plane = 0, worst_outside = -1e9;
-  for (const auto& sv : second.session().views()) {
-    const View& v = sv.view;
-    if (!first.sightings().images.count(v.camera.stamp)) {
-      const sim::Frame& f = frameAt(frames, v.camera.stamp, true);
-      const Eigen::Isometry3d T = sim::worldTCamera(s, 0).inverse() * f.world_T_board;
-      std::array<Eigen::Vector2d, 4> px;
-      for (int j = 0; j < 4; ++j)
-        camera.projectUndistorted(T * target.outerCorners()[static_cast<size_t>(j)],
-                                  &px[static_cast<size_t>(j)]);
-      worst_px = std::max(worst_px, cornerErrorPx(v.camera, px));
-    }
-    if (!first.sightings().clouds.count(v.lidar.stamp)) {
-      const sim::Frame& f = frameAt(frames, v.lidar.stamp, false);
-      const Eigen::Isometry3d board_T_lidar =
-          (sim::worldTLidar(s, 0).inverse() * f.world_T_board).inverse();
-      Eigen::Vector3d c = Eigen::Vector3d::Zero();
-      for (const auto& p : v.lidar.board_points) c += board_T_lidar * p;
-      c /= static_cast<double>(v.lidar.board_points.size());
-      worst_off_plane = std::max(worst_off_plane, std::abs(c.z()));
-      worst_outside =
-          std::max({worst_outside, -c.x(), c.x() - target.width, -c.y(), c.y() - target.height});
-    }
-  }
+  const Recovered r = recoveredAgainstTruth(s, frames, first, second);
+  const double worst_px = r.worst_px, worst_off_plane = r.worst_off_plane,
+               worst_outside = r.worst_outside;
   std::printf(
       "[second chance] recovered: worst image corner %.2f px, LiDAR centroid %.3f m off "
       "the true plane and %.3f m outside the true board\n",

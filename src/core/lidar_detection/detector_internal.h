@@ -8,9 +8,12 @@
 #include "geometry_2d.h"
 #include "scan_segments.h"
 
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <functional>
+#include <limits>
+#include <map>
 #include <random>
 #include <string>
 #include <unordered_map>
@@ -168,6 +171,38 @@ void gatherRegionPoints(const std::vector<Region>& regions, int region_id, const
 std::vector<int> scanLines(const LidarCloud& cloud, const std::vector<int>& board,
                            const std::vector<ValidPoint>& pts, const LidarBoardDetectorOptions& o,
                            std::string* source);
+/// Per scan line: the board's extreme points in azimuth (left = larger azimuth seen from the
+/// sensor, measured from the centroid's azimuth) and the line's point count, by line id.
+struct LineExtremes {
+  int count = 0;
+  int left = -1, right = -1;  ///< indices into pts
+  double left_az = -std::numeric_limits<double>::infinity(),
+         right_az = std::numeric_limits<double>::infinity();
+};
+/// `Map` is std::map or std::unordered_map<int, LineExtremes>: the edge fits iterate the lines in
+/// the map's order and their RANSAC depends on it, so each caller keeps the order its figures were
+/// measured with.
+template <typename Map>
+Map lineExtremes(const std::vector<ValidPoint>& pts, const std::vector<int>& board,
+                 const std::vector<int>& line, const Eigen::Vector3d& centroid) {
+  const double center_azimuth = std::atan2(centroid.y(), centroid.x());
+  Map per_line;
+  for (size_t k = 0; k < board.size(); ++k) {
+    const auto& p = pts[board[k]].p;
+    const double az = wrapAngle(std::atan2(p.y(), p.x()) - center_azimuth);
+    LineExtremes& e = per_line[line[k]];
+    ++e.count;
+    if (az > e.left_az) {
+      e.left_az = az;
+      e.left = board[k];
+    }
+    if (az < e.right_az) {
+      e.right_az = az;
+      e.right = board[k];
+    }
+  }
+  return per_line;
+}
 /// Sparse boards: the declared rectangle fitted to the per-line extremes; false when it does not
 /// fit.
 bool extractEdgesByRectangle(const LidarCloud& cloud, const std::vector<ValidPoint>& pts,

@@ -152,15 +152,15 @@ bool makePlaneFrame(const Eigen::Vector3d& normal, const Eigen::Vector3d& point,
   return good;
 }
 
-Candidate scoreRegion(const Region& r, int region_id, const VoxelGrid& g,
-                      const std::vector<ValidPoint>& pts, const Target& target,
-                      const LidarBoardDetectorOptions& o) {
+namespace {
+
+// A candidate's centroid, plane (offset >= 0) and flatness from its plane fit, not scored yet.
+Candidate unscoredCandidate(const PlaneFit& fit, int num_points, int region_id) {
   Candidate c;
   c.region = region_id;
   auto& info = c.info;
-  const PlaneFit fit = lidar_detail::fitPlane(r.stats);
   info.centroid = fit.centroid;
-  info.num_points = r.stats.n;
+  info.num_points = num_points;
   info.plane.normal = fit.normal();
   info.plane.offset = fit.offset();
   if (info.plane.offset < 0) {
@@ -169,8 +169,53 @@ Candidate scoreRegion(const Region& r, int region_id, const VoxelGrid& g,
   }
   info.rms_m = std::sqrt(fit.eigenvalues[0]);
   info.score = -1.0;
+  return c;
+}
+
+// |log| of the measured over the declared sides, larger with larger.
+double sizeError(const Eigen::Vector2d& sides, const Target& target) {
+  return std::abs(std::log(std::max(1e-6, sides.x()) / std::max(target.width, target.height))) +
+         std::abs(std::log(std::max(1e-6, sides.y()) / std::min(target.width, target.height)));
+}
+
+// Two size estimates: the hull's min-area rectangle (exact for a clean board, inflated by a
+// hand or an arm touching it) and the second moments in info->rectangle_m (robust to such
+// appendages, biased where the beams are unevenly spaced, e.g. VLP-32C). The board needs one to
+// fit; the better one is kept. False with the reason when neither fits.
+bool chooseSize(const Points2& hull, const Target& target, const LidarBoardDetectorOptions& o,
+                LidarBoardCandidate* info) {
   const double big_side = std::max(target.width, target.height);
   const double small_side = std::min(target.width, target.height);
+  const Eigen::Vector2d moments = info->rectangle_m;
+  const Eigen::Vector2d hull_rect = lidar_detail::minAreaRectangle(hull);
+  auto sizeOk = [&](const Eigen::Vector2d& sides) {
+    const double rb = sides.x() / big_side, rs = sides.y() / small_side;
+    return rb >= o.min_size_ratio && rs >= o.min_size_ratio && rb <= o.max_size_ratio &&
+           rs <= o.max_size_ratio;
+  };
+  const bool moments_ok = sizeOk(moments), hull_ok = sizeOk(hull_rect);
+  info->rectangle_m =
+      (hull_ok && (!moments_ok || sizeError(hull_rect, target) <= sizeError(moments, target)))
+          ? hull_rect
+          : moments;
+  if (moments_ok || hull_ok) return true;
+  const bool large =
+      hull_rect.x() > o.max_size_ratio * big_side || hull_rect.y() > o.max_size_ratio * small_side;
+  info->rectangle_m = hull_rect;
+  info->rejected_because = fmt(large ? "too large (%.2f x %.2f m)" : "too small (%.2f x %.2f m)",
+                               hull_rect.x(), hull_rect.y());
+  return false;
+}
+
+}  // namespace
+
+Candidate scoreRegion(const Region& r, int region_id, const VoxelGrid& g,
+                      const std::vector<ValidPoint>& pts, const Target& target,
+                      const LidarBoardDetectorOptions& o) {
+  const PlaneFit fit = lidar_detail::fitPlane(r.stats);
+  Candidate c = unscoredCandidate(fit, r.stats.n, region_id);
+  auto& info = c.info;
+  const double big_side = std::max(target.width, target.height);
   if (r.stats.n < o.min_board_points) {
     info.rejected_because = "too few points (" + std::to_string(r.stats.n) + ")";
     return c;
@@ -195,32 +240,7 @@ Candidate scoreRegion(const Region& r, int region_id, const VoxelGrid& g,
   }
   const Points2 hull = lidar_detail::convexHull(projected);
   info.fill_ratio = lidar_detail::polygonArea(hull) / (target.width * target.height);
-  // Two size estimates: the hull's min-area rectangle (exact for a clean board, inflated by a
-  // hand or an arm touching it) and the second moments (robust to such appendages, biased
-  // where the beams are unevenly spaced, e.g. VLP-32C). The board needs one to fit.
-  const Eigen::Vector2d moments = info.rectangle_m;
-  const Eigen::Vector2d hull_rect = lidar_detail::minAreaRectangle(hull);
-  auto sizeError = [&](const Eigen::Vector2d& sides) {
-    return std::abs(std::log(std::max(1e-6, sides.x()) / big_side)) +
-           std::abs(std::log(std::max(1e-6, sides.y()) / small_side));
-  };
-  auto sizeOk = [&](const Eigen::Vector2d& sides) {
-    const double rb = sides.x() / big_side, rs = sides.y() / small_side;
-    return rb >= o.min_size_ratio && rs >= o.min_size_ratio && rb <= o.max_size_ratio &&
-           rs <= o.max_size_ratio;
-  };
-  const bool moments_ok = sizeOk(moments), hull_ok = sizeOk(hull_rect);
-  info.rectangle_m = (hull_ok && (!moments_ok || sizeError(hull_rect) <= sizeError(moments)))
-                         ? hull_rect
-                         : moments;
-  if (!moments_ok && !hull_ok) {
-    const bool large = hull_rect.x() > o.max_size_ratio * big_side ||
-                       hull_rect.y() > o.max_size_ratio * small_side;
-    info.rectangle_m = hull_rect;
-    info.rejected_because = fmt(large ? "too large (%.2f x %.2f m)" : "too small (%.2f x %.2f m)",
-                                hull_rect.x(), hull_rect.y());
-    return c;
-  }
+  if (!chooseSize(hull, target, o, &info)) return c;
   if (info.fill_ratio < o.min_fill_ratio) {
     info.rejected_because =
         fmt("not rectangular enough (hull fills %.0f%% of the board)", 100 * info.fill_ratio);
@@ -231,7 +251,7 @@ Candidate scoreRegion(const Region& r, int region_id, const VoxelGrid& g,
     return c;
   }
   const double shape_error =
-      sizeError(info.rectangle_m) +
+      sizeError(info.rectangle_m, target) +
       kFillWeight * std::abs(std::log(std::max(info.fill_ratio, kMinFillForLog))) +
       kRmsWeight * info.rms_m / o.max_candidate_rms_m;
   // Support: the held board is near the sensor and densely sampled, so point count weighs as
@@ -252,21 +272,10 @@ int sparseMinPoints(const LidarBoardDetectorOptions& o) {
 // reach the board's smaller side in both directions.
 Candidate scoreSparse(const Region& r, int region_id, const std::vector<ValidPoint>& pts,
                       const Target& target, const LidarBoardDetectorOptions& o) {
-  Candidate c;
-  c.region = region_id;
-  auto& info = c.info;
   const PlaneFit fit = lidar_detail::fitPlane(r.stats);
-  info.centroid = fit.centroid;
-  info.num_points = r.stats.n;
+  Candidate c = unscoredCandidate(fit, r.stats.n, region_id);
+  auto& info = c.info;
   info.scan_lines = r.lines;
-  info.plane.normal = fit.normal();
-  info.plane.offset = fit.offset();
-  if (info.plane.offset < 0) {
-    info.plane.normal = -info.plane.normal;
-    info.plane.offset = -info.plane.offset;
-  }
-  info.rms_m = std::sqrt(fit.eigenvalues[0]);
-  info.score = -1.0;
   if (r.lines < o.min_scan_lines) {
     info.rejected_because = "seen by " + std::to_string(r.lines) + " scan lines (need " +
                             std::to_string(o.min_scan_lines) + ")";

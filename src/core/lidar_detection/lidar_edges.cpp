@@ -135,29 +135,8 @@ SideExtremes sideExtremes(const LidarCloud& cloud, const std::vector<ValidPoint>
   auto& left_gap = x.left_gap;
   auto& right_gap = x.right_gap;
   const std::vector<int> line = scanLines(cloud, board, pts, o, &det->scan_line_source);
-  // Per scan line: the extreme points in azimuth (left = larger azimuth, seen from the sensor).
-  const double center_azimuth = std::atan2(centroid.y(), centroid.x());
-  struct Extremes {
-    int count = 0;
-    int left = -1, right = -1;
-    double left_az = -std::numeric_limits<double>::infinity(),
-           right_az = std::numeric_limits<double>::infinity();
-  };
-  std::unordered_map<int, Extremes> per_line;
-  for (size_t k = 0; k < board.size(); ++k) {
-    const auto& p = pts[board[k]].p;
-    const double az = wrapAngle(std::atan2(p.y(), p.x()) - center_azimuth);
-    Extremes& e = per_line[line[k]];
-    ++e.count;
-    if (az > e.left_az) {
-      e.left_az = az;
-      e.left = board[k];
-    }
-    if (az < e.right_az) {
-      e.right_az = az;
-      e.right = board[k];
-    }
-  }
+  const auto per_line =
+      lineExtremes<std::unordered_map<int, LineExtremes>>(pts, board, line, centroid);
   // Per extreme: the scan line's in-plane direction and its mean spacing between samples.
   for (const auto& kv : per_line) {
     if (kv.second.count < o.min_points_per_scan_line || kv.second.left == kv.second.right) continue;
