@@ -352,6 +352,7 @@ void writeReport(const Args& args, const PairCalibration& run, const PairSession
                        std::to_string(st.images) + " images and " +
                        std::to_string(st.clouds_with_board) + "/" + std::to_string(st.clouds) +
                        " clouds";
+    if (pipeline->options().prior) report.detection += "; " + st.second_chance.summary();
     report.view_images = &pipeline->viewImages();
     report.view_clouds = &pipeline->viewClouds();
     report.camera = pipeline->cameraModel();
