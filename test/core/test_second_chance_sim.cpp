@@ -290,3 +290,37 @@ TEST(SecondChanceSim, NoSecondPassAfterAFailedFirst) {
 }
 
 }  // namespace board_calib
+
+namespace board_calib {
+
+// The cloud search finds the board inside the expected region, and nothing when the region is
+// empty: a board is accepted only where the image board puts it.
+TEST(SecondChanceSim, CloudSearchOnlyInsideTheExpectedBoard) {
+  const sim::Scenario& s = session().s;
+  const Target& target = s.scene.target;
+  int searched = 0;
+  for (const auto& r : session().frames) {
+    // A clean hold's cloud: the single-cloud detector finds its board.
+    if (r.frame.is_camera || !r.frame.still || r.frame.pose % kAugmentEvery != 0) continue;
+    const Eigen::Isometry3d lidar_T_board =
+        sim::worldTLidar(s, 0).inverse() * r.frame.world_T_board;
+    ExpectedLidarBoard expected;
+    const auto corners = target.outerCorners();
+    for (size_t j = 0; j < corners.size(); ++j) expected.corners[j] = lidar_T_board * corners[j];
+    // 10 cm: a first calibration's few-mm error plus a VLP-32C's line gap at 2-5 m.
+    expected.tolerance_m = 0.1;
+    const LidarBoardDetection there = detectLidarBoardNear(r.cloud, target, {}, expected);
+    EXPECT_TRUE(there.features.found) << there.features.reason;
+    // The same board expected 2 m to the side (more than a board width): nothing is there.
+    ExpectedLidarBoard elsewhere = expected;
+    for (auto& c : elsewhere.corners) c += lidar_T_board.linear() * Eigen::Vector3d(2.0, 0, 0);
+    const LidarBoardDetection empty = detectLidarBoardNear(r.cloud, target, {}, elsewhere);
+    EXPECT_FALSE(empty.features.found);
+    EXPECT_NE(empty.features.reason.find("near the back-projected image board"), std::string::npos)
+        << empty.features.reason;
+    if (++searched == 5) break;
+  }
+  EXPECT_EQ(searched, 5);
+}
+
+}  // namespace board_calib
