@@ -52,9 +52,9 @@ struct CalibrationPipeline::Impl {
     SecondChanceStats& sc = stats.second_chance;
     ++sc.images_tried;
     std::string why;
-    const auto expected =
-        expectedImageBoard(*options.prior, det->features.stamp, options.session.sync_tolerance_s,
-                           *camera, options.second_chance, &why);
+    const auto expected = expectedImageBoard(*options.prior, det->features.stamp,
+                                             secondChanceWindowS(options.session), *camera,
+                                             options.second_chance, &why);
     ImageDetection near;
     if (expected) {
       near = image_detector.detectNear(image, *camera, *expected);
