@@ -266,8 +266,8 @@ void secondPass(const Args& args, const std::vector<Method>& methods, const Targ
   options.prior =
       secondChancePrior(*run, (*pipeline)->sightings(), options.second_chance, &why_not);
   const size_t first_views = run->used_views.size();
-  const int candidates =
-      secondChanceCandidates((*pipeline)->sightings(), secondChanceWindowS(options.session));
+  const int candidates = secondChanceCandidates((*pipeline)->sightings(),
+                                                secondChanceWindowS(options.session), target);
   if (options.prior && candidates == 0)
     why_not = "no frame where one sensor found the board and the other did not";
   if (!options.prior || candidates == 0) {

@@ -86,9 +86,10 @@ double secondChanceWindowS(const SessionOptions& session) {
   return session.still_window_s + session.sync_tolerance_s;
 }
 
-int secondChanceCandidates(const BoardSightings& sightings, double window_s) {
+int secondChanceCandidates(const BoardSightings& sightings, double window_s, const Target& target) {
   int n = 0;
-  for (double t : sightings.images_missed) n += nearest(sightings.clouds, t, window_s) != nullptr;
+  if (target.type == TargetType::kPlain)
+    for (double t : sightings.images_missed) n += nearest(sightings.clouds, t, window_s) != nullptr;
   for (double t : sightings.clouds_missed) n += nearest(sightings.images, t, window_s) != nullptr;
   return n;
 }

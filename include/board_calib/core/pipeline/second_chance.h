@@ -61,8 +61,9 @@ struct BoardSightings {
 double secondChanceWindowS(const SessionOptions& session);
 
 /// Frames a second pass may recover: a miss with the other sensor's board within `window_s`
-/// (0: a second pass has nothing to do).
-int secondChanceCandidates(const BoardSightings& sightings, double window_s);
+/// (0: a second pass has nothing to do). Images count for plain boards only: the pattern boards
+/// are found alone or not at all (ImageBoardDetector::detectNear).
+int secondChanceCandidates(const BoardSightings& sightings, double window_s, const Target& target);
 
 ImageSighting imageSighting(const CameraBoardFeatures& features, const CameraModel& camera,
                             const Target& target, const SecondChanceOptions& options);
