@@ -105,22 +105,51 @@ std::vector<Frame> baslerFrames() {
   return frames;
 }
 
-// rs16: reference = the detector's lines on the clean frame, segments = extent of its edge pixels.
-std::vector<Frame> rs16Frames(ImageBoardDetector* det) {
+// rs16: the board's corners picked by eye on each clean frame (raw px of the 1920x1080 image,
+// from a half-size view: good to ~20 px), in the order top, right, bottom, left. They only say
+// WHICH rectangle is the board: the whole-image search took another rectangle of the office in 4
+// of the 8 clean frames (the glass wall behind), which made a wrong reference before.
+constexpr double kRs16PickedCorners[8][4][2] = {{{998, 270}, {1473, 422}, {1362, 765}, {897, 646}},
+                                                {{996, 284}, {1470, 425}, {1362, 765}, {897, 646}},
+                                                {{998, 268}, {1481, 415}, {1371, 766}, {897, 646}},
+                                                {{963, 260}, {1484, 376}, {1391, 749}, {891, 662}},
+                                                {{939, 248}, {1480, 241}, {1398, 762}, {855, 686}},
+                                                {{910, 240}, {1490, 244}, {1414, 769}, {828, 686}},
+                                                {{919, 211}, {1540, 310}, {1484, 778}, {851, 705}},
+                                                {{923, 211}, {1578, 253}, {1511, 791}, {864, 699}}};
+// Picked by eye (~20 px) through the wide-angle undistortion (up to ~1.5x at the board): the
+// second-chance search accepts only a board whose corners all lie this close.
+constexpr double kRs16PickTolerancePx = 45.0;
+
+// rs16: reference = the detector's lines found inside the picked corners (detectNear, the same
+// sub-pixel edges as the whole-image search), segments = extent of its edge pixels. Frames 4, 5
+// and 7 get none: both hands hide 80-85 % of a side, which no search accepts (they were scored
+// against another rectangle of the office before).
+constexpr size_t kRs16WithReference = 5;
+std::vector<Frame> rs16Frames() {
   std::vector<Frame> frames;
   const Recording rec = readRecording("rs16_plain");
   auto target = loadTarget(kData + "rs16_plain/target.yaml");
   EXPECT_TRUE(target.ok());
+  auto det = ImageBoardDetector::create(*target, ImageBoardDetectorOptions{});
+  EXPECT_TRUE(det.ok());
   const CameraModel camera = *CameraModel::create(*rec.intrinsics);
-  for (size_t i = 0; i < rec.images.size(); ++i) {
+  for (size_t i = 0; i < rec.images.size() && i < 8; ++i) {
     Frame f;
     f.name = "rs16_" + std::to_string(i);
     f.image = rec.images[i];
     f.intrinsics = *rec.intrinsics;
     f.target = *target;
-    const ImageDetection d = det->detect(f.image, camera);
-    EXPECT_TRUE(d.features.allEdgesValid()) << f.name << ": " << d.features.reason;
-    if (!d.features.allEdgesValid()) continue;
+    ExpectedBoard picked;
+    for (int k = 0; k < kNumEdges; ++k)
+      picked.corners_px[k] = camera.undistortPixel(
+          Eigen::Vector2d(kRs16PickedCorners[i][k][0], kRs16PickedCorners[i][k][1]));
+    picked.tolerance_px = kRs16PickTolerancePx;
+    const ImageDetection d = det->detectNear(f.image, camera, picked);
+    if (!d.features.found || !d.features.allEdgesValid()) {
+      std::printf("  %s: no reference (%s)\n", f.name.c_str(), d.features.reason.c_str());
+      continue;
+    }
     for (int j = 0; j < kNumEdges; ++j) {
       f.lines[j] = d.features.edge_lines[j];
       const Eigen::Vector2d dir(-f.lines[j].y(), f.lines[j].x());
@@ -449,12 +478,8 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   std::vector<Frame> frames = baslerFrames();
   ASSERT_EQ(frames.size(), 16u);
   {
-    auto target = loadTarget(kData + "rs16_plain/target.yaml");
-    ASSERT_TRUE(target.ok());
-    auto det = ImageBoardDetector::create(*target, ImageBoardDetectorOptions{});
-    ASSERT_TRUE(det.ok());
-    const std::vector<Frame> rs16 = rs16Frames(&*det);
-    ASSERT_EQ(rs16.size(), 8u);
+    const std::vector<Frame> rs16 = rs16Frames();
+    ASSERT_EQ(rs16.size(), kRs16WithReference);
     frames.insert(frames.end(), rs16.begin(), rs16.end());
   }
   std::mt19937 rng(14);
@@ -512,7 +537,7 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
                       dist);
       }
     }
-    std::printf("%-40s %4d/%-3d %5d/16 %6d/8 %6d/%-5d %10.2f %9.1f %8.1f\n", c.name.c_str(), found,
+    std::printf("%-40s %4d/%-3d %5d/16 %6d/5 %6d/%-5d %10.2f %9.1f %8.1f\n", c.name.c_str(), found,
                 n, basler_found, rs16_found, case_within, case_edges, worst, sum_ms / n, max_ms);
     total += n;
     total_found += found;
@@ -521,8 +546,8 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
     worst_all = std::max(worst_all, worst);
     EXPECT_GE(basler_found, c.basler_floor) << c.name;
     // rs16_plain (wide-angle lens, a floor and ceiling full of long lines, hands on the sides):
-    // the clean frames are the floor; the augmented ones are reported (5-6 of 8 for the
-    // photometric cases, 0-3 of 8 far or occluded), below the issue's target.
+    // the clean frames are the floor (5 of the 5 with a reference); the augmented ones are
+    // reported (0-3 of 5 for the photometric cases, 0-1 far or occluded), below the target.
     if (c.ops.empty()) EXPECT_GE(rs16_found, 5) << c.name;
   }
   std::printf(
@@ -531,8 +556,8 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
       "%d/%d edges within 1 px\n",
       total_found, total, 100.0 * total_found / total, edges_within, edges, worst_all,
       basler_within, basler_edges);
-  // Lines within 1 px of the independent reference: measured 685 of 700 basler edges (the rest
-  // are wrong boards or shifted lines in the occluded and recoloured cases).
+  // Lines within 1 px of the independent reference: measured 694 of 708 basler edges (the rest
+  // are shifted lines in the far, occluded and recoloured cases).
   EXPECT_GE(basler_within, 0.97 * basler_edges);
 
   // No wrong board: the blanked frames (board inpainted from its surroundings) give "not found".
@@ -550,11 +575,10 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
     std::printf("  blank %-10s: %s\n", f.name.c_str(), d.features.reason.c_str());
   }
   std::printf("blanked: %d wrong boards in %zu frames\n", wrong, frames.size());
-  // Issue target: none. Measured 8 of 24 before the distance limit (rectangles on a car, windows,
-  // panels fit a board of the declared size), 3 of 24 with it (all rs16_plain: a 0.8 x 0.6 m
-  // rectangle of its office at 2-10 m); three basler ones sit at 20.0-20.1 m, just past the
-  // limit. A regression guard, not the target.
-  EXPECT_LE(wrong, 3);
+  // Issue target: none, met. The glass-wall rectangles of the rs16_plain office that fit a
+  // 0.8 x 0.6 m board (4 of 21 before) are rejected because their sides run on past 3-5 of their
+  // 8 corner ends; three basler rectangles sit at 20.0-20.1 m, just past the distance limit.
+  EXPECT_EQ(wrong, 0);
 }
 
 // A prior extrinsic's projection of the board: the reference corners shifted together by up to
@@ -597,11 +621,7 @@ TEST(ImageDetectorAugmented, SecondChanceInsideTheProjectedBoard) {
   std::vector<Frame> frames = baslerFrames();
   ASSERT_EQ(frames.size(), 16u);
   {
-    auto target = loadTarget(kData + "rs16_plain/target.yaml");
-    ASSERT_TRUE(target.ok());
-    auto det = ImageBoardDetector::create(*target, ImageBoardDetectorOptions{});
-    ASSERT_TRUE(det.ok());
-    const std::vector<Frame> rs16 = rs16Frames(&*det);
+    const std::vector<Frame> rs16 = rs16Frames();
     frames.insert(frames.end(), rs16.begin(), rs16.end());
   }
   std::mt19937 rng(3);
