@@ -170,6 +170,19 @@ std::vector<Frame> rs16Frames() {
   return frames;
 }
 
+// The 16 basler_os1_plain frames, then the rs16_plain frames with a reference. Read once per
+// process: decompressing the two bags is ~20 s, shared by both tests.
+const std::vector<Frame>& recordedFrames() {
+  static const std::vector<Frame> frames = [] {
+    std::vector<Frame> all = baslerFrames();
+    EXPECT_EQ(all.size(), 16u);
+    const std::vector<Frame> rs16 = rs16Frames();
+    all.insert(all.end(), rs16.begin(), rs16.end());
+    return all;
+  }();
+  return frames;
+}
+
 // ---- augmentations --------------------------------------------------------------------------
 
 // Board polygon in raw pixels (sides sampled in undistorted px, then distorted).
@@ -475,13 +488,8 @@ void writeDebug(const std::string& name, const cv::Mat& image, const CameraModel
 
 TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   if (!std::filesystem::exists(BOARD_CALIB_SHARED_DIR)) GTEST_SKIP() << "../shared absent";
-  std::vector<Frame> frames = baslerFrames();
-  ASSERT_EQ(frames.size(), 16u);
-  {
-    const std::vector<Frame> rs16 = rs16Frames();
-    ASSERT_EQ(rs16.size(), kRs16WithReference);
-    frames.insert(frames.end(), rs16.begin(), rs16.end());
-  }
+  const std::vector<Frame>& frames = recordedFrames();
+  ASSERT_GE(frames.size(), 16u + kRs16WithReference);
   std::mt19937 rng(14);
   int total = 0, total_found = 0, edges = 0, edges_within = 0, basler_edges = 0, basler_within = 0;
   double worst_all = 0;
@@ -537,8 +545,9 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
                       dist);
       }
     }
-    std::printf("%-40s %4d/%-3d %5d/16 %6d/5 %6d/%-5d %10.2f %9.1f %8.1f\n", c.name.c_str(), found,
-                n, basler_found, rs16_found, case_within, case_edges, worst, sum_ms / n, max_ms);
+    std::printf("%-40s %4d/%-3d %5d/16 %6d/%-2zu %6d/%-5d %10.2f %9.1f %8.1f\n", c.name.c_str(),
+                found, n, basler_found, rs16_found, frames.size() - 16, case_within, case_edges,
+                worst, sum_ms / n, max_ms);
     total += n;
     total_found += found;
     edges += case_edges;
@@ -618,12 +627,8 @@ int edgesWithin1px(const Frame& f, const CameraBoardFeatures& fe) {
 // whole-image search found, recover some it missed, and never accept a board that is not there.
 TEST(ImageDetectorAugmented, SecondChanceInsideTheProjectedBoard) {
   if (!std::filesystem::exists(BOARD_CALIB_SHARED_DIR)) GTEST_SKIP() << "../shared absent";
-  std::vector<Frame> frames = baslerFrames();
-  ASSERT_EQ(frames.size(), 16u);
-  {
-    const std::vector<Frame> rs16 = rs16Frames();
-    frames.insert(frames.end(), rs16.begin(), rs16.end());
-  }
+  const std::vector<Frame>& frames = recordedFrames();
+  ASSERT_GE(frames.size(), 16u + kRs16WithReference);
   std::mt19937 rng(3);
   int all_on_board = 0, all_second = 0, all_frames = 0, all_edges = 0, all_within = 0;
   // clean, legs and hand, colour + print + occluders, far + colour + occluders
