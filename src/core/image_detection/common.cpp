@@ -30,27 +30,17 @@ double angleDiff(double a, double b) {
 
 }  // namespace
 
-PoseFit fitPose(const Points3& board_points, const Points2& pixels, const Eigen::Matrix3d& K,
-                double sigma_floor_px) {
-  PoseFit fit;
-  if (board_points.size() != pixels.size() || board_points.size() < 4) {
-    fit.reason = "PnP degenerate: " + std::to_string(board_points.size()) + " points (need >= 4)";
-    return fit;
-  }
-  std::vector<cv::Point3d> object;
-  std::vector<cv::Point2d> image;
-  for (size_t i = 0; i < pixels.size(); ++i) {
-    object.emplace_back(board_points[i].x(), board_points[i].y(), board_points[i].z());
-    image.emplace_back(pixels[i].x(), pixels[i].y());
-  }
-  cv::Matx33d camera_matrix(K(0, 0), K(0, 1), K(0, 2), K(1, 0), K(1, 1), K(1, 2), K(2, 0), K(2, 1),
-                            K(2, 2));
-  cv::Mat no_distortion;
-  cv::Mat rvec, tvec;
+namespace {
+
+// IPPE gives both planar solutions; refine each (LM) and keep the better one: with few,
+// extrapolated points (plain board corners) the first IPPE branch is not always the best.
+// False (reason set) when no solution is usable.
+bool solvePlanarPnP(const std::vector<cv::Point3d>& object, const std::vector<cv::Point2d>& image,
+                    const cv::Matx33d& camera_matrix, cv::Mat* rvec, cv::Mat* tvec,
+                    std::string* reason) {
+  const cv::Mat no_distortion;
   bool solved = false;
   try {
-    // IPPE gives both planar solutions; refine each (LM) and keep the better one: with few,
-    // extrapolated points (plain board corners) the first IPPE branch is not always the best.
     std::vector<cv::Mat> rvecs, tvecs;
     cv::solvePnPGeneric(object, image, camera_matrix, no_distortion, rvecs, tvecs, false,
                         cv::SOLVEPNP_IPPE);
@@ -64,19 +54,76 @@ PoseFit fitPose(const Points3& board_points, const Points2& pixels, const Eigen:
       const double err = cv::norm(proj, image, cv::NORM_L2SQR);
       if (err < best) {
         best = err;
-        rvec = rvecs[k];
-        tvec = tvecs[k];
+        *rvec = rvecs[k];
+        *tvec = tvecs[k];
         solved = true;
       }
     }
   } catch (const cv::Exception& e) {
-    fit.reason = "PnP degenerate: " + e.err;  // err: the short text, what() adds source paths
+    *reason = "PnP degenerate: " + e.err;  // err: the short text, what() adds source paths
+    return false;
+  }
+  if (!solved || !cv::checkRange(*rvec) || !cv::checkRange(*tvec)) {
+    *reason = "PnP degenerate: no solution";
+    return false;
+  }
+  return true;
+}
+
+// Per-point errors, RMS and the pose covariance from the projection Jacobian; false (reason set)
+// when the pose is not observable from these points.
+bool residualsAndCovariance(const std::vector<cv::Point3d>& object,
+                            const std::vector<cv::Point2d>& image, const cv::Matx33d& camera_matrix,
+                            const cv::Mat& rvec, const cv::Mat& tvec, double sigma_floor_px,
+                            PoseFit* fit) {
+  std::vector<cv::Point2d> projected;
+  cv::Mat jacobian;
+  cv::projectPoints(object, rvec, tvec, camera_matrix, cv::Mat(), projected, jacobian);
+  double sum_sq = 0;
+  for (size_t i = 0; i < image.size(); ++i) {
+    const double e = std::hypot(projected[i].x - image[i].x, projected[i].y - image[i].y);
+    fit->errors_px.push_back(e);
+    sum_sq += e * e;
+  }
+  fit->rms_px = std::sqrt(sum_sq / image.size());
+  // Jacobian columns: rvec (3), tvec (3), then intrinsics we do not estimate.
+  Eigen::MatrixXd J(2 * image.size(), 6);
+  for (int r = 0; r < J.rows(); ++r)
+    for (int c = 0; c < 6; ++c) J(r, c) = jacobian.at<double>(r, c);
+  const Eigen::Matrix<double, 6, 6> normal = J.transpose() * J;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eig(normal);
+  const double max_ev = eig.eigenvalues().maxCoeff(), min_ev = eig.eigenvalues().minCoeff();
+  if (!(max_ev > 0) || min_ev / max_ev < kMinReciprocalCondition) {
+    fit->reason = "PnP degenerate: pose not observable from these points";
+    return false;
+  }
+  // Unbiased residual scale with 6 estimated parameters; floor it so a 4-point exact fit does not
+  // claim zero uncertainty.
+  const double dof = std::max(1.0, 2.0 * image.size() - 6.0);
+  const double sigma = std::max(std::sqrt(sum_sq / dof), sigma_floor_px);
+  fit->covariance = sigma * sigma * normal.inverse();
+  return true;
+}
+
+}  // namespace
+
+PoseFit fitPose(const Points3& board_points, const Points2& pixels, const Eigen::Matrix3d& K,
+                double sigma_floor_px) {
+  PoseFit fit;
+  if (board_points.size() != pixels.size() || board_points.size() < 4) {
+    fit.reason = "PnP degenerate: " + std::to_string(board_points.size()) + " points (need >= 4)";
     return fit;
   }
-  if (!solved || !cv::checkRange(rvec) || !cv::checkRange(tvec)) {
-    fit.reason = "PnP degenerate: no solution";
-    return fit;
+  std::vector<cv::Point3d> object;
+  std::vector<cv::Point2d> image;
+  for (size_t i = 0; i < pixels.size(); ++i) {
+    object.emplace_back(board_points[i].x(), board_points[i].y(), board_points[i].z());
+    image.emplace_back(pixels[i].x(), pixels[i].y());
   }
+  const cv::Matx33d camera_matrix(K(0, 0), K(0, 1), K(0, 2), K(1, 0), K(1, 1), K(1, 2), K(2, 0),
+                                  K(2, 1), K(2, 2));
+  cv::Mat rvec, tvec;
+  if (!solvePlanarPnP(object, image, camera_matrix, &rvec, &tvec, &fit.reason)) return fit;
   cv::Matx33d R;
   cv::Rodrigues(rvec, R);
   Eigen::Matrix3d rotation;
@@ -89,33 +136,7 @@ PoseFit fitPose(const Points3& board_points, const Points2& pixels, const Eigen:
     fit.reason = "PnP degenerate: board behind the camera";
     return fit;
   }
-  std::vector<cv::Point2d> projected;
-  cv::Mat jacobian;
-  cv::projectPoints(object, rvec, tvec, camera_matrix, no_distortion, projected, jacobian);
-  double sum_sq = 0;
-  for (size_t i = 0; i < image.size(); ++i) {
-    const double e = std::hypot(projected[i].x - image[i].x, projected[i].y - image[i].y);
-    fit.errors_px.push_back(e);
-    sum_sq += e * e;
-  }
-  fit.rms_px = std::sqrt(sum_sq / image.size());
-  // Jacobian columns: rvec (3), tvec (3), then intrinsics we do not estimate.
-  Eigen::MatrixXd J(2 * image.size(), 6);
-  for (int r = 0; r < J.rows(); ++r)
-    for (int c = 0; c < 6; ++c) J(r, c) = jacobian.at<double>(r, c);
-  const Eigen::Matrix<double, 6, 6> normal = J.transpose() * J;
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eig(normal);
-  const double max_ev = eig.eigenvalues().maxCoeff(), min_ev = eig.eigenvalues().minCoeff();
-  if (!(max_ev > 0) || min_ev / max_ev < kMinReciprocalCondition) {
-    fit.reason = "PnP degenerate: pose not observable from these points";
-    return fit;
-  }
-  // Unbiased residual scale with 6 estimated parameters; floor it so a 4-point exact fit does not
-  // claim zero uncertainty.
-  const double dof = std::max(1.0, 2.0 * image.size() - 6.0);
-  const double sigma = std::max(std::sqrt(sum_sq / dof), sigma_floor_px);
-  fit.covariance = sigma * sigma * normal.inverse();
-  fit.ok = true;
+  fit.ok = residualsAndCovariance(object, image, camera_matrix, rvec, tvec, sigma_floor_px, &fit);
   return fit;
 }
 

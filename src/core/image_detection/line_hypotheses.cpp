@@ -203,18 +203,19 @@ double worstCornerOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners,
   return worst;
 }
 
-std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
-                                               const ImageBoardDetectorOptions& o,
-                                               LineEvidence* evidence,
-                                               const ExpectedBoard* expected) {
-  std::vector<QuadHypothesis> quads;
-  if (o.line_detection_width_px <= 0) return quads;
-  const double scale = std::max(1.0, static_cast<double>(gray.cols) / o.line_detection_width_px);
+namespace {
+
+// LSD segments of the downscaled image, in undistorted full-resolution px, longest first.
+// `scale`: full-resolution px per LSD px.
+std::vector<Member> detectSegments(const cv::Mat& gray, const CameraModel& camera,
+                                   const ImageBoardDetectorOptions& o, LineEvidence* evidence,
+                                   double* scale) {
+  *scale = std::max(1.0, static_cast<double>(gray.cols) / o.line_detection_width_px);
   cv::Mat small;
-  if (scale > 1.0)
+  if (*scale > 1.0)
     cv::resize(gray, small,
-               cv::Size(static_cast<int>(std::lround(gray.cols / scale)),
-                        static_cast<int>(std::lround(gray.rows / scale))),
+               cv::Size(static_cast<int>(std::lround(gray.cols / *scale)),
+                        static_cast<int>(std::lround(gray.rows / *scale))),
                0, 0, cv::INTER_AREA);
   else
     small = gray;
@@ -241,11 +242,15 @@ std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const Camera
   if (evidence) evidence->segments = static_cast<int>(segments.size());
   std::sort(segments.begin(), segments.end(),
             [](const Member& x, const Member& y) { return x.length > y.length; });
+  return segments;
+}
 
-  // Greedy merge, longest first: a segment joins a line when its direction agrees within its own
-  // endpoint noise and both its ends lie within the bow of a held board.
+// Greedy merge, longest first: a segment joins a line when its direction agrees within its own
+// endpoint noise and both its ends lie within the bow of a held board. Returns the lines with
+// enough support, most supported first, at most kMaxLines.
+std::vector<MergedLine> mergeSegments(const std::vector<Member>& segments, double end_sigma,
+                                      const ImageBoardDetectorOptions& o) {
   std::vector<MergedLine> lines;
-  const double end_sigma = kSegmentEndSigmaPx * scale;
   const double max_offset = std::max(kMergeOffsetPx, 2.0 * end_sigma);
   for (const Member& s : segments) {
     const Eigen::Vector2d d = (s.b - s.a) / s.length;
@@ -277,15 +282,24 @@ std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const Camera
   std::sort(lines.begin(), lines.end(),
             [](const MergedLine& x, const MergedLine& y) { return x.support > y.support; });
   if (lines.size() > static_cast<size_t>(kMaxLines)) lines.resize(kMaxLines);
-  if (evidence) evidence->lines = static_cast<int>(lines.size());
-  const int n = static_cast<int>(lines.size());
-  if (n < kNumEdges) return quads;
+  return lines;
+}
 
-  // Corner of lines i and j when it is plausible: a real angle, and near both lines' support or
-  // outside the image (corners of a board held close often are).
-  std::vector<std::vector<char>> adjacent(n, std::vector<char>(n, 0));
-  std::vector<std::vector<Eigen::Vector2d>> corner(
-      n, std::vector<Eigen::Vector2d>(n, Eigen::Vector2d::Zero()));
+// Which lines may meet at a board corner, and where.
+struct CornerGraph {
+  std::vector<std::vector<char>> adjacent;
+  std::vector<std::vector<Eigen::Vector2d>> corner;
+  std::vector<std::vector<int>> neighbours;
+};
+
+// Corner of lines i and j when it is plausible: a real angle, and near both lines' support or
+// outside the image (corners of a board held close often are).
+CornerGraph cornerGraph(const std::vector<MergedLine>& lines, const CameraModel& camera) {
+  const int n = static_cast<int>(lines.size());
+  CornerGraph g;
+  g.adjacent.assign(n, std::vector<char>(n, 0));
+  g.corner.assign(n, std::vector<Eigen::Vector2d>(n, Eigen::Vector2d::Zero()));
+  g.neighbours.resize(n);
   for (int i = 0; i < n; ++i)
     for (int j = i + 1; j < n; ++j) {
       const double s = std::abs(cross2(lines[i].dir, lines[j].dir));
@@ -300,80 +314,97 @@ std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const Camera
         near &= gap <= kMaxCornerGapFraction * (l->t_max - l->t_min);
       }
       if (!near && !outside) continue;
-      adjacent[i][j] = adjacent[j][i] = 1;
-      corner[i][j] = corner[j][i] = c;
+      g.adjacent[i][j] = g.adjacent[j][i] = 1;
+      g.corner[i][j] = g.corner[j][i] = c;
     }
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j)
+      if (g.adjacent[i][j]) g.neighbours[i].push_back(j);
+  return g;
+}
 
+bool convexPolygon(const std::array<Eigen::Vector2d, 4>& c) {
+  double turn_sign = 0;
+  for (int s = 0; s < 4; ++s) {
+    const double t = cross2(c[(s + 1) % 4] - c[s], c[(s + 2) % 4] - c[(s + 1) % 4]);
+    if (turn_sign == 0) turn_sign = t;
+    if (t * turn_sign <= 0) return false;
+  }
+  return true;
+}
+
+// Segment support of the quadrilateral of lines idx (corner c[s] ends side s and starts side
+// s+1); false when a side is too short or barely carries segments.
+bool scoreQuad(const std::vector<MergedLine>& lines, const std::array<int, 4>& idx,
+               const std::array<Eigen::Vector2d, 4>& c, const cv::Rect2d& ubox,
+               const ImageBoardDetectorOptions& o, QuadHypothesis* q) {
+  double score = 0, size = 0;
+  for (int s = 0; s < 4; ++s) {
+    const MergedLine& l = lines[idx[s]];
+    const Eigen::Vector2d& p = c[(s + 3) % 4];
+    const Eigen::Vector2d& r = c[s];
+    const double side = (r - p).norm();
+    if (side < o.min_board_size_px) return false;
+    const double tp = l.along(p), tr = l.along(r);
+    const double tol = kCornerToleranceFraction * side;
+    const double inside = l.supportWithin(std::min(tp, tr) - tol, std::max(tp, tr) + tol);
+    const double overshoot = l.support - inside;
+    if (inside < kMinSideSupportFraction * side && inside < o.min_edge_length_px) return false;
+    // A board shows its edge along most of each visible side: unsupported stretches count
+    // against a quadrilateral as much as supported ones count for it.
+    const double gap = std::max(0.0, clippedLength(p, r, ubox) - inside);
+    score += inside - kGapWeight * gap - kOvershootWeight * overshoot;
+    size += side;
+    q->support[s] = inside;
+  }
+  if (score <= 0) return false;
+  q->corners = c;
+  q->score = score;
+  q->size_px = size / 4;
+  return true;
+}
+
+// Every convex cycle of four lines (opposite sides may converge under perspective), scored.
+std::vector<QuadHypothesis> enumerateQuads(const std::vector<MergedLine>& lines,
+                                           const CornerGraph& g, const CameraModel& camera,
+                                           const ImageBoardDetectorOptions& o,
+                                           const ExpectedBoard* expected) {
+  std::vector<QuadHypothesis> quads;
   auto parallel = [&](int i, int k) {
     return angleBetweenLines(lines[i].dir, lines[k].dir) <= kMaxOppositeAngleRad;
   };
   const cv::Rect2d ubox = undistortedBounds(camera);
-  std::vector<std::vector<int>> neighbours(n);
-  for (int i = 0; i < n; ++i)
-    for (int j = 0; j < n; ++j)
-      if (adjacent[i][j]) neighbours[i].push_back(j);
+  const int n = static_cast<int>(lines.size());
   for (int i = 0; i < n && quads.size() < kMaxQuads; ++i)
-    for (const int j : neighbours[i]) {
+    for (const int j : g.neighbours[i]) {
       if (j <= i) continue;
-      for (const int k : neighbours[j]) {
+      for (const int k : g.neighbours[j]) {
         if (k <= i || !parallel(i, k)) continue;
-        for (const int m : neighbours[k]) {
+        for (const int m : g.neighbours[k]) {
           // i is the smallest index and j < m: each cycle i-j-k-m is met once.
-          if (m <= j || !adjacent[m][i] || !parallel(j, m)) continue;
+          if (m <= j || !g.adjacent[m][i] || !parallel(j, m)) continue;
           const std::array<int, 4> idx = {i, j, k, m};
-          // Corner c[s] ends side s (line idx[s]) and starts side s+1.
           std::array<Eigen::Vector2d, 4> c;
-          for (int s = 0; s < 4; ++s) c[s] = corner[idx[s]][idx[(s + 1) % 4]];
-          // Convex, not self-intersecting: all turns of one sign.
-          double turn_sign = 0;
-          bool convex = true;
-          for (int s = 0; s < 4 && convex; ++s) {
-            const double t = cross2(c[(s + 1) % 4] - c[s], c[(s + 2) % 4] - c[(s + 1) % 4]);
-            if (turn_sign == 0) turn_sign = t;
-            convex = t * turn_sign > 0;
-          }
-          if (!convex) continue;
+          for (int s = 0; s < 4; ++s) c[s] = g.corner[idx[s]][idx[(s + 1) % 4]];
+          if (!convexPolygon(c)) continue;
           QuadHypothesis q;
-          bool ok = true;
-          double score = 0, size = 0;
-          for (int s = 0; s < 4 && ok; ++s) {
-            const MergedLine& l = lines[idx[s]];
-            const Eigen::Vector2d& p = c[(s + 3) % 4];
-            const Eigen::Vector2d& r = c[s];
-            const double side = (r - p).norm();
-            if (side < o.min_board_size_px) {
-              ok = false;
-              break;
-            }
-            const double tp = l.along(p), tr = l.along(r);
-            const double tol = kCornerToleranceFraction * side;
-            const double inside = l.supportWithin(std::min(tp, tr) - tol, std::max(tp, tr) + tol);
-            const double overshoot = l.support - inside;
-            if (inside < kMinSideSupportFraction * side && inside < o.min_edge_length_px)
-              ok = false;
-            // A board shows its edge along most of each visible side: unsupported stretches count
-            // against a quadrilateral as much as supported ones count for it.
-            const double gap = std::max(0.0, clippedLength(p, r, ubox) - inside);
-            score += inside - kGapWeight * gap - kOvershootWeight * overshoot;
-            size += side;
-            q.support[s] = inside;
-          }
-          if (!ok || score <= 0) continue;
+          if (!scoreQuad(lines, idx, c, ubox, o, &q)) continue;
           if (expected && worstCornerOffset(c, *expected) > expected->tolerance_px) continue;
-          q.corners = c;
-          q.score = score;
-          q.size_px = size / 4;
           quads.push_back(q);
         }
       }
     }
   std::sort(quads.begin(), quads.end(),
             [](const QuadHypothesis& x, const QuadHypothesis& y) { return x.score > y.score; });
-  if (evidence) evidence->quads = static_cast<int>(quads.size());
-  // Visible support: the fraction of each side inside the image that carries segments; a board
-  // shows its edges along most of every visible side. Keep the best distinct quadrilaterals.
+  return quads;
+}
+
+// Visible support: the fraction of each side inside the image that carries segments; a board
+// shows its edges along most of every visible side. Keeps the best distinct quadrilaterals.
+std::vector<QuadHypothesis> keepBest(std::vector<QuadHypothesis>* quads, const CameraModel& camera,
+                                     const ImageBoardDetectorOptions& o) {
   std::vector<QuadHypothesis> kept;
-  for (QuadHypothesis& q : quads) {
+  for (QuadHypothesis& q : *quads) {
     if (static_cast<int>(kept.size()) >= o.max_line_hypotheses) break;
     bool duplicate = false;
     for (const auto& k : kept) {
@@ -404,6 +435,24 @@ std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const Camera
     kept.push_back(q);
   }
   return kept;
+}
+
+}  // namespace
+
+std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
+                                               const ImageBoardDetectorOptions& o,
+                                               LineEvidence* evidence,
+                                               const ExpectedBoard* expected) {
+  if (o.line_detection_width_px <= 0) return {};
+  double scale = 1.0;
+  const std::vector<Member> segments = detectSegments(gray, camera, o, evidence, &scale);
+  const std::vector<MergedLine> lines = mergeSegments(segments, kSegmentEndSigmaPx * scale, o);
+  if (evidence) evidence->lines = static_cast<int>(lines.size());
+  if (lines.size() < static_cast<size_t>(kNumEdges)) return {};
+  std::vector<QuadHypothesis> quads =
+      enumerateQuads(lines, cornerGraph(lines, camera), camera, o, expected);
+  if (evidence) evidence->quads = static_cast<int>(quads.size());
+  return keepBest(&quads, camera, o);
 }
 
 }  // namespace image_detection

@@ -204,6 +204,23 @@ void fitPeaks(const EdgeSamples& s, const Eigen::Vector2d& inside_u,
 
 }  // namespace
 
+double edgeContinuation(const cv::Mat& gray, const CameraModel& camera, const Eigen::Vector3d& line,
+                        const Eigen::Vector2d& corner, const Eigen::Vector2d& outward,
+                        double gap_px, double length_px, const ImageBoardDetectorOptions& o,
+                        double min_gradient, int* positions, double* run_on_px) {
+  CoarseEdge stretch;
+  stretch.a_corner = stretch.b_corner = false;
+  const Eigen::Vector2d a = corner + gap_px * outward, b = corner + (gap_px + length_px) * outward;
+  const Eigen::Vector2d n = line.head<2>();
+  const EdgeSamples s =
+      searchPeaks(gray, camera, stretch, a, b, n, o.fine_search_px, nullptr, o, min_gradient);
+  *positions = s.positions;
+  int on_line = 0;
+  for (const auto& p : s.pts_u) on_line += std::abs(n.dot(p) + line.z()) <= o.edge_inlier_px;
+  *run_on_px = on_line * s.step;
+  return s.positions > 0 ? static_cast<double>(on_line) / s.positions : 0.0;
+}
+
 EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse,
                    const Eigen::Vector2d& inside_u, const ImageBoardDetectorOptions& o,
                    double min_gradient) {

@@ -83,6 +83,15 @@ EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseE
                    const Eigen::Vector2d& inside_u, const ImageBoardDetectorOptions& o,
                    double min_gradient);
 
+/// Fraction of the stretch [gap, gap + length] px past `corner` along `outward` (undistorted px)
+/// where the side's line carries an edge of either polarity: a board side ends at its corners, a
+/// scene line (window frame, floor) usually runs on. `positions`: samples inside the image;
+/// `run_on_px`: px of the stretch that carry the edge.
+double edgeContinuation(const cv::Mat& gray, const CameraModel& camera, const Eigen::Vector3d& line,
+                        const Eigen::Vector2d& corner, const Eigen::Vector2d& outward,
+                        double gap_px, double length_px, const ImageBoardDetectorOptions& o,
+                        double min_gradient, int* positions, double* run_on_px);
+
 /// Edge support of a fitted hypothesis: px of edge samples along the sides, and the lowest side
 /// coverage.
 struct CandidateSupport {
