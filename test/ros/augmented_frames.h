@@ -51,6 +51,9 @@ struct Case {
   int basler_floor;  // basler_os1_plain frames (of 16) with four edges: the test's floor
 };
 
+/// The cases of the augmented tests, with their basler floors.
+const std::vector<Case>& augmentedCases();
+
 /// The frame with the case's augmentations (index picks colours, sizes; rng the random parts).
 Frame augment(const Frame& clean, const Case& c, int index, std::mt19937& rng);
 
