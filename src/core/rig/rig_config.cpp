@@ -69,6 +69,16 @@ double noiseValue(const YAML::Node& noise, const std::string& key, const std::st
   return x;
 }
 
+// A sensor's optional `noise` map, checked against its keys (a null node when absent).
+YAML::Node noiseNode(const YAML::Node& sensor, const std::set<std::string>& keys,
+                     const std::string& where) {
+  const YAML::Node n = sensor["noise"];
+  if (!n) return n;
+  if (!n.IsMap()) bad(where + ".noise: expected a map");
+  checkKeys(n, keys, where + ".noise");
+  return n;
+}
+
 RigCamera parseCamera(const YAML::Node& c, const std::string& where) {
   RigCamera cam;
   cam.name = requireString(c, "name", where);
@@ -76,10 +86,9 @@ RigCamera parseCamera(const YAML::Node& c, const std::string& where) {
   cam.camera_info_topic = requireString(c, "camera_info_topic", where);
   cam.features_topic =
       c["features_topic"] ? requireString(c, "features_topic", where) : cam.name + "/camera_board";
-  if (const YAML::Node n = c["noise"]) {
-    if (!n.IsMap()) bad(where + ".noise: expected a map");
+  if (const YAML::Node n =
+          noiseNode(c, {"pixel_sigma_px", "normal_sigma_deg", "offset_sigma_m"}, where)) {
     const std::string nw = where + ".noise";
-    checkKeys(n, {"pixel_sigma_px", "normal_sigma_deg", "offset_sigma_m"}, nw);
     cam.pixel_sigma_px = noiseValue(n, "pixel_sigma_px", nw);
     cam.normal_sigma_deg = noiseValue(n, "normal_sigma_deg", nw);
     cam.offset_sigma_m = noiseValue(n, "offset_sigma_m", nw);
@@ -93,10 +102,9 @@ RigLidar parseLidar(const YAML::Node& l, const std::string& where) {
   lid.cloud_topic = requireString(l, "cloud_topic", where);
   lid.features_topic =
       l["features_topic"] ? requireString(l, "features_topic", where) : lid.name + "/lidar_board";
-  if (const YAML::Node n = l["noise"]) {
-    if (!n.IsMap()) bad(where + ".noise: expected a map");
+  if (const YAML::Node n =
+          noiseNode(l, {"normal_sigma_deg", "offset_sigma_m", "edge_sigma_m"}, where)) {
     const std::string nw = where + ".noise";
-    checkKeys(n, {"normal_sigma_deg", "offset_sigma_m", "edge_sigma_m"}, nw);
     lid.normal_sigma_deg = noiseValue(n, "normal_sigma_deg", nw);
     lid.offset_sigma_m = noiseValue(n, "offset_sigma_m", nw);
     lid.edge_sigma_m = noiseValue(n, "edge_sigma_m", nw);
