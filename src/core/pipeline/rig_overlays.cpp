@@ -79,10 +79,13 @@ Expected<RigOverlay> drawPose(const multi_sensor::BoardPoseObservation& pose, in
     const std::string legend =
         lidar_frame + ": board points inside " + percent(l.inside) + ", MLRE " + pixels(l.mlre_px);
     const cv::Vec3b& c = style.points.flat_color;
-    cv::putText(*canvas, legend,
-                {kLegendMarginPx, kLegendMarginPx + kLegendLinePx * static_cast<int>(colour + 1)},
-                cv::FONT_HERSHEY_SIMPLEX, kLegendScale, cv::Scalar(c[0], c[1], c[2]),
-                kLegendThickness);
+    const cv::Point at(kLegendMarginPx,
+                       kLegendMarginPx + kLegendLinePx * static_cast<int>(colour + 1));
+    // A dark outline keeps the line readable on any background.
+    cv::putText(*canvas, legend, at, cv::FONT_HERSHEY_SIMPLEX, kLegendScale, cv::Scalar(0, 0, 0),
+                kLegendThickness + 3);
+    cv::putText(*canvas, legend, at, cv::FONT_HERSHEY_SIMPLEX, kLegendScale,
+                cv::Scalar(c[0], c[1], c[2]), kLegendThickness);
     overlay.lidars.push_back(std::move(l));
     ++colour;
   }
