@@ -13,28 +13,29 @@
 #include <cstdlib>
 #include <string>
 
-// (cfg parameter, SessionOptions member) of cfg/Calibrator.cfg.
-#define BOARD_CALIB_SESSION_FIELDS(X)               \
-  X(sync_tolerance, sync_tolerance_s)               \
+// (cfg parameter, StillCaptureOptions member): the stillness settings both modes share.
+#define BOARD_CALIB_STILL_CAPTURE_FIELDS(X)         \
   X(still_frames, still_frames_required)            \
   X(still_window, still_window_s)                   \
   X(still_max_translation, still_max_translation_m) \
-  X(still_max_rotation_deg, still_max_rotation_deg) \
-  X(min_view_rotation_deg, min_view_rotation_deg)   \
-  X(min_view_translation, min_view_translation_m)   \
-  X(max_size_mismatch, max_size_mismatch)           \
-  X(max_plane_angle_deg, max_plane_angle_deg)       \
+  X(still_max_rotation_deg, still_max_rotation_deg)
+
+// (cfg parameter, SessionOptions member) of cfg/Calibrator.cfg.
+#define BOARD_CALIB_SESSION_FIELDS(X)             \
+  X(sync_tolerance, sync_tolerance_s)             \
+  BOARD_CALIB_STILL_CAPTURE_FIELDS(X)             \
+  X(min_view_rotation_deg, min_view_rotation_deg) \
+  X(min_view_translation, min_view_translation_m) \
+  X(max_size_mismatch, max_size_mismatch)         \
+  X(max_plane_angle_deg, max_plane_angle_deg)     \
   X(max_plane_offset, max_plane_offset_m)
 
 // (cfg parameter, multi_sensor::RigSessionOptions member): rig mode. sync_tolerance is not among
 // them: the rig file's stamp_tolerance_s applies.
-#define BOARD_CALIB_RIG_SESSION_FIELDS(X)           \
-  X(auto_capture, auto_capture)                     \
-  X(still_frames, still_frames_required)            \
-  X(still_window, still_window_s)                   \
-  X(still_max_translation, still_max_translation_m) \
-  X(still_max_rotation_deg, still_max_rotation_deg) \
-  X(min_view_rotation_deg, min_pose_rotation_deg)   \
+#define BOARD_CALIB_RIG_SESSION_FIELDS(X)         \
+  X(auto_capture, auto_capture)                   \
+  BOARD_CALIB_STILL_CAPTURE_FIELDS(X)             \
+  X(min_view_rotation_deg, min_pose_rotation_deg) \
   X(min_view_translation, min_pose_translation_m)
 
 namespace board_calib {

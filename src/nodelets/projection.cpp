@@ -223,6 +223,35 @@ class ProjectionNodelet : public nodelet::Nodelet {
     return true;
   }
 
+  // The camera model of this camera_info (rebuilt only when it changes); false when unusable.
+  bool updateCamera(const sensor_msgs::CameraInfo& info) {
+    if (camera_ && sameCameraInfo(info, last_info_)) return true;
+    const auto intrinsics = fromCameraInfo(info);
+    auto camera = intrinsics ? CameraModel::create(*intrinsics)
+                             : Expected<CameraModel>::failure(intrinsics.error());
+    if (!camera) {
+      NODELET_WARN_THROTTLE(kWarnPeriodS, "unusable camera_info on %s: %s",
+                            info_sub_.getTopic().c_str(), camera.error().c_str());
+      return false;
+    }
+    camera_ = std::make_unique<CameraModel>(*camera);
+    last_info_ = info;
+    return true;
+  }
+
+  void publishColoredCloud(const LidarCloud& cloud, const ProjectedCloud& projected,
+                           const cv::Mat& image, const std_msgs::Header& header) {
+    const auto colored = colorCloud(cloud, projected, image);
+    if (!colored) {
+      NODELET_WARN_THROTTLE(kWarnPeriodS, "colouring the cloud failed: %s",
+                            colored.error().c_str());
+      return;
+    }
+    sensor_msgs::PointCloud2 out = toPointCloud2(*colored);
+    out.header = header;
+    cloud_pub_.publish(out);
+  }
+
   void onFrame(const sensor_msgs::ImageConstPtr& image_msg,
                const sensor_msgs::CameraInfoConstPtr& info_msg,
                const sensor_msgs::PointCloud2ConstPtr& cloud_msg) {
@@ -231,18 +260,7 @@ class ProjectionNodelet : public nodelet::Nodelet {
     const bool want_cloud = cloud_pub_.getNumSubscribers() > 0;
     if (!want_overlay && !want_cloud) return;
 
-    if (!camera_ || !sameCameraInfo(*info_msg, last_info_)) {
-      const auto intrinsics = fromCameraInfo(*info_msg);
-      auto camera = intrinsics ? CameraModel::create(*intrinsics)
-                               : Expected<CameraModel>::failure(intrinsics.error());
-      if (!camera) {
-        NODELET_WARN_THROTTLE(kWarnPeriodS, "unusable camera_info on %s: %s",
-                              info_sub_.getTopic().c_str(), camera.error().c_str());
-        return;
-      }
-      camera_ = std::make_unique<CameraModel>(*camera);
-      last_info_ = *info_msg;
-    }
+    if (!updateCamera(*info_msg)) return;
     // Size check on the header first: the conversion then only sees plausible images.
     if (image_msg->width != uint32_t(camera_->width()) ||
         image_msg->height != uint32_t(camera_->height())) {
@@ -289,17 +307,7 @@ class ProjectionNodelet : public nodelet::Nodelet {
       return;
     }
 
-    if (want_cloud) {
-      const auto colored = colorCloud(*cloud, *projected, *image);
-      if (colored) {
-        sensor_msgs::PointCloud2 out = toPointCloud2(*colored);
-        out.header = cloud_msg->header;
-        cloud_pub_.publish(out);
-      } else {
-        NODELET_WARN_THROTTLE(kWarnPeriodS, "colouring the cloud failed: %s",
-                              colored.error().c_str());
-      }
-    }
+    if (want_cloud) publishColoredCloud(*cloud, *projected, *image, cloud_msg->header);
     if (!want_overlay) return;
 
     cv::Mat overlay = *image;  // imageFromMsg returned a private copy

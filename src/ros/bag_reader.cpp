@@ -80,6 +80,76 @@ Expected<std::vector<double>> topicTimes(const std::vector<std::string>& paths,
   return times;
 }
 
+namespace {
+
+// Fails naming the first wanted topic no bag has, with every topic the bags do have.
+Status checkTopicsPresent(rosbag::View& view, const std::vector<std::string>& wanted,
+                          const OpenBags& open) {
+  std::set<std::string> present;
+  for (const auto* c : view.getConnections()) present.insert(c->topic);
+  for (const auto& t : wanted) {
+    if (!present.count(t)) {
+      std::string available;
+      for (const auto& bag : open.bags) {
+        rosbag::View all(*bag);
+        for (const auto* c : all.getConnections())
+          available += (available.empty() ? "" : ", ") + c->topic + " [" + c->datatype + "]";
+      }
+      return Status::failure("topic '" + t + "' is not in the bag(s); available: " + available);
+    }
+  }
+  return Status::success();
+}
+
+// One message to its callback, converted; what cannot be converted goes to on_bad_message.
+void dispatch(const rosbag::MessageInstance& m, const std::set<std::string>& image_topics,
+              const std::set<std::string>& info_topics, const std::set<std::string>& cloud_topics,
+              const BagCallbacks& cb) {
+  const std::string& topic = m.getTopic();
+  if (image_topics.count(topic)) {
+    const auto msg = m.instantiate<sensor_msgs::Image>();
+    if (!msg) {
+      if (cb.on_bad_message)
+        cb.on_bad_message(topic, "not a sensor_msgs/Image (" + m.getDataType() + ")");
+      return;
+    }
+    auto image = imageFromMsg(*msg);
+    if (!image) {
+      if (cb.on_bad_message) cb.on_bad_message(topic, image.error());
+      return;
+    }
+    if (cb.on_image) cb.on_image({topic, msg->header.frame_id, msg->header.stamp.toSec(), *image});
+  } else if (info_topics.count(topic)) {
+    const auto msg = m.instantiate<sensor_msgs::CameraInfo>();
+    if (!msg) {
+      if (cb.on_bad_message)
+        cb.on_bad_message(topic, "not a sensor_msgs/CameraInfo (" + m.getDataType() + ")");
+      return;
+    }
+    auto in = fromCameraInfo(*msg);
+    if (!in) {
+      if (cb.on_bad_message) cb.on_bad_message(topic, in.error());
+      return;
+    }
+    if (cb.on_camera_info) cb.on_camera_info(topic, msg->header.frame_id, *in);
+  } else if (cloud_topics.count(topic)) {
+    const auto msg = m.instantiate<sensor_msgs::PointCloud2>();
+    if (!msg) {
+      if (cb.on_bad_message)
+        cb.on_bad_message(topic, "not a sensor_msgs/PointCloud2 (" + m.getDataType() + ")");
+      return;
+    }
+    auto cloud = fromPointCloud2(*msg);
+    if (!cloud) {
+      if (cb.on_bad_message) cb.on_bad_message(topic, cloud.error());
+      return;
+    }
+    if (cb.on_cloud) cb.on_cloud(topic, *cloud);
+  }
+}
+
+}  // namespace
+
 Status readBags(const std::vector<std::string>& paths, const BagTopics& topics,
                 const BagCallbacks& cb) {
   OpenBags open;
@@ -96,63 +166,8 @@ Status readBags(const std::vector<std::string>& paths, const BagTopics& topics,
   try {
     rosbag::View view;
     for (const auto& bag : open.bags) view.addQuery(*bag, rosbag::TopicQuery(wanted));
-    std::set<std::string> present;
-    for (const auto* c : view.getConnections()) present.insert(c->topic);
-    for (const auto& t : wanted) {
-      if (!present.count(t)) {
-        std::string available;
-        for (const auto& bag : open.bags) {
-          rosbag::View all(*bag);
-          for (const auto* c : all.getConnections())
-            available += (available.empty() ? "" : ", ") + c->topic + " [" + c->datatype + "]";
-        }
-        return Status::failure("topic '" + t + "' is not in the bag(s); available: " + available);
-      }
-    }
-    for (const auto& m : view) {
-      const std::string& topic = m.getTopic();
-      if (image_topics.count(topic)) {
-        const auto msg = m.instantiate<sensor_msgs::Image>();
-        if (!msg) {
-          if (cb.on_bad_message)
-            cb.on_bad_message(topic, "not a sensor_msgs/Image (" + m.getDataType() + ")");
-          continue;
-        }
-        auto image = imageFromMsg(*msg);
-        if (!image) {
-          if (cb.on_bad_message) cb.on_bad_message(topic, image.error());
-          continue;
-        }
-        if (cb.on_image)
-          cb.on_image({topic, msg->header.frame_id, msg->header.stamp.toSec(), *image});
-      } else if (info_topics.count(topic)) {
-        const auto msg = m.instantiate<sensor_msgs::CameraInfo>();
-        if (!msg) {
-          if (cb.on_bad_message)
-            cb.on_bad_message(topic, "not a sensor_msgs/CameraInfo (" + m.getDataType() + ")");
-          continue;
-        }
-        auto in = fromCameraInfo(*msg);
-        if (!in) {
-          if (cb.on_bad_message) cb.on_bad_message(topic, in.error());
-          continue;
-        }
-        if (cb.on_camera_info) cb.on_camera_info(topic, msg->header.frame_id, *in);
-      } else if (cloud_topics.count(topic)) {
-        const auto msg = m.instantiate<sensor_msgs::PointCloud2>();
-        if (!msg) {
-          if (cb.on_bad_message)
-            cb.on_bad_message(topic, "not a sensor_msgs/PointCloud2 (" + m.getDataType() + ")");
-          continue;
-        }
-        auto cloud = fromPointCloud2(*msg);
-        if (!cloud) {
-          if (cb.on_bad_message) cb.on_bad_message(topic, cloud.error());
-          continue;
-        }
-        if (cb.on_cloud) cb.on_cloud(topic, *cloud);
-      }
-    }
+    if (Status st = checkTopicsPresent(view, wanted, open); !st) return st;
+    for (const auto& m : view) dispatch(m, image_topics, info_topics, cloud_topics, cb);
   } catch (const rosbag::BagException& e) {
     return Status::failure(std::string("error reading bag: ") + e.what() + reindexHintAll(paths));
   } catch (const ros::Exception& e) {  // a corrupt message (serialization overrun)

@@ -21,6 +21,7 @@
 #include <vector>
 
 class QComboBox;
+class QGroupBox;
 class QLabel;
 class QLineEdit;
 class QPushButton;
@@ -65,6 +66,9 @@ class CalibrationPanel : public rviz::Panel {
   QString noService(const char* service) const;
   void dropView(int view_id);
 
+  QGroupBox* buildStatusBox();  // calibration_panel_view.cpp
+  QGroupBox* buildSessionBox();
+  QGroupBox* buildResultBox();
   void showStatus();
   void showResult();
   void writeStateFile() const;  // test hook, see BOARD_CALIB_PANEL_STATE_FILE in the .cpp

@@ -22,6 +22,34 @@ std::vector<std::string> split(const std::string& s) {
   return out;
 }
 
+// One table row: a simulated capture session at `rate` Hz, calibrated and scored against the
+// simulator's truth.
+void printRow(const sim::Scenario& base, const std::string& rate, const std::string& layout,
+              int seed, int poses, double scale, const std::vector<Method>& methods) {
+  const sim::Scenario s = test_support::captureScenario(
+      base, scale, std::stod(rate), layout == "organized", poses, static_cast<unsigned>(seed));
+  auto session = test_support::runSimulatedSession(s, PipelineOptions{});
+  if (!session) {
+    std::printf("| %s | %s | %d | simulation failed: %s |\n", rate.c_str(), layout.c_str(), seed,
+                session.error().c_str());
+    return;
+  }
+  // Why holds were missed, for the table's notes (stderr keeps stdout a table).
+  std::fprintf(stderr, "%s Hz %s seed %d: %s\n", rate.c_str(), layout.c_str(), seed,
+               session->capture_summary.c_str());
+  const PairCalibration run =
+      calibratePair(session->views, methods, s.scene.target, "camera", "lidar");
+  const MethodRun* c = run.chosenRun();
+  const auto& truth = session->truth.camera_T_lidar;
+  std::printf("| %s | %s | %d | %d/%d | %d | %zu | %s | %.3f | %.1f | %.3f / %.1f | %.0f |\n",
+              rate.c_str(), layout.c_str(), seed, session->holds_captured, session->holds,
+              session->moving_captured, session->views.size(), verdictName(run.verdict),
+              c ? rotationErrorDeg(c->solution.camera_T_lidar, truth) : -1.0,
+              c ? translationErrorM(c->solution.camera_T_lidar, truth) * 1e3 : -1.0,
+              c ? c->verdict.stddev.rotation_deg.maxCoeff() : -1.0,
+              c ? c->verdict.stddev.translation_m.maxCoeff() * 1e3 : -1.0, session->seconds);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -82,29 +110,7 @@ int main(int argc, char** argv) {
   for (const auto& rate : split(rates))
     for (const auto& layout : split(layouts))
       for (int seed = 1; seed <= seeds; ++seed) {
-        const sim::Scenario s =
-            test_support::captureScenario(*base, scale, std::stod(rate), layout == "organized",
-                                          poses, static_cast<unsigned>(seed));
-        auto session = test_support::runSimulatedSession(s, PipelineOptions{});
-        if (!session) {
-          std::printf("| %s | %s | %d | simulation failed: %s |\n", rate.c_str(), layout.c_str(),
-                      seed, session.error().c_str());
-          continue;
-        }
-        // Why holds were missed, for the table's notes (stderr keeps stdout a table).
-        std::fprintf(stderr, "%s Hz %s seed %d: %s\n", rate.c_str(), layout.c_str(), seed,
-                     session->capture_summary.c_str());
-        const PairCalibration run =
-            calibratePair(session->views, *methods, s.scene.target, "camera", "lidar");
-        const MethodRun* c = run.chosenRun();
-        const auto& truth = session->truth.camera_T_lidar;
-        std::printf("| %s | %s | %d | %d/%d | %d | %zu | %s | %.3f | %.1f | %.3f / %.1f | %.0f |\n",
-                    rate.c_str(), layout.c_str(), seed, session->holds_captured, session->holds,
-                    session->moving_captured, session->views.size(), verdictName(run.verdict),
-                    c ? rotationErrorDeg(c->solution.camera_T_lidar, truth) : -1.0,
-                    c ? translationErrorM(c->solution.camera_T_lidar, truth) * 1e3 : -1.0,
-                    c ? c->verdict.stddev.rotation_deg.maxCoeff() : -1.0,
-                    c ? c->verdict.stddev.translation_m.maxCoeff() * 1e3 : -1.0, session->seconds);
+        printRow(*base, rate, layout, seed, poses, scale, *methods);
         std::fflush(stdout);
       }
   return 0;

@@ -112,28 +112,17 @@ std::pair<double, double> medianSolveMs(const std::vector<View>& views, Method m
   return {wall[wall.size() / 2], cpu[cpu.size() / 2]};
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  int seeds = 10, trials = 100;
-  for (int i = 1; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--seeds"))
-      seeds = std::atoi(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--trials"))
-      trials = std::atoi(argv[i + 1]);
+// The pair solvers' options compared in this benchmark.
+struct Variants {
+  SolverOptions defaults, joint, sequential;
+  Variants() {
+    joint.pbpc_schedule = PbpcSchedule::kJoint;
+    sequential.pbpc_schedule = PbpcSchedule::kSequential;
   }
-  const sim::SyntheticFeatureOptions o = thirtyViewsOf84Rings();
-  const Scenario s = makeScenario(1, o);
-  std::printf(
-      "Scenario: %zu views, %.0f board points and %.0f edge points per view, range noise %.0f mm, "
-      "horizontal step %.2f deg, line noise %.1f px\n",
-      s.scene.views.size(), s.board_points, s.edge_points, o.lidar_range_noise_m * 1000,
-      o.lidar_horizontal_resolution_deg, o.line_noise_px);
+};
 
-  SolverOptions defaults;
-  SolverOptions joint = defaults, sequential = defaults;
-  joint.pbpc_schedule = PbpcSchedule::kJoint;
-  sequential.pbpc_schedule = PbpcSchedule::kSequential;
+void printTiming(const Scenario& s, const Variants& v) {
+  const SolverOptions &defaults = v.defaults, &joint = v.joint, &sequential = v.sequential;
   std::printf(
       "\nSolve time from the closed-form start (median of 20, one thread, including "
       "covariance):\n");
@@ -146,7 +135,10 @@ int main(int argc, char** argv) {
     const auto [wall, cpu] = medianSolveMs(s.scene.views, what.first, what.second, 20);
     std::printf("  %-26s wall %6.1f ms, cpu %6.1f ms\n", label, wall, cpu);
   }
+}
 
+void printAccuracies(const sim::SyntheticFeatureOptions& o, int seeds, const Variants& v) {
+  const SolverOptions &defaults = v.defaults, &joint = v.joint, &sequential = v.sequential;
   std::printf(
       "\nAccuracy against ground truth over %d seeds (closed-form initialisation, default "
       "options):\n",
@@ -155,7 +147,11 @@ int main(int argc, char** argv) {
   printAccuracy("pbpc joint", accuracy(Method::kPbpc, joint, seeds, o));
   printAccuracy("pbpc sequential (default)", accuracy(Method::kPbpc, sequential, seeds, o));
   printAccuracy("msg pairwise", accuracy(Method::kMsgPair, defaults, seeds, o));
+}
 
+// PPC weighting, the edge shift and a mis-declared board size, against ground truth.
+void printModelChoices(const sim::SyntheticFeatureOptions& o, int seeds, const Variants& v) {
+  const SolverOptions& defaults = v.defaults;
   std::printf(
       "\nPPC view weighting, camera planes from PnP (default) and with the earlier distance-free "
       "noise "
@@ -194,7 +190,10 @@ int main(int argc, char** argv) {
   printAccuracy("pbpc without plane offset factor",
                 accuracy(Method::kPbpc, no_scale, seeds, small));
   printAccuracy("msg pairwise", accuracy(Method::kMsgPair, defaults, seeds, small));
+}
 
+void printRobustness(const Scenario& s, int trials, const Variants& v) {
+  const SolverOptions &defaults = v.defaults, &joint = v.joint, &sequential = v.sequential;
   std::printf(
       "\nRobustness: %d random starts, rotation N(0, 90 deg), translation N(0, 50 cm) about "
       "identity; "
@@ -227,7 +226,10 @@ int main(int argc, char** argv) {
         c.label, r.converged, r.trials, 100 * r.convergence_rate, r.rotation_spread_max_deg,
         r.translation_spread_max_m * 1000, r.mean_solve_time_ms);
   }
+}
 
+void printDefaultSolves(const Scenario& s, const Variants& v) {
+  const SolverOptions& defaults = v.defaults;
   const CalibrationSolution ppc = calibrate(s.scene.views, Method::kPpc, defaults);
   for (const auto& n : ppc.notes) std::printf("\nPPC default on seed 1, note: %s\n", n.c_str());
   const CalibrationSolution sol = calibrate(s.scene.views, Method::kPbpc, defaults);
@@ -240,5 +242,31 @@ int main(int argc, char** argv) {
       sol.stddev.translation_m.y() * 1000, sol.stddev.translation_m.z() * 1000,
       sol.observability.weakest_description.c_str());
   for (const auto& n : sol.notes) std::printf("  note: %s\n", n.c_str());
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int seeds = 10, trials = 100;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    if (!std::strcmp(argv[i], "--seeds"))
+      seeds = std::atoi(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--trials"))
+      trials = std::atoi(argv[i + 1]);
+  }
+  const sim::SyntheticFeatureOptions o = thirtyViewsOf84Rings();
+  const Scenario s = makeScenario(1, o);
+  std::printf(
+      "Scenario: %zu views, %.0f board points and %.0f edge points per view, range noise %.0f mm, "
+      "horizontal step %.2f deg, line noise %.1f px\n",
+      s.scene.views.size(), s.board_points, s.edge_points, o.lidar_range_noise_m * 1000,
+      o.lidar_horizontal_resolution_deg, o.line_noise_px);
+
+  const Variants variants;
+  printTiming(s, variants);
+  printAccuracies(o, seeds, variants);
+  printModelChoices(o, seeds, variants);
+  printRobustness(s, trials, variants);
+  printDefaultSolves(s, variants);
   return 0;
 }

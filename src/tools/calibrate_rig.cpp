@@ -152,6 +152,7 @@ Status writeReport(const RigArgs& args, const RigConfig& rig, const RigPipeline&
     inputs.extra_result_text = printed.substr(summary.size());  // verdict, vs truth
   inputs.verdict_text = rigVerdictSummary(run);
   inputs.failed = run.failed();
+  inputs.camera_frames = pipeline.overlayFrames();
   return writeRigReport(args.report, rig, run.problem, run.solution, run.result, inputs);
 }
 

@@ -97,6 +97,156 @@ double edgeOffsetPx(const cv::Mat& grey, const CameraModel& camera,
   return NAN;
 }
 
+// Per-scan-line extremes of the board returns: raw (`measured`, grouped by board side) and
+// refined on the true geometry by bisecting the beam azimuth (`refined`, its side per point).
+struct EdgeSamples {
+  LidarBoardFeatures measured;
+  LidarCloud refined;
+  std::vector<int> refined_side;
+};
+EdgeSamples edgeSamples(const LidarCloud& scan, const std::vector<sim::ReturnOrigin>& origins,
+                        const sim::LidarSpec& lidar, const BoardGeometry& board,
+                        const Target& target) {
+  EdgeSamples out;
+  LidarBoardFeatures& measured = out.measured;
+  LidarCloud& refined = out.refined;
+  std::vector<int>& refined_side = out.refined_side;
+  measured.found = true;
+  refined.frame_id = "lidar";
+  const int cols = scan.width;
+  for (int ring = 0; ring < scan.height; ++ring) {
+    int lo = -1, hi = -1;
+    for (int col = 0; col < cols; ++col) {
+      const auto o = origins[static_cast<size_t>(ring) * cols + col];
+      if (o != sim::ReturnOrigin::kBoard && o != sim::ReturnOrigin::kMixed) continue;
+      if (lo < 0) lo = col;
+      hi = col;
+    }
+    if (lo < 0) continue;
+    const double el = lidar.elevations_deg[ring] * kRadPerDeg;
+    for (const auto& [extreme, outward] :
+         {std::pair<int, int>{lo, -1}, std::pair<int, int>{hi, +1}}) {
+      // Step to the last column whose beam centre hits the board, then bisect towards the next.
+      Eigen::Vector3d p_lidar, p_board;
+      int in = extreme;
+      while (!board.hit(lidar.azimuthRad(ring, in), el, &p_lidar, &p_board) && in != (lo + hi) / 2)
+        in -= outward;
+      if (!board.hit(lidar.azimuthRad(ring, in), el, &p_lidar, &p_board)) continue;
+      int out = in + outward;
+      while (board.hit(lidar.azimuthRad(ring, out), el, &p_lidar, &p_board)) out += outward;
+      double a_in = lidar.azimuthRad(ring, in), a_out = lidar.azimuthRad(ring, out);
+      for (int it = 0; it < 60; ++it) {
+        const double mid = 0.5 * (a_in + a_out);
+        (board.hit(mid, el, &p_lidar, &p_board) ? a_in : a_out) = mid;
+      }
+      board.hit(a_in, el, &p_lidar, &p_board);
+      const int side = boardSide(target, p_board);
+      LidarPoint lp;
+      lp.x = static_cast<float>(p_lidar.x());
+      lp.y = static_cast<float>(p_lidar.y());
+      lp.z = static_cast<float>(p_lidar.z());
+      refined.points.push_back(lp);
+      refined_side.push_back(side);
+      const LidarPoint& raw = scan.points[static_cast<size_t>(ring) * cols + extreme];
+      measured.edge_points[side].emplace_back(raw.x, raw.y, raw.z);
+      measured.edge_valid[side] = true;
+    }
+  }
+  return out;
+}
+
+// The board's true image lines (undistorted px, outward normals), side by side.
+CameraBoardFeatures trueImageLines(const CameraModel& camera,
+                                   const Eigen::Isometry3d& camera_T_board, const Target& target) {
+  const auto corners = target.outerCorners();
+  CameraBoardFeatures truth;
+  truth.found = true;
+  Eigen::Vector2d centre_px;
+  EXPECT_TRUE(camera.projectUndistorted(camera_T_board * target.center(), &centre_px));
+  for (int side = 0; side < 4; ++side) {
+    Eigen::Vector2d a, b;
+    EXPECT_TRUE(camera.projectUndistorted(camera_T_board * corners[side], &a));
+    EXPECT_TRUE(camera.projectUndistorted(camera_T_board * corners[(side + 1) % 4], &b));
+    Eigen::Vector3d line(b.y() - a.y(), a.x() - b.x(), 0.0);
+    line /= line.head<2>().norm();
+    line.z() = -line.head<2>().dot(a);
+    if (line.head<2>().dot(centre_px) + line.z() > 0) line = -line;
+    truth.edge_lines[side] = line;
+    truth.edge_valid[side] = true;
+  }
+
+  return truth;
+}
+
+// The projected edge points against the true lines (geometry) and against the rendered edges
+// (the image's grey-level profile along the outward normal), away from the board corners.
+struct EdgeOffsets {
+  int measured = 0;
+  double worst_image_px = 0, sum_image_px = 0, worst_line_px = 0;
+};
+EdgeOffsets measureEdgeOffsets(const cv::Mat& image, const CameraModel& camera,
+                               const ProjectedCloud& projected,
+                               const std::vector<int>& refined_side,
+                               const CameraBoardFeatures& truth,
+                               const Eigen::Isometry3d& camera_T_board,
+                               const std::array<Eigen::Vector3d, 4>& corners) {
+  EdgeOffsets out;
+  int& measured_edges = out.measured;
+  double &worst_image_px = out.worst_image_px, &sum_image_px = out.sum_image_px,
+         &worst_line_px = out.worst_line_px;
+  cv::Mat grey;
+  cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+  for (const ProjectedPoint& p : projected.points) {
+    const int side = refined_side[p.index];
+    const Eigen::Vector3d& line = truth.edge_lines[side];
+    const Eigen::Vector2d u = camera.undistortPixel(Eigen::Vector2d(p.u, p.v));
+    // Geometry: on the true line up to float storage of the points (~1e-3 px).
+    worst_line_px = std::max(worst_line_px, std::abs(line.head<2>().dot(u) + line.z()));
+    // Image: the rendered edge along the outward normal. Skip points near a board corner,
+    // where the profile crosses the other edge too.
+    bool near_corner = false;
+    for (int c = 0; c < 4; ++c) {
+      Eigen::Vector2d corner_px;
+      camera.projectUndistorted(camera_T_board * corners[c], &corner_px);
+      near_corner |= (corner_px - u).norm() < 20.0;
+    }
+    if (near_corner) continue;
+    const double offset = edgeOffsetPx(grey, camera, u, line.head<2>());
+    if (std::isnan(offset)) continue;
+    ++measured_edges;
+    worst_image_px = std::max(worst_image_px, std::abs(offset));
+    sum_image_px += std::abs(offset);
+  }
+  return out;
+}
+
+// The overlay itself: the whole scan drawn, then the projected-edges check of the raw
+// extremes against the true lines. Raw extremes sit inside the board by less than one column
+// step, which bounds their mean residual.
+void expectOverlayDrawn(const cv::Mat& image, const LidarCloud& scan,
+                        const LidarBoardFeatures& measured, const CameraBoardFeatures& truth,
+                        const CameraModel& camera, const Eigen::Isometry3d& camera_T_lidar,
+                        const sim::LidarSpec& lidar) {
+  ProjectionOptions options;
+  cv::Mat overlay = image.clone();
+  const auto scan_projected = projectCloud(scan, camera, camera_T_lidar, options);
+  ASSERT_TRUE(scan_projected.ok());
+  ASSERT_TRUE(drawProjectedCloud(*scan_projected, OverlayOptions(), &overlay).ok);
+  EdgeCheckOptions edge_options;
+  edge_options.reassociate = false;  // sides are named identically on both sensors here
+  const auto check = checkProjectedEdges(measured, truth, camera, camera_T_lidar, edge_options);
+  ASSERT_TRUE(check.ok()) << check.error();
+  const double column_step_px =
+      camera.intrinsics().fx * lidar.horizontal_resolution_deg * kRadPerDeg;
+  EXPECT_LT(check->mlre_px, column_step_px);
+  ASSERT_TRUE(drawEdgeCheck(truth, *check, camera, edge_options, &overlay).ok);
+  const std::string out = ::testing::TempDir() + "board_calib_projection_sim_overlay.png";
+  cv::imwrite(out, overlay);
+  std::printf(
+      "raw per-scan-line extremes: MLRE %.2f px (column step %.1f px); overlay saved to %s\n",
+      check->mlre_px, column_step_px, out.c_str());
+}
+
 }  // namespace
 
 TEST(ProjectionSim, ProjectedLidarEdgePointsLandOnTheRenderedBoardEdges) {
@@ -141,70 +291,16 @@ TEST(ProjectionSim, ProjectedLidarEdgePointsLandOnTheRenderedBoardEdges) {
 
   // Per-scan-line extremes of the board returns, then refined on the true geometry.
   const BoardGeometry board{scene.target, world_T_lidar.inverse() * world_T_board};
-  LidarBoardFeatures measured;  // raw extremes, grouped by board side
-  measured.found = true;
-  LidarCloud refined;
-  refined.frame_id = "lidar";
-  std::vector<int> refined_side;
-  const int cols = scan.width;
-  for (int ring = 0; ring < scan.height; ++ring) {
-    int lo = -1, hi = -1;
-    for (int col = 0; col < cols; ++col) {
-      const auto o = origins[static_cast<size_t>(ring) * cols + col];
-      if (o != sim::ReturnOrigin::kBoard && o != sim::ReturnOrigin::kMixed) continue;
-      if (lo < 0) lo = col;
-      hi = col;
-    }
-    if (lo < 0) continue;
-    const double el = spec->elevations_deg[ring] * kRadPerDeg;
-    for (const auto& [extreme, outward] :
-         {std::pair<int, int>{lo, -1}, std::pair<int, int>{hi, +1}}) {
-      // Step to the last column whose beam centre hits the board, then bisect towards the next.
-      Eigen::Vector3d p_lidar, p_board;
-      int in = extreme;
-      while (!board.hit(spec->azimuthRad(ring, in), el, &p_lidar, &p_board) && in != (lo + hi) / 2)
-        in -= outward;
-      if (!board.hit(spec->azimuthRad(ring, in), el, &p_lidar, &p_board)) continue;
-      int out = in + outward;
-      while (board.hit(spec->azimuthRad(ring, out), el, &p_lidar, &p_board)) out += outward;
-      double a_in = spec->azimuthRad(ring, in), a_out = spec->azimuthRad(ring, out);
-      for (int it = 0; it < 60; ++it) {
-        const double mid = 0.5 * (a_in + a_out);
-        (board.hit(mid, el, &p_lidar, &p_board) ? a_in : a_out) = mid;
-      }
-      board.hit(a_in, el, &p_lidar, &p_board);
-      const int side = boardSide(scene.target, p_board);
-      LidarPoint lp;
-      lp.x = static_cast<float>(p_lidar.x());
-      lp.y = static_cast<float>(p_lidar.y());
-      lp.z = static_cast<float>(p_lidar.z());
-      refined.points.push_back(lp);
-      refined_side.push_back(side);
-      const LidarPoint& raw = scan.points[static_cast<size_t>(ring) * cols + extreme];
-      measured.edge_points[side].emplace_back(raw.x, raw.y, raw.z);
-      measured.edge_valid[side] = true;
-    }
-  }
+  const EdgeSamples samples = edgeSamples(scan, origins, *spec, board, scene.target);
+  const LidarBoardFeatures& measured = samples.measured;
+  const LidarCloud& refined = samples.refined;
+  const std::vector<int>& refined_side = samples.refined_side;
   ASSERT_GT(refined.points.size(), 40u) << "the board should span ~35 scan lines";
 
   // True image lines of the board sides (undistorted px), outward normals.
   const auto corners = scene.target.outerCorners();
   const Eigen::Isometry3d camera_T_board = world_T_camera.inverse() * world_T_board;
-  CameraBoardFeatures truth;
-  truth.found = true;
-  Eigen::Vector2d centre_px;
-  ASSERT_TRUE(camera.projectUndistorted(camera_T_board * scene.target.center(), &centre_px));
-  for (int side = 0; side < 4; ++side) {
-    Eigen::Vector2d a, b;
-    ASSERT_TRUE(camera.projectUndistorted(camera_T_board * corners[side], &a));
-    ASSERT_TRUE(camera.projectUndistorted(camera_T_board * corners[(side + 1) % 4], &b));
-    Eigen::Vector3d line(b.y() - a.y(), a.x() - b.x(), 0.0);
-    line /= line.head<2>().norm();
-    line.z() = -line.head<2>().dot(a);
-    if (line.head<2>().dot(centre_px) + line.z() > 0) line = -line;
-    truth.edge_lines[side] = line;
-    truth.edge_valid[side] = true;
-  }
+  const CameraBoardFeatures truth = trueImageLines(camera, camera_T_board, scene.target);
 
   // Project the refined edge points through the projection core.
   ProjectionOptions options;
@@ -212,31 +308,11 @@ TEST(ProjectionSim, ProjectedLidarEdgePointsLandOnTheRenderedBoardEdges) {
   ASSERT_TRUE(projected.ok()) << projected.error();
   ASSERT_GT(projected->points.size(), 30u);
 
-  cv::Mat grey;
-  cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
-  int measured_edges = 0;
-  double worst_image_px = 0, sum_image_px = 0, worst_line_px = 0;
-  for (const ProjectedPoint& p : projected->points) {
-    const int side = refined_side[p.index];
-    const Eigen::Vector3d& line = truth.edge_lines[side];
-    const Eigen::Vector2d u = camera.undistortPixel(Eigen::Vector2d(p.u, p.v));
-    // Geometry: on the true line up to float storage of the points (~1e-3 px).
-    worst_line_px = std::max(worst_line_px, std::abs(line.head<2>().dot(u) + line.z()));
-    // Image: the rendered edge along the outward normal. Skip points near a board corner,
-    // where the profile crosses the other edge too.
-    bool near_corner = false;
-    for (int c = 0; c < 4; ++c) {
-      Eigen::Vector2d corner_px;
-      camera.projectUndistorted(camera_T_board * corners[c], &corner_px);
-      near_corner |= (corner_px - u).norm() < 20.0;
-    }
-    if (near_corner) continue;
-    const double offset = edgeOffsetPx(grey, camera, u, line.head<2>());
-    if (std::isnan(offset)) continue;
-    ++measured_edges;
-    worst_image_px = std::max(worst_image_px, std::abs(offset));
-    sum_image_px += std::abs(offset);
-  }
+  const EdgeOffsets m =
+      measureEdgeOffsets(image, camera, *projected, refined_side, truth, camera_T_board, corners);
+  const int measured_edges = m.measured;
+  const double worst_image_px = m.worst_image_px, sum_image_px = m.sum_image_px,
+               worst_line_px = m.worst_line_px;
   EXPECT_LT(worst_line_px, 0.01);
   ASSERT_GT(measured_edges, 25) << "too few edge profiles measurable in the rendered image";
   // The requirement: within 1 px of the image edges. The renderer's 4x4 supersampled
@@ -247,24 +323,5 @@ TEST(ProjectionSim, ProjectedLidarEdgePointsLandOnTheRenderedBoardEdges) {
   std::printf("projected edge points vs rendered edges: %d points, mean %.3f px, worst %.3f px\n",
               measured_edges, sum_image_px / measured_edges, worst_image_px);
 
-  // The overlay itself: the whole scan drawn, then the projected-edges check of the raw
-  // extremes against the true lines. Raw extremes sit inside the board by less than one column
-  // step, which bounds their mean residual.
-  cv::Mat overlay = image.clone();
-  const auto scan_projected = projectCloud(scan, camera, camera_T_lidar, options);
-  ASSERT_TRUE(scan_projected.ok());
-  ASSERT_TRUE(drawProjectedCloud(*scan_projected, OverlayOptions(), &overlay).ok);
-  EdgeCheckOptions edge_options;
-  edge_options.reassociate = false;  // sides are named identically on both sensors here
-  const auto check = checkProjectedEdges(measured, truth, camera, camera_T_lidar, edge_options);
-  ASSERT_TRUE(check.ok()) << check.error();
-  const double column_step_px =
-      camera.intrinsics().fx * spec->horizontal_resolution_deg * kRadPerDeg;
-  EXPECT_LT(check->mlre_px, column_step_px);
-  ASSERT_TRUE(drawEdgeCheck(truth, *check, camera, edge_options, &overlay).ok);
-  const std::string out = ::testing::TempDir() + "board_calib_projection_sim_overlay.png";
-  cv::imwrite(out, overlay);
-  std::printf(
-      "raw per-scan-line extremes: MLRE %.2f px (column step %.1f px); overlay saved to %s\n",
-      check->mlre_px, column_step_px, out.c_str());
+  expectOverlayDrawn(image, scan, measured, truth, camera, camera_T_lidar, *spec);
 }

@@ -25,22 +25,13 @@ struct Scene {
 };
 
 Scene makeScene(unsigned seed, int poses) {
-  std::mt19937 rng(seed);
-  sim::RigSceneOptions so;
-  so.num_poses = poses;
-  auto s = sim::generateRigScene(sim::defaultRig(), so, rng);
+  auto s = sim::defaultRigScene(poses, seed);
   EXPECT_TRUE(s.ok()) << s.error();
   Scene out;
   out.scene = *s;
-  out.target = so.target;
+  out.target = sim::RigSceneOptions().target;
   // The rig file's view of the sensors, with the factory stereo calibration as known extrinsic.
-  for (const auto& sensor : out.scene.sensors) {
-    if (sensor.kind == multi_sensor::SensorKind::kCamera)
-      out.rig.cameras.push_back({sensor.frame, "", "", "", 0, 0, 0});
-    else
-      out.rig.lidars.push_back({sensor.frame, "", "", 0, 0, 0});
-  }
-  out.rig.reference = out.scene.sensors[0].frame;
+  out.rig = sim::rigConfigOf(out.scene);
   KnownExtrinsic stereo;
   stereo.a = out.scene.sensors[0].frame;
   stereo.b = out.scene.sensors[1].frame;

@@ -20,24 +20,13 @@ namespace {
 class RigReportTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    std::mt19937 rng(7);
-    sim::RigSceneOptions options;
-    options.num_poses = 12;
-    auto s = sim::generateRigScene(sim::defaultRig(), options, rng);
+    auto s = sim::defaultRigScene(12, 7);
     ASSERT_TRUE(s.ok()) << s.error();
     scene = *s;
     solution = multi_sensor::solveMsgGraph(scene.problem, multi_sensor::MsgGraphOptions{});
     ASSERT_TRUE(solution.success) << solution.reason;
     result = multi_sensor::msgResultFile(scene.problem, solution);
-    rig.target_path = "board.yaml";
-    for (const auto& sensor : scene.sensors) {
-      if (sensor.kind == multi_sensor::SensorKind::kCamera)
-        rig.cameras.push_back(
-            {sensor.frame, "/i" + sensor.frame, "/c" + sensor.frame, "/f" + sensor.frame});
-      else
-        rig.lidars.push_back({sensor.frame, "/p" + sensor.frame, "/f" + sensor.frame});
-    }
-    rig.reference = scene.sensors.front().frame;
+    rig = sim::rigConfigOf(scene);
   }
   sim::RigScene scene;
   multi_sensor::MsgSolution solution;

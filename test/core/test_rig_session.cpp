@@ -78,10 +78,7 @@ Feed play(RigSession& session, const sim::RigScene& scene, int hold_frames, int 
 class RigSessionTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    std::mt19937 rng(31);
-    sim::RigSceneOptions so;
-    so.num_poses = 25;
-    auto s = sim::generateRigScene(sim::defaultRig(), so, rng);
+    auto s = sim::defaultRigScene(25, 31);
     ASSERT_TRUE(s.ok()) << s.error();
     scene = *s;
     options.stamp_tolerance_s = 0.05;

@@ -193,6 +193,44 @@ TEST(SimScenario, FramesReuseStillRenderAndDifferOnlyByNoise) {
   EXPECT_EQ(cv::norm(again, still_pose0[1].second, cv::NORM_INF), 0.0);
 }
 
+// Lines of sight: ray-cast the first LiDAR to the board's centre, no panel in between.
+void expectBoardInSight(const Scenario& scenario) {
+  auto t = makeTimeline(scenario);
+  ASSERT_TRUE(t.ok()) << t.error();
+  for (const auto& pose : t->world_T_board_poses) {
+    const Eigen::Vector3d centre = pose * scenario.scene.target.center();
+    for (const auto& panel : scenario.scene.panels) {
+      const Eigen::Isometry3d inv = panel.world_T_panel.inverse();
+      const Eigen::Vector3d a0 = inv * worldTLidar(scenario, 0).translation(), b0 = inv * centre;
+      if ((a0.z() > 0) == (b0.z() > 0)) continue;
+      const Eigen::Vector3d q = a0 + (b0 - a0) * (a0.z() / (a0.z() - b0.z()));
+      EXPECT_FALSE(std::abs(q.x()) <= 0.5 * panel.width_m &&
+                   std::abs(q.y()) <= 0.5 * panel.height_m);
+    }
+  }
+}
+
+// A few still images of the scene as binary PPM (rgb) in `dir`, to look at.
+void dumpStillImages(const Scenario& scenario, const char* dir) {
+  auto t = makeTimeline(scenario);
+  auto gen = FrameGenerator::create(scenario);
+  ASSERT_TRUE(gen.ok());
+  for (size_t i = 0; i < t->frames.size(); ++i)
+    if (t->frames[i].is_camera && t->frames[i].still && t->frames[i].pose % 5 == 0) {
+      const cv::Mat image = gen->image(t->frames[i], i);  // bgr8 -> binary PPM (rgb)
+      std::ofstream out(std::string(dir) + "/" + scenario.name + "_" +
+                        std::to_string(t->frames[i].pose) + ".ppm");
+      out << "P6\n" << image.cols << " " << image.rows << "\n255\n";
+      for (int v = 0; v < image.rows; ++v)
+        for (int u = 0; u < image.cols; ++u) {
+          const cv::Vec3b c = image.at<cv::Vec3b>(v, u);
+          out.put(static_cast<char>(c[2]))
+              .put(static_cast<char>(c[1]))
+              .put(static_cast<char>(c[0]));
+        }
+    }
+}
+
 // Seeded clutter and marks: the count asked for, the same layout for the same seed, another
 // for another clutter_seed, marks inside the board, no panel hiding any board pose from any
 // sensor (the pose sampler checks the lines of sight) and far poses (5-14 m) outdoors.
@@ -245,44 +283,9 @@ TEST(SimScenario, SeededClutterAndOutdoorFarPoses) {
   EXPECT_LE(farthest, 14.0);
   EXPECT_GT(farthest - nearest, 4.0) << "poses spread over the distance range";
 
-  // Lines of sight: ray-cast each sensor to the board's centre, no panel in between.
-  for (const auto* s : {&*clutter, &*far}) {
-    auto t = makeTimeline(*s);
-    ASSERT_TRUE(t.ok()) << t.error();
-    for (const auto& pose : t->world_T_board_poses) {
-      const Eigen::Vector3d centre = pose * s->scene.target.center();
-      for (const auto& panel : s->scene.panels) {
-        const Eigen::Isometry3d inv = panel.world_T_panel.inverse();
-        const Eigen::Vector3d a0 = inv * worldTLidar(*s, 0).translation(), b0 = inv * centre;
-        if ((a0.z() > 0) == (b0.z() > 0)) continue;
-        const Eigen::Vector3d q = a0 + (b0 - a0) * (a0.z() / (a0.z() - b0.z()));
-        EXPECT_FALSE(std::abs(q.x()) <= 0.5 * panel.width_m &&
-                     std::abs(q.y()) <= 0.5 * panel.height_m);
-      }
-    }
-  }
-  if (const char* dump =
-          std::getenv("SIM_SCENARIO_DUMP")) {  // eyeball the scenes: writes PNGs there
-    for (const auto* s : {&*clutter, &*far}) {
-      auto t = makeTimeline(*s);
-      auto gen = FrameGenerator::create(*s);
-      ASSERT_TRUE(gen.ok());
-      for (size_t i = 0; i < t->frames.size(); ++i)
-        if (t->frames[i].is_camera && t->frames[i].still && t->frames[i].pose % 5 == 0) {
-          const cv::Mat image = gen->image(t->frames[i], i);  // bgr8 -> binary PPM (rgb)
-          std::ofstream out(std::string(dump) + "/" + s->name + "_" +
-                            std::to_string(t->frames[i].pose) + ".ppm");
-          out << "P6\n" << image.cols << " " << image.rows << "\n255\n";
-          for (int v = 0; v < image.rows; ++v)
-            for (int u = 0; u < image.cols; ++u) {
-              const cv::Vec3b c = image.at<cv::Vec3b>(v, u);
-              out.put(static_cast<char>(c[2]))
-                  .put(static_cast<char>(c[1]))
-                  .put(static_cast<char>(c[0]));
-            }
-        }
-    }
-  }
+  for (const auto* s : {&*clutter, &*far}) expectBoardInSight(*s);
+  if (const char* dump = std::getenv("SIM_SCENARIO_DUMP"))  // eyeball the scenes
+    for (const auto* s : {&*clutter, &*far}) dumpStillImages(*s, dump);
 }
 
 TEST(SimScenario, BadFilesGiveReasonsNamingTheKey) {

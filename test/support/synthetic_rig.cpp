@@ -138,6 +138,37 @@ std::optional<CameraBoardFeatures> observeCamera(const RigSensor& s, const Targe
   return f;
 }
 
+// Plane by PCA of the hits (normal away from the sensor) and a line through each edge's points.
+void fitPlaneAndEdges(const Points3& hits, LidarBoardFeatures* out) {
+  LidarBoardFeatures& f = *out;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : hits) mean += p;
+  mean /= static_cast<double>(hits.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const auto& p : hits) cov += (p - mean) * (p - mean).transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  Eigen::Vector3d n = eig.eigenvectors().col(0);
+  if (n.dot(mean) < 0) n = -n;
+  f.plane.normal = n;
+  f.plane.offset = n.dot(mean);
+  double sq = 0;
+  for (const auto& p : hits) sq += std::pow(f.plane.signedDistance(p), 2);
+  f.plane_rms_m = std::sqrt(sq / hits.size());
+  for (int e = 0; e < kNumEdges; ++e) {
+    const auto& pts = f.edge_points[e];
+    if (pts.size() < 2) continue;
+    Eigen::Vector3d m = Eigen::Vector3d::Zero();
+    for (const auto& p : pts) m += p;
+    m /= static_cast<double>(pts.size());
+    Eigen::Matrix3d c = Eigen::Matrix3d::Zero();
+    for (const auto& p : pts) c += (p - m) * (p - m).transpose();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> le(c);
+    f.edge_line_point[e] = m;
+    f.edge_line_direction[e] = le.eigenvectors().col(2);
+    f.edge_valid[e] = true;
+  }
+}
+
 // LiDAR observation by ray casting; nullopt when too few rings / points hit the board.
 std::optional<LidarBoardFeatures> observeLidar(const RigSensor& s, const RigSceneOptions& opt,
                                                const std::vector<double>& ring_bias,
@@ -204,33 +235,7 @@ std::optional<LidarBoardFeatures> observeLidar(const RigSensor& s, const RigScen
   }
   if (rings_hit < opt.min_lidar_rings || static_cast<int>(hits.size()) < opt.min_lidar_points)
     return std::nullopt;
-  // Plane by PCA of the hits, normal away from the sensor.
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (const auto& p : hits) mean += p;
-  mean /= static_cast<double>(hits.size());
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  for (const auto& p : hits) cov += (p - mean) * (p - mean).transpose();
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-  Eigen::Vector3d n = eig.eigenvectors().col(0);
-  if (n.dot(mean) < 0) n = -n;
-  f.plane.normal = n;
-  f.plane.offset = n.dot(mean);
-  double sq = 0;
-  for (const auto& p : hits) sq += std::pow(f.plane.signedDistance(p), 2);
-  f.plane_rms_m = std::sqrt(sq / hits.size());
-  for (int e = 0; e < kNumEdges; ++e) {
-    const auto& pts = f.edge_points[e];
-    if (pts.size() < 2) continue;
-    Eigen::Vector3d m = Eigen::Vector3d::Zero();
-    for (const auto& p : pts) m += p;
-    m /= static_cast<double>(pts.size());
-    Eigen::Matrix3d c = Eigen::Matrix3d::Zero();
-    for (const auto& p : pts) c += (p - m) * (p - m).transpose();
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> le(c);
-    f.edge_line_point[e] = m;
-    f.edge_line_direction[e] = le.eigenvectors().col(2);
-    f.edge_valid[e] = true;
-  }
+  fitPlaneAndEdges(hits, &f);
   // Uniform subsample of the board points (the plane above used all of them).
   if (s.max_board_points > 0 && static_cast<int>(hits.size()) > s.max_board_points) {
     std::shuffle(hits.begin(), hits.end(), rng);
@@ -409,6 +414,31 @@ Expected<RigScene> generateRigScene(const std::vector<RigSensor>& sensors,
     scene.reference_T_board.push_back(ref_T_board);
   }
   return scene;
+}
+
+Expected<RigScene> rigScene(const std::vector<RigSensor>& sensors, int num_poses, unsigned seed) {
+  std::mt19937 rng(seed);
+  RigSceneOptions options;
+  options.num_poses = num_poses;
+  return generateRigScene(sensors, options, rng);
+}
+
+Expected<RigScene> defaultRigScene(int num_poses, unsigned seed) {
+  return rigScene(defaultRig(), num_poses, seed);
+}
+
+RigConfig rigConfigOf(const RigScene& scene) {
+  RigConfig rig;
+  rig.target_path = "board.yaml";
+  for (const auto& sensor : scene.sensors) {
+    const std::string& f = sensor.frame;
+    if (sensor.kind == multi_sensor::SensorKind::kCamera)
+      rig.cameras.push_back({f, f + "/image_raw", f + "/camera_info", f + "/camera_board"});
+    else
+      rig.lidars.push_back({f, f + "/points", f + "/lidar_board"});
+  }
+  rig.reference = scene.sensors.front().frame;
+  return rig;
 }
 
 }  // namespace sim

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <board_calib/core/msg_graph/msg_graph.h>
+#include <board_calib/core/rig/rig_config.h>
 #include <board_calib/core/target.h>
 
 #include <random>
@@ -70,6 +71,16 @@ struct RigScene {
 /// share too little field of view.
 Expected<RigScene> generateRigScene(const std::vector<RigSensor>& sensors,
                                     const RigSceneOptions& options, std::mt19937& rng);
+
+/// `sensors` seeing `num_poses` board poses (default scene options) drawn from `seed`.
+Expected<RigScene> rigScene(const std::vector<RigSensor>& sensors, int num_poses, unsigned seed);
+/// The reference rig (defaultRig) with `num_poses` board poses drawn from `seed`: the fixture
+/// of the rig session, report and calibration tests.
+Expected<RigScene> defaultRigScene(int num_poses, unsigned seed);
+
+/// The rig file of a scene: every sensor named by its frame (topics derived from it, as a rig
+/// file gives them), the first sensor the reference.
+RigConfig rigConfigOf(const RigScene& scene);
 
 }  // namespace sim
 }  // namespace board_calib

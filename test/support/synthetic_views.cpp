@@ -153,23 +153,268 @@ Eigen::Isometry3d randomCameraTLidar(std::mt19937& rng, double max_extra_rotatio
   return T;
 }
 
+namespace {
+
+// The board's geometry and the sensors' intrinsics every view is drawn with.
+struct Setup {
+  Eigen::Matrix3d K;
+  double w = 0.0, h = 0.0;
+  std::array<Eigen::Vector3d, 4> board_corners;
+  double step = 0.0, half_fov = 0.0;  // rad: LiDAR horizontal step, half vertical field of view
+};
+
+// A random board pose in the camera frame (held as a diamond, tilted, off axis); `centre` is
+// the board centre.
+Eigen::Isometry3d drawBoardPose(const SyntheticFeatureOptions& o, const Setup& g, std::mt19937& rng,
+                                Eigen::Vector3d* centre_out) {
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  const Eigen::Matrix3d& K = g.K;
+  const double w = g.w, h = g.h;
+  const double u = o.cx + (2 * uniform(rng) - 1) * o.max_off_axis_fraction * 0.5 * o.image_width;
+  const double v = o.cy + (2 * uniform(rng) - 1) * o.max_off_axis_fraction * 0.5 * o.image_height;
+  const Eigen::Vector3d ray = K.inverse() * Eigen::Vector3d(u, v, 1.0);
+  const Eigen::Vector3d ray_dir = ray.normalized();
+  const double dist = o.min_distance_m + uniform(rng) * (o.max_distance_m - o.min_distance_m);
+  const Eigen::Vector3d centre = ray_dir * dist;
+  *centre_out = centre;
+  const Eigen::Vector3d tilt_axis =
+      expSO3(ray_dir * uniform(rng) * 2 * M_PI) * anyPerpendicular(ray_dir);
+  const Eigen::Vector3d z =
+      expSO3(tilt_axis * uniform(rng) * o.max_tilt_deg * kRadPerDeg) * ray_dir;
+  Eigen::Vector3d x = (Eigen::Vector3d::UnitX() - z * z.x()).normalized();
+  const double spin = (45.0 + (2 * uniform(rng) - 1) * o.diamond_jitter_deg) * kRadPerDeg;
+  x = expSO3(z * spin) * x;
+  const Eigen::Vector3d y = z.cross(x);
+  Eigen::Isometry3d camera_T_board = Eigen::Isometry3d::Identity();
+  camera_T_board.linear().col(0) = x;
+  camera_T_board.linear().col(1) = y;
+  camera_T_board.linear().col(2) = z;
+  camera_T_board.translation() =
+      centre - camera_T_board.linear() * Eigen::Vector3d(w / 2, h / 2, 0);
+
+  return camera_T_board;
+}
+
+// Every corner inside the image (with a margin) and the LiDAR's vertical field of view, in front
+// of both; `px` the corners' pixels, `lc` the corners in the LiDAR frame.
+bool visibleInBoth(const SyntheticFeatureOptions& o, const Setup& g,
+                   const Eigen::Isometry3d& camera_T_board, const Eigen::Isometry3d& lidar_T_camera,
+                   std::array<Eigen::Vector2d, 4>* px_out, std::array<Eigen::Vector3d, 4>* lc_out) {
+  const Eigen::Matrix3d& K = g.K;
+  const auto& board_corners = g.board_corners;
+  std::array<Eigen::Vector2d, 4>& px = *px_out;
+  std::array<Eigen::Vector3d, 4>& lc = *lc_out;
+  // Camera: all corners inside the image.
+  bool visible = true;
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector3d pc = camera_T_board * board_corners[i];
+    if (pc.z() <= 0) visible = false;
+    const Eigen::Vector3d uv = K * (pc / pc.z());
+    px[i] = uv.head<2>();
+    if (px[i].x() < kImageMarginPx || px[i].y() < kImageMarginPx ||
+        px[i].x() > o.image_width - kImageMarginPx || px[i].y() > o.image_height - kImageMarginPx)
+      visible = false;
+  }
+  if (!visible) return false;
+  // LiDAR: all corners inside the vertical field of view, in front.
+  const Eigen::Isometry3d lidar_T_board = lidar_T_camera * camera_T_board;
+  for (int i = 0; i < 4; ++i) {
+    lc[i] = lidar_T_board * board_corners[i];
+    const double elev = std::atan2(lc[i].z(), lc[i].head<2>().norm());
+    if (std::abs(elev) > g.half_fov - kLidarFovMarginDeg * kRadPerDeg || lc[i].x() <= 0)
+      visible = false;
+  }
+  return visible;
+}
+
+// LiDAR ray casting: rings x azimuth grid with a random phase, range noise along the ray; the
+// per-ring extremes are the edge points. False when the board got too few points.
+bool castLidar(const SyntheticFeatureOptions& o, const Setup& g,
+               const Eigen::Isometry3d& lidar_T_board, const std::array<Eigen::Vector3d, 4>& lc,
+               std::mt19937& rng, std::normal_distribution<double>& normal, View* view_out) {
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  const double w = g.w, h = g.h, step = g.step, half_fov = g.half_fov;
+  View& view = *view_out;
+  // LiDAR ray casting: rings x azimuth grid with a random phase.
+  const Eigen::Vector3d nL = lidar_T_board.linear().col(2);
+  const double dL = nL.dot(lidar_T_board.translation());
+  const Eigen::Isometry3d board_T_lidar = lidar_T_board.inverse();
+  double az_min = 1e9, az_max = -1e9;
+  const Eigen::Vector3d lcentre = lidar_T_board * Eigen::Vector3d(w / 2, h / 2, 0);
+  const double az_centre = std::atan2(lcentre.y(), lcentre.x());
+  for (const auto& c : lc) {
+    const double a = std::remainder(std::atan2(c.y(), c.x()) - az_centre, 2 * M_PI);
+    az_min = std::min(az_min, a);
+    az_max = std::max(az_max, a);
+  }
+  // Corner elevations of the left-most (max azimuth) and right-most corners.
+  int left_corner = 0, right_corner = 0;
+  for (int i = 0; i < 4; ++i) {
+    const double a = std::remainder(std::atan2(lc[i].y(), lc[i].x()) - az_centre, 2 * M_PI);
+    const double al =
+        std::remainder(std::atan2(lc[left_corner].y(), lc[left_corner].x()) - az_centre, 2 * M_PI);
+    const double ar = std::remainder(
+        std::atan2(lc[right_corner].y(), lc[right_corner].x()) - az_centre, 2 * M_PI);
+    if (a > al) left_corner = i;
+    if (a < ar) right_corner = i;
+  }
+  auto elevation = [](const Eigen::Vector3d& p) { return std::atan2(p.z(), p.head<2>().norm()); };
+  const double left_elev = elevation(lc[left_corner]), right_elev = elevation(lc[right_corner]);
+
+  LidarBoardFeatures& lidar = view.lidar;
+  lidar.frame_id = "lidar";
+  lidar.stamp = view.id;
+  const double phase = uniform(rng) * step;
+  const double az_grid0 = az_centre + phase;
+  const int m_lo = static_cast<int>(std::floor(az_min / step)) - 1,
+            m_hi = static_cast<int>(std::ceil(az_max / step)) + 1;
+  Points3 board_points;
+  for (int ring = 0; ring < o.lidar_rings; ++ring) {
+    const double elev = -half_fov + 2 * half_fov * ring / (o.lidar_rings - 1);
+    Points3 ring_points;  // in increasing azimuth
+    for (int m = m_lo; m <= m_hi; ++m) {
+      const double az = az_grid0 + m * step;
+      const Eigen::Vector3d d(std::cos(elev) * std::cos(az), std::cos(elev) * std::sin(az),
+                              std::sin(elev));
+      const double denom = nL.dot(d);
+      if (std::abs(denom) < 1e-9) continue;
+      const double range = dL / denom;
+      if (range <= 0) continue;
+      const Eigen::Vector3d q = board_T_lidar * (range * d);
+      if (q.x() < 0 || q.x() > w || q.y() < 0 || q.y() > h) continue;
+      ring_points.push_back((range + o.lidar_range_noise_m * normal(rng)) * d);
+    }
+    if (static_cast<int>(ring_points.size()) < kMinRingPoints) {
+      board_points.insert(board_points.end(), ring_points.begin(), ring_points.end());
+      continue;
+    }
+    // Per-scan-line extremes: the last point (max azimuth) is the left one.
+    const Eigen::Vector3d& left = ring_points.back();
+    const Eigen::Vector3d& right = ring_points.front();
+    lidar.edge_points[elev > left_elev ? kUpperLeft : kLowerLeft].push_back(left);
+    lidar.edge_points[elev > right_elev ? kUpperRight : kLowerRight].push_back(right);
+    board_points.insert(board_points.end(), ring_points.begin(), ring_points.end());
+  }
+  if (board_points.size() < 10) return false;
+  std::shuffle(board_points.begin(), board_points.end(), rng);
+  if (o.max_board_points > 0 && static_cast<int>(board_points.size()) > o.max_board_points)
+    board_points.resize(o.max_board_points);
+  lidar.board_points = board_points;
+  return true;
+}
+
+// The LiDAR's plane, edge lines, corners and measured size from its points.
+void fitLidarFeatures(LidarBoardFeatures& lidar) {
+  lidar.plane = fitPlane(lidar.board_points, &lidar.plane_rms_m);
+  lidar.found = true;
+  for (int j = 0; j < kNumEdges; ++j) {
+    lidar.edge_valid[j] = static_cast<int>(lidar.edge_points[j].size()) >= kMinEdgePoints;
+    if (lidar.edge_valid[j])
+      fitLine(lidar.edge_points[j], &lidar.edge_line_point[j], &lidar.edge_line_direction[j]);
+  }
+  for (int j = 0; j < kNumEdges; ++j) {
+    const int k = (j + 1) % kNumEdges;
+    if (lidar.edge_valid[j] && lidar.edge_valid[k])
+      lidar.corners[j] = closestPoint(lidar.edge_line_point[j], lidar.edge_line_direction[j],
+                                      lidar.edge_line_point[k], lidar.edge_line_direction[k]);
+  }
+  if (lidar.allEdgesValid())
+    lidar.measured_size_m = Eigen::Vector2d(0.5 * ((lidar.corners[3] - lidar.corners[0]).norm() +
+                                                   (lidar.corners[2] - lidar.corners[1]).norm()),
+                                            0.5 * ((lidar.corners[1] - lidar.corners[0]).norm() +
+                                                   (lidar.corners[3] - lidar.corners[2]).norm()));
+}
+
+// Camera: corners named top/right/bottom/left in the image, edge lines with pixel noise, the
+// board plane as PnP with the declared board size gives it.
+void observeCamera(const SyntheticFeatureOptions& o, const Setup& g,
+                   const Eigen::Isometry3d& camera_T_board, const Eigen::Vector3d& centre,
+                   const std::array<Eigen::Vector2d, 4>& px, std::mt19937& rng,
+                   std::normal_distribution<double>& normal, CameraBoardFeatures* cam_out) {
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  const Eigen::Matrix3d& K = g.K;
+  const double w = g.w, h = g.h;
+  const auto& board_corners = g.board_corners;
+  CameraBoardFeatures& cam = *cam_out;
+  // Edge j runs from corner j-1 to j.
+  cam.frame_id = "camera";
+  cam.found = true;
+  cam.K = K;
+  cam.image_width = o.image_width;
+  cam.image_height = o.image_height;
+  std::array<int, 4> named{};  // top, right, bottom, left -> board corner index
+  for (int i = 0; i < 4; ++i) {
+    if (px[i].y() < px[named[0]].y()) named[0] = i;
+    if (px[i].x() > px[named[1]].x()) named[1] = i;
+    if (px[i].y() > px[named[2]].y()) named[2] = i;
+    if (px[i].x() < px[named[3]].x()) named[3] = i;
+  }
+  const Eigen::Vector3d pcentre = K * (centre / centre.z());
+  for (int j = 0; j < kNumEdges; ++j) {
+    const Eigen::Vector2d a = px[named[(j + 3) % 4]], b = px[named[j]];
+    const Eigen::Vector2d ab = (b - a).normalized();
+    const Eigen::Vector2d perp(-ab.y(), ab.x());
+    const Eigen::Vector2d an = a + perp * o.line_noise_px * normal(rng);
+    const Eigen::Vector2d bn = b + perp * o.line_noise_px * normal(rng);
+    cam.edge_lines[j] = lineThrough(an, bn, pcentre.head<2>());
+    cam.edge_valid[j] = true;
+  }
+  for (int j = 0; j < kNumEdges; ++j)
+    cam.corners_px[j] = intersect(cam.edge_lines[j], cam.edge_lines[(j + 1) % 4]);
+  // Camera plane: what PnP with the declared board size gives (translation scales), plus noise.
+  Eigen::Isometry3d declared = camera_T_board;
+  declared.translation() *= o.declared_size_factor;
+  Eigen::Vector3d n = camera_T_board.linear().col(2);
+  const Eigen::Vector3d tilt_dir = anyPerpendicular(n);
+  n = expSO3(expSO3(n * uniform(rng) * 2 * M_PI) * tilt_dir * o.camera_plane_normal_noise_deg *
+             kRadPerDeg * normal(rng)) *
+      n;
+  cam.camera_T_board = declared;
+  cam.plane.normal = n.normalized();
+  cam.plane.offset = cam.plane.normal.dot(declared.linear() * Eigen::Vector3d(w / 2, h / 2, 0) *
+                                              o.declared_size_factor +
+                                          declared.translation()) +
+                     o.camera_plane_offset_noise_m * normal(rng);
+  if (o.camera_plane_from_pnp) {
+    // corners_px[j] is the image corner named[j] (edges j and j + 1 meet there).
+    std::array<Eigen::Vector3d, 4> object;
+    std::array<Eigen::Vector2d, 4> image;
+    for (int j = 0; j < 4; ++j) {
+      object[j] = board_corners[named[j]] * o.declared_size_factor;
+      image[j] = cam.corners_px[j];
+    }
+    Eigen::Isometry3d start = camera_T_board;
+    start.translation() *= o.declared_size_factor;
+    cam.camera_T_board = refinePnp(object, image, K, start);
+    cam.plane.normal = cam.camera_T_board.linear().col(2);
+    cam.plane.offset = cam.plane.normal.dot(cam.camera_T_board.translation());
+    if (cam.plane.offset < 0) {
+      cam.plane.normal = -cam.plane.normal;
+      cam.plane.offset = -cam.plane.offset;
+    }
+  }
+}
+
+}  // namespace
+
 Expected<SyntheticScene> generateSyntheticViews(const SyntheticFeatureOptions& o,
                                                 const Eigen::Isometry3d& camera_T_lidar,
                                                 std::mt19937& rng) {
   const std::string invalid = o.validate();
   if (!invalid.empty())
     return Expected<SyntheticScene>::failure("invalid synthetic options: " + invalid);
-  std::uniform_real_distribution<double> uniform(0.0, 1.0);
-  std::normal_distribution<double> normal(0.0, 1.0);
-  Eigen::Matrix3d K;
-  K << o.fx, 0, o.cx, 0, o.fy, o.cy, 0, 0, 1;
+  Setup g;
+  g.K << o.fx, 0, o.cx, 0, o.fy, o.cy, 0, 0, 1;
+  g.w = o.board_width_m;
+  g.h = o.board_height_m;
+  g.board_corners = {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(g.w, 0, 0),
+                     Eigen::Vector3d(g.w, g.h, 0), Eigen::Vector3d(0, g.h, 0)};
+  g.step = o.lidar_horizontal_resolution_deg * kRadPerDeg;
+  g.half_fov = 0.5 * o.lidar_vertical_fov_deg * kRadPerDeg;
   const Eigen::Isometry3d lidar_T_camera = camera_T_lidar.inverse();
-  const double w = o.board_width_m, h = o.board_height_m;
-  const std::array<Eigen::Vector3d, 4> board_corners = {
-      Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(w, 0, 0), Eigen::Vector3d(w, h, 0),
-      Eigen::Vector3d(0, h, 0)};
-  const double step = o.lidar_horizontal_resolution_deg * kRadPerDeg;
-  const double half_fov = 0.5 * o.lidar_vertical_fov_deg * kRadPerDeg;
+  // One normal distribution for the whole scene: it keeps a spare draw between calls, so the
+  // sequence (and every seeded test's scene) stays the same.
+  std::normal_distribution<double> normal(0.0, 1.0);
 
   SyntheticScene scene;
   scene.camera_T_lidar = camera_T_lidar;
@@ -178,197 +423,17 @@ Expected<SyntheticScene> generateSyntheticViews(const SyntheticFeatureOptions& o
     if (++attempts > kMaxAttemptsPerView * o.num_views)
       return Expected<SyntheticScene>::failure("only " + std::to_string(scene.views.size()) +
                                                " board poses fit both fields of view");
-    // Board pose in the camera frame.
-    const double u = o.cx + (2 * uniform(rng) - 1) * o.max_off_axis_fraction * 0.5 * o.image_width;
-    const double v = o.cy + (2 * uniform(rng) - 1) * o.max_off_axis_fraction * 0.5 * o.image_height;
-    const Eigen::Vector3d ray = K.inverse() * Eigen::Vector3d(u, v, 1.0);
-    const Eigen::Vector3d ray_dir = ray.normalized();
-    const double dist = o.min_distance_m + uniform(rng) * (o.max_distance_m - o.min_distance_m);
-    const Eigen::Vector3d centre = ray_dir * dist;
-    const Eigen::Vector3d tilt_axis =
-        expSO3(ray_dir * uniform(rng) * 2 * M_PI) * anyPerpendicular(ray_dir);
-    const Eigen::Vector3d z =
-        expSO3(tilt_axis * uniform(rng) * o.max_tilt_deg * kRadPerDeg) * ray_dir;
-    Eigen::Vector3d x = (Eigen::Vector3d::UnitX() - z * z.x()).normalized();
-    const double spin = (45.0 + (2 * uniform(rng) - 1) * o.diamond_jitter_deg) * kRadPerDeg;
-    x = expSO3(z * spin) * x;
-    const Eigen::Vector3d y = z.cross(x);
-    Eigen::Isometry3d camera_T_board = Eigen::Isometry3d::Identity();
-    camera_T_board.linear().col(0) = x;
-    camera_T_board.linear().col(1) = y;
-    camera_T_board.linear().col(2) = z;
-    camera_T_board.translation() =
-        centre - camera_T_board.linear() * Eigen::Vector3d(w / 2, h / 2, 0);
-
-    // Camera: all corners inside the image.
+    Eigen::Vector3d centre;
+    const Eigen::Isometry3d camera_T_board = drawBoardPose(o, g, rng, &centre);
     std::array<Eigen::Vector2d, 4> px;
-    bool visible = true;
-    for (int i = 0; i < 4; ++i) {
-      const Eigen::Vector3d pc = camera_T_board * board_corners[i];
-      if (pc.z() <= 0) visible = false;
-      const Eigen::Vector3d uv = K * (pc / pc.z());
-      px[i] = uv.head<2>();
-      if (px[i].x() < kImageMarginPx || px[i].y() < kImageMarginPx ||
-          px[i].x() > o.image_width - kImageMarginPx || px[i].y() > o.image_height - kImageMarginPx)
-        visible = false;
-    }
-    if (!visible) continue;
-    // LiDAR: all corners inside the vertical field of view, in front.
-    const Eigen::Isometry3d lidar_T_board = lidar_T_camera * camera_T_board;
     std::array<Eigen::Vector3d, 4> lc;
-    for (int i = 0; i < 4; ++i) {
-      lc[i] = lidar_T_board * board_corners[i];
-      const double elev = std::atan2(lc[i].z(), lc[i].head<2>().norm());
-      if (std::abs(elev) > half_fov - kLidarFovMarginDeg * kRadPerDeg || lc[i].x() <= 0)
-        visible = false;
-    }
-    if (!visible) continue;
-
-    // LiDAR ray casting: rings x azimuth grid with a random phase.
-    const Eigen::Vector3d nL = lidar_T_board.linear().col(2);
-    const double dL = nL.dot(lidar_T_board.translation());
-    const Eigen::Isometry3d board_T_lidar = lidar_T_board.inverse();
-    double az_min = 1e9, az_max = -1e9;
-    const Eigen::Vector3d lcentre = lidar_T_board * Eigen::Vector3d(w / 2, h / 2, 0);
-    const double az_centre = std::atan2(lcentre.y(), lcentre.x());
-    for (const auto& c : lc) {
-      const double a = std::remainder(std::atan2(c.y(), c.x()) - az_centre, 2 * M_PI);
-      az_min = std::min(az_min, a);
-      az_max = std::max(az_max, a);
-    }
-    // Corner elevations of the left-most (max azimuth) and right-most corners.
-    int left_corner = 0, right_corner = 0;
-    for (int i = 0; i < 4; ++i) {
-      const double a = std::remainder(std::atan2(lc[i].y(), lc[i].x()) - az_centre, 2 * M_PI);
-      const double al = std::remainder(
-          std::atan2(lc[left_corner].y(), lc[left_corner].x()) - az_centre, 2 * M_PI);
-      const double ar = std::remainder(
-          std::atan2(lc[right_corner].y(), lc[right_corner].x()) - az_centre, 2 * M_PI);
-      if (a > al) left_corner = i;
-      if (a < ar) right_corner = i;
-    }
-    auto elevation = [](const Eigen::Vector3d& p) { return std::atan2(p.z(), p.head<2>().norm()); };
-    const double left_elev = elevation(lc[left_corner]), right_elev = elevation(lc[right_corner]);
-
+    if (!visibleInBoth(o, g, camera_T_board, lidar_T_camera, &px, &lc)) continue;
     View view;
     view.id = static_cast<int>(scene.views.size());
-    LidarBoardFeatures& lidar = view.lidar;
-    lidar.frame_id = "lidar";
-    lidar.stamp = view.id;
-    const double phase = uniform(rng) * step;
-    const double az_grid0 = az_centre + phase;
-    const int m_lo = static_cast<int>(std::floor(az_min / step)) - 1,
-              m_hi = static_cast<int>(std::ceil(az_max / step)) + 1;
-    Points3 board_points;
-    for (int ring = 0; ring < o.lidar_rings; ++ring) {
-      const double elev = -half_fov + 2 * half_fov * ring / (o.lidar_rings - 1);
-      Points3 ring_points;  // in increasing azimuth
-      for (int m = m_lo; m <= m_hi; ++m) {
-        const double az = az_grid0 + m * step;
-        const Eigen::Vector3d d(std::cos(elev) * std::cos(az), std::cos(elev) * std::sin(az),
-                                std::sin(elev));
-        const double denom = nL.dot(d);
-        if (std::abs(denom) < 1e-9) continue;
-        const double range = dL / denom;
-        if (range <= 0) continue;
-        const Eigen::Vector3d q = board_T_lidar * (range * d);
-        if (q.x() < 0 || q.x() > w || q.y() < 0 || q.y() > h) continue;
-        ring_points.push_back((range + o.lidar_range_noise_m * normal(rng)) * d);
-      }
-      if (static_cast<int>(ring_points.size()) < kMinRingPoints) {
-        board_points.insert(board_points.end(), ring_points.begin(), ring_points.end());
-        continue;
-      }
-      // Per-scan-line extremes: the last point (max azimuth) is the left one.
-      const Eigen::Vector3d& left = ring_points.back();
-      const Eigen::Vector3d& right = ring_points.front();
-      lidar.edge_points[elev > left_elev ? kUpperLeft : kLowerLeft].push_back(left);
-      lidar.edge_points[elev > right_elev ? kUpperRight : kLowerRight].push_back(right);
-      board_points.insert(board_points.end(), ring_points.begin(), ring_points.end());
-    }
-    if (board_points.size() < 10) continue;
-    std::shuffle(board_points.begin(), board_points.end(), rng);
-    if (o.max_board_points > 0 && static_cast<int>(board_points.size()) > o.max_board_points)
-      board_points.resize(o.max_board_points);
-    lidar.board_points = board_points;
-    lidar.plane = fitPlane(lidar.board_points, &lidar.plane_rms_m);
-    lidar.found = true;
-    for (int j = 0; j < kNumEdges; ++j) {
-      lidar.edge_valid[j] = static_cast<int>(lidar.edge_points[j].size()) >= kMinEdgePoints;
-      if (lidar.edge_valid[j])
-        fitLine(lidar.edge_points[j], &lidar.edge_line_point[j], &lidar.edge_line_direction[j]);
-    }
-    for (int j = 0; j < kNumEdges; ++j) {
-      const int k = (j + 1) % kNumEdges;
-      if (lidar.edge_valid[j] && lidar.edge_valid[k])
-        lidar.corners[j] = closestPoint(lidar.edge_line_point[j], lidar.edge_line_direction[j],
-                                        lidar.edge_line_point[k], lidar.edge_line_direction[k]);
-    }
-    if (lidar.allEdgesValid())
-      lidar.measured_size_m = Eigen::Vector2d(0.5 * ((lidar.corners[3] - lidar.corners[0]).norm() +
-                                                     (lidar.corners[2] - lidar.corners[1]).norm()),
-                                              0.5 * ((lidar.corners[1] - lidar.corners[0]).norm() +
-                                                     (lidar.corners[3] - lidar.corners[2]).norm()));
-
-    // Camera: corners named top/right/bottom/left in the image; edge j runs from corner j-1 to j.
-    CameraBoardFeatures& cam = view.camera;
-    cam.frame_id = "camera";
-    cam.stamp = view.id;
-    cam.found = true;
-    cam.K = K;
-    cam.image_width = o.image_width;
-    cam.image_height = o.image_height;
-    std::array<int, 4> named{};  // top, right, bottom, left -> board corner index
-    for (int i = 0; i < 4; ++i) {
-      if (px[i].y() < px[named[0]].y()) named[0] = i;
-      if (px[i].x() > px[named[1]].x()) named[1] = i;
-      if (px[i].y() > px[named[2]].y()) named[2] = i;
-      if (px[i].x() < px[named[3]].x()) named[3] = i;
-    }
-    const Eigen::Vector3d pcentre = K * (centre / centre.z());
-    for (int j = 0; j < kNumEdges; ++j) {
-      const Eigen::Vector2d a = px[named[(j + 3) % 4]], b = px[named[j]];
-      const Eigen::Vector2d ab = (b - a).normalized();
-      const Eigen::Vector2d perp(-ab.y(), ab.x());
-      const Eigen::Vector2d an = a + perp * o.line_noise_px * normal(rng);
-      const Eigen::Vector2d bn = b + perp * o.line_noise_px * normal(rng);
-      cam.edge_lines[j] = lineThrough(an, bn, pcentre.head<2>());
-      cam.edge_valid[j] = true;
-    }
-    for (int j = 0; j < kNumEdges; ++j)
-      cam.corners_px[j] = intersect(cam.edge_lines[j], cam.edge_lines[(j + 1) % 4]);
-    // Camera plane: what PnP with the declared board size gives (translation scales), plus noise.
-    Eigen::Isometry3d declared = camera_T_board;
-    declared.translation() *= o.declared_size_factor;
-    Eigen::Vector3d n = camera_T_board.linear().col(2);
-    const Eigen::Vector3d tilt_dir = anyPerpendicular(n);
-    n = expSO3(expSO3(n * uniform(rng) * 2 * M_PI) * tilt_dir * o.camera_plane_normal_noise_deg *
-               kRadPerDeg * normal(rng)) *
-        n;
-    cam.camera_T_board = declared;
-    cam.plane.normal = n.normalized();
-    cam.plane.offset = cam.plane.normal.dot(declared.linear() * Eigen::Vector3d(w / 2, h / 2, 0) *
-                                                o.declared_size_factor +
-                                            declared.translation()) +
-                       o.camera_plane_offset_noise_m * normal(rng);
-    if (o.camera_plane_from_pnp) {
-      // corners_px[j] is the image corner named[j] (edges j and j + 1 meet there).
-      std::array<Eigen::Vector3d, 4> object;
-      std::array<Eigen::Vector2d, 4> image;
-      for (int j = 0; j < 4; ++j) {
-        object[j] = board_corners[named[j]] * o.declared_size_factor;
-        image[j] = cam.corners_px[j];
-      }
-      Eigen::Isometry3d start = camera_T_board;
-      start.translation() *= o.declared_size_factor;
-      cam.camera_T_board = refinePnp(object, image, K, start);
-      cam.plane.normal = cam.camera_T_board.linear().col(2);
-      cam.plane.offset = cam.plane.normal.dot(cam.camera_T_board.translation());
-      if (cam.plane.offset < 0) {
-        cam.plane.normal = -cam.plane.normal;
-        cam.plane.offset = -cam.plane.offset;
-      }
-    }
+    if (!castLidar(o, g, lidar_T_camera * camera_T_board, lc, rng, normal, &view)) continue;
+    fitLidarFeatures(view.lidar);
+    view.camera.stamp = view.id;
+    observeCamera(o, g, camera_T_board, centre, px, rng, normal, &view.camera);
     scene.views.push_back(view);
     scene.camera_T_board.push_back(camera_T_board);
   }

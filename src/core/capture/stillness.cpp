@@ -98,6 +98,73 @@ const char* stillStateName(StillState state) {
   return "unknown";
 }
 
+namespace {
+
+// One stream's frames in [stamp - window, stamp + window] against the one nearest the moment;
+// false with `j` set when they show motion, a lost board or (the fastest stream) too few frames.
+bool streamStill(const StillnessStream& stream, bool is_fastest, double stamp,
+                 double fastest_interval, const StillnessOptions& o, StillnessJudgement* j) {
+  const double lo = stamp - o.window_s, hi = stamp + o.window_s;
+  const auto& samples = *stream.samples;
+  // Reference: the frame nearest the moment that sees the board.
+  const BoardSample* ref = nullptr;
+  for (const auto& x : samples)
+    if (x.found && x.stamp >= lo && x.stamp <= hi &&
+        (!ref || std::abs(x.stamp - stamp) < std::abs(ref->stamp - stamp)))
+      ref = &x;
+  int before = 0, after = 0, count = 0, missing = 0;
+  for (const auto& x : samples) {
+    if (x.stamp < lo || x.stamp > hi) continue;
+    // A detector misses a still board now and then: such a frame is no evidence either way.
+    if (!x.found) {
+      ++missing;
+      continue;
+    }
+    ++count;
+    if (x.stamp < stamp) ++before;
+    if (x.stamp > stamp) ++after;
+    const double move = (x.centre - ref->centre).norm();
+    const double move_tol =
+        o.max_translation_m + o.noise_factor * std::hypot(x.centre_sigma_m, ref->centre_sigma_m);
+    const double turn = angleRad(x.normal, ref->normal);
+    const double turn_tol = o.max_rotation_deg / kDegPerRadian +
+                            o.noise_factor * std::hypot(x.normal_sigma_rad, ref->normal_sigma_rad);
+    if (move > move_tol || turn > turn_tol) {
+      j->state = StillState::kMoving;
+      j->why = "board moving: " + stream.name + " saw it move " + formatFixed(move * 100, 1) +
+               " cm, turn " + formatFixed(turn * kDegPerRadian, 1) + " deg within " +
+               formatFixed(o.window_s, 2) + " s of the image (allowed " +
+               formatFixed(move_tol * 100, 1) + " cm, " + formatFixed(turn_tol * kDegPerRadian, 1) +
+               " deg)";
+      return false;
+    }
+  }
+  // Lost in most of the window: the board left the view (or was never there).
+  if (missing > 0 && missing >= count) {
+    j->state = StillState::kNoBoard;
+    j->why = stream.name + " lost the board in " + std::to_string(missing) + " of " +
+             std::to_string(missing + count) + " frames within " + formatFixed(o.window_s, 2) +
+             " s of the image";
+    return false;
+  }
+  if (is_fastest) {
+    j->fastest_frames = count;
+    // Frames on both sides: the board was still across the moment, not only up to it.
+    if (count < o.min_frames || before == 0 || after == 0) {
+      j->state = StillState::kTooFewFrames;
+      j->why = stream.name + " (the fastest stream, " + formatFixed(fastest_interval * 1e3, 0) +
+               " ms between frames) has " + std::to_string(count) + " frame(s) within " +
+               formatFixed(o.window_s, 2) + " s of the image (" + std::to_string(before) +
+               " before, " + std::to_string(after) + " after; need " +
+               std::to_string(o.min_frames) + " spanning it)";
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
 StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, double stamp,
                                   const StillnessOptions& o, bool ended) {
   StillnessJudgement j;
@@ -136,74 +203,29 @@ StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, d
     j.why = "too few frames to measure any stream's rate";
     return j;
   }
-  const double lo = stamp - o.window_s, hi = stamp + o.window_s;
+  const double hi = stamp + o.window_s;
   const StillnessStream& fast = streams[static_cast<size_t>(j.fastest_stream)];
   if (!ended && fast.clock->newest() < hi) return j;  // the window is not complete yet
 
-  for (size_t s = 0; s < streams.size(); ++s) {
-    if (!streams[s].judged) continue;
-    const auto& samples = *streams[s].samples;
-    // Reference: the frame nearest the moment that sees the board.
-    const BoardSample* ref = nullptr;
-    for (const auto& x : samples)
-      if (x.found && x.stamp >= lo && x.stamp <= hi &&
-          (!ref || std::abs(x.stamp - stamp) < std::abs(ref->stamp - stamp)))
-        ref = &x;
-    int before = 0, after = 0, count = 0, missing = 0;
-    for (const auto& x : samples) {
-      if (x.stamp < lo || x.stamp > hi) continue;
-      // A detector misses a still board now and then: such a frame is no evidence either way.
-      if (!x.found) {
-        ++missing;
-        continue;
-      }
-      ++count;
-      if (x.stamp < stamp) ++before;
-      if (x.stamp > stamp) ++after;
-      const double move = (x.centre - ref->centre).norm();
-      const double move_tol =
-          o.max_translation_m + o.noise_factor * std::hypot(x.centre_sigma_m, ref->centre_sigma_m);
-      const double turn = angleRad(x.normal, ref->normal);
-      const double turn_tol =
-          o.max_rotation_deg / kDegPerRadian +
-          o.noise_factor * std::hypot(x.normal_sigma_rad, ref->normal_sigma_rad);
-      if (move > move_tol || turn > turn_tol) {
-        j.state = StillState::kMoving;
-        j.why = "board moving: " + streams[s].name + " saw it move " + formatFixed(move * 100, 1) +
-                " cm, turn " + formatFixed(turn * kDegPerRadian, 1) + " deg within " +
-                formatFixed(o.window_s, 2) + " s of the image (allowed " +
-                formatFixed(move_tol * 100, 1) + " cm, " +
-                formatFixed(turn_tol * kDegPerRadian, 1) + " deg)";
-        return j;
-      }
-    }
-    // Lost in most of the window: the board left the view (or was never there).
-    if (missing > 0 && missing >= count) {
-      j.state = StillState::kNoBoard;
-      j.why = streams[s].name + " lost the board in " + std::to_string(missing) + " of " +
-              std::to_string(missing + count) + " frames within " + formatFixed(o.window_s, 2) +
-              " s of the image";
+  for (size_t s = 0; s < streams.size(); ++s)
+    if (streams[s].judged && !streamStill(streams[s], static_cast<int>(s) == j.fastest_stream,
+                                          stamp, fastest_interval, o, &j))
       return j;
-    }
-    if (static_cast<int>(s) == j.fastest_stream) {
-      j.fastest_frames = count;
-      // Frames on both sides: the board was still across the moment, not only up to it.
-      if (count < o.min_frames || before == 0 || after == 0) {
-        j.state = StillState::kTooFewFrames;
-        j.why = streams[s].name + " (the fastest stream, " +
-                formatFixed(fastest_interval * 1e3, 0) + " ms between frames) has " +
-                std::to_string(count) + " frame(s) within " + formatFixed(o.window_s, 2) +
-                " s of the image (" + std::to_string(before) + " before, " + std::to_string(after) +
-                " after; need " + std::to_string(o.min_frames) + " spanning it)";
-        return j;
-      }
-    }
-  }
   j.state = StillState::kStill;
   j.why = "board still for +-" + formatFixed(o.window_s, 2) + " s (" +
           std::to_string(j.fastest_frames) + " " +
           streams[static_cast<size_t>(j.fastest_stream)].name + " frames)";
   return j;
+}
+
+StillnessOptions StillCaptureOptions::stillness() const {
+  StillnessOptions o;
+  o.window_s = still_window_s;
+  o.min_frames = still_frames_required;
+  o.max_translation_m = still_max_translation_m;
+  o.max_rotation_deg = still_max_rotation_deg;
+  o.snapshot_interval_s = snapshot_interval_s;
+  return o;
 }
 
 }  // namespace board_calib

@@ -1,6 +1,6 @@
 #include <board_calib/core/file_io.h>
 #include <board_calib/core/pipeline/pair_report.h>
-#include <board_calib/core/projection/projection.h>
+#include <board_calib/core/projection/view_overlay.h>
 #include <board_calib/core/report/report.h>
 #include <board_calib/core/report/report_plots.h>
 
@@ -87,13 +87,9 @@ Status writePairReport(const std::string& dir, const PairCalibration& run,
       const auto cloud = in.view_clouds->find(sv.view.id);
       if (img == in.view_images->end() || cloud == in.view_clouds->end()) continue;
       cv::Mat canvas = img->second.clone();
-      if (auto projected =
-              projectCloud(cloud->second, *in.camera, shown.camera_T_lidar, ProjectionOptions{}))
-        (void)drawProjectedCloud(*projected, OverlayOptions{}, &canvas);
-      EdgeCheckOptions edge_options;
-      if (auto check = checkProjectedEdges(sv.view.lidar, sv.view.camera, *in.camera,
-                                           shown.camera_T_lidar, edge_options))
-        (void)drawEdgeCheck(sv.view.camera, *check, *in.camera, edge_options, &canvas);
+      // A view that cannot be drawn keeps its raw image: the report still shows the frame.
+      (void)drawViewOverlay(sv.view, &cloud->second, *in.camera, shown.camera_T_lidar,
+                            ViewOverlayStyle{}, &canvas);
       const std::string path = dir + "/overlay_view_" + std::to_string(sv.view.id) + ".jpg";
       if (!cv::imwrite(path, canvas, {cv::IMWRITE_JPEG_QUALITY, kOverlayJpegQuality}))
         return Status::failure("cannot write '" + path + "'");

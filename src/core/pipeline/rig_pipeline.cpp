@@ -2,12 +2,35 @@
 #include <board_calib/core/msg_graph/pose_grouping.h>
 #include <board_calib/core/pipeline/rig_pipeline.h>
 
+#include <deque>
+#include <iterator>
+#include <limits>
 #include <optional>
+#include <set>
 
 namespace board_calib {
 namespace {
 
 SessionEvent rejected(const std::string& why) { return {SessionEvent::Kind::kRejected, why, -1}; }
+
+// Adds a frame and, above `cap`, drops the inner frame whose neighbours are closest in time, so
+// the kept ones stay spread over the session (the first and the newest always stay).
+void keepSpread(std::map<double, RigFrame>* kept, double stamp, RigFrame frame, int cap) {
+  (*kept)[stamp] = std::move(frame);
+  while (static_cast<int>(kept->size()) > cap) {
+    if (cap < 2) {
+      kept->erase(std::prev(kept->end()));
+      continue;
+    }
+    auto drop = kept->end();
+    double smallest_gap = std::numeric_limits<double>::infinity();
+    for (auto it = std::next(kept->begin()); std::next(it) != kept->end(); ++it) {
+      const double gap = std::next(it)->first - std::prev(it)->first;
+      if (gap < smallest_gap) smallest_gap = gap, drop = it;
+    }
+    kept->erase(drop);
+  }
+}
 
 }  // namespace
 
@@ -25,6 +48,8 @@ std::string RigPipelineOptions::validate() const {
   if (auto why = image.validate(); !why.empty()) return "image detector: " + why;
   if (auto why = lidar.validate(); !why.empty()) return "lidar detector: " + why;
   if (auto why = session.validate(); !why.empty()) return "rig session: " + why;
+  if (overlay_frames < 0) return "overlay_frames must be >= 0";
+  if (frame_history < 1) return "frame_history must be >= 1";
   return {};
 }
 
@@ -39,6 +64,8 @@ struct RigPipeline::Impl {
     ImageBoardDetector detector;
     std::optional<CameraIntrinsics> intrinsics;
     std::optional<CameraModel> model;
+    std::deque<std::pair<double, RigFrame>> recent;  // images with the board, awaiting judgement
+    std::map<double, RigFrame> kept;                 // for the overlays
   };
   Impl(const RigConfig& r, const Target& t, const RigPipelineOptions& o)
       : rig(r), target(t), options(o), session(r.sensorNames(), r.sensorSpecs(), o.session, t) {}
@@ -62,6 +89,47 @@ struct RigPipeline::Impl {
     else
       s.failures[reason.empty() ? "board not found" : reason]++;
   }
+
+  // An image with the board: kept at once under the all rule, else until its moment is judged.
+  void rememberImage(int camera, double stamp, const cv::Mat& image) {
+    if (options.overlay_frames == 0) return;
+    Camera& c = cameras[static_cast<size_t>(camera)];
+    RigFrame frame{image, *c.intrinsics};
+    if (options.capture == RigCapture::kAll) {
+      keepSpread(&c.kept, stamp, std::move(frame), options.overlay_frames);
+      return;
+    }
+    c.recent.emplace_back(stamp, std::move(frame));
+    while (c.recent.size() > 1 && (static_cast<int>(c.recent.size()) > options.frame_history ||
+                                   c.recent.front().first < stamp - options.session.history_s))
+      c.recent.pop_front();
+  }
+
+  // Still rule: the kept images follow the captured poses that have a LiDAR (a replaced pose
+  // gives up its image for the better moment's).
+  void keepPoseFrames() {
+    if (options.capture != RigCapture::kStill || options.overlay_frames == 0) return;
+    const int first_lidar = static_cast<int>(cameras.size());
+    for (int k = 0; k < first_lidar; ++k) {
+      Camera& c = cameras[static_cast<size_t>(k)];
+      std::set<double> stamps;
+      for (const auto& pose : session.poses()) {
+        const auto& o = pose.observation;
+        const auto cam = o.cameras.find(k);
+        if (cam != o.cameras.end() && !o.lidars.empty()) stamps.insert(cam->second.stamp);
+      }
+      for (auto it = c.kept.begin(); it != c.kept.end();)
+        it = stamps.count(it->first) ? std::next(it) : c.kept.erase(it);
+      for (const auto& [stamp, frame] : c.recent)
+        if (stamps.count(stamp) && !c.kept.count(stamp))
+          keepSpread(&c.kept, stamp, frame, options.overlay_frames);
+    }
+  }
+
+  SessionEvent afterImageOrCloud(const SessionEvent& event) {
+    if (event.kind == SessionEvent::Kind::kAccepted) keepPoseFrames();
+    return event;
+  }
 };
 
 Expected<RigPipeline> RigPipeline::create(const RigConfig& rig, const Target& target,
@@ -75,7 +143,7 @@ Expected<RigPipeline> RigPipeline::create(const RigConfig& rig, const Target& ta
   for (size_t i = 0; i < rig.cameras.size(); ++i) {
     auto detector = ImageBoardDetector::create(target, options.image);
     if (!detector) return Expected<RigPipeline>::failure("image detector: " + detector.error());
-    p.impl_->cameras.push_back({std::move(*detector), std::nullopt, std::nullopt});
+    p.impl_->cameras.push_back({std::move(*detector), std::nullopt, std::nullopt, {}, {}});
   }
   for (const auto& name : rig.sensorNames()) p.impl_->stats.push_back({name, name, 0, 0, {}});
   return p;
@@ -104,7 +172,8 @@ SessionEvent RigPipeline::addImage(int camera, const cv::Mat& image,
   ImageDetection det = c.detector.detect(image, *c.model);
   det.features.stamp = stamp;
   if (det.features.frame_id.empty()) det.features.frame_id = frame_id;
-  return addCameraFeatures(camera, det.features);
+  if (det.features.found) d.rememberImage(camera, stamp, image);
+  return d.afterImageOrCloud(addCameraFeatures(camera, det.features));
 }
 
 SessionEvent RigPipeline::addCloud(int lidar, const LidarCloud& cloud) {
@@ -116,7 +185,8 @@ SessionEvent RigPipeline::addCloud(int lidar, const LidarCloud& cloud) {
   if (det.features.frame_id.empty()) det.features.frame_id = cloud.frame_id;
   if (!det.features.found && det.features.reason.empty())
     det.features.reason = lidarDetectionCodeName(det.code);
-  return addLidarFeatures(static_cast<int>(d.rig.cameras.size()) + lidar, det.features);
+  return d.afterImageOrCloud(
+      addLidarFeatures(static_cast<int>(d.rig.cameras.size()) + lidar, det.features));
 }
 
 SessionEvent RigPipeline::addCameraFeatures(int sensor, const CameraBoardFeatures& f) {
@@ -143,7 +213,11 @@ SessionEvent RigPipeline::addLidarFeatures(int sensor, const LidarBoardFeatures&
   return d.session.addLidar(sensor, f);
 }
 
-SessionEvent RigPipeline::finish() { return impl_->session.flush(); }
+SessionEvent RigPipeline::finish() {
+  const SessionEvent event = impl_->session.flush();
+  impl_->keepPoseFrames();  // the flush may capture several poses and name one
+  return event;
+}
 
 Expected<multi_sensor::MsgProblem> RigPipeline::problem() const {
   const Impl& d = *impl_;
@@ -166,6 +240,12 @@ const multi_sensor::RigSession& RigPipeline::session() const { return impl_->ses
 multi_sensor::RigSession& RigPipeline::session() { return impl_->session; }
 const std::vector<RigSensorStats>& RigPipeline::stats() const { return impl_->stats; }
 const RigConfig& RigPipeline::rig() const { return impl_->rig; }
+std::vector<RigCameraFrames> RigPipeline::overlayFrames() const {
+  std::vector<RigCameraFrames> out;
+  for (size_t k = 0; k < impl_->cameras.size(); ++k)
+    out.push_back({static_cast<int>(k), impl_->cameras[k].kept});
+  return out;
+}
 const Target& RigPipeline::target() const { return impl_->target; }
 
 }  // namespace board_calib

@@ -1,6 +1,8 @@
 // Rig report folder (see rig_report.h).
 #include <board_calib/core/pipeline/rig_report.h>
 
+#include "rig_overlays.h"
+
 #include <board_calib/core/file_io.h>
 #include <board_calib/core/report/report.h>
 #include <board_calib/core/rig/rig_summary.h>
@@ -24,20 +26,12 @@ ViewResidual viewResidual(const View& v, const Eigen::Isometry3d& T) {
   ViewResidual vr;
   vr.view_id = v.id;
   vr.used = true;
-  double sq = 0.0, abs_sum = 0.0, max_abs = 0.0;
+  std::vector<double> r;
   for (const auto& p : v.lidar.board_points) {
     const double d = v.camera.plane.signedDistance(T * p);
-    if (!std::isfinite(d)) continue;
-    ++vr.plane.count;
-    sq += d * d;
-    abs_sum += std::abs(d);
-    max_abs = std::max(max_abs, std::abs(d));
+    if (std::isfinite(d)) r.push_back(d);
   }
-  if (vr.plane.count > 0) {
-    vr.plane.rms_m = std::sqrt(sq / vr.plane.count);
-    vr.plane.mean_abs_m = abs_sum / vr.plane.count;
-    vr.plane.max_abs_m = max_abs;
-  }
+  vr.plane = residualStats(r);
   for (int e = 0; e < kNumEdges; ++e) {
     vr.edges[e].mlre_px = edgeLineReprojectionErrorPx(v, e, T);
     vr.edges[e].used = vr.edges[e].mlre_px.has_value();
@@ -140,7 +134,24 @@ std::string pairSummary(const RigPairEvaluation& p) {
   return o.str();
 }
 
-Status writePairPage(const std::string& dir, const RigPairEvaluation& p, const PlotOptions& plots) {
+std::string overlaysSection(const std::vector<RigOverlay>& overlays, const std::string& note) {
+  std::ostringstream md;
+  md << "\n## Overlays per camera\n\n";
+  if (overlays.empty()) {
+    md << (note.empty() ? "No kept camera image belongs to a board pose with a LiDAR." : note)
+       << "\n";
+    return md.str();
+  }
+  md << "Every LiDAR of a pose drawn on the camera's raw image at the graph's camera_T_lidar: its "
+        "board points (one colour per LiDAR) and its edge points against the image edge lines "
+        "(white to magenta by residual). Board points inside the image board: the share that "
+        "lands inside the board's four image lines.\n\n"
+     << rigOverlaysMarkdown(overlays, "", "", "");
+  return md.str();
+}
+
+Status writePairPage(const std::string& dir, const RigPairEvaluation& p, const PlotOptions& plots,
+                     const std::vector<RigOverlay>& overlays) {
   std::error_code error;
   std::filesystem::create_directories(dir, error);
   if (error)
@@ -155,6 +166,7 @@ Status writePairPage(const std::string& dir, const RigPairEvaluation& p, const P
     md << reportFiguresMarkdown(*figures, {}, plots);
     md << "## Per view\n\n" << perViewTable(p.evaluation);
   }
+  md << "\n## Overlays\n\n" << rigOverlaysMarkdown(overlays, p.camera_frame, p.lidar_frame, "../");
   return writeFileAtomic(dir + "/report.md", md.str());
 }
 
@@ -192,8 +204,11 @@ Status writeRigReport(const std::string& dir, const RigConfig& rig,
   if (error)
     return Status::failure("cannot create report folder '" + dir + "': " + error.message());
   const std::vector<RigPairEvaluation> pairs = evaluateRigPairs(problem, solution, result);
+  const auto overlays = writeRigOverlays(dir, problem, solution, result, inputs.camera_frames);
+  if (!overlays) return Status::failure("overlays: " + overlays.error());
   for (const auto& p : pairs)
-    if (const Status st = writePairPage(dir + "/" + p.folder, p, inputs.plots); !st) return st;
+    if (const Status st = writePairPage(dir + "/" + p.folder, p, inputs.plots, *overlays); !st)
+      return st;
 
   std::ostringstream md;
   md << "# board_calib MSG-Cal report\n\n" << inputs.source << "\n\n";
@@ -209,6 +224,7 @@ Status writeRigReport(const std::string& dir, const RigConfig& rig,
         "per-view "
         "residuals.\n\n"
      << pairTable(pairs);
+  md << overlaysSection(*overlays, inputs.overlays_note);
   md << graphDetails(solution);
   if (const Status st = writeFileAtomic(dir + "/report.md", md.str()); !st) return st;
   return writeResultFile(dir + (inputs.failed ? "/result.failed.yaml" : "/result.yaml"), result);

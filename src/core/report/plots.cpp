@@ -1,13 +1,10 @@
 #include <board_calib/core/report/report_plots.h>
 #include <board_calib/core/transform.h>
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
-#include <fstream>
 #include <iomanip>
 #include <sstream>
 
@@ -164,6 +161,32 @@ std::vector<EdgeOutlier> findEdgeOutliers(const CalibrationSolution& s, const Pl
   return out;
 }
 
+namespace {
+
+// One edge's bar: outliers in red with their value, a clipped bar with a broken top, an edge
+// not used in the solve outlined.
+void drawEdgeBar(double value, bool used, bool outlier, int x, int bar, const cv::Scalar& colour,
+                 const Axes& ax, cv::Mat* out) {
+  cv::Mat& img = *out;
+  const bool clipped = value > ax.y1;
+  const int y = ax.py(std::min(value, ax.y1));
+  const cv::Rect r(x, y, std::max(1, bar - 1), ax.area.y + ax.area.height - y);
+  cv::rectangle(img, r, outlier ? kOutlier : colour, cv::FILLED);
+  if (!used) cv::rectangle(img, r, kGreyText, 1);  // drawn but not part of the solve
+  if (clipped) {                                   // a broken top: two white slashes
+    cv::line(img, {x, y + 8}, {x + bar - 1, y + 4}, kWhite, 2);
+    cv::line(img, {x, y + 14}, {x + bar - 1, y + 10}, kWhite, 2);
+  }
+  if (outlier) {  // value on top; beside the break of a clipped bar
+    const std::string label = fixed(value, value < 10 ? 1 : 0);
+    const cv::Point at = clipped ? cv::Point(x + bar + 2, y + 14)
+                                 : cv::Point(x + bar / 2 - textWidth(label, 0.4) / 2, y - 4);
+    text(&img, label, at, kOutlier, 0.4);
+  }
+}
+
+}  // namespace
+
 Expected<cv::Mat> plotEdgeErrors(const CalibrationSolution& s, const PlotOptions& o) {
   if (auto why = o.validate(); !why.empty()) return Expected<cv::Mat>::failure(why);
   std::vector<const ViewResidual*> views;
@@ -208,26 +231,10 @@ Expected<cv::Mat> plotEdgeErrors(const CalibrationSolution& s, const PlotOptions
     for (int j = 0; j < kNumEdges; ++j) {
       const auto& e = v.edges[j];
       if (!e.mlre_px) continue;
-      const double value = *e.mlre_px;
       const bool outlier = std::any_of(outliers.begin(), outliers.end(), [&](const EdgeOutlier& q) {
         return q.view_id == v.view_id && q.edge == j;
       });
-      const bool clipped = value > ax.y1;
-      const int x = x_slot + j * bar;
-      const int y = ax.py(std::min(value, ax.y1));
-      const cv::Rect r(x, y, std::max(1, bar - 1), ax.area.y + ax.area.height - y);
-      cv::rectangle(img, r, outlier ? kOutlier : kEdgeColour[j], cv::FILLED);
-      if (!e.used) cv::rectangle(img, r, kGreyText, 1);  // drawn but not part of the solve
-      if (clipped) {                                     // a broken top: two white slashes
-        cv::line(img, {x, y + 8}, {x + bar - 1, y + 4}, kWhite, 2);
-        cv::line(img, {x, y + 14}, {x + bar - 1, y + 10}, kWhite, 2);
-      }
-      if (outlier) {  // value on top; beside the break of a clipped bar
-        const std::string label = fixed(value, value < 10 ? 1 : 0);
-        const cv::Point at = clipped ? cv::Point(x + bar + 2, y + 14)
-                                     : cv::Point(x + bar / 2 - textWidth(label, 0.4) / 2, y - 4);
-        text(&img, label, at, kOutlier, 0.4);
-      }
+      drawEdgeBar(*e.mlre_px, e.used, outlier, x_slot + j * bar, bar, kEdgeColour[j], ax, &img);
     }
     const std::string id = std::to_string(v.view_id) + (v.used ? "" : "*");
     text(&img, id,
@@ -252,22 +259,12 @@ Expected<cv::Mat> plotEdgeErrors(const CalibrationSolution& s, const PlotOptions
   return img;
 }
 
-Expected<cv::Mat> plotPoseCoverage(const std::vector<View>& views, const PlotOptions& o) {
-  if (auto why = o.validate(); !why.empty()) return Expected<cv::Mat>::failure(why);
-  std::vector<PoseSample> samples;
-  int image_w = 0, image_h = 0;
-  for (const auto& v : views) {
-    if (auto s = poseSample(v)) samples.push_back(*s);
-    image_w = std::max(image_w, v.camera.image_width);
-    image_h = std::max(image_h, v.camera.image_height);
-  }
-  if (samples.empty()) return Expected<cv::Mat>::failure("no view has a camera board with corners");
+namespace {
 
-  cv::Mat img(o.height, o.width, CV_8UC3, kWhite);
-  title(&img, "Board poses: distance x tilt (left), outlines in the image (right)");
+// Left half: board distance against tilt, both tilt components.
+void drawDistanceTilt(const std::vector<PoseSample>& samples, const PlotOptions& o, cv::Mat* out) {
+  cv::Mat& img = *out;
   const int half = o.width / 2;
-
-  // Left: distance against tilt, both tilt components.
   Axes ax;
   ax.area = cv::Rect(kMarginLeft, kMarginTop, half - kMarginLeft - kMarginRight,
                      o.height - kMarginTop - kMarginBottom);
@@ -293,8 +290,13 @@ Expected<cv::Mat> plotPoseCoverage(const std::vector<View>& views, const PlotOpt
   int lx = ax.area.x + 80;
   legendEntry(&img, &lx, ax.area.y - 8, kEdgeColour[0], "about vertical axis");
   legendEntry(&img, &lx, ax.area.y - 8, kEdgeColour[2], "about horizontal axis");
+}
 
-  // Right: outlines in the image, scaled to fit (corners may lie outside the image).
+// Right half: every board outline in the image, scaled to fit (corners may lie outside it).
+void drawImageOutlines(const std::vector<View>& views, int image_w, int image_h,
+                       const PlotOptions& o, cv::Mat* out) {
+  cv::Mat& img = *out;
+  const int half = o.width / 2;
   double u0 = 0, v0 = 0, u1 = image_w, v1 = image_h;
   for (const auto& v : views)
     if (v.camera.found)
@@ -334,6 +336,25 @@ Expected<cv::Mat> plotPoseCoverage(const std::vector<View>& views, const PlotOpt
     const std::string id = std::to_string(v.id);
     text(&img, id, centre - cv::Point(textWidth(id, 0.4) / 2, -4), colour, 0.4);
   }
+}
+
+}  // namespace
+
+Expected<cv::Mat> plotPoseCoverage(const std::vector<View>& views, const PlotOptions& o) {
+  if (auto why = o.validate(); !why.empty()) return Expected<cv::Mat>::failure(why);
+  std::vector<PoseSample> samples;
+  int image_w = 0, image_h = 0;
+  for (const auto& v : views) {
+    if (auto s = poseSample(v)) samples.push_back(*s);
+    image_w = std::max(image_w, v.camera.image_width);
+    image_h = std::max(image_h, v.camera.image_height);
+  }
+  if (samples.empty()) return Expected<cv::Mat>::failure("no view has a camera board with corners");
+
+  cv::Mat img(o.height, o.width, CV_8UC3, kWhite);
+  title(&img, "Board poses: distance x tilt (left), outlines in the image (right)");
+  drawDistanceTilt(samples, o, &img);
+  drawImageOutlines(views, image_w, image_h, o, &img);
   return img;
 }
 
@@ -399,138 +420,6 @@ Expected<cv::Mat> plotMethodComparison(const std::vector<CalibrationSolution>& s
     }
   }
   return img;
-}
-
-Expected<ReportFigures> writeReportFigures(const std::string& dir, const std::vector<View>& views,
-                                           const std::vector<CalibrationSolution>& solutions,
-                                           int chosen, const PlotOptions& o) {
-  if (auto why = o.validate(); !why.empty())
-    return Expected<ReportFigures>::failure("plot options: " + why);
-  ReportFigures f;
-  const auto save = [&](const std::string& name, const Expected<cv::Mat>& img,
-                        std::string* written) -> Status {
-    if (!img) {
-      f.skipped.push_back(name + ": " + img.error());
-      return Status::success();
-    }
-    const std::string path = dir + "/" + name;
-    try {
-      if (!cv::imwrite(path, *img)) return Status::failure("cannot write " + path);
-    } catch (const cv::Exception& e) {
-      return Status::failure("cannot write " + path + ": " + e.what());
-    }
-    *written = name;
-    return Status::success();
-  };
-  if (chosen >= 0 && chosen < static_cast<int>(solutions.size())) {
-    if (Status st = save("edge_errors.png", plotEdgeErrors(solutions[chosen], o), &f.edge_errors);
-        !st)
-      return Expected<ReportFigures>::failure(st.reason);
-    f.outliers = findEdgeOutliers(solutions[chosen], o);
-  } else {
-    f.skipped.push_back("edge_errors.png: no reported solution");
-  }
-  if (Status st = save("pose_coverage.png", plotPoseCoverage(views, o), &f.pose_coverage); !st)
-    return Expected<ReportFigures>::failure(st.reason);
-  if (solutions.size() > 1) {
-    if (Status st =
-            save("methods.png", plotMethodComparison(solutions, chosen, o), &f.method_comparison);
-        !st)
-      return Expected<ReportFigures>::failure(st.reason);
-  }
-  return f;
-}
-
-std::string reportFiguresMarkdown(const ReportFigures& f, const std::vector<std::string>& overlays,
-                                  const PlotOptions& o) {
-  std::ostringstream md;
-  md << "## Figures\n\n";
-  if (!f.edge_errors.empty()) {
-    md << "Line re-projection error (MLRE) of every edge of every view, as MATLAB's Lidar Camera "
-          "Calibrator "
-          "shows it; `*` marks a view not used in the solve.\n\n![Per-edge MLRE]("
-       << f.edge_errors << ")\n\n";
-    if (f.outliers.empty()) {
-      md << "No outlier edge (none above " << fixed(o.outlier_factor, 0)
-         << " x the median edge MLRE).\n\n";
-    } else {
-      md << "**Outlier edges** (MLRE above " << fixed(o.outlier_factor, 0)
-         << " x the median edge MLRE of " << fixed(f.outliers.front().median_px, 2)
-         << " px): check these views' overlays (a hand on the edge, a wrong image line, a bent "
-            "board) and drop "
-            "them (`--load-session` after editing, or the calibrator's `~drop_view`) if they are "
-            "wrong:\n\n";
-      for (const auto& q : f.outliers)
-        md << "* view " << q.view_id << ", edge " << edgeName(q.edge) << ": " << fixed(q.mlre_px, 1)
-           << " px\n";
-      md << "\n";
-    }
-  }
-  if (!f.pose_coverage.empty())
-    md << "Board poses: distance and tilt (tilts of both signs about both axes constrain the "
-          "rotation and the "
-          "translation along the optical axis), and where the board was in the image.\n\n![Pose "
-          "coverage]("
-       << f.pose_coverage << ")\n\n";
-  if (!f.method_comparison.empty())
-    md << "The methods side by side (the reported one outlined).\n\n![Methods side by side]("
-       << f.method_comparison << ")\n\n";
-  for (const auto& s : f.skipped) md << "* not drawn: " << s << "\n";
-  if (!f.skipped.empty()) md << "\n";
-  if (!overlays.empty()) {
-    md << "## Overlays\n\nEvery view with the reported result: LiDAR points coloured by depth, the "
-          "detected "
-          "image edges and the projected LiDAR edge points coloured by their distance to them.\n\n";
-    constexpr size_t kColumns = 4;
-    md << "|";
-    for (size_t c = 0; c < kColumns; ++c) md << " |";
-    md << "\n|";
-    for (size_t c = 0; c < kColumns; ++c) md << "---|";
-    md << "\n";
-    for (size_t i = 0; i < overlays.size(); i += kColumns) {
-      md << "|";
-      for (size_t c = 0; c < kColumns; ++c) {
-        if (i + c < overlays.size())
-          md << " [![" << overlays[i + c] << "](" << overlays[i + c] << ")](" << overlays[i + c]
-             << ")";
-        md << " |";
-      }
-      md << "\n";
-    }
-    md << "\n";
-  }
-  return md.str();
-}
-
-std::vector<std::string> listOverlayFiles(const std::string& dir) {
-  namespace fs = std::filesystem;
-  std::vector<std::pair<long, std::string>> found;
-  std::error_code ec;
-  for (const auto& entry : fs::directory_iterator(dir, ec)) {
-    const std::string name = entry.path().filename().string();
-    const std::string ext = entry.path().extension().string();
-    if (name.rfind("overlay_", 0) != 0 || (ext != ".jpg" && ext != ".png")) continue;
-    const std::string stem = entry.path().stem().string();
-    const size_t digits = stem.find_last_not_of("0123456789");
-    const long number = digits + 1 < stem.size() ? std::stol(stem.substr(digits + 1)) : -1;
-    found.emplace_back(number, name);
-  }
-  std::sort(found.begin(), found.end());
-  std::vector<std::string> names;
-  for (auto& [n, name] : found) names.push_back(std::move(name));
-  return names;
-}
-
-Expected<ReportFigures> appendReportFigures(const std::string& dir, const std::vector<View>& views,
-                                            const std::vector<CalibrationSolution>& solutions,
-                                            int chosen, const PlotOptions& o) {
-  auto f = writeReportFigures(dir, views, solutions, chosen, o);
-  if (!f) return f;
-  std::ofstream md(dir + "/report.md", std::ios::app);
-  if (!md) return Expected<ReportFigures>::failure("cannot append to " + dir + "/report.md");
-  md << "\n" << reportFiguresMarkdown(*f, listOverlayFiles(dir), o);
-  if (!md) return Expected<ReportFigures>::failure("cannot append to " + dir + "/report.md");
-  return f;
 }
 
 }  // namespace board_calib

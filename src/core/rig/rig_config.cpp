@@ -69,6 +69,69 @@ double noiseValue(const YAML::Node& noise, const std::string& key, const std::st
   return x;
 }
 
+// A sensor's optional `noise` map, checked against its keys (a null node when absent).
+YAML::Node noiseNode(const YAML::Node& sensor, const std::set<std::string>& keys,
+                     const std::string& where) {
+  const YAML::Node n = sensor["noise"];
+  if (!n) return n;
+  if (!n.IsMap()) bad(where + ".noise: expected a map");
+  checkKeys(n, keys, where + ".noise");
+  return n;
+}
+
+RigCamera parseCamera(const YAML::Node& c, const std::string& where) {
+  RigCamera cam;
+  cam.name = requireString(c, "name", where);
+  cam.image_topic = requireString(c, "image_topic", where);
+  cam.camera_info_topic = requireString(c, "camera_info_topic", where);
+  cam.features_topic =
+      c["features_topic"] ? requireString(c, "features_topic", where) : cam.name + "/camera_board";
+  if (const YAML::Node n =
+          noiseNode(c, {"pixel_sigma_px", "normal_sigma_deg", "offset_sigma_m"}, where)) {
+    const std::string nw = where + ".noise";
+    cam.pixel_sigma_px = noiseValue(n, "pixel_sigma_px", nw);
+    cam.normal_sigma_deg = noiseValue(n, "normal_sigma_deg", nw);
+    cam.offset_sigma_m = noiseValue(n, "offset_sigma_m", nw);
+  }
+  return cam;
+}
+
+RigLidar parseLidar(const YAML::Node& l, const std::string& where) {
+  RigLidar lid;
+  lid.name = requireString(l, "name", where);
+  lid.cloud_topic = requireString(l, "cloud_topic", where);
+  lid.features_topic =
+      l["features_topic"] ? requireString(l, "features_topic", where) : lid.name + "/lidar_board";
+  if (const YAML::Node n =
+          noiseNode(l, {"normal_sigma_deg", "offset_sigma_m", "edge_sigma_m"}, where)) {
+    const std::string nw = where + ".noise";
+    lid.normal_sigma_deg = noiseValue(n, "normal_sigma_deg", nw);
+    lid.offset_sigma_m = noiseValue(n, "offset_sigma_m", nw);
+    lid.edge_sigma_m = noiseValue(n, "edge_sigma_m", nw);
+  }
+  return lid;
+}
+
+KnownExtrinsic parseKnownExtrinsic(const YAML::Node& k, const std::string& where) {
+  KnownExtrinsic e;
+  e.a = requireString(k, "a", where);
+  e.b = requireString(k, "b", where);
+  const YAML::Node t = k["a_T_b"];
+  if (!t || !t.IsMap())
+    bad(where + ": missing key 'a_T_b' (a map with translation and rotation_xyzw)");
+  checkKeys(t, {"translation", "rotation_xyzw"}, where + ".a_T_b");
+  const auto tr = numberList(t, "translation", where + ".a_T_b", 3);
+  const auto q = numberList(t, "rotation_xyzw", where + ".a_T_b", 4);
+  Eigen::Quaterniond quat(q[3], q[0], q[1], q[2]);
+  if (std::abs(quat.norm() - 1.0) > 1e-3)
+    bad(where + ".a_T_b.rotation_xyzw: not a unit quaternion (norm " + std::to_string(quat.norm()) +
+        ")");
+  quat.normalize();
+  e.a_T_b.linear() = quat.toRotationMatrix();
+  e.a_T_b.translation() = Eigen::Vector3d(tr[0], tr[1], tr[2]);
+  return e;
+}
+
 RigConfig parse(const YAML::Node& root, const std::string& base_dir) {
   if (!root.IsMap()) bad("rig file: expected a map at the top level");
   checkKeys(root,
@@ -88,21 +151,7 @@ RigConfig parse(const YAML::Node& root, const std::string& base_dir) {
       const YAML::Node c = cams[i];
       if (!c.IsMap()) bad(where + ": expected a map");
       checkKeys(c, {"name", "image_topic", "camera_info_topic", "features_topic", "noise"}, where);
-      RigCamera cam;
-      cam.name = requireString(c, "name", where);
-      cam.image_topic = requireString(c, "image_topic", where);
-      cam.camera_info_topic = requireString(c, "camera_info_topic", where);
-      cam.features_topic = c["features_topic"] ? requireString(c, "features_topic", where)
-                                               : cam.name + "/camera_board";
-      if (const YAML::Node n = c["noise"]) {
-        if (!n.IsMap()) bad(where + ".noise: expected a map");
-        const std::string nw = where + ".noise";
-        checkKeys(n, {"pixel_sigma_px", "normal_sigma_deg", "offset_sigma_m"}, nw);
-        cam.pixel_sigma_px = noiseValue(n, "pixel_sigma_px", nw);
-        cam.normal_sigma_deg = noiseValue(n, "normal_sigma_deg", nw);
-        cam.offset_sigma_m = noiseValue(n, "offset_sigma_m", nw);
-      }
-      rig.cameras.push_back(cam);
+      rig.cameras.push_back(parseCamera(c, where));
     }
   }
   if (const YAML::Node lids = root["lidars"]) {
@@ -112,20 +161,7 @@ RigConfig parse(const YAML::Node& root, const std::string& base_dir) {
       const YAML::Node l = lids[i];
       if (!l.IsMap()) bad(where + ": expected a map");
       checkKeys(l, {"name", "cloud_topic", "features_topic", "noise"}, where);
-      RigLidar lid;
-      lid.name = requireString(l, "name", where);
-      lid.cloud_topic = requireString(l, "cloud_topic", where);
-      lid.features_topic = l["features_topic"] ? requireString(l, "features_topic", where)
-                                               : lid.name + "/lidar_board";
-      if (const YAML::Node n = l["noise"]) {
-        if (!n.IsMap()) bad(where + ".noise: expected a map");
-        const std::string nw = where + ".noise";
-        checkKeys(n, {"normal_sigma_deg", "offset_sigma_m", "edge_sigma_m"}, nw);
-        lid.normal_sigma_deg = noiseValue(n, "normal_sigma_deg", nw);
-        lid.offset_sigma_m = noiseValue(n, "offset_sigma_m", nw);
-        lid.edge_sigma_m = noiseValue(n, "edge_sigma_m", nw);
-      }
-      rig.lidars.push_back(lid);
+      rig.lidars.push_back(parseLidar(l, where));
     }
   }
   if (const YAML::Node known = root["known_extrinsics"]) {
@@ -135,23 +171,7 @@ RigConfig parse(const YAML::Node& root, const std::string& base_dir) {
       const YAML::Node k = known[i];
       if (!k.IsMap()) bad(where + ": expected a map");
       checkKeys(k, {"a", "b", "a_T_b"}, where);
-      KnownExtrinsic e;
-      e.a = requireString(k, "a", where);
-      e.b = requireString(k, "b", where);
-      const YAML::Node t = k["a_T_b"];
-      if (!t || !t.IsMap())
-        bad(where + ": missing key 'a_T_b' (a map with translation and rotation_xyzw)");
-      checkKeys(t, {"translation", "rotation_xyzw"}, where + ".a_T_b");
-      const auto tr = numberList(t, "translation", where + ".a_T_b", 3);
-      const auto q = numberList(t, "rotation_xyzw", where + ".a_T_b", 4);
-      Eigen::Quaterniond quat(q[3], q[0], q[1], q[2]);
-      if (std::abs(quat.norm() - 1.0) > 1e-3)
-        bad(where + ".a_T_b.rotation_xyzw: not a unit quaternion (norm " +
-            std::to_string(quat.norm()) + ")");
-      quat.normalize();
-      e.a_T_b.linear() = quat.toRotationMatrix();
-      e.a_T_b.translation() = Eigen::Vector3d(tr[0], tr[1], tr[2]);
-      rig.known_extrinsics.push_back(e);
+      rig.known_extrinsics.push_back(parseKnownExtrinsic(k, where));
     }
   }
   if (const std::string why = rig.validate(); !why.empty()) bad(why);

@@ -1,7 +1,7 @@
 // Rig session file: the rig's sensors (name, kind, frame) and every captured pose's features.
 #include <board_calib/core/rig/rig_session.h>
 
-#include "../session/feature_yaml.h"
+#include <board_calib/core/session/feature_yaml.h>
 
 #include <board_calib/core/file_io.h>
 

@@ -1,5 +1,5 @@
 // YAML form of the board features (see feature_yaml.h).
-#include "feature_yaml.h"
+#include <board_calib/core/session/feature_yaml.h>
 
 #include <board_calib/core/transform.h>
 

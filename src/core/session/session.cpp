@@ -48,8 +48,6 @@ std::string SessionOptions::validate() const {
   return {};
 }
 
-StillnessOptions SessionOptions::stillness() const { return stillnessOf(*this); }
-
 std::string CaptureStats::summary() const {
   std::vector<std::pair<int, std::string>> order;
   for (const auto& [kind, n] : skipped) order.emplace_back(-n, kind);

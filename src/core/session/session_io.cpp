@@ -4,7 +4,7 @@
 #include <board_calib/core/session/session.h>
 #include <board_calib/core/transform.h>
 
-#include "feature_yaml.h"
+#include <board_calib/core/session/feature_yaml.h>
 
 #include <yaml-cpp/yaml.h>
 

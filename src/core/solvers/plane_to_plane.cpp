@@ -308,6 +308,62 @@ PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& corre
 
 namespace solvers_detail {
 
+namespace {
+
+// Quality figures on the raw features, as for the other methods: plane and edge distances and
+// the MLRE of every used view at the solved pose.
+void fillMsgPairFigures(const std::vector<View>& views, CalibrationSolution* sol) {
+  const Eigen::Isometry3d& T = sol->camera_T_lidar;
+  double mlre_sum = 0.0, plane_sq = 0.0, line_sq = 0.0;
+  int mlre_count = 0, plane_count = 0, line_count = 0;
+  for (size_t i = 0; i < views.size(); ++i) {
+    ViewResidual& vr = sol->views[i];
+    if (!vr.used) continue;
+    const View& v = views[i];
+    std::vector<double> r;
+    for (const auto& p : v.lidar.board_points) {
+      const double d = v.camera.plane.signedDistance(T * p);
+      if (std::isfinite(d)) r.push_back(d);
+    }
+    vr.plane = residualStats(r);
+    plane_sq += vr.plane.rms_m * vr.plane.rms_m * vr.plane.count;
+    plane_count += vr.plane.count;
+    double view_sum = 0.0;
+    int view_count = 0;
+    for (int j = 0; j < kNumEdges; ++j) {
+      vr.edges[j].lidar_edge = j;
+      // Point-to-back-projected-plane distances as a figure (MSG does not use the lines).
+      const Eigen::Vector3d N = v.camera.K.transpose() * v.camera.edge_lines[j];
+      if (v.camera.edge_valid[j] && v.lidar.edge_valid[j] && N.allFinite() && N.norm() > 0.0) {
+        std::vector<double> e;
+        for (const auto& q : v.lidar.edge_points[j]) {
+          const double d = N.normalized().dot(T * q);
+          if (std::isfinite(d)) e.push_back(d);
+        }
+        if (!e.empty()) {
+          vr.edges[j].distance = residualStats(e);
+          line_sq += vr.edges[j].distance.rms_m * vr.edges[j].distance.rms_m * e.size();
+          line_count += static_cast<int>(e.size());
+        }
+      }
+      const auto e = edgeLineReprojectionErrorPx(v, j, T);
+      if (!e) continue;
+      vr.edges[j].mlre_px = e;
+      const int count = static_cast<int>(v.lidar.edge_points[j].size());
+      view_sum += *e * count;
+      view_count += count;
+    }
+    if (view_count > 0) vr.mlre_px = view_sum / view_count;
+    mlre_sum += view_sum;
+    mlre_count += view_count;
+  }
+  if (mlre_count > 0) sol->mlre_px = mlre_sum / mlre_count;
+  sol->plane_rms_mm = plane_count ? 1000.0 * std::sqrt(plane_sq / plane_count) : 0.0;
+  sol->line_rms_mm = line_count ? 1000.0 * std::sqrt(line_sq / line_count) : 0.0;
+}
+
+}  // namespace
+
 CalibrationSolution calibrateMsgPair(const std::vector<View>& views, const SolverOptions& options,
                                      const std::optional<Eigen::Isometry3d>& initial_guess) {
   CalibrationSolution sol;
@@ -356,69 +412,7 @@ CalibrationSolution calibrateMsgPair(const std::vector<View>& views, const Solve
     return sol;
   }
   sol.views_used = pair.correspondences_used;
-  // Quality figures on the raw features, as for the other methods.
-  const Eigen::Isometry3d& T = sol.camera_T_lidar;
-  double mlre_sum = 0.0, plane_sq = 0.0, line_sq = 0.0;
-  int mlre_count = 0, plane_count = 0, line_count = 0;
-  for (size_t i = 0; i < views.size(); ++i) {
-    ViewResidual& vr = sol.views[i];
-    if (!vr.used) continue;
-    const View& v = views[i];
-    std::vector<double> r;
-    double sq = 0.0, abs_sum = 0.0, max_abs = 0.0;
-    for (const auto& p : v.lidar.board_points) {
-      const double d = v.camera.plane.signedDistance(T * p);
-      if (!std::isfinite(d)) continue;
-      sq += d * d;
-      abs_sum += std::abs(d);
-      max_abs = std::max(max_abs, std::abs(d));
-      r.push_back(d);
-    }
-    vr.plane.count = static_cast<int>(r.size());
-    if (!r.empty()) {
-      vr.plane.rms_m = std::sqrt(sq / r.size());
-      vr.plane.mean_abs_m = abs_sum / r.size();
-      vr.plane.max_abs_m = max_abs;
-    }
-    plane_sq += sq;
-    plane_count += vr.plane.count;
-    double view_sum = 0.0;
-    int view_count = 0;
-    for (int j = 0; j < kNumEdges; ++j) {
-      vr.edges[j].lidar_edge = j;
-      // Point-to-back-projected-plane distances as a figure (MSG does not use the lines).
-      const Eigen::Vector3d N = v.camera.K.transpose() * v.camera.edge_lines[j];
-      if (v.camera.edge_valid[j] && v.lidar.edge_valid[j] && N.allFinite() && N.norm() > 0.0) {
-        double esq = 0.0, eabs = 0.0, emax = 0.0;
-        int n = 0;
-        for (const auto& q : v.lidar.edge_points[j]) {
-          const double d = N.normalized().dot(T * q);
-          if (!std::isfinite(d)) continue;
-          esq += d * d;
-          eabs += std::abs(d);
-          emax = std::max(emax, std::abs(d));
-          ++n;
-        }
-        if (n > 0) {
-          vr.edges[j].distance = {n, std::sqrt(esq / n), eabs / n, emax};
-          line_sq += esq;
-          line_count += n;
-        }
-      }
-      const auto e = edgeLineReprojectionErrorPx(v, j, T);
-      if (!e) continue;
-      vr.edges[j].mlre_px = e;
-      const int count = static_cast<int>(v.lidar.edge_points[j].size());
-      view_sum += *e * count;
-      view_count += count;
-    }
-    if (view_count > 0) vr.mlre_px = view_sum / view_count;
-    mlre_sum += view_sum;
-    mlre_count += view_count;
-  }
-  if (mlre_count > 0) sol.mlre_px = mlre_sum / mlre_count;
-  sol.plane_rms_mm = plane_count ? 1000.0 * std::sqrt(plane_sq / plane_count) : 0.0;
-  sol.line_rms_mm = line_count ? 1000.0 * std::sqrt(line_sq / line_count) : 0.0;
+  fillMsgPairFigures(views, &sol);
   sol.success = true;
   return sol;
 }

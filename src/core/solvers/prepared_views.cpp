@@ -116,21 +116,6 @@ PreparedView prepareView(const View& view, int index, Method method, const Solve
   return pv;
 }
 
-ResidualStats stats(const std::vector<double>& r) {
-  ResidualStats s;
-  s.count = static_cast<int>(r.size());
-  if (r.empty()) return s;
-  double sq = 0.0, abs_sum = 0.0;
-  for (double v : r) {
-    sq += v * v;
-    abs_sum += std::abs(v);
-    s.max_abs_m = std::max(s.max_abs_m, std::abs(v));
-  }
-  s.rms_m = std::sqrt(sq / r.size());
-  s.mean_abs_m = abs_sum / r.size();
-  return s;
-}
-
 std::string usableSummary(const std::vector<PreparedView>& prepared) {
   std::ostringstream text;
   int shown = 0;
@@ -352,7 +337,7 @@ void fillResidualFigures(const std::vector<View>& views, const std::vector<Prepa
       r.reserve(v.board_points->size());
       for (const auto& p : *v.board_points)
         r.push_back(v.cam_normal.dot(R * p + T.translation()) - v.cam_offset);
-      vr.plane = stats(r);
+      vr.plane = residualStats(r);
       if (v.used) {
         plane_sq += vr.plane.rms_m * vr.plane.rms_m * vr.plane.count;
         plane_count += vr.plane.count;
@@ -369,7 +354,7 @@ void fillResidualFigures(const std::vector<View>& views, const std::vector<Prepa
       std::vector<double> r;
       for (const auto& q : v.lidar_edges[k])
         r.push_back(v.backprojected_normal[j].dot(R * q + T.translation()));
-      er.distance = stats(r);
+      er.distance = residualStats(r);
       line_sq += er.distance.rms_m * er.distance.rms_m * er.distance.count;
       line_count += er.distance.count;
       int count = 0;
@@ -392,4 +377,20 @@ void fillResidualFigures(const std::vector<View>& views, const std::vector<Prepa
 }
 
 }  // namespace calibrate_detail
+
+ResidualStats residualStats(const std::vector<double>& r) {
+  ResidualStats s;
+  s.count = static_cast<int>(r.size());
+  if (r.empty()) return s;
+  double sq = 0.0, abs_sum = 0.0;
+  for (double v : r) {
+    sq += v * v;
+    abs_sum += std::abs(v);
+    s.max_abs_m = std::max(s.max_abs_m, std::abs(v));
+  }
+  s.rms_m = std::sqrt(sq / r.size());
+  s.mean_abs_m = abs_sum / r.size();
+  return s;
+}
+
 }  // namespace board_calib

@@ -108,12 +108,35 @@ std::vector<View> consistentViews(const std::vector<View>& views, const Consiste
   return out;
 }
 
-ConsistencyReport checkViewConsistency(const std::vector<View>& views, const Target& target,
-                                       const ConsistencyOptions& o) {
-  ConsistencyReport r;
-  r.views.resize(views.size());
+namespace {
+
+// The rigid motion and plane scale a set of views agrees on, with the tolerances it was judged by.
+struct Motion {
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d t = Eigen::Vector3d::Zero();
+  double s = 1.0;
+  double tol_a = 0.0, tol_o = 0.0;  // normal (rad) and offset (m) tolerances at the median range
+};
+
+std::vector<const Obs*> inliersOf(const std::vector<Obs>& obs, const Motion& m, double* cost) {
+  std::vector<const Obs*> in;
+  *cost = 0;
+  for (const Obs& x : obs) {
+    const double ea = normalResidualRad(x, m.R) / (m.tol_a * x.fa),
+                 eo = offsetResidual(x, m.t, m.s) / (m.tol_o * x.fo);
+    if (ea <= 1.0 && eo <= 1.0) {
+      in.push_back(&x);
+      *cost += ea * ea + eo * eo;
+    }
+  }
+  return in;
+}
+
+// The usable views as observations (plane normals and offsets of both sensors); the others get
+// their reason in `r`. `distances`: camera to board centre of each observation.
+std::vector<Obs> observations(const std::vector<View>& views, const Target& target,
+                              ConsistencyReport& r, std::vector<double>* distances) {
   std::vector<Obs> obs;
-  std::vector<double> distances;
   for (size_t i = 0; i < views.size(); ++i) {
     const View& v = views[i];
     ViewConsistency& vc = r.views[i];
@@ -135,27 +158,14 @@ ConsistencyReport checkViewConsistency(const std::vector<View>& views, const Tar
     x.dc = v.camera.plane.offset;
     x.dl = v.lidar.plane.offset;
     obs.push_back(x);
-    distances.push_back((v.camera.camera_T_board * target.center()).norm());
+    distances->push_back((v.camera.camera_T_board * target.center()).norm());
   }
-  if (auto why = o.validate(); !why.empty()) {
-    r.reason = "invalid consistency options: " + why;
-    return r;
-  }
-  if (obs.size() < 3) {
-    r.reason = std::to_string(obs.size()) +
-               " usable view(s): a calibration needs at least 3 with different tilts";
-    return r;
-  }
-  const double d_med = std::max(1e-3, medianOf(distances));
-  for (size_t k = 0; k < obs.size(); ++k) {
-    const double f = std::clamp(distances[k] / d_med, kMinDistanceFactor, kMaxDistanceFactor);
-    obs[k].fa = f;
-    obs[k].fo = f * f;
-  }
+  return obs;
+}
 
-  // Consensus over triples whose camera normals span 3D.
+// Every triple of observations, or `max_samples` random ones when there are more.
+std::vector<std::array<int, 3>> sampleTriples(int n, const ConsistencyOptions& o) {
   std::vector<std::array<int, 3>> triples;
-  const int n = static_cast<int>(obs.size());
   const long long total = static_cast<long long>(n) * (n - 1) * (n - 2) / 6;
   std::mt19937 rng(o.seed);
   if (total <= o.max_samples) {
@@ -169,28 +179,17 @@ ConsistencyReport checkViewConsistency(const std::vector<View>& views, const Tar
       if (t[0] != t[1] && t[1] != t[2] && t[0] != t[2]) triples.push_back(t);
     }
   }
+  return triples;
+}
+
+// Consensus over triples whose camera normals span 3D: the motion most views agree on with the
+// first (loose) tolerances, and those views.
+std::vector<const Obs*> bestConsensus(const std::vector<Obs>& obs, const ConsistencyOptions& o,
+                                      Motion* m) {
   const double min_spread = std::sin(o.min_sample_spread_deg * kRadPerDeg);
-  double tol_a = o.first_normal_tolerance_deg * kRadPerDeg, tol_o = o.first_offset_tolerance_m;
-  auto inliersOf = [&](const Eigen::Matrix3d& R, const Eigen::Vector3d& t, double s, double ta,
-                       double to, double* cost) {
-    std::vector<const Obs*> in;
-    *cost = 0;
-    for (const Obs& x : obs) {
-      const double ea = normalResidualRad(x, R) / (ta * x.fa),
-                   eo = offsetResidual(x, t, s) / (to * x.fo);
-      if (ea <= 1.0 && eo <= 1.0) {
-        in.push_back(&x);
-        *cost += ea * ea + eo * eo;
-      }
-    }
-    return in;
-  };
   std::vector<const Obs*> best;
   double best_cost = 0;
-  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
-  Eigen::Vector3d t = Eigen::Vector3d::Zero();
-  double s = 1.0;
-  for (const auto& tri : triples) {
+  for (const auto& tri : sampleTriples(static_cast<int>(obs.size()), o)) {
     Eigen::Matrix3d N;
     for (int k = 0; k < 3; ++k) N.col(k) = obs[static_cast<size_t>(tri[k])].nc;
     if (std::abs(N.determinant()) < min_spread * min_spread * min_spread) continue;
@@ -201,23 +200,29 @@ ConsistencyReport checkViewConsistency(const std::vector<View>& views, const Tar
     Eigen::Vector3d ts;
     double ss = 1.0;
     if (!fitOffsets(sample, false, &ts, &ss)) continue;
+    Motion candidate = *m;
+    candidate.R = Rs;
+    candidate.t = ts;
+    candidate.s = ss;
     double cost = 0;
-    auto in = inliersOf(Rs, ts, ss, tol_a, tol_o, &cost);
+    auto in = inliersOf(obs, candidate, &cost);
     if (in.size() > best.size() || (in.size() == best.size() && cost < best_cost)) {
       best = std::move(in);
       best_cost = cost;
-      R = Rs;
-      t = ts;
-      s = ss;
+      *m = candidate;
     }
   }
-  if (best.size() < 3) {
-    r.reason = "no three views agree on one rigid motion (the board normals must differ by " +
-               formatFixed(o.min_sample_spread_deg, 0) +
-               " deg or more, and the two sensors must see the same board)";
-    return r;
-  }
-  // Refit on the consensus, then set the tolerances from its residuals' robust spread.
+  return best;
+}
+
+// Refit on the consensus, then set the tolerances from its residuals' robust spread.
+void refineConsensus(const std::vector<Obs>& obs, const ConsistencyOptions& o,
+                     std::vector<const Obs*>& best, Motion* m) {
+  Eigen::Matrix3d& R = m->R;
+  Eigen::Vector3d& t = m->t;
+  double& s = m->s;
+  double& tol_a = m->tol_a;
+  double& tol_o = m->tol_o;
   for (int round = 0; round < kRefineRounds; ++round) {
     R = kabsch(best);
     const bool scale =
@@ -239,19 +244,20 @@ ConsistencyReport checkViewConsistency(const std::vector<View>& views, const Tar
                          o.max_offset_tolerance_m);
     }
     double cost = 0;
-    auto in = inliersOf(R, t, s, tol_a, tol_o, &cost);
+    auto in = inliersOf(obs, *m, &cost);
     if (in.size() < 3) break;
     const bool same = in == best;
     best = std::move(in);
     if (same && round > 0) break;
   }
-  r.camera_T_lidar = makeTransform(R, t);
-  r.plane_scale = s;
-  r.normal_tolerance_deg = tol_a * kDegPerRad;
-  r.offset_tolerance_m = tol_o;
-  r.checkable = obs.size() > 3;
+}
 
-  // Every usable view against the consensus, then its LiDAR points against the camera's board.
+// Every usable view against the consensus, then its LiDAR points against the camera's board.
+void judgeViews(const std::vector<View>& views, const std::vector<Obs>& obs, const Target& target,
+                const ConsistencyOptions& o, const Motion& m, ConsistencyReport& r) {
+  const Eigen::Matrix3d& R = m.R;
+  const Eigen::Vector3d& t = m.t;
+  const double s = m.s, tol_a = m.tol_a, tol_o = m.tol_o;
   for (const Obs& x : obs) {
     ViewConsistency& vc = r.views[static_cast<size_t>(x.index)];
     const View& v = views[static_cast<size_t>(x.index)];
@@ -284,6 +290,48 @@ ConsistencyReport checkViewConsistency(const std::vector<View>& views, const Tar
           " % of the LiDAR board points land on the camera's board: the LiDAR found another object";
     r.consistent_views += vc.consistent;
   }
+}
+
+}  // namespace
+
+ConsistencyReport checkViewConsistency(const std::vector<View>& views, const Target& target,
+                                       const ConsistencyOptions& o) {
+  ConsistencyReport r;
+  r.views.resize(views.size());
+  std::vector<double> distances;
+  std::vector<Obs> obs = observations(views, target, r, &distances);
+  if (auto why = o.validate(); !why.empty()) {
+    r.reason = "invalid consistency options: " + why;
+    return r;
+  }
+  if (obs.size() < 3) {
+    r.reason = std::to_string(obs.size()) +
+               " usable view(s): a calibration needs at least 3 with different tilts";
+    return r;
+  }
+  const double d_med = std::max(1e-3, medianOf(distances));
+  for (size_t k = 0; k < obs.size(); ++k) {
+    const double f = std::clamp(distances[k] / d_med, kMinDistanceFactor, kMaxDistanceFactor);
+    obs[k].fa = f;
+    obs[k].fo = f * f;
+  }
+  Motion m;
+  m.tol_a = o.first_normal_tolerance_deg * kRadPerDeg;
+  m.tol_o = o.first_offset_tolerance_m;
+  std::vector<const Obs*> best = bestConsensus(obs, o, &m);
+  if (best.size() < 3) {
+    r.reason = "no three views agree on one rigid motion (the board normals must differ by " +
+               formatFixed(o.min_sample_spread_deg, 0) +
+               " deg or more, and the two sensors must see the same board)";
+    return r;
+  }
+  refineConsensus(obs, o, best, &m);
+  r.camera_T_lidar = makeTransform(m.R, m.t);
+  r.plane_scale = m.s;
+  r.normal_tolerance_deg = m.tol_a * kDegPerRad;
+  r.offset_tolerance_m = m.tol_o;
+  r.checkable = obs.size() > 3;
+  judgeViews(views, obs, target, o, m, r);
   r.ok = r.consistent_views >= 3;
   if (!r.ok) r.reason = "fewer than 3 views agree with each other";
   return r;

@@ -87,219 +87,244 @@ double planeResidualRatio(const std::vector<View>& views, const Target& target,
   return count ? std::sqrt(sum / count) : 0.0;
 }
 
-VerdictReport judgeSolution(
-    const CalibrationSolution& sol, const std::vector<View>& views, const Target& target,
-    const ConsistencyReport& consistency,
-    const std::function<CalibrationSolution(const std::vector<View>&)>& solve,
-    const VerdictOptions& o) {
-  VerdictReport r;
-  std::vector<std::string> failed, doubtful;
-  auto name = [&](int id) {
-    if (std::find(r.views_to_check.begin(), r.views_to_check.end(), id) == r.views_to_check.end())
-      r.views_to_check.push_back(id);
-  };
-  if (auto why = o.validate(); !why.empty()) failed.push_back("invalid verdict options: " + why);
-  if (!sol.success) failed.push_back(sol.reason.empty() ? "the solve failed" : sol.reason);
+namespace {
 
-  // Consistency before solving.
+// What a judgement found, by weight, and the views it names.
+struct Findings {
+  VerdictReport* report;
+  std::vector<std::string> failed, doubtful;
+  void name(int id) {
+    auto& ids = report->views_to_check;
+    if (std::find(ids.begin(), ids.end(), id) == ids.end()) ids.push_back(id);
+  }
+};
+
+// Consistency before solving: views left out, and whether enough agree.
+void judgeConsistency(const ConsistencyReport& consistency, const VerdictOptions& o, Findings& f) {
+  VerdictReport& r = *f.report;
   int usable = 0, inconsistent = 0;
   for (const auto& v : consistency.views) {
     usable += v.usable;
     if (consistency.ok && v.usable && !v.consistent) {
       ++inconsistent;
-      name(v.view_id);
+      f.name(v.view_id);
       r.details.push_back("view " + std::to_string(v.view_id) + " left out: " + v.reason);
     }
   }
-  if (!consistency.ok) failed.push_back(consistency.reason);
+  if (!consistency.ok) f.failed.push_back(consistency.reason);
   const double bad_fraction = usable ? static_cast<double>(inconsistent) / usable : 0.0;
   if (bad_fraction >= o.failed_inconsistent_fraction)
-    failed.push_back(std::to_string(inconsistent) + " of " + std::to_string(usable) +
-                     " views disagree with the others: no single calibration explains them");
+    f.failed.push_back(std::to_string(inconsistent) + " of " + std::to_string(usable) +
+                       " views disagree with the others: no single calibration explains them");
   else if (bad_fraction > o.doubtful_inconsistent_fraction)
-    doubtful.push_back(std::to_string(inconsistent) + " of " + std::to_string(usable) +
-                       " views were left out as inconsistent");
+    f.doubtful.push_back(std::to_string(inconsistent) + " of " + std::to_string(usable) +
+                         " views were left out as inconsistent");
   else if (inconsistent > 0)
     r.details.push_back(std::to_string(inconsistent) +
                         " inconsistent view(s) left out before solving");
   if (!consistency.checkable && consistency.ok)
-    doubtful.push_back("only 3 usable views: nothing to check them against");
+    f.doubtful.push_back("only 3 usable views: nothing to check them against");
+}
 
-  const int n = static_cast<int>(views.size());
-  if (n < o.min_views)
-    failed.push_back(std::to_string(n) + " view(s): at least " + std::to_string(o.min_views) +
-                     " needed");
-
-  Matrix6d model_cov = sol.covariance;
-  if (sol.success) {
-    // Residuals against the noise model.
-    std::vector<double> per_view;
-    r.plane_residual_ratio =
-        planeResidualRatio(views, target, sol.camera_T_lidar, sol.plane_scale, o, &per_view);
-    const std::string ratio_text =
-        "the LiDAR board points lie " + formatFixed(r.plane_residual_ratio, 1) +
-        "x as far from the camera's board planes as the sensors' noise explains (plane RMS " +
-        formatFixed(sol.plane_rms_mm, 1) + " mm)";
-    if (r.plane_residual_ratio > o.failed_residual_ratio)
-      failed.push_back(ratio_text);
-    else if (r.plane_residual_ratio > o.doubtful_residual_ratio)
-      doubtful.push_back(ratio_text);
-    std::vector<double> sizes;
-    for (const auto& v : views) sizes.push_back(boardSizePx(v, target));
-    if (!sizes.empty()) r.board_size_px = medianOf(sizes);
-    if (sol.mlre_px && r.board_size_px && *sol.mlre_px > o.failed_edge_fraction * *r.board_size_px)
-      failed.push_back("LiDAR edges land " + formatFixed(*sol.mlre_px, 1) +
+// Residuals against the noise model, the board's size in the image, outlier edges.
+void judgeResiduals(const CalibrationSolution& sol, const std::vector<View>& views,
+                    const Target& target, const VerdictOptions& o, Findings& f) {
+  VerdictReport& r = *f.report;
+  std::vector<double> per_view;
+  r.plane_residual_ratio =
+      planeResidualRatio(views, target, sol.camera_T_lidar, sol.plane_scale, o, &per_view);
+  const std::string ratio_text =
+      "the LiDAR board points lie " + formatFixed(r.plane_residual_ratio, 1) +
+      "x as far from the camera's board planes as the sensors' noise explains (plane RMS " +
+      formatFixed(sol.plane_rms_mm, 1) + " mm)";
+  if (r.plane_residual_ratio > o.failed_residual_ratio)
+    f.failed.push_back(ratio_text);
+  else if (r.plane_residual_ratio > o.doubtful_residual_ratio)
+    f.doubtful.push_back(ratio_text);
+  std::vector<double> sizes;
+  for (const auto& v : views) sizes.push_back(boardSizePx(v, target));
+  if (!sizes.empty()) r.board_size_px = medianOf(sizes);
+  if (sol.mlre_px && r.board_size_px && *sol.mlre_px > o.failed_edge_fraction * *r.board_size_px)
+    f.failed.push_back("LiDAR edges land " + formatFixed(*sol.mlre_px, 1) +
                        " px from the image edges on average, on a board about " +
                        formatFixed(*r.board_size_px, 0) + " px across");
-    // Outlier views and edges (MATLAB-style error bars would show them).
-    std::vector<double> view_mlre, edge_mlre;
-    for (const auto& vr : sol.views) {
-      if (vr.mlre_px) view_mlre.push_back(*vr.mlre_px);
-      for (const auto& e : vr.edges)
-        if (e.mlre_px) edge_mlre.push_back(*e.mlre_px);
-    }
-    const double med_edge = medianOf(edge_mlre);
-    std::vector<std::string> outlier_edges;
-    for (const auto& vr : sol.views)
-      for (int j = 0; j < kNumEdges; ++j) {
-        const auto& e = vr.edges[static_cast<size_t>(j)];
-        if (e.mlre_px && *e.mlre_px > std::max(o.outlier_factor * med_edge,
-                                               med_edge + o.outlier_min_excess_px)) {
-          name(vr.view_id);
-          outlier_edges.push_back("view " + std::to_string(vr.view_id) + " edge " + edgeName(j) +
-                                  ": " + formatFixed(*e.mlre_px, 1) +
-                                  " px against a median edge error of " + formatFixed(med_edge, 1) +
-                                  " px (a hand, a wrong line?)");
-        }
+  // Outlier views and edges (MATLAB-style error bars would show them).
+  std::vector<double> view_mlre, edge_mlre;
+  for (const auto& vr : sol.views) {
+    if (vr.mlre_px) view_mlre.push_back(*vr.mlre_px);
+    for (const auto& e : vr.edges)
+      if (e.mlre_px) edge_mlre.push_back(*e.mlre_px);
+  }
+  const double med_edge = medianOf(edge_mlre);
+  std::vector<std::string> outlier_edges;
+  for (const auto& vr : sol.views)
+    for (int j = 0; j < kNumEdges; ++j) {
+      const auto& e = vr.edges[static_cast<size_t>(j)];
+      if (e.mlre_px &&
+          *e.mlre_px > std::max(o.outlier_factor * med_edge, med_edge + o.outlier_min_excess_px)) {
+        f.name(vr.view_id);
+        outlier_edges.push_back("view " + std::to_string(vr.view_id) + " edge " + edgeName(j) +
+                                ": " + formatFixed(*e.mlre_px, 1) +
+                                " px against a median edge error of " + formatFixed(med_edge, 1) +
+                                " px (a hand, a wrong line?)");
       }
-    // A stray edge or two is what the robust loss is for: named, not doubted. Many are not.
-    const bool many =
-        static_cast<double>(outlier_edges.size()) >
-        std::max(1.0, o.max_outlier_edge_fraction * static_cast<double>(edge_mlre.size()));
-    for (const auto& text : outlier_edges) (many ? doubtful : r.details).push_back(text);
-    if (!sol.observability.well_conditioned && sol.observability.max_eigenvalue > 0)
-      doubtful.push_back("weakly observable: " + sol.observability.weakest_description);
+    }
+  // A stray edge or two is what the robust loss is for: named, not doubted. Many are not.
+  const bool many =
+      static_cast<double>(outlier_edges.size()) >
+      std::max(1.0, o.max_outlier_edge_fraction * static_cast<double>(edge_mlre.size()));
+  for (const auto& text : outlier_edges) (many ? f.doubtful : r.details).push_back(text);
+  if (!sol.observability.well_conditioned && sol.observability.max_eigenvalue > 0)
+    f.doubtful.push_back("weakly observable: " + sol.observability.weakest_description);
+}
 
-    // Cross-validation: each view (or fold) left out, solved on the rest, and predicted.
-    CrossValidation& cv = r.cross_validation;
-    cv.view_heldout_mlre_px.assign(views.size(), std::nullopt);
-    cv.view_heldout_plane_ratio.assign(views.size(), 0.0);
-    if (n < o.min_views_to_cross_validate) {
-      cv.why_not = std::to_string(n) + " views: too few to leave any out";
-      doubtful.push_back("too few views (" + std::to_string(n) +
+// Each fold of views left out, solved on the rest, and predicted: the deltas to the full
+// solution and the held-out figures go into `cv`.
+std::vector<Vector6d> runFolds(
+    const CalibrationSolution& sol, const std::vector<View>& views, const Target& target,
+    const std::function<CalibrationSolution(const std::vector<View>&)>& solve,
+    const VerdictOptions& o, CrossValidation& cv) {
+  const int n = static_cast<int>(views.size());
+  const int folds = std::min(n, o.max_leave_one_out_views);
+  std::vector<Vector6d> deltas;
+  double heldout_mlre_sum = 0, heldout_ratio2_sum = 0;
+  int heldout_mlre_n = 0, heldout_ratio_n = 0;
+  for (int k = 0; k < folds; ++k) {
+    std::vector<View> train, test;
+    std::vector<size_t> test_index;
+    for (int i = 0; i < n; ++i) {
+      if (i % folds == k) {
+        test.push_back(views[static_cast<size_t>(i)]);
+        test_index.push_back(static_cast<size_t>(i));
+      } else {
+        train.push_back(views[static_cast<size_t>(i)]);
+      }
+    }
+    const CalibrationSolution fold = solve(train);
+    ++cv.solves;
+    if (!fold.success) {
+      ++cv.failed_solves;
+      continue;
+    }
+    deltas.push_back(poseDelta(fold.camera_T_lidar, sol.camera_T_lidar));
+    cv.max_rotation_dev_deg = std::max(cv.max_rotation_dev_deg,
+                                       rotationErrorDeg(fold.camera_T_lidar, sol.camera_T_lidar));
+    cv.max_translation_dev_m = std::max(cv.max_translation_dev_m,
+                                        translationErrorM(fold.camera_T_lidar, sol.camera_T_lidar));
+    std::vector<double> ratios;
+    planeResidualRatio(test, target, fold.camera_T_lidar, fold.plane_scale, o, &ratios);
+    for (size_t t = 0; t < test.size(); ++t) {
+      cv.view_heldout_plane_ratio[test_index[t]] = ratios[t];
+      heldout_ratio2_sum += ratios[t] * ratios[t];
+      ++heldout_ratio_n;
+      if (auto m = viewLineReprojectionErrorPx(test[t], fold.camera_T_lidar)) {
+        cv.view_heldout_mlre_px[test_index[t]] = m;
+        heldout_mlre_sum += *m;
+        ++heldout_mlre_n;
+      }
+    }
+  }
+  cv.ran = cv.solves > 0;
+  if (heldout_mlre_n) cv.heldout_mlre_px = heldout_mlre_sum / heldout_mlre_n;
+  if (heldout_ratio_n) cv.heldout_plane_ratio = std::sqrt(heldout_ratio2_sum / heldout_ratio_n);
+  return deltas;
+}
+
+// Cross-validation: each view (or fold) left out, solved on the rest, and predicted.
+void crossValidate(const CalibrationSolution& sol, const std::vector<View>& views,
+                   const Target& target,
+                   const std::function<CalibrationSolution(const std::vector<View>&)>& solve,
+                   const VerdictOptions& o, Findings& f) {
+  VerdictReport& r = *f.report;
+  const int n = static_cast<int>(views.size());
+  CrossValidation& cv = r.cross_validation;
+  cv.view_heldout_mlre_px.assign(views.size(), std::nullopt);
+  cv.view_heldout_plane_ratio.assign(views.size(), 0.0);
+  if (n < o.min_views_to_cross_validate) {
+    cv.why_not = std::to_string(n) + " views: too few to leave any out";
+    f.doubtful.push_back("too few views (" + std::to_string(n) +
                          ") to cross-validate: collect at least " +
                          std::to_string(o.min_views_to_cross_validate));
-    } else if (solve) {
-      const int folds = std::min(n, o.max_leave_one_out_views);
-      std::vector<Vector6d> deltas;
-      double heldout_mlre_sum = 0, heldout_ratio2_sum = 0;
-      int heldout_mlre_n = 0, heldout_ratio_n = 0;
-      for (int k = 0; k < folds; ++k) {
-        std::vector<View> train, test;
-        std::vector<size_t> test_index;
-        for (int i = 0; i < n; ++i) {
-          if (i % folds == k) {
-            test.push_back(views[static_cast<size_t>(i)]);
-            test_index.push_back(static_cast<size_t>(i));
-          } else {
-            train.push_back(views[static_cast<size_t>(i)]);
-          }
-        }
-        const CalibrationSolution fold = solve(train);
-        ++cv.solves;
-        if (!fold.success) {
-          ++cv.failed_solves;
-          continue;
-        }
-        deltas.push_back(poseDelta(fold.camera_T_lidar, sol.camera_T_lidar));
-        cv.max_rotation_dev_deg = std::max(
-            cv.max_rotation_dev_deg, rotationErrorDeg(fold.camera_T_lidar, sol.camera_T_lidar));
-        cv.max_translation_dev_m = std::max(
-            cv.max_translation_dev_m, translationErrorM(fold.camera_T_lidar, sol.camera_T_lidar));
-        std::vector<double> ratios;
-        planeResidualRatio(test, target, fold.camera_T_lidar, fold.plane_scale, o, &ratios);
-        for (size_t t = 0; t < test.size(); ++t) {
-          cv.view_heldout_plane_ratio[test_index[t]] = ratios[t];
-          heldout_ratio2_sum += ratios[t] * ratios[t];
-          ++heldout_ratio_n;
-          if (auto m = viewLineReprojectionErrorPx(test[t], fold.camera_T_lidar)) {
-            cv.view_heldout_mlre_px[test_index[t]] = m;
-            heldout_mlre_sum += *m;
-            ++heldout_mlre_n;
-          }
-        }
-      }
-      cv.ran = cv.solves > 0;
-      if (heldout_mlre_n) cv.heldout_mlre_px = heldout_mlre_sum / heldout_mlre_n;
-      if (heldout_ratio_n) cv.heldout_plane_ratio = std::sqrt(heldout_ratio2_sum / heldout_ratio_n);
-      if (cv.failed_solves * 2 > cv.solves)
-        failed.push_back(std::to_string(cv.failed_solves) + " of " + std::to_string(cv.solves) +
+  } else if (solve) {
+    const std::vector<Vector6d> deltas = runFolds(sol, views, target, solve, o, cv);
+    if (cv.failed_solves * 2 > cv.solves)
+      f.failed.push_back(std::to_string(cv.failed_solves) + " of " + std::to_string(cv.solves) +
                          " solves with a view left out failed: the result hangs on single views");
-      else if (cv.failed_solves > 0)
-        doubtful.push_back(std::to_string(cv.failed_solves) + " of " + std::to_string(cv.solves) +
+    else if (cv.failed_solves > 0)
+      f.doubtful.push_back(std::to_string(cv.failed_solves) + " of " + std::to_string(cv.solves) +
                            " solves with a view left out failed");
-      if (deltas.size() >= 2) {
-        Vector6d mean = Vector6d::Zero();
-        for (const auto& d : deltas) mean += d;
-        mean /= static_cast<double>(deltas.size());
-        Matrix6d c = Matrix6d::Zero();
-        for (const auto& d : deltas) c += (d - mean) * (d - mean).transpose();
-        const double m = static_cast<double>(deltas.size());
-        cv.covariance = c * (m - 1.0) / m;  // grouped jackknife
-      }
-      // Prediction against fit: a model that only fits its own views does not generalise.
-      if (cv.heldout_mlre_px && sol.mlre_px && *sol.mlre_px > 0 &&
-          *cv.heldout_mlre_px > o.doubtful_heldout_ratio * std::max(*sol.mlre_px, 1.0))
-        doubtful.push_back("left-out views' edges are predicted " +
+    if (deltas.size() >= 2) {
+      Vector6d mean = Vector6d::Zero();
+      for (const auto& d : deltas) mean += d;
+      mean /= static_cast<double>(deltas.size());
+      Matrix6d c = Matrix6d::Zero();
+      for (const auto& d : deltas) c += (d - mean) * (d - mean).transpose();
+      const double m = static_cast<double>(deltas.size());
+      cv.covariance = c * (m - 1.0) / m;  // grouped jackknife
+    }
+    // Prediction against fit: a model that only fits its own views does not generalise.
+    if (cv.heldout_mlre_px && sol.mlre_px && *sol.mlre_px > 0 &&
+        *cv.heldout_mlre_px > o.doubtful_heldout_ratio * std::max(*sol.mlre_px, 1.0))
+      f.doubtful.push_back("left-out views' edges are predicted " +
                            formatFixed(*cv.heldout_mlre_px, 1) + " px off against " +
                            formatFixed(*sol.mlre_px, 1) + " px fitted");
-      if (cv.heldout_plane_ratio > o.doubtful_heldout_ratio * std::max(r.plane_residual_ratio, 1.0))
-        doubtful.push_back("left-out views' planes are predicted " +
+    if (cv.heldout_plane_ratio > o.doubtful_heldout_ratio * std::max(r.plane_residual_ratio, 1.0))
+      f.doubtful.push_back("left-out views' planes are predicted " +
                            formatFixed(cv.heldout_plane_ratio, 1) + "x the noise against " +
                            formatFixed(r.plane_residual_ratio, 1) + "x fitted");
-      // Name the views whose prediction is far off the others'.
-      std::vector<double> pred;
-      for (const auto& m : cv.view_heldout_mlre_px)
-        if (m) pred.push_back(*m);
-      const double med_pred = medianOf(pred);
-      for (size_t i = 0; i < views.size(); ++i) {
-        const auto& m = cv.view_heldout_mlre_px[i];
-        if (m && *m > std::max(o.outlier_factor * med_pred, med_pred + o.outlier_min_excess_px)) {
-          name(views[i].id);
-          doubtful.push_back("view " + std::to_string(views[i].id) + " is predicted " +
+    // Name the views whose prediction is far off the others'.
+    std::vector<double> pred;
+    for (const auto& m : cv.view_heldout_mlre_px)
+      if (m) pred.push_back(*m);
+    const double med_pred = medianOf(pred);
+    for (size_t i = 0; i < views.size(); ++i) {
+      const auto& m = cv.view_heldout_mlre_px[i];
+      if (m && *m > std::max(o.outlier_factor * med_pred, med_pred + o.outlier_min_excess_px)) {
+        f.name(views[i].id);
+        f.doubtful.push_back("view " + std::to_string(views[i].id) + " is predicted " +
                              formatFixed(*m, 1) + " px off by the others (median " +
                              formatFixed(med_pred, 1) + " px)");
-        }
       }
     }
-
-    // Reported uncertainty: never below the cross-validation's spread, nor below the model's
-    // scaled by how much the residuals exceed the noise model.
-    double inflation2 = std::max(1.0, r.plane_residual_ratio * r.plane_residual_ratio);
-    if (!model_cov.allFinite()) model_cov = cv.covariance;
-    for (int i = 0; i < 6; ++i)
-      if (model_cov(i, i) > 0 && cv.covariance(i, i) > 0)
-        inflation2 = std::max(inflation2, cv.covariance(i, i) / model_cov(i, i));
-    r.covariance = model_cov * inflation2;
-    if (!r.covariance.allFinite() || r.covariance.diagonal().maxCoeff() <= 0)
-      r.covariance = cv.covariance;
-    r.stddev_inflation = std::sqrt(inflation2);
-    r.stddev = stddevFromCovariance(r.covariance);
-    const double st = r.stddev.translation_m.maxCoeff(), sr = r.stddev.rotation_deg.maxCoeff();
-    const std::string sigma_text =
-        "1 sigma " + formatFixed(st * 1e3, 1) + " mm / " + formatFixed(sr, 3) + " deg";
-    if (!std::isfinite(st) || !std::isfinite(sr) || st > o.failed_stddev_translation_m ||
-        sr > o.failed_stddev_rotation_deg)
-      failed.push_back(sigma_text + ": the views do not determine the calibration");
-    else if (st > o.doubtful_stddev_translation_m || sr > o.doubtful_stddev_rotation_deg)
-      doubtful.push_back(sigma_text +
-                         ": loosely determined; add views with other tilts and distances");
-    if (r.stddev_inflation > 1.5)
-      r.details.push_back(
-          "1 sigma scaled by " + formatFixed(r.stddev_inflation, 1) +
-          " (residuals beyond the noise model, or the spread of the cross-validation)");
   }
+}
 
+// Reported uncertainty: never below the cross-validation's spread, nor below the model's
+// scaled by how much the residuals exceed the noise model.
+void judgeUncertainty(const CalibrationSolution& sol, const VerdictOptions& o, Findings& f) {
+  VerdictReport& r = *f.report;
+  const CrossValidation& cv = r.cross_validation;
+  Matrix6d model_cov = sol.covariance;
+  double inflation2 = std::max(1.0, r.plane_residual_ratio * r.plane_residual_ratio);
+  if (!model_cov.allFinite()) model_cov = cv.covariance;
+  for (int i = 0; i < 6; ++i)
+    if (model_cov(i, i) > 0 && cv.covariance(i, i) > 0)
+      inflation2 = std::max(inflation2, cv.covariance(i, i) / model_cov(i, i));
+  r.covariance = model_cov * inflation2;
+  if (!r.covariance.allFinite() || r.covariance.diagonal().maxCoeff() <= 0)
+    r.covariance = cv.covariance;
+  r.stddev_inflation = std::sqrt(inflation2);
+  r.stddev = stddevFromCovariance(r.covariance);
+  const double st = r.stddev.translation_m.maxCoeff(), sr = r.stddev.rotation_deg.maxCoeff();
+  const std::string sigma_text =
+      "1 sigma " + formatFixed(st * 1e3, 1) + " mm / " + formatFixed(sr, 3) + " deg";
+  if (!std::isfinite(st) || !std::isfinite(sr) || st > o.failed_stddev_translation_m ||
+      sr > o.failed_stddev_rotation_deg)
+    f.failed.push_back(sigma_text + ": the views do not determine the calibration");
+  else if (st > o.doubtful_stddev_translation_m || sr > o.doubtful_stddev_rotation_deg)
+    f.doubtful.push_back(sigma_text +
+                         ": loosely determined; add views with other tilts and distances");
+  if (r.stddev_inflation > 1.5)
+    r.details.push_back(
+        "1 sigma scaled by " + formatFixed(r.stddev_inflation, 1) +
+        " (residuals beyond the noise model, or the spread of the cross-validation)");
+}
+
+// The verdict from the findings: any failure fails, any doubt doubts; every finding in the details.
+void conclude(Findings& f) {
+  VerdictReport& r = *f.report;
+  std::vector<std::string>& failed = f.failed;
+  std::vector<std::string>& doubtful = f.doubtful;
   if (!failed.empty()) {
     r.verdict = Verdict::kFailed;
     r.reason = failed.front();
@@ -320,6 +345,30 @@ VerdictReport judgeSolution(
   all.insert(all.end(), doubtful.begin(), doubtful.end());
   all.insert(all.end(), r.details.begin(), r.details.end());
   r.details = all;
+}
+
+}  // namespace
+
+VerdictReport judgeSolution(
+    const CalibrationSolution& sol, const std::vector<View>& views, const Target& target,
+    const ConsistencyReport& consistency,
+    const std::function<CalibrationSolution(const std::vector<View>&)>& solve,
+    const VerdictOptions& o) {
+  VerdictReport r;
+  Findings f{&r, {}, {}};
+  if (auto why = o.validate(); !why.empty()) f.failed.push_back("invalid verdict options: " + why);
+  if (!sol.success) f.failed.push_back(sol.reason.empty() ? "the solve failed" : sol.reason);
+  judgeConsistency(consistency, o, f);
+  const int n = static_cast<int>(views.size());
+  if (n < o.min_views)
+    f.failed.push_back(std::to_string(n) + " view(s): at least " + std::to_string(o.min_views) +
+                       " needed");
+  if (sol.success) {
+    judgeResiduals(sol, views, target, o, f);
+    crossValidate(sol, views, target, solve, o, f);
+    judgeUncertainty(sol, o, f);
+  }
+  conclude(f);
   return r;
 }
 

@@ -101,18 +101,19 @@ struct StillnessStream {
 StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, double stamp,
                                   const StillnessOptions& options, bool ended);
 
-/// The stillness settings of a session's options: the pair and the rig session name them alike
-/// (still_window_s, still_frames_required, still_max_translation_m, still_max_rotation_deg,
-/// snapshot_interval_s).
-template <typename SessionOptions>
-StillnessOptions stillnessOf(const SessionOptions& s) {
-  StillnessOptions o;
-  o.window_s = s.still_window_s;
-  o.min_frames = s.still_frames_required;
-  o.max_translation_m = s.still_max_translation_m;
-  o.max_rotation_deg = s.still_max_rotation_deg;
-  o.snapshot_interval_s = s.snapshot_interval_s;
-  return o;
-}
+/// The stillness settings of a capturing session, under the names the calibrator's parameters
+/// use: the pair session (SessionOptions) and the rig session (RigSessionOptions) both extend it.
+struct StillCaptureOptions {
+  int still_frames_required = 2;  ///< frames of the fastest stream seeing the board in the still
+                                  ///< window, on both sides of the moment (1 = no stillness check)
+  double still_window_s = 0.25;   ///< s, the board must be still this long before and after
+  double still_max_translation_m =
+      0.03;  ///< m, board centre motion allowed inside the window (beyond noise)
+  double still_max_rotation_deg =
+      1.5;  ///< deg, board normal change allowed inside the window (beyond noise)
+  double snapshot_interval_s = 0.5;  ///< s, every stream sparser than this: one frame per pose
+  /// As the stillness judge takes them.
+  StillnessOptions stillness() const;
+};
 
 }  // namespace board_calib

@@ -7,6 +7,7 @@
 
 #include <board_calib/core/image_detection/image_board_detector.h>
 #include <board_calib/core/lidar_detection/lidar_board_detector.h>
+#include <board_calib/core/pipeline/rig_report.h>
 #include <board_calib/core/rig/rig_config.h>
 #include <board_calib/core/rig/rig_session.h>
 
@@ -31,6 +32,11 @@ struct RigPipelineOptions {
   multi_sensor::RigSessionOptions
       session;  ///< stamp_tolerance_s comes from the rig file (rigPipelineOptionsFor)
   RigCapture capture = RigCapture::kStill;
+  /// Raw images kept per camera for the report's overlays (offline entry only), spread over the
+  /// session: the first, the newest and the ones between with the widest gaps. 0: none.
+  int overlay_frames = 4;
+  int frame_history = 16;  ///< images with the board kept per camera at most while their moment
+                           ///< is judged (still rule; bounded also by session.history_s)
   std::string validate() const;
 };
 
@@ -70,6 +76,9 @@ class RigPipeline {
   const multi_sensor::RigSession& session() const;
   multi_sensor::RigSession& session();
   const std::vector<RigSensorStats>& stats() const;  ///< MsgProblem order
+  /// Per camera, the raw images kept for the overlays (overlay_frames; still rule: images of
+  /// captured poses with a LiDAR; all rule: images with the board). Empty for the live entry.
+  std::vector<RigCameraFrames> overlayFrames() const;
   const RigConfig& rig() const;
   const Target& target() const;
 

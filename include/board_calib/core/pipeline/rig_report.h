@@ -5,12 +5,16 @@
 // table, judged at the graph's camera_T_lidar. ROS-free.
 #pragma once
 
+#include <board_calib/core/camera_model.h>
 #include <board_calib/core/msg_graph/msg_graph.h>
 #include <board_calib/core/report/report_plots.h>
 #include <board_calib/core/result_io.h>
 #include <board_calib/core/rig/rig_config.h>
 #include <board_calib/core/solvers/solvers.h>
 
+#include <opencv2/core.hpp>
+
+#include <map>
 #include <string>
 #include <vector>
 
@@ -31,6 +35,17 @@ std::vector<RigPairEvaluation> evaluateRigPairs(const multi_sensor::MsgProblem& 
                                                 const multi_sensor::MsgSolution& solution,
                                                 const ResultFile& result);
 
+/// A raw camera image kept for the report's overlays, with the intrinsics valid at its time.
+struct RigFrame {
+  cv::Mat image;
+  CameraIntrinsics intrinsics;
+};
+/// The raw images one camera kept for the overlays (RigPipeline::overlayFrames).
+struct RigCameraFrames {
+  int sensor = -1;                    ///< index in MsgProblem order
+  std::map<double, RigFrame> images;  ///< stamp (s) -> frame; drawn where a pose has that stamp
+};
+
 struct RigReportInputs {
   std::string source;                    ///< "rig `FILE`, bags ..." or "live session"
   std::vector<std::string> input_lines;  ///< detection counts, capture rule (Markdown list items)
@@ -38,11 +53,17 @@ struct RigReportInputs {
   std::string verdict_text;  ///< the rig verdict in words (rigVerdictSummary), first section
   bool failed = false;       ///< failed verdict: the result is written as result.failed.yaml
   PlotOptions plots;
+  /// Raw images per camera for the overlays (offline); empty: `overlays_note` says why not.
+  std::vector<RigCameraFrames> camera_frames;
+  std::string overlays_note;  ///< why there are no overlays (e.g. a live session)
 };
 
-/// Writes `dir`/report.md, `dir`/result.yaml (result.failed.yaml when failed) and
-/// `dir`/CAMERA__LIDAR/{report.md, edge_errors.png, pose_coverage.png} for every pair. Fails only
-/// when a file cannot be written.
+/// Writes `dir`/report.md, `dir`/result.yaml (result.failed.yaml when failed),
+/// `dir`/CAMERA__LIDAR/{report.md, edge_errors.png, pose_coverage.png} for every pair and, for
+/// every kept camera image that belongs to a pose, `dir`/overlays/CAMERA_pose_ID.jpg with every
+/// LiDAR of that pose drawn at the graph's camera_T_lidar (board points and projected edges),
+/// linked from the rig report and the camera's pair pages. Fails only when a file cannot be
+/// written.
 Status writeRigReport(const std::string& dir, const RigConfig& rig,
                       const multi_sensor::MsgProblem& problem,
                       const multi_sensor::MsgSolution& solution, const ResultFile& result,

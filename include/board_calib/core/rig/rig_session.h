@@ -29,19 +29,12 @@
 namespace board_calib {
 namespace multi_sensor {
 
-struct RigSessionOptions {
+/// The rig session's options; the stillness settings are the pair session's
+/// (StillCaptureOptions).
+struct RigSessionOptions : StillCaptureOptions {
   double stamp_tolerance_s =
       0.05;                  ///< s, a sensor's feature belongs to a pose within this of its moment
   bool auto_capture = true;  ///< capture on stillness; false: only captureNow()
-  int still_frames_required = 2;  ///< frames of the fastest stream seeing the board in the still
-                                  ///< window, on both sides of the moment (1 = no stillness check)
-  double still_window_s =
-      0.25;  ///< s, the board must be still this long before and after the moment
-  double still_max_translation_m =
-      0.03;  ///< m, board centre motion allowed inside the window (beyond noise)
-  double still_max_rotation_deg =
-      1.5;  ///< deg, board normal change allowed inside the window (beyond noise)
-  double snapshot_interval_s = 0.5;    ///< s, every stream sparser than this: one frame per pose
   double min_pose_rotation_deg = 5.0;  ///< deg, a new pose's normal must differ this much ...
   double min_pose_translation_m =
       0.20;                ///< m, ... or its centre move this much (in every sensor that saw both)
@@ -49,7 +42,6 @@ struct RigSessionOptions {
   int max_poses = 300;     ///< poses kept at most
   double history_s = 3.0;  ///< s, features kept per stream for assembly and judgement
   std::string validate() const;  ///< empty when usable
-  StillnessOptions stillness() const;
 };
 
 /// Defaults with the rig file's stamp tolerance (and a history long enough for it).

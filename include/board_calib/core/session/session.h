@@ -21,17 +21,10 @@
 
 namespace board_calib {
 
-struct SessionOptions {
-  double sync_tolerance_s = 0.05;  ///< s, max |t_camera - t_lidar| for one view
-  int still_frames_required = 2;   ///< frames of the fastest stream in the still window, on both
-                                   ///< sides of the image (1 = no stillness check)
-  double still_window_s =
-      0.25;  ///< s, the board must be still this long before and after the image
-  double still_max_translation_m =
-      0.03;  ///< m, max board centre motion inside the window (beyond noise)
-  double still_max_rotation_deg =
-      1.5;  ///< deg, max board normal change inside the window (beyond noise)
-  double snapshot_interval_s = 0.5;    ///< s, both streams sparser than this: one frame per pose
+/// The pair session's options; the stillness settings (still_*, snapshot_interval_s) are the
+/// rig session's too (StillCaptureOptions).
+struct SessionOptions : StillCaptureOptions {
+  double sync_tolerance_s = 0.05;      ///< s, max |t_camera - t_lidar| for one view
   double min_view_rotation_deg = 5.0;  ///< deg, a new view's normal must differ this much ...
   double min_view_translation_m =
       0.20;                          ///< m, ... or its centre move this much from every kept view
@@ -42,7 +35,6 @@ struct SessionOptions {
   int max_views = 200;               ///< views kept at most
   int history = 400;                 ///< features kept per stream at most (also pruned by time)
   std::string validate() const;
-  StillnessOptions stillness() const;
 };
 
 /// A kept view with its provenance.

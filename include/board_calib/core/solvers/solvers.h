@@ -123,6 +123,8 @@ struct ResidualStats {
   double mean_abs_m = 0.0;
   double max_abs_m = 0.0;
 };
+/// Count, RMS, mean and max magnitude of signed distances (m); zeros for none.
+ResidualStats residualStats(const std::vector<double>& residuals);
 
 struct EdgeResidual {
   bool used = false;              ///< both sides valid and the edge contributed line terms

@@ -1,5 +1,6 @@
 // YAML form of the board features (LiDAR and camera), shared by the pair session and the rig
-// session files. Private to the core; readers throw FeatureYamlError naming the bad key.
+// session files. For the session modules' .cpp files only (it includes yaml-cpp: no public header
+// may include it); readers throw FeatureYamlError naming the bad key.
 #pragma once
 
 #include <board_calib/core/features.h>
