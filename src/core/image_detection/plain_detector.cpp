@@ -23,17 +23,11 @@ constexpr double kGradientNoiseGain = 1.41421356;
 constexpr double kDuplicateHypothesisFraction =
     0.05;  // of the board size: hypotheses this close are one
 
-// Every hypothesis tried. Among the accepted ones the corners that fit a board of the declared
-// size best win: edge support grows with a rectangle's size, so by support alone a larger scene
-// rectangle (a facade bay, a torso under the board) beats a far board. Fits within the corner
-// noise of each other (fit_tolerance_px) are equal; then the more edge support wins. When none is
-// a board, the attempt that got furthest (most valid edges, then the more edge support) gives the
-// reason.
+// Every hypothesis tried; the accepted one with the most edge support wins. When none is a board,
+// the attempt that got furthest (most valid edges, then the more edge support) gives the reason.
 struct HypothesisSearch {
-  explicit HypothesisSearch(double fit_tolerance) : fit_tolerance_px(fit_tolerance) {}
-  double fit_tolerance_px;
   ImageDetection best_found, best_miss;
-  double best_score = -1, best_miss_score = -1, best_min_coverage = 0, best_rms = 0;
+  double best_score = -1, best_miss_score = -1, best_min_coverage = 0;
   int best_valid = -1;
   std::vector<std::array<Eigen::Vector2d, 4>> tried;
   std::vector<std::string> reasons;
@@ -62,12 +56,8 @@ struct HypothesisSearch {
     tried.push_back(corners);
     reasons.push_back(std::string(h.source) + ": " + (is_board ? "board" : af.reason));
     if (is_board) {
-      const double rms = af.reprojection_rms_px;
-      const bool better_fit = found() && rms + fit_tolerance_px < best_rms;
-      const bool worse_fit = found() && rms > best_rms + fit_tolerance_px;
-      if (!found() || better_fit || (!worse_fit && support.score > best_score)) {
+      if (support.score > best_score) {
         best_score = support.score;
-        best_rms = rms;
         best_min_coverage = support.min_coverage;
         best_found = std::move(attempt);
       }
@@ -148,8 +138,7 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
   std::vector<QuadHypothesis> quads;
 
   const ImageDetection fresh = *out;
-  // Corner noise: 3 sigma of the corner noise floor.
-  HypothesisSearch search(3.0 * o.pixel_sigma_px);
+  HypothesisSearch search;
   for (size_t i = 0;; ++i) {
     // Line evidence (the costly part) unless a region already gave a board whose four sides
     // show their edge along nearly all their visible length.
@@ -160,6 +149,11 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     if (i >= hypotheses.size()) break;
     if (i >= first_regions && i < regions && search.found())
       continue;  // openings only when no region was the board
+    // The edge support of a hypothesis cannot exceed the length of its sides: skip those that
+    // cannot beat the board already accepted.
+    double bound = 0;
+    for (const auto& side : hypotheses[i].sides) bound += side.length;
+    if (bound <= search.best_score) continue;
     if (i >= regions && search.duplicatesBoard(quads[i - regions].corners)) continue;
     if (expected && i < regions && !nearExpected(hypotheses[i].inside_u, *expected)) continue;
     ImageDetection attempt = fresh;
