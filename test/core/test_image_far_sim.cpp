@@ -1,0 +1,157 @@
+// Issue 14: far plain boards (plain_vlp16_outdoor_far: a cardboard-coloured 0.89 x 1.20 m board
+// with printed marks and grain, the holder's legs under it, 5-14 m from a 1440x1080 camera, i.e.
+// about 120-350 px across). Rendered per still pose of several seeds; each found board's lines are
+// compared with the simulator's truth.
+//  - FarBoardsOnPlainBackground: the scenario's board, legs and camera without the street: the
+//    boards are found with sub-pixel lines (what works).
+//  - DISABLED_NoWrongFarBoard, DISABLED_FarBoardsInTheStreet: what does not work yet (a wrong
+//    board; the street with facades of windows), diagnosed per frame in docs/BENCHMARKS.md
+//    ("Session 4: far boards in the simulated street"); run with --gtest_also_run_disabled_tests.
+#include <board_calib/core/image_detection/image_board_detector.h>
+#include <board_calib/core/sim/scenario.h>
+#include <board_calib/core/sim/simulator.h>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+
+namespace board_calib {
+namespace {
+
+struct FarResult {
+  int poses = 0, found = 0, wrong = 0;
+  double worst_line_px = 0.0;  ///< largest distance of a true side's end from its detected line
+};
+
+// Distance of the true side ends from the detected lines (undistorted px), max over the lines.
+// A plain board has no marked corner: which side is named UL is the detector's convention, so
+// each detected line is matched to the true side it lies on.
+double lineErrorPx(const CameraBoardFeatures& f, const std::array<Eigen::Vector2d, 4>& truth) {
+  double worst = 0.0;
+  for (int j = 0; j < kNumEdges; ++j) {
+    const Eigen::Vector3d& l = f.edge_lines[j];
+    double best = 1e18;
+    for (int k = 0; k < kNumEdges; ++k) {
+      double side = 0.0;
+      for (const Eigen::Vector2d& p : {truth[(k + 3) % 4], truth[k]})
+        side = std::max(side, std::abs(l.head<2>().dot(p) + l.z()) / l.head<2>().norm());
+      best = std::min(best, side);
+    }
+    worst = std::max(worst, best);
+  }
+  return worst;
+}
+
+// Beyond this a found board is another object: a true board's line is off by at most its bow
+// (~3 px for a held board, the edge inlier band); other rectangles were 100-700 px off.
+constexpr double kWrongBoardPx = 3.0;
+
+// One still frame per held pose of the scenario with `seed`; prints per frame the board's true
+// size in px, the outcome and the reason (the diagnosis table).
+FarResult runScenario(unsigned seed, int poses, bool street) {
+  auto loaded = sim::loadScenario(std::string(BOARD_CALIB_SOURCE_DIR) +
+                                  "/config/scenarios/plain_vlp16_outdoor_far.yaml");
+  EXPECT_TRUE(loaded.ok()) << loaded.error();
+  sim::Scenario s = *loaded;
+  s.seed = seed;
+  s.motion.poses = poses;
+  s.cameras.front().render.supersampling = 2;  // test time; edges still anti-aliased
+  if (!street) {
+    s.scene.outdoor = false;
+    s.scene.room = false;
+  }
+  auto timeline = sim::makeTimeline(s);
+  EXPECT_TRUE(timeline.ok()) << timeline.error();
+  auto gen = sim::FrameGenerator::create(s);
+  EXPECT_TRUE(gen.ok()) << gen.error();
+  const CameraModel& camera = gen->cameraModel(0);
+  auto det = ImageBoardDetector::create(s.scene.target, ImageBoardDetectorOptions{});
+  EXPECT_TRUE(det.ok()) << det.error();
+  const char* debug_dir = std::getenv("BOARD_CALIB_DEBUG_DIR");
+  FarResult out;
+  int last_pose = -1;
+  for (size_t i = 0; timeline.ok() && i < timeline->frames.size(); ++i) {
+    const sim::Frame& f = timeline->frames[i];
+    if (!f.is_camera || !f.still || f.pose < 0 || f.pose == last_pose) continue;
+    last_pose = f.pose;
+    const Eigen::Isometry3d camera_T_board = sim::worldTCamera(s, 0).inverse() * f.world_T_board;
+    std::array<Eigen::Vector2d, 4> truth;
+    const auto outer = s.scene.target.outerCorners();
+    Eigen::Vector2d lo(1e9, 1e9), hi(-1e9, -1e9);
+    for (int j = 0; j < kNumEdges; ++j) {
+      EXPECT_TRUE(camera.projectUndistorted(camera_T_board * outer[j], &truth[j]));
+      lo = lo.cwiseMin(truth[j]);
+      hi = hi.cwiseMax(truth[j]);
+    }
+    const cv::Mat image = gen->image(f, i);
+    const ImageDetection d = det->detect(image, camera);
+    ++out.poses;
+    double err = -1.0;
+    if (d.features.found) {
+      err = lineErrorPx(d.features, truth);
+      ++out.found;
+      if (err > kWrongBoardPx)
+        ++out.wrong;
+      else
+        out.worst_line_px = std::max(out.worst_line_px, err);
+    }
+    std::printf("[far] %s seed %u pose %2d %5.1f m %3.0fx%3.0f px: %s", street ? "street" : "plain",
+                seed, f.pose, camera_T_board.translation().norm(), hi.x() - lo.x(), hi.y() - lo.y(),
+                d.features.found ? "found" : "miss");
+    if (d.features.found)
+      std::printf(", lines within %.2f px%s\n", err, err > kWrongBoardPx ? " (WRONG board)" : "");
+    else
+      std::printf(" (%s)\n", d.features.reason.c_str());
+    if (debug_dir)
+      cv::imwrite(std::string(debug_dir) + "/far_" + (street ? "street_" : "plain_") +
+                      std::to_string(seed) + "_" + std::to_string(f.pose) + ".png",
+                  drawImageDetection(image, camera, d));
+  }
+  return out;
+}
+
+FarResult runSeeds(bool street) {
+  FarResult all;
+  for (unsigned seed : {14u, 15u, 16u}) {
+    const FarResult r = runScenario(seed, 8, street);
+    all.poses += r.poses;
+    all.found += r.found;
+    all.wrong += r.wrong;
+    all.worst_line_px = std::max(all.worst_line_px, r.worst_line_px);
+  }
+  std::printf("[far] %s: found %d/%d, wrong %d, lines within %.2f px of the truth\n",
+              street ? "street" : "plain", all.found, all.poses, all.wrong, all.worst_line_px);
+  return all;
+}
+
+}  // namespace
+
+TEST(ImageDetectorFarSim, FarBoardsOnPlainBackground) {
+  const FarResult r = runSeeds(false);
+  ASSERT_EQ(r.poses, 24);
+  // Measured 23/24 true boards (the 24th: the legs' rectangle under the board wins on edge
+  // support, see DISABLED_NoWrongFarBoard); one more miss allowed for a pose whose lower tip
+  // the legs cover.
+  EXPECT_GE(r.found - r.wrong, 22);
+  // Four sub-pixel lines: measured <= 0.24 px at 120-350 px with 2 grey levels of noise; the
+  // issue asks sub-pixel.
+  EXPECT_LT(r.worst_line_px, 0.5);
+}
+
+// Not yet met (docs/BENCHMARKS.md, "Session 4: far boards in the simulated street"): run with
+// --gtest_also_run_disabled_tests.
+TEST(ImageDetectorFarSim, DISABLED_NoWrongFarBoard) {
+  EXPECT_EQ(runSeeds(false).wrong, 0);  // measured 1 of 24: the legs' rectangle
+}
+
+TEST(ImageDetectorFarSim, DISABLED_FarBoardsInTheStreet) {
+  const FarResult r = runSeeds(true);
+  EXPECT_EQ(r.wrong, 0);   // measured 2 of 24: facade rectangles
+  EXPECT_GE(r.found, 12);  // measured 2 (both wrong)
+}
+
+}  // namespace board_calib
