@@ -140,7 +140,7 @@ CASES = {
     "ws/ci/devel/lib/board_calib/bench_lidar_detector --sim-table config/scenarios/plain_vlp16_outdoor_far.yaml": {
         "kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_lidar_detector --gtest_filter='*Scenario*'": {"kind": "dev"},
-    "ws/ci/devel/lib/board_calib/test_image_far_sim --gtest_also_run_disabled_tests": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/test_image_far_sim": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/bench_capture --scale 0.5 --poses 12 --seeds 2 --rates 1,2,5,10,30": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_rig_session --gtest_filter=*Sparse*": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_rig_calibration": {"kind": "dev"},

@@ -342,35 +342,38 @@ bool clipLine(const Eigen::Vector3d& l, const CameraModel& camera, Eigen::Vector
 
 }  // namespace
 
-cv::Mat drawImageDetection(const cv::Mat& image, const CameraModel& camera,
-                           const ImageDetection& det) {
-  cv::Mat out;
-  if (image.channels() == 1)
-    cv::cvtColor(image, out, cv::COLOR_GRAY2BGR);
-  else
-    out = image.clone();
-  const CameraBoardFeatures& f = det.features;
-  const int thick = std::max(1, out.cols / 800);
-  // Plain board: line segments (thin grey) and the quadrilaterals tried (thin blue), under the
-  // result.
-  for (const auto& s : det.details.segments_raw)
+namespace {
+
+// Plain board: line segments (thin grey) and the quadrilaterals tried (thin blue, with their
+// verdicts), drawn under the result.
+void drawHypotheses(cv::Mat* image, const CameraModel& camera, const ImageDetectionDetails& details,
+                    int thick) {
+  cv::Mat& out = *image;
+
+  for (const auto& s : details.segments_raw)
     cv::line(out, fixedPoint(s[0]), fixedPoint(s[1]), {160, 160, 160}, 1, cv::LINE_AA, kDrawShift);
-  if (det.details.line_segments > 0)
+  if (details.line_segments > 0)
     cv::putText(
         out,
-        cv::format("noise %.1f, %d segments, %d lines, %d quadrilaterals", det.details.noise_sigma,
-                   det.details.line_segments, det.details.straight_lines, det.details.line_quads),
+        cv::format("noise %.1f, %d segments, %d lines, %d quadrilaterals", details.noise_sigma,
+                   details.line_segments, details.straight_lines, details.line_quads),
         cv::Point(10, out.rows - 12 * thick), cv::FONT_HERSHEY_SIMPLEX, 0.5 * thick, {255, 80, 0},
         thick);
-  for (size_t h = 0; h < det.details.hypotheses_px.size(); ++h) {
-    const auto& c = det.details.hypotheses_px[h];
+  for (size_t h = 0; h < details.hypotheses_px.size(); ++h) {
+    const auto& c = details.hypotheses_px[h];
     for (int j = 0; j < kNumEdges; ++j)
       drawUndistortedSegment(&out, camera, c[j], c[(j + 1) % 4], {255, 80, 0}, 1);
-    if (h < det.details.hypothesis_reasons.size())
-      cv::putText(out, std::to_string(h) + " " + det.details.hypothesis_reasons[h],
+    if (h < details.hypothesis_reasons.size())
+      cv::putText(out, std::to_string(h) + " " + details.hypothesis_reasons[h],
                   cv::Point(10, 30 * thick + static_cast<int>(h + 1) * 18 * thick),
                   cv::FONT_HERSHEY_SIMPLEX, 0.45 * thick, {255, 80, 0}, thick);
   }
+}
+
+// The region outline, the edge points and lines by name, the corners.
+void drawEdges(cv::Mat* image, const CameraModel& camera, const ImageDetection& det, int thick) {
+  cv::Mat& out = *image;
+  const CameraBoardFeatures& f = det.features;
   if (det.details.outline_raw.size() >= 2) {
     std::vector<cv::Point> outline;
     for (const auto& p : det.details.outline_raw) outline.push_back(fixedPoint(p));
@@ -400,6 +403,13 @@ cv::Mat drawImageDetection(const cv::Mat& image, const CameraModel& camera,
       cv::circle(out, fixedPoint(r), 6 << kDrawShift, {255, 255, 0}, thick, cv::LINE_AA,
                  kDrawShift);
     }
+}
+
+// Pattern corners and tag ids (checkerboard, AprilTag grid), and the board axes at its origin.
+void drawPatternAndAxes(cv::Mat* image, const CameraModel& camera, const ImageDetection& det,
+                        int thick) {
+  cv::Mat& out = *image;
+  const CameraBoardFeatures& f = det.features;
   for (const auto& p : det.details.pattern_raw)
     cv::circle(out, fixedPoint(p), 3 << kDrawShift, {0, 0, 255}, 1, cv::LINE_AA, kDrawShift);
   for (size_t i = 0; i < det.details.tag_ids.size(); ++i) {
@@ -423,6 +433,22 @@ cv::Mat drawImageDetection(const cv::Mat& image, const CameraModel& camera,
       }
     }
   }
+}
+
+}  // namespace
+
+cv::Mat drawImageDetection(const cv::Mat& image, const CameraModel& camera,
+                           const ImageDetection& det) {
+  cv::Mat out;
+  if (image.channels() == 1)
+    cv::cvtColor(image, out, cv::COLOR_GRAY2BGR);
+  else
+    out = image.clone();
+  const CameraBoardFeatures& f = det.features;
+  const int thick = std::max(1, out.cols / 800);
+  drawHypotheses(&out, camera, det.details, thick);
+  drawEdges(&out, camera, det, thick);
+  drawPatternAndAxes(&out, camera, det, thick);
   const std::string status =
       f.found ? "found, rms " + cv::format("%.2f px", f.reprojection_rms_px) : f.reason;
   cv::putText(out, status, cv::Point(10, 30 * thick), cv::FONT_HERSHEY_SIMPLEX, 0.7 * thick,
