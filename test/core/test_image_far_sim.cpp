@@ -147,6 +147,15 @@ TEST(ImageDetectorFarSim, FarBoardsOnPlainBackground) {
   EXPECT_LT(r.worst_line_px, 0.5);
 }
 
+// The street frames, one still frame per pose (docs/BENCHMARKS.md, "Session 4: far boards in the
+// simulated street"): measured 2 of 24 found, both facade rectangles. Not met yet; what is asserted
+// is that no change adds a wrong board here (the hard rule) while the rate is worked on.
+TEST(ImageDetectorFarSim, StreetFramesAddNoWrongBoard) {
+  const FarResult r = runSeeds(true);
+  ASSERT_EQ(r.poses, 24);
+  EXPECT_LE(r.wrong, 2);
+}
+
 // The street itself is not met yet (docs/BENCHMARKS.md, "Session 4: far boards in the simulated
 // street": 2 of 24 frames give a facade rectangle, the board is never among the quadrilaterals
 // tried). What must hold meanwhile is the issue-10 promise: a session of such frames, through the
