@@ -1,5 +1,6 @@
-// Small helpers of the simulator tests (test_sim.cpp, test_sim_scenes.cpp): a camera looking
-// along the world x axis, a board facing it, a camera model, a target of config/targets.
+// Small helpers of the simulator tests (test_sim.cpp, test_sim_scenes.cpp,
+// test_lidar_detector_sim.cpp): a camera looking along the world x axis, a board facing it, a
+// camera model, a target of config/targets.
 #pragma once
 
 #include <board_calib/core/camera_model.h>

@@ -8,6 +8,8 @@
 
 #include <gtest/gtest.h>
 
+#include "sim_test_helpers.h"
+
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -24,21 +26,9 @@ Target plainBoard() {
   return t;
 }
 
-// Board centred at `centre` (LiDAR = world frame, x forward, z up), printed face towards the
-// LiDAR, rolled about its normal by roll_deg (45 = diamond), then yawed and pitched.
-Eigen::Isometry3d boardPose(const Target& target, const Eigen::Vector3d& centre, double roll_deg,
-                            double yaw_deg, double pitch_deg) {
-  Eigen::Matrix3d facing;
-  facing.col(0) = -Eigen::Vector3d::UnitY();  // board x: right as seen from the LiDAR
-  facing.col(1) = -Eigen::Vector3d::UnitZ();  // board y: down
-  facing.col(2) = Eigen::Vector3d::UnitX();   // board z: away from the LiDAR
-  const Eigen::Matrix3d R =
-      Eigen::AngleAxisd(yaw_deg * kRadPerDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
-      Eigen::AngleAxisd(pitch_deg * kRadPerDeg, Eigen::Vector3d::UnitY()).toRotationMatrix() *
-      facing *
-      Eigen::AngleAxisd(roll_deg * kRadPerDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  return makeTransform(R, centre - R * target.center());
-}
+// Board facing the LiDAR (board x right, y down as seen from it), rolled about its normal by
+// roll_deg (45 = diamond), then yawed and pitched: the simulator tests' pose.
+using sim::boardPose;
 
 struct Truth {
   Plane plane;

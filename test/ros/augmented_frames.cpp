@@ -427,6 +427,13 @@ Frame augment(const Frame& clean, const Case& c, int index, std::mt19937& rng) {
   return f;
 }
 
+double segmentDistancePx(const Frame& f, int ref, const Eigen::Vector3d& line) {
+  double dist = 0.0;
+  for (const auto& p : f.segments[ref])
+    dist = std::max(dist, std::abs(line.head<2>().dot(p) + line.z()));
+  return dist;
+}
+
 const std::vector<Case>& augmentedCases() {
   static const std::vector<Case> cases = {
       // Floors: the measured count minus one (the 95 % = 15.2 of 16 is not met by every

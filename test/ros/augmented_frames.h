@@ -51,6 +51,10 @@ struct Case {
   int basler_floor;  // basler_os1_plain frames (of 16) with four edges: the test's floor
 };
 
+/// Largest distance (px) of reference segment `ref`'s ends from `line` (a u + b v + c = 0, with
+/// (a, b) a unit normal).
+double segmentDistancePx(const Frame& f, int ref, const Eigen::Vector3d& line);
+
 /// The cases of the augmented tests, with their basler floors.
 const std::vector<Case>& augmentedCases();
 

@@ -413,7 +413,8 @@ TEST(ResultConversions, RigPairAndSensorPose) {
   EXPECT_DOUBLE_EQ(m.stddev_rotation_deg[1], 0.2);
   EXPECT_DOUBLE_EQ(m.covariance[5 * 6 + 4], 2e-6);  // row-major
   run.verdict.verdict = board_calib::Verdict::kFailed;
-  EXPECT_FALSE(board_calib::toPairResultMsg(entry, run, s, ros::Time(3.0)).success);  // failed: no success
+  EXPECT_FALSE(
+      board_calib::toPairResultMsg(entry, run, s, ros::Time(3.0)).success);  // failed: no success
 
   board_calib::multi_sensor::SensorEstimate sensor;
   sensor.frame = "os1";

@@ -48,9 +48,7 @@ struct EdgeScore {
 EdgeScore scoreEdges(const Frame& f, const CameraBoardFeatures& fe, const std::string& case_name) {
   EdgeScore s;
   for (int j = 0; j < kNumEdges; ++j) {
-    double dist = 0;
-    for (const auto& p : f.segments[j])
-      dist = std::max(dist, std::abs(fe.edge_lines[j].head<2>().dot(p) + fe.edge_lines[j].z()));
+    double dist = segmentDistancePx(f, j, fe.edge_lines[j]);
     if (f.lines[j].head<2>().dot(fe.edge_lines[j].head<2>()) < 0.99)
       dist = std::max(dist, 1e3);  // other orientation
     ++s.edges;

@@ -42,12 +42,8 @@ int edgesWithin1px(const Frame& f, const CameraBoardFeatures& fe) {
   int within = 0;
   for (int j = 0; j < kNumEdges; ++j) {
     double best = 1e18;
-    for (int k = 0; k < kNumEdges; ++k) {
-      double dist = 0;
-      for (const auto& p : f.segments[j])
-        dist = std::max(dist, std::abs(fe.edge_lines[k].head<2>().dot(p) + fe.edge_lines[k].z()));
-      best = std::min(best, dist);
-    }
+    for (int k = 0; k < kNumEdges; ++k)
+      best = std::min(best, segmentDistancePx(f, j, fe.edge_lines[k]));
     within += best <= 1.0;
   }
   return within;
