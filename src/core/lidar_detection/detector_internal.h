@@ -149,6 +149,10 @@ std::vector<ValidPoint> validPoints(const LidarCloud& cloud, const LidarBoardDet
 VoxelGrid buildVoxels(const std::vector<ValidPoint>& pts, double size);
 std::vector<Region> growPlanarRegions(VoxelGrid& g, const LidarBoardDetectorOptions& o);
 bool makePlaneFrame(const Eigen::Vector3d& normal, const Eigen::Vector3d& point, PlaneFrame* f);
+// The board's in-plane frame at its points' centroid projected onto `plane`; false as
+// makePlaneFrame (a nearly horizontal board). `centroid` receives that projected centroid.
+bool boardFrameAtCentroid(const std::vector<ValidPoint>& pts, const std::vector<int>& board,
+                          const Plane& plane, Eigen::Vector3d* centroid, PlaneFrame* frame);
 Candidate scoreRegion(const Region& r, int region_id, const VoxelGrid& g,
                       const std::vector<ValidPoint>& pts, const Target& target,
                       const LidarBoardDetectorOptions& o);

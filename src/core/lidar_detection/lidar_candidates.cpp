@@ -152,6 +152,15 @@ bool makePlaneFrame(const Eigen::Vector3d& normal, const Eigen::Vector3d& point,
   return good;
 }
 
+bool boardFrameAtCentroid(const std::vector<ValidPoint>& pts, const std::vector<int>& board,
+                          const Plane& plane, Eigen::Vector3d* centroid, PlaneFrame* frame) {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (int i : board) c += pts[i].p;
+  c /= static_cast<double>(board.size());
+  *centroid = c - plane.normal * plane.signedDistance(c);
+  return makePlaneFrame(plane.normal, *centroid, frame);
+}
+
 namespace {
 
 // A candidate's centroid, plane (offset >= 0) and flatness from its plane fit, not scored yet.

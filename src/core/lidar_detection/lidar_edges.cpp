@@ -339,12 +339,9 @@ void extractEdgesByLines(const LidarCloud& cloud, const std::vector<ValidPoint>&
                          const LidarBoardDetectorOptions& o, std::mt19937& rng,
                          LidarBoardDetection* det) {
   auto& f = det->features;
-  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-  for (int i : board) centroid += pts[i].p;
-  centroid /= static_cast<double>(board.size());
-  centroid -= f.plane.normal * f.plane.signedDistance(centroid);
+  Eigen::Vector3d centroid;
   PlaneFrame frame;
-  if (!makePlaneFrame(f.plane.normal, centroid, &frame)) {
+  if (!boardFrameAtCentroid(pts, board, f.plane, &centroid, &frame)) {
     f.reason = "board plane is nearly horizontal: its edges cannot be named";
     return;
   }

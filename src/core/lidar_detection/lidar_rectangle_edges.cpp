@@ -90,12 +90,9 @@ bool extractEdgesByRectangle(const LidarCloud& cloud, const std::vector<ValidPoi
                              const std::vector<int>& board, const Target& target,
                              const LidarBoardDetectorOptions& o, LidarBoardDetection* det) {
   auto& f = det->features;
-  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-  for (int i : board) centroid += pts[i].p;
-  centroid /= static_cast<double>(board.size());
-  centroid -= f.plane.normal * f.plane.signedDistance(centroid);
+  Eigen::Vector3d centroid;
   PlaneFrame frame;
-  if (!makePlaneFrame(f.plane.normal, centroid, &frame)) return false;
+  if (!boardFrameAtCentroid(pts, board, f.plane, &centroid, &frame)) return false;
   std::string source;
   const std::vector<int> line = scanLines(cloud, board, pts, o, &source);
   const double bloom = 0.5 * o.beam_divergence_deg * kRadPerDeg * centroid.norm();
