@@ -9,6 +9,7 @@
 //    docs/BENCHMARKS.md ("Session 4: far boards in the simulated street"); the street session
 //    must then end "failed" or right (StreetSessionNeverReportsAWrongCalibration).
 #include <board_calib/core/image_detection/image_board_detector.h>
+#include <board_calib/core/image_detection/image_board_tracker.h>
 #include <board_calib/core/pipeline/pair_calibration.h>
 #include <board_calib/core/sim/scenario.h>
 #include <board_calib/core/sim/simulator.h>
@@ -57,7 +58,10 @@ constexpr double kWrongBoardPx = 3.0;
 
 // One still frame per held pose of the scenario with `seed`; prints per frame the board's true
 // size in px, the outcome and the reason (the diagnosis table).
-FarResult runScenario(unsigned seed, int poses, bool street) {
+// With `tracked`, the frames go through an ImageBoardTracker in time order (session memory of
+// static rectangles); `options` are the detector's.
+FarResult runScenario(unsigned seed, int poses, bool street,
+                      const ImageBoardDetectorOptions& options, bool tracked) {
   auto loaded = sim::loadScenario(std::string(BOARD_CALIB_SOURCE_DIR) +
                                   "/config/scenarios/plain_vlp16_outdoor_far.yaml");
   EXPECT_TRUE(loaded.ok()) << loaded.error();
@@ -74,8 +78,10 @@ FarResult runScenario(unsigned seed, int poses, bool street) {
   auto gen = sim::FrameGenerator::create(s);
   EXPECT_TRUE(gen.ok()) << gen.error();
   const CameraModel& camera = gen->cameraModel(0);
-  auto det = ImageBoardDetector::create(s.scene.target, ImageBoardDetectorOptions{});
+  auto det = ImageBoardDetector::create(s.scene.target, options);
   EXPECT_TRUE(det.ok()) << det.error();
+  auto tracker = ImageBoardTracker::create(s.scene.target, options);
+  EXPECT_TRUE(tracker.ok()) << tracker.error();
   const char* debug_dir = std::getenv("BOARD_CALIB_DEBUG_DIR");
   FarResult out;
   int last_pose = -1;
@@ -93,7 +99,8 @@ FarResult runScenario(unsigned seed, int poses, bool street) {
       hi = hi.cwiseMax(truth[j]);
     }
     const cv::Mat image = gen->image(f, i);
-    const ImageDetection d = det->detect(image, camera);
+    const ImageDetection d =
+        tracked ? tracker->detect(image, camera, f.stamp) : det->detect(image, camera);
     ++out.poses;
     double err = -1.0;
     if (d.features.found) {
@@ -119,17 +126,19 @@ FarResult runScenario(unsigned seed, int poses, bool street) {
   return out;
 }
 
-FarResult runSeeds(bool street) {
+FarResult runSeeds(bool street, const ImageBoardDetectorOptions& options = {},
+                   bool tracked = false) {
   FarResult all;
   for (unsigned seed : {14u, 15u, 16u}) {
-    const FarResult r = runScenario(seed, 8, street);
+    const FarResult r = runScenario(seed, 8, street, options, tracked);
     all.poses += r.poses;
     all.found += r.found;
     all.wrong += r.wrong;
     all.worst_line_px = std::max(all.worst_line_px, r.worst_line_px);
   }
-  std::printf("[far] %s: found %d/%d, wrong %d, lines within %.2f px of the truth\n",
-              street ? "street" : "plain", all.found, all.poses, all.wrong, all.worst_line_px);
+  std::printf("[far] %s%s: found %d/%d, wrong %d, lines within %.2f px of the truth\n",
+              street ? "street" : "plain", tracked ? " (tracker)" : "", all.found, all.poses,
+              all.wrong, all.worst_line_px);
   return all;
 }
 
@@ -154,6 +163,18 @@ TEST(ImageDetectorFarSim, StreetFramesAddNoWrongBoard) {
   const FarResult r = runSeeds(true);
   ASSERT_EQ(r.poses, 24);
   EXPECT_LE(r.wrong, 2);
+}
+
+TEST(ImageDetectorFarSim, StreetFramesTrackerVariants) {
+  const char* lines = std::getenv("BC_LINES");
+  const char* perim = std::getenv("BC_PERIM");
+  ImageBoardDetectorOptions o;
+  if (lines) o.max_lines = std::atoi(lines);
+  if (perim) o.max_lines_static_scene = std::atoi(perim);
+  std::printf("[far] variant: %d lines, %d with a static scene\n", o.max_lines,
+              o.max_lines_static_scene);
+  runSeeds(true, o, false);
+  runSeeds(true, o, true);
 }
 
 // The street itself is not met yet (docs/BENCHMARKS.md, "Session 4: far boards in the simulated
