@@ -22,6 +22,13 @@ Expected<ImageBoardTracker> ImageBoardTracker::create(const Target& target,
   return Expected<ImageBoardTracker>(ImageBoardTracker(std::move(*d), memory));
 }
 
+std::string ImageBoardTracker::setDetectorOptions(const ImageBoardDetectorOptions& options) {
+  auto d = ImageBoardDetector::create(detector_.target(), options);
+  if (!d) return d.error();
+  detector_ = std::move(*d);
+  return {};
+}
+
 void ImageBoardTracker::reset() {
   places_.clear();
   lines_.clear();

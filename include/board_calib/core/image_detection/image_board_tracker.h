@@ -30,6 +30,9 @@ class ImageBoardTracker {
   int numStaticLines() const;
   /// The static places and lines as the detector's exclusions (for debugging and tests).
   StaticScene staticScene() const;
+  /// New detector options (e.g. reconfigured); the memory is kept. Returns why they are refused
+  /// (then the previous ones stay), empty on success.
+  std::string setDetectorOptions(const ImageBoardDetectorOptions& options);
   /// The wrapped detector (a second chance near a projected board uses it directly).
   ImageBoardDetector& detector() { return detector_; }
   const StaticMemoryOptions& memory() const { return memory_; }
