@@ -21,9 +21,11 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <vector>
 
 namespace board_calib {
 namespace {
@@ -31,7 +33,14 @@ namespace {
 struct FarResult {
   int poses = 0, found = 0, wrong = 0;
   double worst_line_px = 0.0;  ///< largest distance of a true side's end from its detected line
+  std::vector<double> ms;      ///< wall time per frame (detection, and the memory when tracked)
 };
+
+double percentileMs(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  return v[static_cast<size_t>(std::lround(q * static_cast<double>(v.size() - 1)))];
+}
 
 // Distance of the true side ends from the detected lines (undistorted px), max over the lines.
 // A plain board has no marked corner: which side is named UL is the detector's convention, so
@@ -99,8 +108,12 @@ FarResult runScenario(unsigned seed, int poses, bool street,
       hi = hi.cwiseMax(truth[j]);
     }
     const cv::Mat image = gen->image(f, i);
+    const auto start = std::chrono::steady_clock::now();
     const ImageDetection d =
         tracked ? tracker->detect(image, camera, f.stamp) : det->detect(image, camera);
+    out.ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+            .count());
     ++out.poses;
     double err = -1.0;
     if (d.features.found) {
@@ -135,10 +148,13 @@ FarResult runSeeds(bool street, const ImageBoardDetectorOptions& options = {},
     all.found += r.found;
     all.wrong += r.wrong;
     all.worst_line_px = std::max(all.worst_line_px, r.worst_line_px);
+    all.ms.insert(all.ms.end(), r.ms.begin(), r.ms.end());
   }
-  std::printf("[far] %s%s: found %d/%d, wrong %d, lines within %.2f px of the truth\n",
-              street ? "street" : "plain", tracked ? " (tracker)" : "", all.found, all.poses,
-              all.wrong, all.worst_line_px);
+  std::printf(
+      "[far] %s%s: found %d/%d, wrong %d, lines within %.2f px of the truth; %.0f ms median, "
+      "%.0f ms p95 per frame\n",
+      street ? "street" : "plain", tracked ? " (tracker)" : "", all.found, all.poses, all.wrong,
+      all.worst_line_px, percentileMs(all.ms, 0.5), percentileMs(all.ms, 0.95));
   return all;
 }
 

@@ -202,17 +202,6 @@ bool visibleSideInterval(const CameraModel& camera, const Eigen::Vector2d& p,
   return true;
 }
 
-double worstCornerOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners,
-                         const std::array<Eigen::Vector2d, kNumEdges>& reference) {
-  double worst = 0;
-  for (const auto& c : corners) {
-    double nearest = std::numeric_limits<double>::infinity();
-    for (const auto& e : reference) nearest = std::min(nearest, (c - e).norm());
-    worst = std::max(worst, nearest);
-  }
-  return worst;
-}
-
 namespace {
 
 // LSD segments of the downscaled image, in undistorted full-resolution px, longest first.
@@ -463,24 +452,6 @@ std::vector<QuadHypothesis> keepBest(std::vector<QuadHypothesis>* quads, const C
 double sameLineTolerancePx(const ImageBoardDetectorOptions& o, int image_width) {
   if (o.line_detection_width_px <= 0) return kMergeOffsetPx;
   return mergeOffsetPx(kSegmentEndSigmaPx * lineDetectionScale(o, image_width));
-}
-
-bool sameLine(const std::array<Eigen::Vector2d, 2>& x, const std::array<Eigen::Vector2d, 2>& y,
-              double tolerance_px) {
-  const bool x_longer = (x[1] - x[0]).squaredNorm() >= (y[1] - y[0]).squaredNorm();
-  const auto& lng = x_longer ? x : y;
-  const auto& sht = x_longer ? y : x;
-  const double length = (lng[1] - lng[0]).norm();
-  if (!(length > 0)) return false;
-  const Eigen::Vector2d dir = (lng[1] - lng[0]) / length;
-  double t_lo = 1e18, t_hi = -1e18;
-  for (const Eigen::Vector2d& p : sht) {
-    if (std::abs(cross2(dir, p - lng[0])) > tolerance_px) return false;
-    const double t = dir.dot(p - lng[0]);
-    t_lo = std::min(t_lo, t);
-    t_hi = std::max(t_hi, t);
-  }
-  return t_hi >= 0 && t_lo <= length;
 }
 
 std::vector<QuadHypothesis> lineQuadHypotheses(
