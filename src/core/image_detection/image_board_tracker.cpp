@@ -2,7 +2,7 @@
 // one tolerance, the line stage's merge band (a held board's bow, or the segment ends' noise at
 // the line detector's scale): two sightings of a window whose sides and corners agree that well
 // are one window. Measured on the simulated street: a static window's refined corners move
-// 0.0-0.2 px between frames (once 1.1 px), the band is 3.5-4.7 px at 1440-1920 px.
+// 0.0-0.2 px between frames (once 1.1 px), the band is 3.5-4.2 px at 1440-1920 px.
 #include <board_calib/core/image_detection/image_board_tracker.h>
 
 #include "detection_internal.h"

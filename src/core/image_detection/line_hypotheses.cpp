@@ -120,6 +120,8 @@ struct MergedLine {
     return s;
   }
 
+  std::array<Eigen::Vector2d, 2> ends() const { return {point + t_min * dir, point + t_max * dir}; }
+
   Eigen::Vector3d homogeneous() const {
     const Eigen::Vector2d n(-dir.y(), dir.x());
     return {n.x(), n.y(), -n.dot(point)};
@@ -469,18 +471,14 @@ std::vector<QuadHypothesis> lineQuadHypotheses(
   std::vector<MergedLine> lines = mergeSegments(segments, kSegmentEndSigmaPx * scale, o,
                                                 std::max(o.max_lines, o.max_lines_static_scene));
   for (const MergedLine& l : lines)
-    if (evidence)
-      evidence->line_ends.push_back({l.point + l.t_min * l.dir, l.point + l.t_max * l.dir});
+    if (evidence) evidence->line_ends.push_back(l.ends());
   const size_t used = static_cast<size_t>(scene_known ? o.max_lines_static_scene : o.max_lines);
   if (lines.size() > used) lines.resize(used);
   if (evidence) evidence->lines = static_cast<int>(lines.size());
   const double tolerance = sameLineTolerancePx(o, gray.cols);
   std::vector<char> is_static(lines.size(), 0);
-  for (size_t k = 0; k < lines.size() && scene_known; ++k) {
-    const std::array<Eigen::Vector2d, 2> ends = {lines[k].point + lines[k].t_min * lines[k].dir,
-                                                 lines[k].point + lines[k].t_max * lines[k].dir};
-    for (const auto& s : *static_lines) is_static[k] |= sameLine(ends, s, tolerance);
-  }
+  for (size_t k = 0; k < lines.size() && scene_known; ++k)
+    for (const auto& s : *static_lines) is_static[k] |= sameLine(lines[k].ends(), s, tolerance);
   if (lines.size() < static_cast<size_t>(kNumEdges)) return {};
   std::vector<QuadHypothesis> quads = enumerateQuads(lines, cornerGraph(lines, camera), camera, o,
                                                      expected, is_static, scene_known);

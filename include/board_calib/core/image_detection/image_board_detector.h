@@ -150,7 +150,8 @@ struct StaticRectangle {
 
 /// What a session knows of the static scene in one camera (ImageBoardTracker): rectangles that
 /// passed the board checks at one place, and straight lines seen at one place. A line
-/// quadrilateral whose four sides are static lines is not tried as a board.
+/// quadrilateral with two or more sides on static lines is not tried as a board, and the line
+/// search widens (ImageBoardDetectorOptions::max_lines_static_scene).
 struct StaticScene {
   std::vector<StaticRectangle> rectangles;
   std::vector<std::array<Eigen::Vector2d, 2>> lines_px;  ///< support ends, undistorted px
@@ -170,8 +171,8 @@ class ImageBoardDetector {
   ImageDetection detect(const cv::Mat& image, const CameraModel& camera);
 
   /// The same, but a plain board coinciding with a static rectangle is not accepted (reason
-  /// names it) and the search goes on to the next hypothesis; quadrilaterals of four static
-  /// lines are not tried. Pattern boards (checkerboard, AprilTag grid) are unambiguous and
+  /// names it) and the search goes on to the next hypothesis; quadrilaterals of static lines
+  /// are not tried. Pattern boards (checkerboard, AprilTag grid) are unambiguous and
   /// ignore the static scene.
   ImageDetection detect(const cv::Mat& image, const CameraModel& camera,
                         const StaticScene& excluded);
