@@ -172,7 +172,7 @@ TEST(ImageBoardTracker, TimeGoingBackForgetsTheStaticScene) {
   EXPECT_GT(tracker->numStaticPlaces(), 0);
   tracker->detect(render(camera, &poster, board, rng), camera, 0.0);  // a replay started over
   EXPECT_EQ(tracker->numStaticPlaces(), 0);
-  EXPECT_EQ(tracker->numPlaces() > 0, true);  // the replay's first frame is remembered anew
+  EXPECT_GT(tracker->numPlaces(), 0);  // the replay's first frame is remembered anew
 }
 
 TEST(ImageBoardTracker, InvalidMemoryOptionsAreRefused) {
