@@ -6,6 +6,7 @@
 
 #include <board_calib/conversions.h>
 #include <board_calib/core/image_detection/image_board_detector.h>
+#include <board_calib/core/image_detection/image_board_tracker.h>
 
 #include <cv_bridge/cv_bridge.h>
 #include <diagnostic_updater/diagnostic_updater.h>
@@ -52,6 +53,16 @@ class ImageBoardDetectorNodelet : public nodelet::Nodelet {
       return;
     }
     detector_.emplace(std::move(*detector));
+    // Memory of the session: rectangles and lines that stay put are the scene (issue 14).
+    pnh.param("session_memory", session_memory_, StaticMemoryOptions().enabled);
+    if (session_memory_) {
+      auto tracker = ImageBoardTracker::create(target_, ImageBoardDetectorOptions{});
+      if (!tracker) {
+        NODELET_FATAL_STREAM("session memory: " << tracker.error());
+        return;
+      }
+      tracker_.emplace(std::move(*tracker));
+    }
 
     it_ = std::make_unique<image_transport::ImageTransport>(nh);
     std::lock_guard<std::mutex> lock(connect_mutex_);
@@ -110,6 +121,7 @@ class ImageBoardDetectorNodelet : public nodelet::Nodelet {
     }
     std::lock_guard<std::mutex> lock(detector_mutex_);
     detector_.emplace(std::move(*detector));
+    if (tracker_) tracker_->setDetectorOptions(options);  // validated above; the memory is kept
   }
 
   // Camera model from CameraInfo, re-created only when the calibration changes.
@@ -160,7 +172,9 @@ class ImageBoardDetectorNodelet : public nodelet::Nodelet {
     ImageDetection detection;
     {
       std::lock_guard<std::mutex> lock(detector_mutex_);
-      detection = detector_->detect(*image, *camera);
+      // The memory resets itself when time goes back (a bag replayed again).
+      detection = tracker_ ? tracker_->detect(*image, *camera, image_msg->header.stamp.toSec())
+                           : detector_->detect(*image, *camera);
     }
     CameraBoardFeatures& f = detection.features;
     f.frame_id = image_msg->header.frame_id;
@@ -214,6 +228,8 @@ class ImageBoardDetectorNodelet : public nodelet::Nodelet {
   Target target_;
   std::string transport_;
   std::optional<ImageBoardDetector> detector_;
+  bool session_memory_ = StaticMemoryOptions().enabled;
+  std::optional<ImageBoardTracker> tracker_;  // with session_memory_: one memory per camera
   std::mutex detector_mutex_;
   std::optional<CameraModel> camera_;
   sensor_msgs::CameraInfo last_info_;

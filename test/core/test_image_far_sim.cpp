@@ -9,6 +9,7 @@
 //    docs/BENCHMARKS.md ("Session 4: far boards in the simulated street"); the street session
 //    must then end "failed" or right (StreetSessionNeverReportsAWrongCalibration).
 #include <board_calib/core/image_detection/image_board_detector.h>
+#include <board_calib/core/image_detection/image_board_tracker.h>
 #include <board_calib/core/pipeline/pair_calibration.h>
 #include <board_calib/core/sim/scenario.h>
 #include <board_calib/core/sim/simulator.h>
@@ -20,9 +21,11 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <vector>
 
 namespace board_calib {
 namespace {
@@ -30,7 +33,14 @@ namespace {
 struct FarResult {
   int poses = 0, found = 0, wrong = 0;
   double worst_line_px = 0.0;  ///< largest distance of a true side's end from its detected line
+  std::vector<double> ms;      ///< wall time per frame (detection, and the memory when tracked)
 };
+
+double percentileMs(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  return v[static_cast<size_t>(std::lround(q * static_cast<double>(v.size() - 1)))];
+}
 
 // Distance of the true side ends from the detected lines (undistorted px), max over the lines.
 // A plain board has no marked corner: which side is named UL is the detector's convention, so
@@ -57,7 +67,10 @@ constexpr double kWrongBoardPx = 3.0;
 
 // One still frame per held pose of the scenario with `seed`; prints per frame the board's true
 // size in px, the outcome and the reason (the diagnosis table).
-FarResult runScenario(unsigned seed, int poses, bool street) {
+// With `tracked`, the frames go through an ImageBoardTracker in time order (session memory of
+// static rectangles); `options` are the detector's.
+FarResult runScenario(unsigned seed, int poses, bool street,
+                      const ImageBoardDetectorOptions& options, bool tracked) {
   auto loaded = sim::loadScenario(std::string(BOARD_CALIB_SOURCE_DIR) +
                                   "/config/scenarios/plain_vlp16_outdoor_far.yaml");
   EXPECT_TRUE(loaded.ok()) << loaded.error();
@@ -74,8 +87,10 @@ FarResult runScenario(unsigned seed, int poses, bool street) {
   auto gen = sim::FrameGenerator::create(s);
   EXPECT_TRUE(gen.ok()) << gen.error();
   const CameraModel& camera = gen->cameraModel(0);
-  auto det = ImageBoardDetector::create(s.scene.target, ImageBoardDetectorOptions{});
+  auto det = ImageBoardDetector::create(s.scene.target, options);
   EXPECT_TRUE(det.ok()) << det.error();
+  auto tracker = ImageBoardTracker::create(s.scene.target, options);
+  EXPECT_TRUE(tracker.ok()) << tracker.error();
   const char* debug_dir = std::getenv("BOARD_CALIB_DEBUG_DIR");
   FarResult out;
   int last_pose = -1;
@@ -93,7 +108,12 @@ FarResult runScenario(unsigned seed, int poses, bool street) {
       hi = hi.cwiseMax(truth[j]);
     }
     const cv::Mat image = gen->image(f, i);
-    const ImageDetection d = det->detect(image, camera);
+    const auto start = std::chrono::steady_clock::now();
+    const ImageDetection d =
+        tracked ? tracker->detect(image, camera, f.stamp) : det->detect(image, camera);
+    out.ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+            .count());
     ++out.poses;
     double err = -1.0;
     if (d.features.found) {
@@ -119,17 +139,22 @@ FarResult runScenario(unsigned seed, int poses, bool street) {
   return out;
 }
 
-FarResult runSeeds(bool street) {
+FarResult runSeeds(bool street, const ImageBoardDetectorOptions& options = {},
+                   bool tracked = false) {
   FarResult all;
   for (unsigned seed : {14u, 15u, 16u}) {
-    const FarResult r = runScenario(seed, 8, street);
+    const FarResult r = runScenario(seed, 8, street, options, tracked);
     all.poses += r.poses;
     all.found += r.found;
     all.wrong += r.wrong;
     all.worst_line_px = std::max(all.worst_line_px, r.worst_line_px);
+    all.ms.insert(all.ms.end(), r.ms.begin(), r.ms.end());
   }
-  std::printf("[far] %s: found %d/%d, wrong %d, lines within %.2f px of the truth\n",
-              street ? "street" : "plain", all.found, all.poses, all.wrong, all.worst_line_px);
+  std::printf(
+      "[far] %s%s: found %d/%d, wrong %d, lines within %.2f px of the truth; %.0f ms median, "
+      "%.0f ms p95 per frame\n",
+      street ? "street" : "plain", tracked ? " (tracker)" : "", all.found, all.poses, all.wrong,
+      all.worst_line_px, percentileMs(all.ms, 0.5), percentileMs(all.ms, 0.95));
   return all;
 }
 
@@ -148,29 +173,47 @@ TEST(ImageDetectorFarSim, FarBoardsOnPlainBackground) {
 }
 
 // The street frames, one still frame per pose (docs/BENCHMARKS.md, "Session 4: far boards in the
-// simulated street"): measured 2 of 24 found, both facade rectangles. Not met yet; what is asserted
-// is that no change adds a wrong board here (the hard rule) while the rate is worked on.
+// simulated street" and "Session 5: image session memory"). A frame alone: measured 2 of 24
+// found, both facade rectangles. Through an ImageBoardTracker in time order (the camera frames
+// 2.5 s apart): the first frames are as alone; once the static scene is known (6 s), its
+// quadrilaterals are skipped and the line search widens: measured 4 true boards, 2 wrong. What is
+// asserted is that the memory adds no wrong board (the hard rule) and keeps what it gains
+// (one true board less allowed for the noise of another machine's LSD run).
 TEST(ImageDetectorFarSim, StreetFramesAddNoWrongBoard) {
-  const FarResult r = runSeeds(true);
-  ASSERT_EQ(r.poses, 24);
-  EXPECT_LE(r.wrong, 2);
+  const FarResult alone = runSeeds(true);
+  const FarResult tracked = runSeeds(true, ImageBoardDetectorOptions{}, true);
+  ASSERT_EQ(alone.poses, 24);
+  ASSERT_EQ(tracked.poses, 24);
+  EXPECT_LE(alone.wrong, 2);
+  EXPECT_LE(tracked.wrong, 2);
+  EXPECT_GE(tracked.found - tracked.wrong, 3);
+  // The true boards' lines: sub-pixel to ~1 px at 120-350 px in the street (measured 1.08 px;
+  // the kWrongBoardPx bound separates them from other objects).
+  EXPECT_LT(tracked.worst_line_px, 1.5);
 }
 
-// The street itself is not met yet (docs/BENCHMARKS.md, "Session 4: far boards in the simulated
-// street": 2 of 24 frames give a facade rectangle, the board is never among the quadrilaterals
-// tried). What must hold meanwhile is the issue-10 promise: a session of such frames, through the
-// whole pair pipeline (stillness, consistency, PBPC, verdict), either says "failed" or gives an
-// extrinsic that agrees with the truth within its own uncertainty, never a wrong one as a success.
+// The street session (docs/BENCHMARKS.md, "Session 5: image session memory"): what must hold is
+// the issue-10 promise: a session of such frames, through the whole pair pipeline (image session
+// memory, stillness, consistency, PBPC, verdict), either says "failed" or gives an extrinsic that
+// agrees with the truth within its own uncertainty, never a wrong one as a success. Printed per
+// run: images whose board is the true one, another object, or none; with the image memory (the
+// default) and, for the first seed, without it.
 TEST(ImageDetectorFarSim, StreetSessionNeverReportsAWrongCalibration) {
   auto loaded = sim::loadScenario(std::string(BOARD_CALIB_SOURCE_DIR) +
                                   "/config/scenarios/plain_vlp16_outdoor_far.yaml");
   ASSERT_TRUE(loaded.ok()) << loaded.error();
-  for (const unsigned seed : {21u, 22u}) {
+  for (const auto& [seed, memory] : {std::pair{21u, true}, {21u, false}, {22u, true}}) {
     // Full-size camera (the board is 120-350 px only at 1440x1080), 2 Hz, the VLP-16 without ring
     // and unorganized, 8 holds, every frame of holds and moves.
     const sim::Scenario s = test_support::captureScenario(*loaded, 1.0, 2.0, false, 8, seed);
-    auto session = test_support::runSimulatedSession(s, PipelineOptions{});
+    PipelineOptions options;
+    options.image_memory.enabled = memory;
+    auto session = test_support::runSimulatedSession(s, options);
     ASSERT_TRUE(session.ok()) << session.error();
+    const char* tag = memory ? "memory" : "no memory";
+    std::printf("[far street] seed %u, %s: images %d: true board %d, wrong %d, none %d\n", seed,
+                tag, session->images, session->images_true, session->images_wrong,
+                session->images - session->images_true - session->images_wrong);
     std::printf("[far street] %zu views; capture: %s\n", session->views.size(),
                 session->capture_summary.c_str());
     const PairCalibration run =

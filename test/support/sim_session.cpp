@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: BSD-3-Clause
 #include "support/sim_session.h"
 
+#include <algorithm>
 #include <chrono>
 #include <map>
 #include <set>
@@ -30,6 +31,38 @@ sim::Scenario captureScenario(const sim::Scenario& base, double image_scale, dou
   return s;
 }
 
+namespace {
+
+// Each found image board against the true one, compared where it matters for a view: its centre
+// in the image, off by more than a quarter of the true board's size there is another object
+// (a true board's PnP centre is off by a few px; other rectangles by 100-700 px).
+void scoreImages(const BoardSightings& sightings,
+                 const std::map<double, Eigen::Isometry3d>& camera_T_board_truth,
+                 const Target& target, const CameraModel* camera, SimulatedSession* out) {
+  if (!camera) return;
+  const auto corners = target.outerCorners();
+  for (const auto& [stamp, sighting] : sightings.images) {
+    const auto truth = camera_T_board_truth.find(stamp);
+    if (truth == camera_T_board_truth.end()) continue;
+    Eigen::Vector2d found_px, true_px, lo(1e18, 1e18), hi(-1e18, -1e18);
+    bool ok = camera->projectUndistorted(sighting.camera_T_board * target.center(), &found_px) &&
+              camera->projectUndistorted(truth->second * target.center(), &true_px);
+    for (const auto& c : corners) {
+      Eigen::Vector2d px;
+      ok = ok && camera->projectUndistorted(truth->second * c, &px);
+      lo = lo.cwiseMin(px);
+      hi = hi.cwiseMax(px);
+    }
+    const double size_px = std::max(hi.x() - lo.x(), hi.y() - lo.y());
+    if (ok && (found_px - true_px).norm() <= 0.25 * size_px)
+      ++out->images_true;
+    else
+      ++out->images_wrong;
+  }
+}
+
+}  // namespace
+
 Expected<SimulatedSession> runSimulatedSession(const sim::Scenario& scenario,
                                                const PipelineOptions& options) {
   const auto start = std::chrono::steady_clock::now();
@@ -42,12 +75,15 @@ Expected<SimulatedSession> runSimulatedSession(const sim::Scenario& scenario,
 
   // stamp -> (still, pose) per sensor kind: the truth about every frame a view may use.
   std::map<double, std::pair<bool, int>> camera_truth, lidar_truth;
+  std::map<double, Eigen::Isometry3d> camera_T_board_truth;
+  const Eigen::Isometry3d camera_T_world = sim::worldTCamera(scenario, 0).inverse();
   const auto& camera = scenario.cameras.front();
   for (size_t i = 0; i < timeline->frames.size(); ++i) {
     const sim::Frame& f = timeline->frames[i];
     if (f.sensor != 0) continue;
     if (f.is_camera) {
       camera_truth[f.stamp] = {f.still, f.pose};
+      camera_T_board_truth[f.stamp] = camera_T_world * f.world_T_board;
       pipeline->addImage(generator->image(f, i), camera.intrinsics, camera.frame_id, f.stamp);
     } else {
       lidar_truth[f.stamp] = {f.still, f.pose};
@@ -61,6 +97,9 @@ Expected<SimulatedSession> runSimulatedSession(const sim::Scenario& scenario,
 
   SimulatedSession out;
   out.holds = static_cast<int>(timeline->world_T_board_poses.size());
+  out.images = static_cast<int>(camera_T_board_truth.size());
+  scoreImages(pipeline->sightings(), camera_T_board_truth, scenario.scene.target,
+              pipeline->cameraModel(), &out);
   std::set<int> captured;
   for (const auto& sv : pipeline->session().views()) {
     out.views.push_back(sv.view);

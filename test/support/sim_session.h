@@ -18,7 +18,11 @@ struct SimulatedSession {
   int holds_captured =
       0;  ///< holds that gave a view whose image and cloud are still frames of that hold
   int moving_captured =
-      0;  ///< views with a frame taken while the board moved (or from another hold)
+      0;                 ///< views with a frame taken while the board moved (or from another hold)
+  int images = 0;        ///< camera frames fed
+  int images_true = 0;   ///< ... whose board (alone or by the second chance) is the true board
+  int images_wrong = 0;  ///< ... whose board is another object (centre off by > a quarter of the
+                         ///< true board's size in the image)
   std::vector<View> views;
   std::string capture_summary;
   ResultFile truth;

@@ -59,20 +59,32 @@ struct QuadHypothesis {
 struct LineEvidence {
   std::vector<std::array<Eigen::Vector2d, 2>>
       segments_raw;  ///< LSD segments, raw full-resolution px
+  std::vector<std::array<Eigen::Vector2d, 2>>
+      line_ends;  ///< merged lines' support ends, undistorted px
   int segments = 0, lines = 0, quads = 0;
 };
 
 /// Quadrilateral board hypotheses from LSD segments merged into long lines (either polarity),
 /// best first, at most options.max_line_hypotheses, every side partly inside the image.
-/// With `expected`, only quadrilaterals whose corners all lie near the expected ones compete.
-std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
-                                               const ImageBoardDetectorOptions& options,
-                                               LineEvidence* evidence,
-                                               const ExpectedBoard* expected = nullptr);
+/// With `expected`, only quadrilaterals whose corners all lie near the expected ones compete;
+/// quadrilaterals of four `static_lines` (undistorted px) are not proposed.
+std::vector<QuadHypothesis> lineQuadHypotheses(
+    const cv::Mat& gray, const CameraModel& camera, const ImageBoardDetectorOptions& options,
+    LineEvidence* evidence, const ExpectedBoard* expected = nullptr,
+    const std::vector<std::array<Eigen::Vector2d, 2>>* static_lines = nullptr);
 
-/// Largest distance from a corner to its nearest expected corner (undistorted px).
+/// px: two straight lines of the line stage are one line when the ends of the shorter lie this
+/// close to the longer (the merge band: a held board's bow, or the segment ends' noise at the
+/// line detector's scale for this image width).
+double sameLineTolerancePx(const ImageBoardDetectorOptions& options, int image_width);
+
+/// One line (ends a, b) lies on the other within tolerance_px and their supports overlap.
+bool sameLine(const std::array<Eigen::Vector2d, 2>& x, const std::array<Eigen::Vector2d, 2>& y,
+              double tolerance_px);
+
+/// Largest distance from a corner to its nearest reference corner (undistorted px).
 double worstCornerOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners,
-                         const ExpectedBoard& expected);
+                         const std::array<Eigen::Vector2d, kNumEdges>& reference);
 
 /// True if an undistorted pixel lies inside the image (culled by its ray first: no fold-back).
 bool visibleUndistorted(const CameraModel& camera, const Eigen::Vector2d& u, double margin);
@@ -86,10 +98,11 @@ bool visibleSideInterval(const CameraModel& camera, const Eigen::Vector2d& p,
 /// absolute response of the Laplacian-difference mask of Immerkaer (1996), on every other row.
 double estimateNoiseSigma(const cv::Mat& gray);
 
-/// With `expected`, a second chance inside the projected board (ImageBoardDetector::detectNear).
+/// With `expected`, a second chance inside the projected board (ImageBoardDetector::detectNear);
+/// with `excluded`, boards on static scene rectangles are not accepted.
 void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                  const ImageBoardDetectorOptions& options, ImageDetection* out,
-                 const ExpectedBoard* expected = nullptr);
+                 const ExpectedBoard* expected = nullptr, const StaticScene* excluded = nullptr);
 void detectCheckerboard(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                         const ImageBoardDetectorOptions& options, ImageDetection* out);
 

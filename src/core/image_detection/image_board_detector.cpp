@@ -54,6 +54,8 @@ std::string ImageBoardDetectorOptions::validate() const {
   if (line_detection_width_px != 0 && line_detection_width_px < 64)
     return "line_detection_width_px must be 0 (off) or >= 64";
   if (max_line_hypotheses < 0) return "max_line_hypotheses must be >= 0";
+  if (max_lines < kNumEdges || max_lines_static_scene < kNumEdges)
+    return "max_lines and max_lines_static_scene must be >= 4";
   if (!(max_board_tilt_deg > 0 && max_board_tilt_deg < 90))
     return "max_board_tilt_deg must be in (0, 90)";
   if (!(max_board_distance_m > 0)) return "max_board_distance_m must be > 0";
@@ -113,7 +115,12 @@ const Target& ImageBoardDetector::target() const { return impl_->target; }
 const ImageBoardDetectorOptions& ImageBoardDetector::options() const { return impl_->options; }
 
 ImageDetection ImageBoardDetector::detect(const cv::Mat& image, const CameraModel& camera) {
-  return run(image, camera, nullptr);
+  return run(image, camera, nullptr, nullptr);
+}
+
+ImageDetection ImageBoardDetector::detect(const cv::Mat& image, const CameraModel& camera,
+                                          const StaticScene& excluded) {
+  return run(image, camera, nullptr, excluded.empty() ? nullptr : &excluded);
 }
 
 ImageDetection ImageBoardDetector::detectNear(const cv::Mat& image, const CameraModel& camera,
@@ -128,11 +135,11 @@ ImageDetection ImageBoardDetector::detectNear(const cv::Mat& image, const Camera
                               : "expected board needs a tolerance > 0 px";
     return out;
   }
-  return run(image, camera, &expected);
+  return run(image, camera, &expected, nullptr);
 }
 
 ImageDetection ImageBoardDetector::run(const cv::Mat& image, const CameraModel& camera,
-                                       const ExpectedBoard* expected) {
+                                       const ExpectedBoard* expected, const StaticScene* excluded) {
   const auto t0 = std::chrono::steady_clock::now();
   ImageDetection out;
   CameraBoardFeatures& f = out.features;
@@ -156,7 +163,8 @@ ImageDetection ImageBoardDetector::run(const cv::Mat& image, const CameraModel& 
       const cv::Mat gray = image_detection::toGray(image);
       switch (impl_->target.type) {
         case TargetType::kPlain:
-          image_detection::detectPlain(gray, camera, impl_->target, impl_->options, &out, expected);
+          image_detection::detectPlain(gray, camera, impl_->target, impl_->options, &out, expected,
+                                       excluded);
           break;
         case TargetType::kCheckerboard:
           image_detection::detectCheckerboard(gray, camera, impl_->target, impl_->options, &out);

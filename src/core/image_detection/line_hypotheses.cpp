@@ -23,8 +23,6 @@ constexpr double kMergeSigmas = 3.0;        // angle tolerance of a merge, in en
 constexpr double kMinMergeAngleRad = 0.02;  // ~1 deg: floor of that tolerance (long segments)
 constexpr double kMaxMergeAngleRad = 0.10;  // ~6 deg: cap (short segments)
 constexpr double kMergeOffsetPx = 3.5;      // full-res px: a held board bows ~3 px
-constexpr int kMaxLines =
-    80;  // longest merged lines kept (a floor or ceiling has many longer than the board)
 constexpr size_t kMaxQuads = 20000;  // quadrilaterals scored (bounds the time in line-rich scenes)
 constexpr double kMaxOppositeAngleRad = 0.70;  // ~40 deg: opposite sides converge under perspective
 constexpr double kMinCornerSin = 0.42;         // ~25 deg: adjacent sides meet at a real angle
@@ -40,9 +38,21 @@ constexpr double kMinSideSupportFraction =
 constexpr double kDuplicateCornerFraction =
     0.05;  // quads whose corners agree to this fraction of their size are one
 constexpr int kVisibilitySamples = 24;  // samples along a side to measure its visible part
+// A quadrilateral with this many sides on static scene lines is scene structure: the board's
+// sides move with it and rarely lie along a scene line (measured on the street: with 3, quads of
+// two static and two flickering weak lines took the board's place; docs/BENCHMARKS.md).
+constexpr int kStaticSidesOfScene = 2;
 // LSD misses weak stretches the gradient search still finds: segments need only cover this share
 // of the side coverage required of the refined edge.
 constexpr double kLineCoverageShare = 0.5;
+
+// Segment ends this far from a line still lie on it: a held board's bow, or the ends' noise.
+double mergeOffsetPx(double end_sigma) { return std::max(kMergeOffsetPx, 2.0 * end_sigma); }
+
+// full-resolution px per LSD px
+double lineDetectionScale(const ImageBoardDetectorOptions& o, int image_width) {
+  return std::max(1.0, static_cast<double>(image_width) / o.line_detection_width_px);
+}
 
 double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
   return a.x() * b.y() - a.y() * b.x();
@@ -109,6 +119,8 @@ struct MergedLine {
       s += std::max(0.0, std::min(hi, iv.second) - std::max(lo, iv.first));
     return s;
   }
+
+  std::array<Eigen::Vector2d, 2> ends() const { return {point + t_min * dir, point + t_max * dir}; }
 
   Eigen::Vector3d homogeneous() const {
     const Eigen::Vector2d n(-dir.y(), dir.x());
@@ -192,17 +204,6 @@ bool visibleSideInterval(const CameraModel& camera, const Eigen::Vector2d& p,
   return true;
 }
 
-double worstCornerOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners,
-                         const ExpectedBoard& expected) {
-  double worst = 0;
-  for (const auto& c : corners) {
-    double nearest = std::numeric_limits<double>::infinity();
-    for (const auto& e : expected.corners_px) nearest = std::min(nearest, (c - e).norm());
-    worst = std::max(worst, nearest);
-  }
-  return worst;
-}
-
 namespace {
 
 // LSD segments of the downscaled image, in undistorted full-resolution px, longest first.
@@ -210,7 +211,7 @@ namespace {
 std::vector<Member> detectSegments(const cv::Mat& gray, const CameraModel& camera,
                                    const ImageBoardDetectorOptions& o, LineEvidence* evidence,
                                    double* scale) {
-  *scale = std::max(1.0, static_cast<double>(gray.cols) / o.line_detection_width_px);
+  *scale = lineDetectionScale(o, gray.cols);
   cv::Mat small;
   if (*scale > 1.0)
     cv::resize(gray, small,
@@ -247,11 +248,12 @@ std::vector<Member> detectSegments(const cv::Mat& gray, const CameraModel& camer
 
 // Greedy merge, longest first: a segment joins a line when its direction agrees within its own
 // endpoint noise and both its ends lie within the bow of a held board. Returns the lines with
-// enough support, most supported first, at most kMaxLines.
+// enough support, most supported first, at most max_lines (a floor or ceiling has many longer
+// than the board).
 std::vector<MergedLine> mergeSegments(const std::vector<Member>& segments, double end_sigma,
-                                      const ImageBoardDetectorOptions& o) {
+                                      const ImageBoardDetectorOptions& o, int max_lines) {
   std::vector<MergedLine> lines;
-  const double max_offset = std::max(kMergeOffsetPx, 2.0 * end_sigma);
+  const double max_offset = mergeOffsetPx(end_sigma);
   for (const Member& s : segments) {
     const Eigen::Vector2d d = (s.b - s.a) / s.length;
     const double angle_tol = std::clamp(kMergeSigmas * std::sqrt(2.0) * end_sigma / s.length,
@@ -281,7 +283,7 @@ std::vector<MergedLine> mergeSegments(const std::vector<Member>& segments, doubl
               lines.end());
   std::sort(lines.begin(), lines.end(),
             [](const MergedLine& x, const MergedLine& y) { return x.support > y.support; });
-  if (lines.size() > static_cast<size_t>(kMaxLines)) lines.resize(kMaxLines);
+  if (lines.size() > static_cast<size_t>(max_lines)) lines.resize(max_lines);
   return lines;
 }
 
@@ -368,7 +370,8 @@ bool scoreQuad(const std::vector<MergedLine>& lines, const std::array<int, 4>& i
 std::vector<QuadHypothesis> enumerateQuads(const std::vector<MergedLine>& lines,
                                            const CornerGraph& g, const CameraModel& camera,
                                            const ImageBoardDetectorOptions& o,
-                                           const ExpectedBoard* expected) {
+                                           const ExpectedBoard* expected,
+                                           const std::vector<char>& is_static, bool per_perimeter) {
   std::vector<QuadHypothesis> quads;
   auto parallel = [&](int i, int k) {
     return angleBetweenLines(lines[i].dir, lines[k].dir) <= kMaxOppositeAngleRad;
@@ -383,19 +386,28 @@ std::vector<QuadHypothesis> enumerateQuads(const std::vector<MergedLine>& lines,
         for (const int m : g.neighbours[k]) {
           // i is the smallest index and j < m: each cycle i-j-k-m is met once.
           if (m <= j || !g.adjacent[m][i] || !parallel(j, m)) continue;
+          // Four lines of the static scene: a window bay or a door, never the moving board.
+          if (is_static[i] + is_static[j] + is_static[k] + is_static[m] >= kStaticSidesOfScene)
+            continue;
           const std::array<int, 4> idx = {i, j, k, m};
           std::array<Eigen::Vector2d, 4> c;
           for (int s = 0; s < 4; ++s) c[s] = g.corner[idx[s]][idx[(s + 1) % 4]];
           if (!convexPolygon(c)) continue;
           QuadHypothesis q;
           if (!scoreQuad(lines, idx, c, ubox, o, &q)) continue;
-          if (expected && worstCornerOffset(c, *expected) > expected->tolerance_px) continue;
+          if (expected && worstCornerOffset(c, expected->corners_px) > expected->tolerance_px)
+            continue;
           quads.push_back(q);
         }
       }
     }
+  // Per perimeter, a 100 px board and a 1000 px facade rectangle whose sides are equally well
+  // evidenced rank alike; by absolute support the facade always comes first.
+  const auto rank = [&](const QuadHypothesis& q) {
+    return per_perimeter ? q.score / (kNumEdges * q.size_px) : q.score;
+  };
   std::sort(quads.begin(), quads.end(),
-            [](const QuadHypothesis& x, const QuadHypothesis& y) { return x.score > y.score; });
+            [&](const QuadHypothesis& x, const QuadHypothesis& y) { return rank(x) > rank(y); });
   return quads;
 }
 
@@ -439,18 +451,37 @@ std::vector<QuadHypothesis> keepBest(std::vector<QuadHypothesis>* quads, const C
 
 }  // namespace
 
-std::vector<QuadHypothesis> lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
-                                               const ImageBoardDetectorOptions& o,
-                                               LineEvidence* evidence,
-                                               const ExpectedBoard* expected) {
+double sameLineTolerancePx(const ImageBoardDetectorOptions& o, int image_width) {
+  if (o.line_detection_width_px <= 0) return kMergeOffsetPx;
+  return mergeOffsetPx(kSegmentEndSigmaPx * lineDetectionScale(o, image_width));
+}
+
+std::vector<QuadHypothesis> lineQuadHypotheses(
+    const cv::Mat& gray, const CameraModel& camera, const ImageBoardDetectorOptions& o,
+    LineEvidence* evidence, const ExpectedBoard* expected,
+    const std::vector<std::array<Eigen::Vector2d, 2>>* static_lines) {
   if (o.line_detection_width_px <= 0) return {};
   double scale = 1.0;
   const std::vector<Member> segments = detectSegments(gray, camera, o, evidence, &scale);
-  const std::vector<MergedLine> lines = mergeSegments(segments, kSegmentEndSigmaPx * scale, o);
+  // Once a session knows the static scene, its quadrilaterals are not tried: the search can
+  // afford more lines and a scale-free ranking, so a far board competes with near windows.
+  // Every line a session may learn is reported (evidence), the quadrilaterals use the first
+  // max_lines until the scene is known.
+  const bool scene_known = static_lines && !static_lines->empty();
+  std::vector<MergedLine> lines = mergeSegments(segments, kSegmentEndSigmaPx * scale, o,
+                                                std::max(o.max_lines, o.max_lines_static_scene));
+  for (const MergedLine& l : lines)
+    if (evidence) evidence->line_ends.push_back(l.ends());
+  const size_t used = static_cast<size_t>(scene_known ? o.max_lines_static_scene : o.max_lines);
+  if (lines.size() > used) lines.resize(used);
   if (evidence) evidence->lines = static_cast<int>(lines.size());
+  const double tolerance = sameLineTolerancePx(o, gray.cols);
+  std::vector<char> is_static(lines.size(), 0);
+  for (size_t k = 0; k < lines.size() && scene_known; ++k)
+    for (const auto& s : *static_lines) is_static[k] |= sameLine(lines[k].ends(), s, tolerance);
   if (lines.size() < static_cast<size_t>(kNumEdges)) return {};
-  std::vector<QuadHypothesis> quads =
-      enumerateQuads(lines, cornerGraph(lines, camera), camera, o, expected);
+  std::vector<QuadHypothesis> quads = enumerateQuads(lines, cornerGraph(lines, camera), camera, o,
+                                                     expected, is_static, scene_known);
   if (evidence) evidence->quads = static_cast<int>(quads.size());
   return keepBest(&quads, camera, o);
 }

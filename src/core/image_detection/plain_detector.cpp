@@ -31,6 +31,7 @@ struct HypothesisSearch {
   int best_valid = -1;
   std::vector<std::array<Eigen::Vector2d, 4>> tried;
   std::vector<std::string> reasons;
+  std::vector<std::array<Eigen::Vector2d, 4>> boards;  // passed the board checks
 
   bool found() const { return best_score > 0; }
   bool cleanBoard() const { return found() && best_min_coverage >= kCleanBoardCoverage; }
@@ -99,7 +100,7 @@ bool nearExpected(const Eigen::Vector2d& point, const ExpectedBoard& expected) {
 // A board that the prior does not put there is another rectangle.
 void checkExpected(const ExpectedBoard& expected, ImageDetection* attempt) {
   CameraBoardFeatures& f = attempt->features;
-  const double off = worstCornerOffset(f.corners_px, expected);
+  const double off = worstCornerOffset(f.corners_px, expected.corners_px);
   if (off <= expected.tolerance_px) return;
   f.found = false;
   f.reason =
@@ -107,11 +108,24 @@ void checkExpected(const ExpectedBoard& expected, ImageDetection* attempt) {
                  expected.tolerance_px);
 }
 
+// A board where the session has seen a static scene rectangle is that rectangle.
+bool onStaticRectangle(const StaticScene& excluded, ImageDetection* attempt) {
+  CameraBoardFeatures& f = attempt->features;
+  for (const StaticRectangle& r : excluded.rectangles) {
+    if (worstCornerOffset(f.corners_px, r.corners_px) > r.tolerance_px) continue;
+    f.found = false;
+    f.reason =
+        cv::format("a static scene rectangle, seen at the same place for %.0f s", r.seen_for_s);
+    return true;
+  }
+  return false;
+}
+
 }  // namespace
 
 void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                  const ImageBoardDetectorOptions& o, ImageDetection* out,
-                 const ExpectedBoard* expected) {
+                 const ExpectedBoard* expected, const StaticScene* excluded) {
   const cv::Mat small = downscale(gray, o.segmentation_width_px);
   const double sx = static_cast<double>(gray.cols) / small.cols;
   // Edge pixels must stand out of this image's own noise (sensor, compression, texture).
@@ -143,7 +157,8 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     // Line evidence (the costly part) unless a region already gave a board whose four sides
     // show their edge along nearly all their visible length.
     if (i == regions && !search.cleanBoard()) {
-      quads = lineQuadHypotheses(gray, camera, o, &evidence, expected);
+      quads = lineQuadHypotheses(gray, camera, o, &evidence, expected,
+                                 excluded ? &excluded->lines_px : nullptr);
       for (const auto& q : quads) hypotheses.push_back(fromQuad(q, camera, o));
     }
     if (i >= hypotheses.size()) break;
@@ -164,6 +179,10 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
       checkExpected(*expected, &attempt);
       is_board = attempt.features.found;
     }
+    if (is_board) {
+      search.boards.push_back(attempt.features.corners_px);
+      if (excluded && onStaticRectangle(*excluded, &attempt)) is_board = false;
+    }
     const auto corners = i >= regions ? quads[i - regions].corners : attempt.features.corners_px;
     search.record(hypotheses[i], corners, is_board, support, std::move(attempt));
   }
@@ -180,11 +199,13 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
                   cv::format("; no quadrilateral of straight edges among %d lines", evidence.lines);
   }
   out->details.segments_raw = std::move(evidence.segments_raw);
+  out->details.lines_px = std::move(evidence.line_ends);
   out->details.line_segments = evidence.segments;
   out->details.straight_lines = evidence.lines;
   out->details.line_quads = evidence.quads;
   out->details.hypotheses_px = std::move(search.tried);
   out->details.hypothesis_reasons = std::move(search.reasons);
+  out->details.boards_px = std::move(search.boards);
   out->details.noise_sigma = noise;
 }
 

@@ -291,17 +291,6 @@ std::string LidarBoardDetectorOptions::validate() const {
   return {};
 }
 
-std::string StaticMemoryOptions::validate() const {
-  if (!(place_radius_m > 0.0)) return "place_radius_m must be > 0";
-  if (!(max_normal_angle_deg > 0.0 && max_normal_angle_deg <= 90.0))
-    return "max_normal_angle_deg must be in (0, 90]";
-  if (!(static_after_s > 0.0)) return "static_after_s must be > 0";
-  if (!(min_seen_fraction >= 0.0 && min_seen_fraction <= 1.0))
-    return "min_seen_fraction must be in [0, 1]";
-  if (!(forget_after_s > 0.0)) return "forget_after_s must be > 0";
-  return {};
-}
-
 const char* lidarDetectionCodeName(LidarDetectionCode code) {
   switch (code) {
     case LidarDetectionCode::kFound: return "found";

@@ -20,9 +20,7 @@ void LidarBoardTracker::reset() {
 }
 
 bool LidarBoardTracker::isStatic(const Place& p) const {
-  const long frames_since = frames_ - p.first_frame + 1;
-  return p.last_s - p.first_s >= memory_.static_after_s &&
-         p.seen >= memory_.min_seen_fraction * static_cast<double>(frames_since);
+  return p.sightings.isStatic(memory_, frames_);
 }
 
 int LidarBoardTracker::numStaticPlaces() const {
@@ -69,26 +67,16 @@ LidarBoardDetection LidarBoardTracker::detect(const LidarCloud& cloud,
     if (c.score < 0 && c.rejected_because.rfind("static", 0) != 0) continue;
     const int k = match(c);
     if (k < 0) {
-      Place p;
-      p.centroid = c.centroid;
-      p.normal = c.plane.normal;
-      p.first_s = p.last_s = cloud.stamp;
-      p.first_frame = p.last_frame = frames_;
-      p.seen = 1;
-      places_.push_back(p);
+      places_.push_back({c.centroid, c.plane.normal, PlaceSightings::start(cloud.stamp, frames_)});
     } else {
-      Place& p = places_[static_cast<size_t>(k)];
-      if (p.last_frame == frames_) continue;  // two candidates of this cloud at one place
-      p.last_s = cloud.stamp;
-      p.last_frame = frames_;
-      ++p.seen;
+      // Two candidates of this cloud at one place count once.
+      places_[static_cast<size_t>(k)].sightings.see(cloud.stamp, frames_);
     }
   }
-  places_.erase(std::remove_if(places_.begin(), places_.end(),
-                               [&](const Place& p) {
-                                 return cloud.stamp - p.last_s > memory_.forget_after_s;
-                               }),
-                places_.end());
+  places_.erase(
+      std::remove_if(places_.begin(), places_.end(),
+                     [&](const Place& p) { return p.sightings.forgotten(memory_, cloud.stamp); }),
+      places_.end());
   return det;
 }
 

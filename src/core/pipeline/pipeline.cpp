@@ -20,6 +20,7 @@ std::string PipelineOptions::validate() const {
   if (auto why = lidar.validate(); !why.empty()) return "lidar detector: " + why;
   if (auto why = lidar_memory.validate(); !why.empty()) return "lidar session memory: " + why;
   if (auto why = image.validate(); !why.empty()) return "image detector: " + why;
+  if (auto why = image_memory.validate(); !why.empty()) return "image session memory: " + why;
   if (auto why = session.validate(); !why.empty()) return "session: " + why;
   if (frame_history < 1) return "frame_history must be >= 1";
   if (auto why = second_chance.validate(); !why.empty()) return "second chance: " + why;
@@ -27,15 +28,21 @@ std::string PipelineOptions::validate() const {
 }
 
 struct CalibrationPipeline::Impl {
-  Impl(const Target& t, const PipelineOptions& o, ImageBoardDetector d)
-      : target(t), options(o), image_detector(std::move(d)), session(t, o.session) {
+  Impl(const Target& t, const PipelineOptions& o, ImageBoardDetector d,
+       std::optional<ImageBoardTracker> image_memory)
+      : target(t),
+        options(o),
+        image_detector(std::move(d)),
+        image_tracker(std::move(image_memory)),
+        session(t, o.session) {
     if (o.lidar_memory.enabled) tracker.emplace(t, o.lidar, o.lidar_memory);
   }
 
   Target target;
   PipelineOptions options;
-  ImageBoardDetector image_detector;
-  std::optional<LidarBoardTracker> tracker;  // session memory of board-like places (issue 14)
+  ImageBoardDetector image_detector;  // alone, and near a projected board (second chance)
+  std::optional<ImageBoardTracker> image_tracker;  // session memory of the static scene (issue 14)
+  std::optional<LidarBoardTracker> tracker;        // session memory of board-like places (issue 14)
   PairSession session;
   std::optional<CameraIntrinsics> intrinsics;
   std::optional<CameraModel> camera;
@@ -139,8 +146,14 @@ Expected<CalibrationPipeline> CalibrationPipeline::create(const Target& target,
   auto detector = ImageBoardDetector::create(target, options.image);
   if (!detector)
     return Expected<CalibrationPipeline>::failure("image detector: " + detector.error());
+  std::optional<ImageBoardTracker> image_tracker;
+  if (options.image_memory.enabled) {
+    auto t = ImageBoardTracker::create(target, options.image, options.image_memory);
+    if (!t) return Expected<CalibrationPipeline>::failure("image session memory: " + t.error());
+    image_tracker.emplace(std::move(*t));
+  }
   CalibrationPipeline p;
-  p.impl_ = std::make_unique<Impl>(target, options, std::move(*detector));
+  p.impl_ = std::make_unique<Impl>(target, options, std::move(*detector), std::move(image_tracker));
   return p;
 }
 
@@ -165,7 +178,8 @@ FrameOutcome CalibrationPipeline::addImage(const cv::Mat& image, const CameraInt
     d.camera = *model;
   }
   const auto start = std::chrono::steady_clock::now();
-  ImageDetection det = d.image_detector.detect(image, *d.camera);
+  ImageDetection det = d.image_tracker ? d.image_tracker->detect(image, *d.camera, stamp)
+                                       : d.image_detector.detect(image, *d.camera);
   det.features.frame_id = frame_id;
   det.features.stamp = stamp;
   if (!det.features.found) d.retryImage(image, &det);

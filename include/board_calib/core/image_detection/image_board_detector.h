@@ -22,6 +22,7 @@
 #include <opencv2/core.hpp>
 
 #include <memory>
+#include <vector>
 
 namespace board_calib {
 
@@ -60,6 +61,10 @@ struct ImageBoardDetectorOptions {
                                       ///< detector (LSD) runs on; 0 = no line hypotheses
   int max_line_hypotheses =
       6;  ///< quadrilaterals of long straight edges refined at full resolution, best first
+  int max_lines = 80;  ///< best-supported merged straight lines that quadrilaterals are built from
+  int max_lines_static_scene =
+      200;  ///< the same once a session knows the static scene (ImageBoardTracker): its
+            ///< quadrilaterals are then skipped and the rest ranked by support per px of perimeter
   double max_board_tilt_deg = 70.0;    ///< deg, a plain board turned further from the camera is
                                        ///< rejected (no calibration view)
   double max_board_distance_m = 20.0;  ///< m, a plain board farther away is rejected: a 16-ring
@@ -99,6 +104,11 @@ struct ImageDetectionDetails {
       hypotheses_px;  ///< plain: quadrilaterals tried (undistorted px corners)
   std::vector<std::string>
       hypothesis_reasons;  ///< plain: per hypothesis, "found" or why it is not the board
+  std::vector<std::array<Eigen::Vector2d, 4>>
+      boards_px;  ///< plain: corners (undistorted px) of every hypothesis that passed the board
+                  ///< checks, the accepted one and those dropped as static rectangles included
+  std::vector<std::array<Eigen::Vector2d, 2>>
+      lines_px;  ///< plain: merged straight lines of the line stage (support ends, undistorted px)
   std::vector<std::array<Eigen::Vector2d, 2>> segments_raw;  ///< plain: line segments (LSD), raw px
   double noise_sigma = 0.0;  ///< plain: image noise estimate, grey levels
   int line_segments = 0, straight_lines = 0,
@@ -130,6 +140,24 @@ struct ExpectedBoard {
       0.0;  ///< px, how far the true corners may lie from these (the prior's projection error)
 };
 
+/// A rectangle of the static scene (window, door, poster) that a session saw at one place
+/// (issue 14, 3a): a board that coincides with it is that rectangle, not the board.
+struct StaticRectangle {
+  std::array<Eigen::Vector2d, kNumEdges> corners_px{};  ///< undistorted px, any cyclic order
+  double tolerance_px = 0.0;  ///< px, a board whose every corner is this close is the rectangle
+  double seen_for_s = 0.0;    ///< s, how long the session has seen it there (for the reason)
+};
+
+/// What a session knows of the static scene in one camera (ImageBoardTracker): rectangles that
+/// passed the board checks at one place, and straight lines seen at one place. A line
+/// quadrilateral with two or more sides on static lines is not tried as a board, and the line
+/// search widens (ImageBoardDetectorOptions::max_lines_static_scene).
+struct StaticScene {
+  std::vector<StaticRectangle> rectangles;
+  std::vector<std::array<Eigen::Vector2d, 2>> lines_px;  ///< support ends, undistorted px
+  bool empty() const { return rectangles.empty() && lines_px.empty(); }
+};
+
 class ImageBoardDetector {
  public:
   static Expected<ImageBoardDetector> create(const Target& target,
@@ -141,6 +169,13 @@ class ImageBoardDetector {
   /// Detects the board in a raw bgr8 or mono8 image. The image size must match the camera
   /// model; otherwise (or on any other failure) features.found is false with a reason.
   ImageDetection detect(const cv::Mat& image, const CameraModel& camera);
+
+  /// The same, but a plain board coinciding with a static rectangle is not accepted (reason
+  /// names it) and the search goes on to the next hypothesis; quadrilaterals of static lines
+  /// are not tried. Pattern boards (checkerboard, AprilTag grid) are unambiguous and
+  /// ignore the static scene.
+  ImageDetection detect(const cv::Mat& image, const CameraModel& camera,
+                        const StaticScene& excluded);
 
   /// Second chance inside the projected board (issue 14, 3b): the same detector and checks, but
   /// only hypotheses near `expected` are tried, and a board is accepted only when each of its
@@ -154,8 +189,8 @@ class ImageBoardDetector {
 
  private:
   ImageBoardDetector() = default;
-  ImageDetection run(const cv::Mat& image, const CameraModel& camera,
-                     const ExpectedBoard* expected);
+  ImageDetection run(const cv::Mat& image, const CameraModel& camera, const ExpectedBoard* expected,
+                     const StaticScene* excluded);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

@@ -9,6 +9,7 @@
 // extreme points per scan line -> assigned to UL/UR/LR/LL -> robust line fits -> corners.
 #pragma once
 
+#include <board_calib/core/common/static_memory.h>
 #include <board_calib/core/features.h>
 #include <board_calib/core/lidar_detection/lidar_cloud.h>
 #include <board_calib/core/target.h>
@@ -187,27 +188,6 @@ LidarBoardDetection detectLidarBoardNear(const LidarCloud& cloud, const Target& 
                                          const LidarBoardDetectorOptions& options,
                                          const ExpectedLidarBoard& expected);
 
-/// Memory of board-like planes over a session: the board is what moves; a planar candidate
-/// that stays put (door, poster, screen, cabinet) is background.
-struct StaticMemoryOptions {
-  bool enabled =
-      true;  ///< used by the pair pipeline and the cloud detector nodelet (`~session_memory`)
-  double place_radius_m =
-      0.3;  ///< candidates whose centroids are this close (and normals agree) are one place, m
-  double max_normal_angle_deg = 10.0;  ///< deg
-  double static_after_s =
-      6.0;  ///< seen at one place over this long: background (a held pose lasts a few s), s
-  double min_seen_fraction =
-      0.5;  ///< ... and in at least this fraction of the clouds since (not a board revisiting)
-  double forget_after_s = 30.0;  ///< a place unseen this long is forgotten, s
-  /// Two board-like places not known as static: ambiguous whatever their support. Off by default:
-  /// real rooms keep a second board-like plane that is not static in every cloud (0 of 16
-  /// clouds of basler_os1_plain found with it); on for a cluttered room where a wrong board
-  /// during the first static_after_s is worse than a lost one.
-  bool strict_ambiguity = false;
-  std::string validate() const;
-};
-
 /// Stateful detector: one per LiDAR (not thread-safe). Each cloud goes through
 /// detectLidarBoard's stages; board-like candidates at static places are dropped as
 /// background, and frames the single-frame rules would call ambiguous are decided by that
@@ -228,9 +208,7 @@ class LidarBoardTracker {
   struct Place {
     Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
     Eigen::Vector3d normal = Eigen::Vector3d::UnitX();
-    double first_s = 0.0, last_s = 0.0;
-    long first_frame = 0, last_frame = 0;
-    int seen = 0;
+    PlaceSightings sightings;
   };
   bool isStatic(const Place& p) const;
   int match(const LidarBoardCandidate& c) const;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <board_calib/core/image_detection/image_board_detector.h>
+#include <board_calib/core/image_detection/image_board_tracker.h>
 #include <board_calib/core/lidar_detection/lidar_board_detector.h>
 #include <board_calib/core/pipeline/second_chance.h>
 #include <board_calib/core/session/session.h>
@@ -19,6 +20,8 @@ struct PipelineOptions {
   StaticMemoryOptions lidar_memory;  ///< enabled: clouds go through a LidarBoardTracker (static
                                      ///< planes are background)
   ImageBoardDetectorOptions image;
+  StaticMemoryOptions image_memory;  ///< enabled: images go through an ImageBoardTracker (static
+                                     ///< scene rectangles and lines are not the board)
   SessionOptions session;
   bool keep_view_frames = true;  ///< keep the raw image and cloud of every accepted view (reports)
   int frame_history = 64;        ///< raw frames kept per stream at most until their view is decided

@@ -1,0 +1,43 @@
+// Comparing what a session saw before with this image's quadrilaterals and lines (the static
+// scene of ImageBoardTracker, the expected board of a second chance).
+#include "detection_internal.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace board_calib {
+namespace image_detection {
+
+double worstCornerOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners,
+                         const std::array<Eigen::Vector2d, kNumEdges>& reference) {
+  double worst = 0;
+  for (const auto& c : corners) {
+    double nearest = std::numeric_limits<double>::infinity();
+    for (const auto& e : reference) nearest = std::min(nearest, (c - e).norm());
+    worst = std::max(worst, nearest);
+  }
+  return worst;
+}
+
+bool sameLine(const std::array<Eigen::Vector2d, 2>& x, const std::array<Eigen::Vector2d, 2>& y,
+              double tolerance_px) {
+  const bool x_longer = (x[1] - x[0]).squaredNorm() >= (y[1] - y[0]).squaredNorm();
+  const auto& longer = x_longer ? x : y;
+  const auto& shorter = x_longer ? y : x;
+  const double length = (longer[1] - longer[0]).norm();
+  if (!(length > 0)) return false;
+  const Eigen::Vector2d dir = (longer[1] - longer[0]) / length;
+  double t_lo = 1e18, t_hi = -1e18;
+  for (const Eigen::Vector2d& p : shorter) {
+    if (std::abs(dir.x() * (p - longer[0]).y() - dir.y() * (p - longer[0]).x()) > tolerance_px)
+      return false;
+    const double t = dir.dot(p - longer[0]);
+    t_lo = std::min(t_lo, t);
+    t_hi = std::max(t_hi, t);
+  }
+  return t_hi >= 0 && t_lo <= length;
+}
+
+}  // namespace image_detection
+}  // namespace board_calib

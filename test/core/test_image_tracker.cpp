@@ -1,0 +1,186 @@
+// ImageBoardTracker (issue 14, 3a) on synthetic frames with known truth: a static rectangle that
+// passes every board check (a poster of the board's size and aspect, nearer and so with more edge
+// support than the board) and a moving board. Alone, a frame gives the poster; the session memory
+// must leave it once it has been at one place for static_after_s and return the moving board,
+// must not lose a board held still for a normal hold, and must start over when time goes back.
+#include <board_calib/core/image_detection/image_board_tracker.h>
+#include <board_calib/core/transform.h>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include <cmath>
+#include <cstdio>
+
+namespace board_calib {
+namespace {
+
+using Corners = std::array<Eigen::Vector2d, kNumEdges>;
+
+CameraModel testCamera() {
+  CameraIntrinsics in;
+  in.width = 1280;
+  in.height = 960;
+  in.fx = in.fy = 1000;
+  in.cx = 639.5;
+  in.cy = 479.5;
+  in.model = DistortionModel::kNone;
+  auto camera = CameraModel::create(in);
+  EXPECT_TRUE(camera.ok()) << camera.error();
+  return *camera;
+}
+
+Target testTarget() {
+  auto target =
+      loadTarget(std::string(BOARD_CALIB_SOURCE_DIR) + "/config/targets/plain_890x1200.yaml");
+  EXPECT_TRUE(target.ok()) << target.error();
+  return *target;
+}
+
+// The board's outer corners in the image with its centre at (x, y, z) m, rolled by roll_deg.
+Corners boardCorners(const CameraModel& camera, const Target& t, const Eigen::Vector3d& centre,
+                     double roll_deg) {
+  const Eigen::Matrix3d R =
+      Eigen::AngleAxisd(roll_deg * kRadPerDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const Eigen::Isometry3d camera_T_board = makeTransform(R, centre - R * t.center());
+  Corners c;
+  const auto outer = t.outerCorners();
+  for (int j = 0; j < kNumEdges; ++j)
+    EXPECT_TRUE(camera.projectUndistorted(camera_T_board * outer[j], &c[j]));
+  return c;
+}
+
+void fill(cv::Mat* image, const Corners& c, int grey) {
+  constexpr int kShift = 4;  // sub-pixel polygon corners, anti-aliased edges
+  std::vector<cv::Point> poly;
+  for (const auto& p : c)
+    poly.emplace_back(static_cast<int>(std::lround(p.x() * (1 << kShift))),
+                      static_cast<int>(std::lround(p.y() * (1 << kShift))));
+  cv::fillConvexPoly(*image, poly, cv::Scalar(grey), cv::LINE_AA, kShift);
+}
+
+// Grey background, the poster (bright) when given, the board (dark), 2 grey levels of noise.
+cv::Mat render(const CameraModel& camera, const Corners* poster, const Corners& board,
+               cv::RNG& rng) {
+  cv::Mat image(camera.height(), camera.width(), CV_8UC1, cv::Scalar(120));
+  if (poster) fill(&image, *poster, 215);
+  fill(&image, board, 40);
+  cv::Mat noise(image.size(), CV_16SC1);
+  rng.fill(noise, cv::RNG::NORMAL, 0.0, 2.0);
+  cv::Mat out;
+  image.convertTo(out, CV_16SC1);
+  out += noise;
+  out.convertTo(out, CV_8UC1);
+  return out;
+}
+
+// Corners this close: the same quadrilateral (a found board's corners are within a px of the
+// drawn ones; the poster and the board lie hundreds of px apart).
+constexpr double kSamePx = 3.0;
+
+double worstOffset(const Corners& a, const Corners& b) {
+  double worst = 0;
+  for (const auto& p : a) {
+    double nearest = 1e18;
+    for (const auto& q : b) nearest = std::min(nearest, (p - q).norm());
+    worst = std::max(worst, nearest);
+  }
+  return worst;
+}
+
+// Board poses of a session: each held 1.5 s (the simulator's hold), then the next one.
+const std::vector<std::pair<Eigen::Vector3d, double>> kBoardPoses = {
+    {{1.2, 0.3, 7.0}, 45},  {{0.9, -0.4, 8.0}, 35}, {{1.5, 0.1, 6.5}, 55},  {{0.7, 0.5, 7.5}, 40},
+    {{1.3, -0.2, 9.0}, 50}, {{1.0, 0.2, 6.0}, 30},  {{1.6, -0.5, 8.5}, 60}, {{0.8, 0.0, 7.0}, 45}};
+
+}  // namespace
+
+TEST(ImageBoardTracker, StaticRectangleIsLeftForTheMovingBoard) {
+  const CameraModel camera = testCamera();
+  const Target target = testTarget();
+  auto alone = ImageBoardDetector::create(target, {});
+  auto tracker = ImageBoardTracker::create(target, {});
+  ASSERT_TRUE(alone.ok() && tracker.ok());
+  const Corners poster = boardCorners(camera, target, {-1.2, 0.0, 3.5}, 0.0);
+  cv::RNG rng(7);
+  constexpr double kFrameS = 0.5;  // 2 Hz
+  constexpr double kHoldS = 2.5;   // 1.5 s hold + 1 s move, as the simulator's sessions
+  const double static_after_s = tracker->memory().static_after_s;
+  int alone_poster = 0, late_frames = 0, late_board = 0, late_poster = 0;
+  for (double t = 0.0; t < kHoldS * kBoardPoses.size(); t += kFrameS) {
+    const auto& pose = kBoardPoses[static_cast<size_t>(t / kHoldS)];
+    const Corners board = boardCorners(camera, target, pose.first, pose.second);
+    const cv::Mat image = render(camera, &poster, board, rng);
+    const ImageDetection a = alone->detect(image, camera);
+    alone_poster += a.features.found && worstOffset(a.features.corners_px, poster) < kSamePx;
+    const ImageDetection d = tracker->detect(image, camera, t);
+    const bool is_board = d.features.found && worstOffset(d.features.corners_px, board) < kSamePx;
+    const bool is_poster = d.features.found && worstOffset(d.features.corners_px, poster) < kSamePx;
+    std::printf("[tracker] t %4.1f: %s (%d static places, %d static lines)\n", t,
+                is_board    ? "board"
+                : is_poster ? "POSTER"
+                            : d.features.reason.c_str(),
+                tracker->numStaticPlaces(), tracker->numStaticLines());
+    // The poster is static once seen over static_after_s; the frame that makes it so is searched
+    // again without it.
+    if (t < static_after_s) continue;
+    ++late_frames;
+    late_board += is_board;
+    late_poster += is_poster;
+  }
+  std::printf("[tracker] alone: poster in %d frames; after %.0f s: board %d/%d, poster %d\n",
+              alone_poster, static_after_s, late_board, late_frames, late_poster);
+  EXPECT_GT(alone_poster, 0);  // the scene is the hard case: alone the poster wins
+  EXPECT_EQ(late_poster, 0);   // never returned once static
+  EXPECT_EQ(late_board, late_frames);
+}
+
+TEST(ImageBoardTracker, BoardHeldStillForANormalHoldIsKept) {
+  const CameraModel camera = testCamera();
+  const Target target = testTarget();
+  auto tracker = ImageBoardTracker::create(target, {});
+  ASSERT_TRUE(tracker.ok());
+  cv::RNG rng(8);
+  // Held for twice the simulator's hold (1.5 s) at 10 Hz, then moved and held again.
+  constexpr double kHoldS = 3.0, kFrameS = 0.1;
+  int frames = 0, found = 0;
+  for (int hold = 0; hold < 3; ++hold) {
+    const auto& pose = kBoardPoses[static_cast<size_t>(hold)];
+    const Corners board = boardCorners(camera, target, pose.first, pose.second);
+    for (double s = 0.0; s < kHoldS; s += kFrameS) {
+      const ImageDetection d =
+          tracker->detect(render(camera, nullptr, board, rng), camera, hold * kHoldS + s);
+      ++frames;
+      found += d.features.found && worstOffset(d.features.corners_px, board) < kSamePx;
+    }
+  }
+  std::printf("[tracker] held still 3 x %.0f s: board in %d/%d frames\n", kHoldS, found, frames);
+  EXPECT_EQ(found, frames);
+  EXPECT_EQ(tracker->numStaticPlaces(), 0);
+}
+
+TEST(ImageBoardTracker, TimeGoingBackForgetsTheStaticScene) {
+  const CameraModel camera = testCamera();
+  const Target target = testTarget();
+  auto tracker = ImageBoardTracker::create(target, {});
+  ASSERT_TRUE(tracker.ok());
+  const Corners poster = boardCorners(camera, target, {-1.2, 0.0, 3.5}, 0.0);
+  const Corners board = boardCorners(camera, target, kBoardPoses[0].first, kBoardPoses[0].second);
+  cv::RNG rng(9);
+  for (double t = 0.0; t <= 10.0; t += 1.0)
+    tracker->detect(render(camera, &poster, board, rng), camera, 100.0 + t);
+  EXPECT_GT(tracker->numStaticPlaces(), 0);
+  tracker->detect(render(camera, &poster, board, rng), camera, 0.0);  // a replay started over
+  EXPECT_EQ(tracker->numStaticPlaces(), 0);
+  EXPECT_GT(tracker->numPlaces(), 0);  // the replay's first frame is remembered anew
+}
+
+TEST(ImageBoardTracker, InvalidMemoryOptionsAreRefused) {
+  StaticMemoryOptions memory;
+  memory.static_after_s = 0.0;
+  const auto tracker = ImageBoardTracker::create(testTarget(), {}, memory);
+  ASSERT_FALSE(tracker.ok());
+  EXPECT_NE(tracker.error().find("static_after_s"), std::string::npos);
+}
+
+}  // namespace board_calib
