@@ -61,6 +61,35 @@ EdgeScore scoreEdges(const Frame& f, const CameraBoardFeatures& fe, const std::s
   return s;
 }
 
+// Development aid (BOARD_CALIB_AUG_DIAG set): for a miss, every hypothesis tried whose corners lie
+// within `kNearPx` of the reference corners and why it was rejected, or the nearest one (a region
+// that failed before its corners were fitted records none).
+void printNearHypotheses(const Frame& f, const ImageDetection& d) {
+  if (!std::getenv("BOARD_CALIB_AUG_DIAG")) return;
+  constexpr double kNearPx = 20.0;
+  const auto& tried = d.details.hypotheses_px;
+  double nearest = 1e18;
+  size_t nearest_k = tried.size();
+  for (size_t k = 0; k < tried.size(); ++k) {
+    double worst = 0;
+    for (const auto& c : tried[k]) {
+      double best = 1e18;
+      for (const auto& r : f.corners) best = std::min(best, (c - r).norm());
+      worst = std::max(worst, best);
+    }
+    if (worst <= kNearPx)
+      std::printf("    near (%.0f px): %s\n", worst, d.details.hypothesis_reasons[k].c_str());
+    if (worst < nearest) {
+      nearest = worst;
+      nearest_k = k;
+    }
+  }
+  std::printf("    %zu tried, %d lines, %d quads; nearest %.0f px%s%s\n", tried.size(),
+              d.details.straight_lines, d.details.line_quads, nearest,
+              nearest_k < tried.size() ? ": " : "",
+              nearest_k < tried.size() ? d.details.hypothesis_reasons[nearest_k].c_str() : "");
+}
+
 struct CaseTally {
   int frames = 0, found = 0, basler_found = 0, rs16_found = 0;
   EdgeScore all, basler;
@@ -86,6 +115,7 @@ CaseTally runCase(const std::vector<Frame>& frames, const Case& c, size_t index,
     const CameraBoardFeatures& fe = d.features;
     if (!fe.found || !fe.allEdgesValid()) {
       std::printf("  miss %-10s %s: %s\n", f.name.c_str(), c.name.c_str(), fe.reason.c_str());
+      printNearHypotheses(f, d);
       EXPECT_FALSE(fe.reason.empty());
       continue;
     }
