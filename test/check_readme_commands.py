@@ -142,6 +142,9 @@ CASES = {
     "ws/ci/devel/lib/board_calib/test_lidar_detector --gtest_filter='*Scenario*'": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_image_far_sim": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_image_tracker": {"kind": "dev"},
+    "scripts/build.sh test_image_detector_augmented bench_image_detector": {
+        "kind": "run", "expect": r"built in", "timeout": 900},
+    "ws/ci/devel/lib/board_calib/test_image_detector_augmented --gtest_filter='*RealFrames'": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/bench_image_detector --frames 20 --board plain": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/bench_capture --scale 0.5 --poses 12 --seeds 2 --rates 1,2,5,10,30": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_rig_session --gtest_filter=*Sparse*": {"kind": "dev"},

@@ -18,6 +18,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <ctime>
 #include <filesystem>
 #include <random>
 
@@ -61,10 +62,47 @@ EdgeScore scoreEdges(const Frame& f, const CameraBoardFeatures& fe, const std::s
   return s;
 }
 
+// Development aid (BOARD_CALIB_AUG_DIAG set): for a miss, every hypothesis tried whose corners lie
+// within `kNearPx` of the reference corners and why it was rejected, or the nearest one (a region
+// that failed before its corners were fitted records none).
+void printNearHypotheses(const Frame& f, const ImageDetection& d) {
+  if (!std::getenv("BOARD_CALIB_AUG_DIAG")) return;
+  constexpr double kNearPx = 20.0;
+  const auto& tried = d.details.hypotheses_px;
+  double nearest = 1e18;
+  size_t nearest_k = tried.size();
+  for (size_t k = 0; k < tried.size(); ++k) {
+    double worst = 0;
+    for (const auto& c : tried[k]) {
+      double best = 1e18;
+      for (const auto& r : f.corners) best = std::min(best, (c - r).norm());
+      worst = std::max(worst, best);
+    }
+    if (worst <= kNearPx)
+      std::printf("    near (%.0f px): %s\n", worst, d.details.hypothesis_reasons[k].c_str());
+    if (worst < nearest) {
+      nearest = worst;
+      nearest_k = k;
+    }
+  }
+  std::printf("    %zu tried, %d lines, %d quads; nearest %.0f px%s%s\n", tried.size(),
+              d.details.straight_lines, d.details.line_quads, nearest,
+              nearest_k < tried.size() ? ": " : "",
+              nearest_k < tried.size() ? d.details.hypothesis_reasons[nearest_k].c_str() : "");
+}
+
+// CPU time of this thread (ms): the detector is single-threaded, and on a shared machine its CPU
+// time varies far less than its wall time.
+double threadCpuMs() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return t.tv_sec * 1e3 + t.tv_nsec * 1e-6;
+}
+
 struct CaseTally {
   int frames = 0, found = 0, basler_found = 0, rs16_found = 0;
   EdgeScore all, basler;
-  double sum_ms = 0, max_ms = 0;
+  double sum_ms = 0, max_ms = 0, sum_cpu_ms = 0;
 };
 
 // One case over every recorded frame: detections, their timing and their lines.
@@ -78,7 +116,9 @@ CaseTally runCase(const std::vector<Frame>& frames, const Case& c, size_t index,
     auto det = ImageBoardDetector::create(f.target, ImageBoardDetectorOptions{});
     EXPECT_TRUE(det.ok());
     if (!det.ok()) return t;
+    const double cpu_start = threadCpuMs();
     const ImageDetection d = det->detect(f.image, camera);
+    t.sum_cpu_ms += threadCpuMs() - cpu_start;
     ++t.frames;
     t.sum_ms += d.details.time_ms;
     t.max_ms = std::max(t.max_ms, d.details.time_ms);
@@ -86,6 +126,7 @@ CaseTally runCase(const std::vector<Frame>& frames, const Case& c, size_t index,
     const CameraBoardFeatures& fe = d.features;
     if (!fe.found || !fe.allEdgesValid()) {
       std::printf("  miss %-10s %s: %s\n", f.name.c_str(), c.name.c_str(), fe.reason.c_str());
+      printNearHypotheses(f, d);
       EXPECT_FALSE(fe.reason.empty());
       continue;
     }
@@ -109,8 +150,8 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   ASSERT_GE(frames.size(), 16u + kRs16WithReference);
   std::mt19937 rng(14);
   CaseTally total;
-  std::printf("%-40s %8s %8s %8s %12s %10s %9s %8s\n", "case", "found", "basler", "rs16",
-              "edges<=1px", "worst px", "mean ms", "max ms");
+  std::printf("%-40s %8s %8s %8s %12s %10s %9s %8s %8s\n", "case", "found", "basler", "rs16",
+              "edges<=1px", "worst px", "mean ms", "max ms", "cpu ms");
   // Development aid: BOARD_CALIB_AUG_CASES="0,3" runs only those cases (all when unset).
   const char* only = std::getenv("BOARD_CALIB_AUG_CASES");
   auto selected = [only](size_t k) {
@@ -122,9 +163,10 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
     if (!selected(k)) continue;
     const Case& c = kCases[k];
     const CaseTally t = runCase(frames, c, k, rng);
-    std::printf("%-40s %4d/%-3d %5d/16 %6d/%-2zu %6d/%-5d %10.2f %9.1f %8.1f\n", c.name.c_str(),
-                t.found, t.frames, t.basler_found, t.rs16_found, frames.size() - 16, t.all.within,
-                t.all.edges, t.all.worst, t.sum_ms / std::max(1, t.frames), t.max_ms);
+    std::printf("%-40s %4d/%-3d %5d/16 %6d/%-2zu %6d/%-5d %10.2f %9.1f %8.1f %8.1f\n",
+                c.name.c_str(), t.found, t.frames, t.basler_found, t.rs16_found, frames.size() - 16,
+                t.all.within, t.all.edges, t.all.worst, t.sum_ms / std::max(1, t.frames), t.max_ms,
+                t.sum_cpu_ms / std::max(1, t.frames));
     total.frames += t.frames;
     total.found += t.found;
     total.all.edges += t.all.edges;

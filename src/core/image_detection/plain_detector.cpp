@@ -138,22 +138,28 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
   // of long straight edges. None is a gate for the others.
   Segmentation seg = segmentBoard(small, o);
   std::vector<Hypothesis> hypotheses;
-  for (size_t i = 0; i < seg.candidates.size() && i < static_cast<size_t>(o.max_board_candidates);
-       ++i)
-    hypotheses.push_back(fromRegion(seg.candidates[i], sx, small.size(), camera, o));
+  auto addRegions = [&] {
+    for (size_t i = 0; i < seg.candidates.size() && i < static_cast<size_t>(o.max_board_candidates);
+         ++i)
+      hypotheses.push_back(fromRegion(seg.candidates[i], sx, small.size(), camera, o));
+  };
+  addRegions();
   const size_t first_regions = hypotheses.size();
   const std::string region_reason = seg.reason();
-  proposeOpenedRegions(small.size(), o, &seg);
-  for (size_t i = 0; i < seg.candidates.size() && i < static_cast<size_t>(o.max_board_candidates);
-       ++i)
-    hypotheses.push_back(fromRegion(seg.candidates[i], sx, small.size(), camera, o));
-  const size_t regions = hypotheses.size();
   LineEvidence evidence;
   std::vector<QuadHypothesis> quads;
 
   const ImageDetection fresh = *out;
   HypothesisSearch search;
+  // Openings of the rejected regions (distance transforms: as costly as the segmentation) are
+  // made only when no region was the board; they come before the line quadrilaterals.
+  size_t regions = first_regions;
   for (size_t i = 0;; ++i) {
+    if (i == first_regions && !search.found()) {
+      proposeOpenedRegions(small.size(), o, &seg);
+      addRegions();
+      regions = hypotheses.size();
+    }
     // Line evidence (the costly part) unless a region already gave a board whose four sides
     // show their edge along nearly all their visible length.
     if (i == regions && !search.cleanBoard()) {
@@ -163,7 +169,7 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     }
     if (i >= hypotheses.size()) break;
     if (i >= first_regions && i < regions && search.found())
-      continue;  // openings only when no region was the board
+      continue;  // openings only until one is the board
     // The edge support of a hypothesis cannot exceed the length of its sides: skip those that
     // cannot beat the board already accepted.
     double bound = 0;

@@ -68,11 +68,16 @@ bool scoreRegion(const std::vector<cv::Point>& contour, const cv::Mat& blurred,
 
 // Openings of one region by discs of kOpeningInradiusFractions x its inradius (distance
 // transforms: fast for any radius); returns the remaining parts large enough to be a board.
+// Works on the region's bounding box plus a 1 px frame of background: an opening stays inside
+// the region, and the image border still bounds the box where the region touches it.
 std::vector<std::vector<cv::Point>> openRegion(const std::vector<cv::Point>& contour, cv::Size size,
                                                double min_area) {
   std::vector<std::vector<cv::Point>> parts;
-  cv::Mat mask = cv::Mat::zeros(size, CV_8U);
-  cv::drawContours(mask, std::vector<std::vector<cv::Point>>{contour}, 0, 255, cv::FILLED);
+  const cv::Rect box =
+      (cv::boundingRect(contour) + cv::Size(2, 2) - cv::Point(1, 1)) & cv::Rect(cv::Point(), size);
+  cv::Mat mask = cv::Mat::zeros(box.size(), CV_8U);
+  cv::drawContours(mask, std::vector<std::vector<cv::Point>>{contour}, 0, 255, cv::FILLED,
+                   cv::LINE_8, cv::noArray(), INT_MAX, -box.tl());
   cv::Mat inside, outside;
   cv::distanceTransform(mask, inside, cv::DIST_L2, cv::DIST_MASK_PRECISE);
   double inradius = 0;
@@ -84,7 +89,7 @@ std::vector<std::vector<cv::Point>> openRegion(const std::vector<cv::Point>& con
     cv::distanceTransform(255 - core, outside, cv::DIST_L2, cv::DIST_MASK_PRECISE);
     const cv::Mat opened = outside <= radius;  // dilation of the eroded set
     std::vector<std::vector<cv::Point>> contours;
-    cv::findContours(opened, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+    cv::findContours(opened, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE, box.tl());
     for (auto& c : contours)
       if (cv::contourArea(c) >= min_area) parts.push_back(std::move(c));
   }
