@@ -379,6 +379,21 @@ void loadSavedSession(const Args& args, std::optional<Target>* target, PairSessi
   if (session->views().empty()) fail("session '" + args.load_session + "' holds no views");
 }
 
+// The folders of the files written at the end exist before the bags are read: a result must
+// not be lost to a missing folder after minutes of detection.
+void prepareOutputFolders(const Args& args) {
+  for (const std::string& file : {args.output, args.save_session}) {
+    const std::filesystem::path folder = std::filesystem::path(file).parent_path();
+    if (file.empty() || folder.empty()) continue;
+    std::error_code error;
+    std::filesystem::create_directories(folder, error);
+    if (error || !std::filesystem::is_directory(folder))
+      fail("cannot create the folder '" + folder.string() + "' for '" + file +
+               "': " + (error ? error.message() : "not a folder"),
+           kExitUsage);
+  }
+}
+
 // The result file; a failed result is kept for inspection only, under a name no tool mistakes
 // for a calibration.
 void writeOutput(const Args& args, const PairCalibration& run) {
@@ -410,6 +425,7 @@ void printRun(const PairCalibration& run) {
 
 int main(int argc, char** argv) {
   const Args args = parseArgs(argc, argv);
+  prepareOutputFolders(args);
   if (!args.config.empty())
     return runRigCalibration({args.config, args.bags, args.output, args.report, args.truth,
                               args.check_rot_deg, args.check_trans_m, args.quiet, args.capture});

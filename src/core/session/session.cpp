@@ -19,6 +19,12 @@ Eigen::Vector3d cameraBoardCentre(const CameraBoardFeatures& c, const Target& ta
   return c.camera_T_board * target.center();
 }
 
+double boardTurnDeg(const CameraBoardFeatures& a, const CameraBoardFeatures& b) {
+  const Eigen::Matrix3d relative =
+      a.camera_T_board.linear().transpose() * b.camera_T_board.linear();
+  return Eigen::AngleAxisd(relative).angle() * 180.0 / M_PI;
+}
+
 }  // namespace
 
 const char* sessionEventName(SessionEvent::Kind kind) {
@@ -282,7 +288,9 @@ SessionEvent PairSession::gate(const View& v, bool /*forced*/) const {
 SessionEvent PairSession::addView(const View& view, const std::string& why, bool check_diversity) {
   if (check_diversity) {
     for (const auto& kept : views_) {
-      const double turn = angleDeg(kept.view.camera.plane.normal, view.camera.plane.normal);
+      // The whole board rotation: a turn within the board's plane changes the edge directions
+      // (PBPC's edge constraints) although the normal stays.
+      const double turn = boardTurnDeg(kept.view.camera, view.camera);
       const double move =
           (cameraBoardCentre(kept.view.camera, target_) - cameraBoardCentre(view.camera, target_))
               .norm();

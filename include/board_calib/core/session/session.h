@@ -25,7 +25,8 @@ namespace board_calib {
 /// rig session's too (StillCaptureOptions).
 struct SessionOptions : StillCaptureOptions {
   double sync_tolerance_s = 0.05;      ///< s, max |t_camera - t_lidar| for one view
-  double min_view_rotation_deg = 5.0;  ///< deg, a new view's normal must differ this much ...
+  double min_view_rotation_deg = 5.0;  ///< deg, a new view's board must be turned this much (tilt
+                                       ///< or in-plane turn) ...
   double min_view_translation_m =
       0.20;                          ///< m, ... or its centre move this much from every kept view
   double max_size_mismatch = 0.15;   ///< relative, LiDAR-measured board size vs the target
