@@ -202,15 +202,26 @@ TEST(ImageDetectorFarSim, StreetSessionNeverReportsAWrongCalibration) {
   auto loaded = sim::loadScenario(std::string(BOARD_CALIB_SOURCE_DIR) +
                                   "/config/scenarios/plain_vlp16_outdoor_far.yaml");
   ASSERT_TRUE(loaded.ok()) << loaded.error();
-  for (const auto& [seed, memory] : {std::pair{21u, true}, {21u, false}, {22u, true}}) {
+  struct Run {
+    unsigned seed;
+    bool memory, prepass;
+  };
+  for (const Run& r : {Run{21, true, true}, Run{21, true, false}, Run{22, true, true},
+                       Run{22, true, false}, Run{23, true, true}, Run{24, true, true}}) {
+    const unsigned seed = r.seed;
     // Full-size camera (the board is 120-350 px only at 1440x1080), 2 Hz, the VLP-16 without ring
     // and unorganized, 8 holds, every frame of holds and moves.
     const sim::Scenario s = test_support::captureScenario(*loaded, 1.0, 2.0, false, 8, seed);
     PipelineOptions options;
-    options.image_memory.enabled = memory;
+    options.image_memory.enabled = r.memory;
+    if (!r.prepass) options.image_prepass.frames_per_static = 0;
     auto session = test_support::runSimulatedSession(s, options);
     ASSERT_TRUE(session.ok()) << session.error();
-    const char* tag = memory ? "memory" : "no memory";
+    const char* tag = !r.memory ? "no memory" : r.prepass ? "memory + pre-pass" : "memory";
+    std::printf(
+        "[far street] seed %u, %s: pre-pass %d frames, static %d rectangles, %d lines; %.1f s\n",
+        seed, tag, session->prepass_frames, session->prepass_static_rectangles,
+        session->prepass_static_lines, session->seconds);
     std::printf("[far street] seed %u, %s: images %d: true board %d, wrong %d, none %d\n", seed,
                 tag, session->images, session->images_true, session->images_wrong,
                 session->images - session->images_true - session->images_wrong);
