@@ -206,8 +206,9 @@ TEST(ImageDetectorFarSim, StreetSessionNeverReportsAWrongCalibration) {
     unsigned seed;
     bool memory, prepass;
   };
-  for (const Run& r : {Run{21, true, true}, Run{21, true, false}, Run{22, true, true},
-                       Run{22, true, false}, Run{23, true, true}, Run{24, true, true}}) {
+  // Offline (the pre-pass, as calibrate_bag), and seed 22 live for comparison (the other seeds
+  // and variants: docs/BENCHMARKS.md, session 5; each run is ~15 s).
+  for (const Run& r : {Run{21, true, true}, Run{22, true, true}, Run{22, true, false}}) {
     const unsigned seed = r.seed;
     // Full-size camera (the board is 120-350 px only at 1440x1080), 2 Hz, the VLP-16 without ring
     // and unorganized, 8 holds, every frame of holds and moves.

@@ -193,12 +193,14 @@ TEST(ScenePrepass, PosterIsKnownFromTheFirstFrame) {
 }
 
 TEST(ScenePrepass, HeldBoardIsNotStaticMoreEasilyThanLive) {
-  // Held still over static_after_s but for less than half of the session: live makes it static,
-  // the pre-pass (seen in half of its frames since the first sighting, to the recording's end)
-  // does not.
-  const double session_s = 8.0 + kHoldS * (kBoardPoses.size() - 1);
-  const PrepassRun live_short = runSession(8.0, session_s, false);
-  const PrepassRun pre_short = runSession(8.0, session_s, true);
+  // Held still for less than half of the session, but long enough for the live memory to see it
+  // over static_after_s once the poster is static (from 6 s on): live makes it static, the
+  // pre-pass (seen in half of its frames since the first sighting, to the recording's end) does
+  // not.
+  const double short_hold_s = 2.0 * StaticMemoryOptions().static_after_s + 2.0 * kFrameS;
+  const double session_s = short_hold_s + kHoldS * (kBoardPoses.size() - 1);
+  const PrepassRun live_short = runSession(short_hold_s, session_s, false);
+  const PrepassRun pre_short = runSession(short_hold_s, session_s, true);
   EXPECT_GT(live_short.held_static, 0);
   EXPECT_EQ(pre_short.held_static, 0);
   EXPECT_GE(pre_short.board, live_short.board);
