@@ -11,6 +11,7 @@
 #include <board_calib/core/image_detection/image_board_detector.h>
 #include <board_calib/core/image_detection/image_board_tracker.h>
 #include <board_calib/core/pipeline/pair_calibration.h>
+#include <board_calib/core/pipeline/scene_prepass.h>
 #include <board_calib/core/sim/scenario.h>
 #include <board_calib/core/sim/simulator.h>
 #include <board_calib/core/transform.h>
@@ -68,9 +69,10 @@ constexpr double kWrongBoardPx = 3.0;
 // One still frame per held pose of the scenario with `seed`; prints per frame the board's true
 // size in px, the outcome and the reason (the diagnosis table).
 // With `tracked`, the frames go through an ImageBoardTracker in time order (session memory of
-// static rectangles); `options` are the detector's.
+// static rectangles); with `prepass` too, the tracker knows the static scene learnt first over
+// the same frames (ScenePrepass, as calibrate_bag). `options` are the detector's.
 FarResult runScenario(unsigned seed, int poses, bool street,
-                      const ImageBoardDetectorOptions& options, bool tracked) {
+                      const ImageBoardDetectorOptions& options, bool tracked, bool prepass) {
   auto loaded = sim::loadScenario(std::string(BOARD_CALIB_SOURCE_DIR) +
                                   "/config/scenarios/plain_vlp16_outdoor_far.yaml");
   EXPECT_TRUE(loaded.ok()) << loaded.error();
@@ -92,12 +94,26 @@ FarResult runScenario(unsigned seed, int poses, bool street,
   auto tracker = ImageBoardTracker::create(s.scene.target, options);
   EXPECT_TRUE(tracker.ok()) << tracker.error();
   const char* debug_dir = std::getenv("BOARD_CALIB_DEBUG_DIR");
+  const auto isPoseFrame = [&](const sim::Frame& f, int* last) {
+    if (!f.is_camera || !f.still || f.pose < 0 || f.pose == *last) return false;
+    *last = f.pose;
+    return true;
+  };
   FarResult out;
   int last_pose = -1;
+  if (prepass && timeline.ok()) {
+    auto survey = ScenePrepass::create(s.scene.target, options, {});
+    EXPECT_TRUE(survey.ok()) << survey.error();
+    for (size_t i = 0; i < timeline->frames.size(); ++i)
+      if (isPoseFrame(timeline->frames[i], &last_pose))
+        survey->add(gen->image(timeline->frames[i], i), s.cameras.front().intrinsics,
+                    timeline->frames[i].stamp);
+    tracker->setKnownScene(survey->scene());
+    last_pose = -1;
+  }
   for (size_t i = 0; timeline.ok() && i < timeline->frames.size(); ++i) {
     const sim::Frame& f = timeline->frames[i];
-    if (!f.is_camera || !f.still || f.pose < 0 || f.pose == last_pose) continue;
-    last_pose = f.pose;
+    if (!isPoseFrame(f, &last_pose)) continue;
     const Eigen::Isometry3d camera_T_board = sim::worldTCamera(s, 0).inverse() * f.world_T_board;
     std::array<Eigen::Vector2d, 4> truth;
     const auto outer = s.scene.target.outerCorners();
@@ -139,11 +155,11 @@ FarResult runScenario(unsigned seed, int poses, bool street,
   return out;
 }
 
-FarResult runSeeds(bool street, const ImageBoardDetectorOptions& options = {},
-                   bool tracked = false) {
+FarResult runSeeds(bool street, const ImageBoardDetectorOptions& options = {}, bool tracked = false,
+                   bool prepass = false) {
   FarResult all;
   for (unsigned seed : {14u, 15u, 16u}) {
-    const FarResult r = runScenario(seed, 8, street, options, tracked);
+    const FarResult r = runScenario(seed, 8, street, options, tracked, prepass);
     all.poses += r.poses;
     all.found += r.found;
     all.wrong += r.wrong;
@@ -153,8 +169,12 @@ FarResult runSeeds(bool street, const ImageBoardDetectorOptions& options = {},
   std::printf(
       "[far] %s%s: found %d/%d, wrong %d, lines within %.2f px of the truth; %.0f ms median, "
       "%.0f ms p95 per frame\n",
-      street ? "street" : "plain", tracked ? " (tracker)" : "", all.found, all.poses, all.wrong,
-      all.worst_line_px, percentileMs(all.ms, 0.5), percentileMs(all.ms, 0.95));
+      street ? "street" : "plain",
+      prepass   ? " (pre-pass + tracker)"
+      : tracked ? " (tracker)"
+                : "",
+      all.found, all.poses, all.wrong, all.worst_line_px, percentileMs(all.ms, 0.5),
+      percentileMs(all.ms, 0.95));
   return all;
 }
 
@@ -182,8 +202,12 @@ TEST(ImageDetectorFarSim, FarBoardsOnPlainBackground) {
 TEST(ImageDetectorFarSim, StreetFramesAddNoWrongBoard) {
   const FarResult alone = runSeeds(true);
   const FarResult tracked = runSeeds(true, ImageBoardDetectorOptions{}, true);
+  const FarResult prepass = runSeeds(true, ImageBoardDetectorOptions{}, true, true);
   ASSERT_EQ(alone.poses, 24);
   ASSERT_EQ(tracked.poses, 24);
+  ASSERT_EQ(prepass.poses, 24);
+  EXPECT_LE(prepass.wrong, 2);
+  EXPECT_LT(prepass.worst_line_px, 1.5);
   EXPECT_LE(alone.wrong, 2);
   EXPECT_LE(tracked.wrong, 2);
   EXPECT_GE(tracked.found - tracked.wrong, 3);
