@@ -156,7 +156,9 @@ PrepassRun runSession(double first_hold_s, double session_s, bool prepass) {
     cv::RNG rng(11);  // every frame rendered, as a recording holds them; the pre-pass picks
     for (double t = 0.0; t < session_s; t += kFrameS) {
       const cv::Mat image = render(camera, &poster, boardAt(t), rng);
-      if (survey->wants(t)) EXPECT_TRUE(survey->add(image, testIntrinsics(), t));
+      if (survey->wants(t)) {
+        EXPECT_TRUE(survey->add(image, testIntrinsics(), t));
+      }
     }
     tracker->setKnownScene(survey->scene());
     out.held_static = staticParts(survey->scene(), held);

@@ -8,6 +8,7 @@
 #include "detection_internal.h"
 
 #include <algorithm>
+#include <chrono>
 #include <limits>
 
 namespace board_calib {
@@ -130,9 +131,17 @@ void ImageBoardTracker::learnScene(const cv::Mat& image, const CameraModel& came
 ImageDetection ImageBoardTracker::detect(const cv::Mat& image, const CameraModel& camera,
                                          double stamp) {
   startFrame(stamp);
-  ImageDetection det = detector_.detect(image, camera, staticScene());
+  const auto t0 = std::chrono::steady_clock::now();
+  const StaticScene scene = staticScene();
+  const auto t1 = std::chrono::steady_clock::now();
+  ImageDetection det = detector_.detect(image, camera, scene);
+  const auto t2 = std::chrono::steady_clock::now();
   remember(det, stamp);
   rememberLines(det.details.lines_px, stamp, image.cols);
+  forget(stamp);
+  memory_ms_ =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t2 + t1 - t0)
+          .count();
   if (det.features.found) {
     const int k = match(det.features.corners_px);
     // This frame made the board's place static: look past it now rather than from the next one.
@@ -141,7 +150,6 @@ ImageDetection ImageBoardTracker::detect(const cv::Mat& image, const CameraModel
       remember(det, stamp);
     }
   }
-  forget(stamp);
   return det;
 }
 

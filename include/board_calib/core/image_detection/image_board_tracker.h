@@ -41,6 +41,9 @@ class ImageBoardTracker {
   StaticScene staticScene() const;
   /// Remembered places (board-like quadrilaterals) and lines, static or not (memory cost).
   int numRememberedLines() const { return static_cast<int>(lines_.size()); }
+  /// ms the last detect() spent on the memory itself (static scene, remembering, forgetting),
+  /// besides the detector's search.
+  double memoryMs() const { return memory_ms_; }
   /// New detector options (e.g. reconfigured); the memory is kept. Returns why they are refused
   /// (then the previous ones stay), empty on success.
   std::string setDetectorOptions(const ImageBoardDetectorOptions& options);
@@ -72,6 +75,7 @@ class ImageBoardTracker {
   std::vector<LinePlace> lines_;
   StaticScene known_;
   long frames_ = 0;
+  double memory_ms_ = 0.0;
   double last_stamp_ = -1e300;
 };
 
