@@ -196,7 +196,8 @@ TEST(ImageDetectorFarSim, FarBoardsOnPlainBackground) {
 // simulated street" and "Session 5: image session memory"). A frame alone: measured 2 of 24
 // found, both facade rectangles. Through an ImageBoardTracker in time order (the camera frames
 // 2.5 s apart): the first frames are as alone; once the static scene is known (6 s), its
-// quadrilaterals are skipped and the line search widens: measured 4 true boards, 2 wrong. What is
+// quadrilaterals are skipped and the line search widens: measured 4 true boards, 2 wrong; with
+// the offline pre-pass over the same frames (known from the first): 6 true, 2 wrong. What is
 // asserted is that the memory adds no wrong board (the hard rule) and keeps what it gains
 // (one true board less allowed for the noise of another machine's LSD run).
 TEST(ImageDetectorFarSim, StreetFramesAddNoWrongBoard) {
@@ -220,8 +221,9 @@ TEST(ImageDetectorFarSim, StreetFramesAddNoWrongBoard) {
 // the issue-10 promise: a session of such frames, through the whole pair pipeline (image session
 // memory, stillness, consistency, PBPC, verdict), either says "failed" or gives an extrinsic that
 // agrees with the truth within its own uncertainty, never a wrong one as a success. Printed per
-// run: images whose board is the true one, another object, or none; with the image memory (the
-// default) and, for the first seed, without it.
+// run: images whose board is the true one, another object, or none; with the image memory and
+// its offline pre-pass (the defaults of calibrate_bag). Seed 21 calibrates (measured: doubtful,
+// 3 views, 0.30 deg / 14 mm, within 3 sigma, with and without the pre-pass): asserted.
 TEST(ImageDetectorFarSim, StreetSessionNeverReportsAWrongCalibration) {
   auto loaded = sim::loadScenario(std::string(BOARD_CALIB_SOURCE_DIR) +
                                   "/config/scenarios/plain_vlp16_outdoor_far.yaml");
@@ -230,9 +232,9 @@ TEST(ImageDetectorFarSim, StreetSessionNeverReportsAWrongCalibration) {
     unsigned seed;
     bool memory, prepass;
   };
-  // Offline (the pre-pass, as calibrate_bag), and seed 22 live for comparison (the other seeds
-  // and variants: docs/BENCHMARKS.md, session 5; each run is ~15 s).
-  for (const Run& r : {Run{21, true, true}, Run{22, true, true}, Run{22, true, false}}) {
+  // Offline (the pre-pass, as calibrate_bag); the other seeds and the variants without it are in
+  // docs/BENCHMARKS.md, session 5 (each run is ~15 s: the binary stays near a minute).
+  for (const Run& r : {Run{21, true, true}, Run{22, true, true}}) {
     const unsigned seed = r.seed;
     // Full-size camera (the board is 120-350 px only at 1440x1080), 2 Hz, the VLP-16 without ring
     // and unorganized, 8 holds, every frame of holds and moves.
@@ -255,6 +257,7 @@ TEST(ImageDetectorFarSim, StreetSessionNeverReportsAWrongCalibration) {
     const PairCalibration run =
         calibratePair(session->views, {Method::kPbpc}, s.scene.target, "camera", "lidar");
     std::printf("[far street] verdict %s: %s\n", verdictName(run.verdict), run.reason.c_str());
+    if (seed == 21) EXPECT_FALSE(run.failed());
     if (run.failed()) {
       EXPECT_FALSE(run.reason.empty());  // a failure says why
       continue;
