@@ -79,6 +79,7 @@ int main(int argc, char** argv) {
           f.stamp - t0, detect_ms.size(), tracker->numPlaces(), tracker->numRememberedLines(),
           tracker->numStaticLines(), percentile(memory_ms, 0.5), percentile(memory_ms, 0.95),
           percentile(detect_ms, 0.5));
+      std::fflush(stdout);  // progress of a long run
       next_report += 10.0;
     }
   }
