@@ -39,7 +39,7 @@ class ImageBoardTracker {
   int numStaticLines() const;
   /// The static places and lines as the detector's exclusions (learnt, then the known scene).
   StaticScene staticScene() const;
-  /// Remembered places (board-like quadrilaterals) and lines, static or not (memory cost).
+  /// Remembered straight lines, static or not (the memory's size, with numPlaces()).
   int numRememberedLines() const { return static_cast<int>(lines_.size()); }
   /// ms the last detect() spent on the memory itself (static scene, remembering, forgetting),
   /// besides the detector's search.
