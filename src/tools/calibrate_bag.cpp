@@ -452,16 +452,12 @@ int main(int argc, char** argv) {
     // stream sparse) are recognised from the measured rates (core/capture/stillness.h).
     if (args.still_frames > 0) options.session.still_frames_required = args.still_frames;
 
-    // The whole recording is at hand: the image memory knows the static scene from the first
-    // frame (a pattern board is unambiguous: no memory needed).
+    // The whole recording is at hand: the image memory knows the static scene from the first frame.
     if (!args.scene_prepass) options.image_prepass.frames_per_static = 0;
-    if (target->type == TargetType::kPlain && options.image_memory.enabled &&
-        options.image_prepass.frames_per_static > 0) {
-      const PairBagArgs bag_args{args.bags, args.image_topic, args.info_topic, args.cloud_topic,
-                                 args.quiet};
-      if (const std::string why = learnImageScene(bag_args, *target, &options); !why.empty())
-        fail(why);
-    }
+    const PairBagArgs bag_args{args.bags, args.image_topic, args.info_topic, args.cloud_topic,
+                               args.quiet};
+    if (const std::string why = learnImageScene(bag_args, *target, &options); !why.empty())
+      fail(why);
     auto p = CalibrationPipeline::create(*target, options);
     if (!p) fail(p.error());
     pipeline.emplace(std::move(*p));

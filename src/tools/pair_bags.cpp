@@ -39,6 +39,10 @@ void printSecondChance(const PipelineOptions& options, const SecondChanceStats& 
 
 std::string learnImageScene(const PairBagArgs& args, const Target& target,
                             PipelineOptions* options) {
+  // A pattern board is unambiguous: no memory, no pre-pass.
+  if (target.type != TargetType::kPlain || !options->image_memory.enabled ||
+      options->image_prepass.frames_per_static <= 0)
+    return {};
   auto prepass =
       ScenePrepass::create(target, options->image, options->image_memory, options->image_prepass);
   if (!prepass) return prepass.error();

@@ -17,7 +17,8 @@ struct PairBagArgs {
 
 /// Offline pre-pass of the static scene (issue 14): the bags' images, one every
 /// static_after_s / frames_per_static, through a ScenePrepass; sets options->image_known_scene.
-/// Returns the one-line failure reason, empty on success.
+/// Nothing for a pattern board, without image memory or with frames_per_static 0. Returns the
+/// one-line failure reason, empty on success.
 std::string learnImageScene(const PairBagArgs& args, const Target& target,
                             PipelineOptions* options);
 
