@@ -145,6 +145,10 @@ CASES = {
     "scripts/build.sh test_image_detector_augmented bench_image_detector": {
         "kind": "run", "expect": r"built in", "timeout": 900},
     "ws/ci/devel/lib/board_calib/test_image_detector_augmented --gtest_filter='*RealFrames'": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/test_image_tracker --gtest_filter='ScenePrepass.*'": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/test_image_far_sim --gtest_filter='*Street*'": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/bench_image_memory --hz 10 --seconds 60": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/bench_image_memory --hz 30 --seconds 60": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/bench_image_detector --frames 20 --board plain": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/bench_capture --scale 0.5 --poses 12 --seeds 2 --rates 1,2,5,10,30": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_rig_session --gtest_filter=*Sparse*": {"kind": "dev"},

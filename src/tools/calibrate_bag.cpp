@@ -39,7 +39,8 @@ const char* kUsage =
     "         [--still-frames N] [--sync-tolerance S] [--loss none|huber|cauchy|tukey] "
     "[--loss-scale M]\n"
     "         [--child-frame F] [--save-session FILE] [--load-session FILE] [--truth TRUTH.yaml]\n"
-    "         [--check-truth ROT_DEG TRANS_M] [--edge-shift STEPS] [--no-second-chance] [--quiet]\n"
+    "         [--check-truth ROT_DEG TRANS_M] [--edge-shift STEPS] [--no-second-chance]\n"
+    "         [--no-scene-prepass] [--quiet]\n"
     "       calibrate_bag --config RIG.yaml --bag FILE [--bag FILE...] --method msg [--output "
     "result.yaml]\n"
     "         [--report DIR] [--truth TRUTH.yaml [--check-truth ROT_DEG TRANS_M]] [--capture "
@@ -68,6 +69,11 @@ const char* kUsage =
     "                      are read again and frames whose board one sensor missed are searched "
     "where\n"
     "                      the first result puts the other sensor's board, then solved again)\n"
+    "  --no-scene-prepass  plain board: no pre-pass (default: the images are read once first, one "
+    "every 1.5 s,\n"
+    "                      so that the rectangles and lines static over the recording are not "
+    "taken for\n"
+    "                      the board from the first frame on)\n"
     "  --loss, --loss-scale  robust loss on point residuals (default tukey, 0.02 m)\n"
     "  --capture MODE      rig: 'still' (default) captures one pose per hold, as the calibrator's "
     "rig mode\n"
@@ -85,6 +91,7 @@ struct Args {
   double loss_scale = -1;
   bool quiet = false;
   bool second_chance = true;
+  bool scene_prepass = true;
   std::string config;  // multi-sensor rig (MSG-Cal): everything else comes from the rig file
   double check_rot_deg = 0, check_trans_m = 0;
   double edge_shift = -1;         // horizontal steps; < 0: solver default
@@ -196,6 +203,8 @@ Args parseArgs(int argc, char** argv) {
       a.quiet = true;
     else if (f == "--no-second-chance")
       a.second_chance = false;
+    else if (f == "--no-scene-prepass")
+      a.scene_prepass = false;
     else if (f == "--edge-shift")
       a.edge_shift = parseInRange(f, need(i, f), 0, kMaxEdgeShiftSteps, true);
     else if (f == "--config")
@@ -459,6 +468,12 @@ int main(int argc, char** argv) {
     // stream sparse) are recognised from the measured rates (core/capture/stillness.h).
     if (args.still_frames > 0) options.session.still_frames_required = args.still_frames;
 
+    // The whole recording is at hand: the image memory knows the static scene from the first frame.
+    if (!args.scene_prepass) options.image_prepass.frames_per_static = 0;
+    const PairBagArgs bag_args{args.bags, args.image_topic, args.info_topic, args.cloud_topic,
+                               args.quiet};
+    if (const std::string why = learnImageScene(bag_args, *target, &options); !why.empty())
+      fail(why);
     auto p = CalibrationPipeline::create(*target, options);
     if (!p) fail(p.error());
     pipeline.emplace(std::move(*p));

@@ -37,6 +37,30 @@ void printSecondChance(const PipelineOptions& options, const SecondChanceStats& 
 
 }  // namespace
 
+std::string learnImageScene(const PairBagArgs& args, const Target& target,
+                            PipelineOptions* options) {
+  // A pattern board is unambiguous: no memory, no pre-pass.
+  if (target.type != TargetType::kPlain || !options->image_memory.enabled ||
+      options->image_prepass.frames_per_static <= 0)
+    return {};
+  auto prepass =
+      ScenePrepass::create(target, options->image, options->image_memory, options->image_prepass);
+  if (!prepass) return prepass.error();
+  BagFrameCallbacks cb;
+  cb.on_image = [&](const ImageFrame& f, const CameraIntrinsics& intrinsics) {
+    prepass->add(f.image, intrinsics, f.stamp);
+  };
+  cb.on_bad_message = [](const std::string&, const std::string&) {};  // told by the main pass
+  const auto read = readBagFrames(args.bags, {{args.image_topic}, {args.info_topic}, {}}, cb);
+  if (!read) return read.error();
+  options->image_known_scene = prepass->scene();
+  if (!args.quiet)
+    std::cerr << "calibrate_bag: static scene pre-pass: " << prepass->frames() << " images, "
+              << options->image_known_scene.rectangles.size() << " static rectangles, "
+              << options->image_known_scene.lines_px.size() << " static lines\n";
+  return {};
+}
+
 // The one bag-reading loop (bag_reader.h).
 std::string readPairBags(const PairBagArgs& args, CalibrationPipeline* pipeline,
                          std::string* camera_frame, std::string* lidar_frame) {

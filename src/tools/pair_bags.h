@@ -15,6 +15,13 @@ struct PairBagArgs {
   bool quiet = false;
 };
 
+/// Offline pre-pass of the static scene (issue 14): the bags' images, one every
+/// static_after_s / frames_per_static, through a ScenePrepass; sets options->image_known_scene.
+/// Nothing for a pattern board, without image memory or with frames_per_static 0. Returns the
+/// one-line failure reason, empty on success.
+std::string learnImageScene(const PairBagArgs& args, const Target& target,
+                            PipelineOptions* options);
+
 /// Streams the bags through `pipeline` and prints its detection figures (unless quiet). Sets
 /// the frames of the first image and cloud when still empty. Returns the one-line failure
 /// reason, empty on success.

@@ -11,6 +11,7 @@
 #include <board_calib/core/image_detection/image_board_detector.h>
 #include <board_calib/core/image_detection/image_board_tracker.h>
 #include <board_calib/core/pipeline/pair_calibration.h>
+#include <board_calib/core/pipeline/scene_prepass.h>
 #include <board_calib/core/sim/scenario.h>
 #include <board_calib/core/sim/simulator.h>
 #include <board_calib/core/transform.h>
@@ -68,9 +69,10 @@ constexpr double kWrongBoardPx = 3.0;
 // One still frame per held pose of the scenario with `seed`; prints per frame the board's true
 // size in px, the outcome and the reason (the diagnosis table).
 // With `tracked`, the frames go through an ImageBoardTracker in time order (session memory of
-// static rectangles); `options` are the detector's.
+// static rectangles); with `prepass` too, the tracker knows the static scene learnt first over
+// the same frames (ScenePrepass, as calibrate_bag). `options` are the detector's.
 FarResult runScenario(unsigned seed, int poses, bool street,
-                      const ImageBoardDetectorOptions& options, bool tracked) {
+                      const ImageBoardDetectorOptions& options, bool tracked, bool prepass) {
   auto loaded = sim::loadScenario(std::string(BOARD_CALIB_SOURCE_DIR) +
                                   "/config/scenarios/plain_vlp16_outdoor_far.yaml");
   EXPECT_TRUE(loaded.ok()) << loaded.error();
@@ -92,12 +94,26 @@ FarResult runScenario(unsigned seed, int poses, bool street,
   auto tracker = ImageBoardTracker::create(s.scene.target, options);
   EXPECT_TRUE(tracker.ok()) << tracker.error();
   const char* debug_dir = std::getenv("BOARD_CALIB_DEBUG_DIR");
+  const auto isPoseFrame = [&](const sim::Frame& f, int* last) {
+    if (!f.is_camera || !f.still || f.pose < 0 || f.pose == *last) return false;
+    *last = f.pose;
+    return true;
+  };
   FarResult out;
   int last_pose = -1;
+  if (prepass && timeline.ok()) {
+    auto survey = ScenePrepass::create(s.scene.target, options, {});
+    EXPECT_TRUE(survey.ok()) << survey.error();
+    for (size_t i = 0; i < timeline->frames.size(); ++i)
+      if (isPoseFrame(timeline->frames[i], &last_pose))
+        survey->add(gen->image(timeline->frames[i], i), s.cameras.front().intrinsics,
+                    timeline->frames[i].stamp);
+    tracker->setKnownScene(survey->scene());
+    last_pose = -1;
+  }
   for (size_t i = 0; timeline.ok() && i < timeline->frames.size(); ++i) {
     const sim::Frame& f = timeline->frames[i];
-    if (!f.is_camera || !f.still || f.pose < 0 || f.pose == last_pose) continue;
-    last_pose = f.pose;
+    if (!isPoseFrame(f, &last_pose)) continue;
     const Eigen::Isometry3d camera_T_board = sim::worldTCamera(s, 0).inverse() * f.world_T_board;
     std::array<Eigen::Vector2d, 4> truth;
     const auto outer = s.scene.target.outerCorners();
@@ -139,11 +155,11 @@ FarResult runScenario(unsigned seed, int poses, bool street,
   return out;
 }
 
-FarResult runSeeds(bool street, const ImageBoardDetectorOptions& options = {},
-                   bool tracked = false) {
+FarResult runSeeds(bool street, const ImageBoardDetectorOptions& options = {}, bool tracked = false,
+                   bool prepass = false) {
   FarResult all;
   for (unsigned seed : {14u, 15u, 16u}) {
-    const FarResult r = runScenario(seed, 8, street, options, tracked);
+    const FarResult r = runScenario(seed, 8, street, options, tracked, prepass);
     all.poses += r.poses;
     all.found += r.found;
     all.wrong += r.wrong;
@@ -153,8 +169,12 @@ FarResult runSeeds(bool street, const ImageBoardDetectorOptions& options = {},
   std::printf(
       "[far] %s%s: found %d/%d, wrong %d, lines within %.2f px of the truth; %.0f ms median, "
       "%.0f ms p95 per frame\n",
-      street ? "street" : "plain", tracked ? " (tracker)" : "", all.found, all.poses, all.wrong,
-      all.worst_line_px, percentileMs(all.ms, 0.5), percentileMs(all.ms, 0.95));
+      street ? "street" : "plain",
+      prepass   ? " (pre-pass + tracker)"
+      : tracked ? " (tracker)"
+                : "",
+      all.found, all.poses, all.wrong, all.worst_line_px, percentileMs(all.ms, 0.5),
+      percentileMs(all.ms, 0.95));
   return all;
 }
 
@@ -176,14 +196,19 @@ TEST(ImageDetectorFarSim, FarBoardsOnPlainBackground) {
 // simulated street" and "Session 5: image session memory"). A frame alone: measured 2 of 24
 // found, both facade rectangles. Through an ImageBoardTracker in time order (the camera frames
 // 2.5 s apart): the first frames are as alone; once the static scene is known (6 s), its
-// quadrilaterals are skipped and the line search widens: measured 4 true boards, 2 wrong. What is
+// quadrilaterals are skipped and the line search widens: measured 4 true boards, 2 wrong; with
+// the offline pre-pass over the same frames (known from the first): 6 true, 2 wrong. What is
 // asserted is that the memory adds no wrong board (the hard rule) and keeps what it gains
 // (one true board less allowed for the noise of another machine's LSD run).
 TEST(ImageDetectorFarSim, StreetFramesAddNoWrongBoard) {
   const FarResult alone = runSeeds(true);
   const FarResult tracked = runSeeds(true, ImageBoardDetectorOptions{}, true);
+  const FarResult prepass = runSeeds(true, ImageBoardDetectorOptions{}, true, true);
   ASSERT_EQ(alone.poses, 24);
   ASSERT_EQ(tracked.poses, 24);
+  ASSERT_EQ(prepass.poses, 24);
+  EXPECT_LE(prepass.wrong, 2);
+  EXPECT_LT(prepass.worst_line_px, 1.5);
   EXPECT_LE(alone.wrong, 2);
   EXPECT_LE(tracked.wrong, 2);
   EXPECT_GE(tracked.found - tracked.wrong, 3);
@@ -196,29 +221,34 @@ TEST(ImageDetectorFarSim, StreetFramesAddNoWrongBoard) {
 // the issue-10 promise: a session of such frames, through the whole pair pipeline (image session
 // memory, stillness, consistency, PBPC, verdict), either says "failed" or gives an extrinsic that
 // agrees with the truth within its own uncertainty, never a wrong one as a success. Printed per
-// run: images whose board is the true one, another object, or none; with the image memory (the
-// default) and, for the first seed, without it.
+// run: images whose board is the true one, another object, or none; with the image memory and
+// its offline pre-pass (the defaults of calibrate_bag). Seed 21 calibrates (measured: doubtful,
+// 3 views, 0.30 deg / 14 mm, within 3 sigma, with and without the pre-pass): asserted.
 TEST(ImageDetectorFarSim, StreetSessionNeverReportsAWrongCalibration) {
   auto loaded = sim::loadScenario(std::string(BOARD_CALIB_SOURCE_DIR) +
                                   "/config/scenarios/plain_vlp16_outdoor_far.yaml");
   ASSERT_TRUE(loaded.ok()) << loaded.error();
-  for (const auto& [seed, memory] : {std::pair{21u, true}, {21u, false}, {22u, true}}) {
+  // The defaults: image memory and its offline pre-pass, as calibrate_bag; the other seeds and
+  // the variants without them are in docs/BENCHMARKS.md, session 5 (each run is ~15 s).
+  for (const unsigned seed : {21u, 22u}) {
     // Full-size camera (the board is 120-350 px only at 1440x1080), 2 Hz, the VLP-16 without ring
     // and unorganized, 8 holds, every frame of holds and moves.
     const sim::Scenario s = test_support::captureScenario(*loaded, 1.0, 2.0, false, 8, seed);
-    PipelineOptions options;
-    options.image_memory.enabled = memory;
-    auto session = test_support::runSimulatedSession(s, options);
+    auto session = test_support::runSimulatedSession(s, PipelineOptions{});
     ASSERT_TRUE(session.ok()) << session.error();
-    const char* tag = memory ? "memory" : "no memory";
-    std::printf("[far street] seed %u, %s: images %d: true board %d, wrong %d, none %d\n", seed,
-                tag, session->images, session->images_true, session->images_wrong,
+    std::printf(
+        "[far street] seed %u: pre-pass %d frames, static %d rectangles, %d lines; %.1f s\n", seed,
+        session->prepass_frames, session->prepass_static_rectangles, session->prepass_static_lines,
+        session->seconds);
+    std::printf("[far street] seed %u: images %d: true board %d, wrong %d, none %d\n", seed,
+                session->images, session->images_true, session->images_wrong,
                 session->images - session->images_true - session->images_wrong);
     std::printf("[far street] %zu views; capture: %s\n", session->views.size(),
                 session->capture_summary.c_str());
     const PairCalibration run =
         calibratePair(session->views, {Method::kPbpc}, s.scene.target, "camera", "lidar");
     std::printf("[far street] verdict %s: %s\n", verdictName(run.verdict), run.reason.c_str());
+    if (seed == 21) EXPECT_FALSE(run.failed());
     if (run.failed()) {
       EXPECT_FALSE(run.reason.empty());  // a failure says why
       continue;

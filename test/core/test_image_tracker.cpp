@@ -3,7 +3,10 @@
 // support than the board) and a moving board. Alone, a frame gives the poster; the session memory
 // must leave it once it has been at one place for static_after_s and return the moving board,
 // must not lose a board held still for a normal hold, and must start over when time goes back.
+// The offline pre-pass (ScenePrepass) must know the poster from the first frame and must not make
+// a held board static more easily than the live memory does.
 #include <board_calib/core/image_detection/image_board_tracker.h>
+#include <board_calib/core/pipeline/scene_prepass.h>
 #include <board_calib/core/transform.h>
 
 #include <gtest/gtest.h>
@@ -17,7 +20,7 @@ namespace {
 
 using Corners = std::array<Eigen::Vector2d, kNumEdges>;
 
-CameraModel testCamera() {
+CameraIntrinsics testIntrinsics() {
   CameraIntrinsics in;
   in.width = 1280;
   in.height = 960;
@@ -25,7 +28,11 @@ CameraModel testCamera() {
   in.cx = 639.5;
   in.cy = 479.5;
   in.model = DistortionModel::kNone;
-  auto camera = CameraModel::create(in);
+  return in;
+}
+
+CameraModel testCamera() {
+  auto camera = CameraModel::create(testIntrinsics());
   EXPECT_TRUE(camera.ok()) << camera.error();
   return *camera;
 }
@@ -93,7 +100,120 @@ const std::vector<std::pair<Eigen::Vector3d, double>> kBoardPoses = {
     {{1.2, 0.3, 7.0}, 45},  {{0.9, -0.4, 8.0}, 35}, {{1.5, 0.1, 6.5}, 55},  {{0.7, 0.5, 7.5}, 40},
     {{1.3, -0.2, 9.0}, 50}, {{1.0, 0.2, 6.0}, 30},  {{1.6, -0.5, 8.5}, 60}, {{0.8, 0.0, 7.0}, 45}};
 
+// What of `scene` is the quadrilateral `c`: static rectangles at its place and static lines on
+// its sides (both ends within kSamePx of a side's line).
+int staticParts(const StaticScene& scene, const Corners& c) {
+  int n = 0;
+  for (const auto& r : scene.rectangles) n += worstOffset(r.corners_px, c) < kSamePx;
+  for (const auto& l : scene.lines_px)
+    for (int j = 0; j < kNumEdges; ++j) {
+      const Eigen::Vector2d a = c[j], d = (c[(j + 1) % kNumEdges] - a).normalized();
+      const auto off = [&](const Eigen::Vector2d& p) {
+        return std::abs(d.x() * (p - a).y() - d.y() * (p - a).x());
+      };
+      if (off(l[0]) < kSamePx && off(l[1]) < kSamePx) {
+        ++n;
+        break;
+      }
+    }
+  return n;
+}
+
+constexpr double kFrameS = 0.5;  // 2 Hz
+constexpr double kHoldS = 2.5;   // 1.5 s hold + 1 s move, as the simulator's sessions
+
+// The board's pose at t: held at the first pose for `first_hold_s`, then through the next ones
+// for kHoldS each.
+const std::pair<Eigen::Vector3d, double>& poseAt(double t, double first_hold_s) {
+  if (t < first_hold_s) return kBoardPoses[0];
+  return kBoardPoses[std::min(kBoardPoses.size() - 1,
+                              1 + static_cast<size_t>((t - first_hold_s) / kHoldS))];
+}
+
+struct PrepassRun {
+  int frames = 0, board = 0, poster = 0;  // main pass: frames, the board found, the poster found
+  int held_static = 0;                    // static rectangles and lines of the held board
+};
+
+// A session with the poster: the board held `first_hold_s` at its first pose, then moved through
+// the others, `session_s` long. With `prepass`, the static scene is learnt over the whole session
+// first and the held board's static parts are counted at its end; live, the most at any frame.
+PrepassRun runSession(double first_hold_s, double session_s, bool prepass) {
+  const CameraModel camera = testCamera();
+  const Target target = testTarget();
+  auto tracker = ImageBoardTracker::create(target, {});
+  EXPECT_TRUE(tracker.ok());
+  const Corners poster = boardCorners(camera, target, {-1.2, 0.0, 3.5}, 0.0);
+  const Corners held = boardCorners(camera, target, kBoardPoses[0].first, kBoardPoses[0].second);
+  const auto boardAt = [&](double t) {
+    const auto& pose = poseAt(t, first_hold_s);
+    return boardCorners(camera, target, pose.first, pose.second);
+  };
+  PrepassRun out;
+  if (prepass) {
+    auto survey = ScenePrepass::create(target, {}, {});
+    EXPECT_TRUE(survey.ok());
+    cv::RNG rng(11);  // every frame rendered, as a recording holds them; the pre-pass picks
+    for (double t = 0.0; t < session_s; t += kFrameS) {
+      const cv::Mat image = render(camera, &poster, boardAt(t), rng);
+      if (survey->wants(t)) {
+        EXPECT_TRUE(survey->add(image, testIntrinsics(), t));
+      }
+    }
+    tracker->setKnownScene(survey->scene());
+    out.held_static = staticParts(survey->scene(), held);
+  }
+  cv::RNG rng(11);
+  for (double t = 0.0; t < session_s; t += kFrameS) {
+    const Corners board = boardAt(t);
+    const ImageDetection d = tracker->detect(render(camera, &poster, board, rng), camera, t);
+    ++out.frames;
+    out.board += d.features.found && worstOffset(d.features.corners_px, board) < kSamePx;
+    out.poster += d.features.found && worstOffset(d.features.corners_px, poster) < kSamePx;
+    if (!prepass)
+      out.held_static = std::max(out.held_static, staticParts(tracker->staticScene(), held));
+  }
+  std::printf(
+      "[prepass] held %.1f s of %.1f s, %s: board %d/%d, poster %d, held board static "
+      "(rectangles + sides) %d\n",
+      first_hold_s, session_s, prepass ? "pre-pass" : "live", out.board, out.frames, out.poster,
+      out.held_static);
+  return out;
+}
+
 }  // namespace
+
+TEST(ScenePrepass, PosterIsKnownFromTheFirstFrame) {
+  // Normal holds only: the poster is static over the session, the board's places are not.
+  const double session_s = kHoldS * kBoardPoses.size();
+  const PrepassRun live = runSession(kHoldS, session_s, false);
+  const PrepassRun pre = runSession(kHoldS, session_s, true);
+  EXPECT_GT(live.poster, 0);  // live, the first 6 s meet the poster alone
+  EXPECT_EQ(pre.poster, 0);
+  EXPECT_EQ(pre.board, pre.frames);
+  EXPECT_EQ(pre.held_static, 0);
+}
+
+TEST(ScenePrepass, HeldBoardIsNotStaticMoreEasilyThanLive) {
+  // Held still for less than half of the session, but long enough for the live memory to see it
+  // over static_after_s once the poster is static (from 6 s on): live makes it static, the
+  // pre-pass (seen in half of its frames since the first sighting, to the recording's end) does
+  // not.
+  const double short_hold_s = 2.0 * StaticMemoryOptions().static_after_s + 2.0 * kFrameS;
+  const double session_s = short_hold_s + kHoldS * (kBoardPoses.size() - 1);
+  const PrepassRun live_short = runSession(short_hold_s, session_s, false);
+  const PrepassRun pre_short = runSession(short_hold_s, session_s, true);
+  EXPECT_GT(live_short.held_static, 0);
+  EXPECT_EQ(pre_short.held_static, 0);
+  EXPECT_GE(pre_short.board, live_short.board);
+  EXPECT_EQ(pre_short.poster, 0);
+  // Held for most of the session: static both ways (the same rule), never more parts than live.
+  const double long_s = 16.0 + kHoldS * 3;
+  const PrepassRun live_long = runSession(16.0, long_s, false);
+  const PrepassRun pre_long = runSession(16.0, long_s, true);
+  EXPECT_LE(pre_long.held_static, live_long.held_static);
+  EXPECT_EQ(pre_long.poster, 0);
+}
 
 TEST(ImageBoardTracker, StaticRectangleIsLeftForTheMovingBoard) {
   const CameraModel camera = testCamera();
@@ -103,8 +223,6 @@ TEST(ImageBoardTracker, StaticRectangleIsLeftForTheMovingBoard) {
   ASSERT_TRUE(alone.ok() && tracker.ok());
   const Corners poster = boardCorners(camera, target, {-1.2, 0.0, 3.5}, 0.0);
   cv::RNG rng(7);
-  constexpr double kFrameS = 0.5;  // 2 Hz
-  constexpr double kHoldS = 2.5;   // 1.5 s hold + 1 s move, as the simulator's sessions
   const double static_after_s = tracker->memory().static_after_s;
   int alone_poster = 0, late_frames = 0, late_board = 0, late_poster = 0;
   for (double t = 0.0; t < kHoldS * kBoardPoses.size(); t += kFrameS) {
@@ -142,19 +260,19 @@ TEST(ImageBoardTracker, BoardHeldStillForANormalHoldIsKept) {
   ASSERT_TRUE(tracker.ok());
   cv::RNG rng(8);
   // Held for twice the simulator's hold (1.5 s) at 10 Hz, then moved and held again.
-  constexpr double kHoldS = 3.0, kFrameS = 0.1;
+  constexpr double kStillS = 3.0, kFastFrameS = 0.1;
   int frames = 0, found = 0;
   for (int hold = 0; hold < 3; ++hold) {
     const auto& pose = kBoardPoses[static_cast<size_t>(hold)];
     const Corners board = boardCorners(camera, target, pose.first, pose.second);
-    for (double s = 0.0; s < kHoldS; s += kFrameS) {
+    for (double s = 0.0; s < kStillS; s += kFastFrameS) {
       const ImageDetection d =
-          tracker->detect(render(camera, nullptr, board, rng), camera, hold * kHoldS + s);
+          tracker->detect(render(camera, nullptr, board, rng), camera, hold * kStillS + s);
       ++frames;
       found += d.features.found && worstOffset(d.features.corners_px, board) < kSamePx;
     }
   }
-  std::printf("[tracker] held still 3 x %.0f s: board in %d/%d frames\n", kHoldS, found, frames);
+  std::printf("[tracker] held still 3 x %.0f s: board in %d/%d frames\n", kStillS, found, frames);
   EXPECT_EQ(found, frames);
   EXPECT_EQ(tracker->numStaticPlaces(), 0);
 }

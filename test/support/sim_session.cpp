@@ -70,7 +70,26 @@ Expected<SimulatedSession> runSimulatedSession(const sim::Scenario& scenario,
   if (!timeline) return Expected<SimulatedSession>::failure(timeline.error());
   auto generator = sim::FrameGenerator::create(scenario);
   if (!generator) return Expected<SimulatedSession>::failure(generator.error());
-  auto pipeline = CalibrationPipeline::create(scenario.scene.target, options);
+  // Offline, as calibrate_bag: the static scene learnt over the whole recording first (its own
+  // generator, so the main pass renders the very frames it renders without the pre-pass).
+  PipelineOptions run_options = options;
+  int prepass_frames = 0;
+  if (options.image_memory.enabled && options.image_prepass.frames_per_static > 0) {
+    auto prepass = ScenePrepass::create(scenario.scene.target, options.image, options.image_memory,
+                                        options.image_prepass);
+    if (!prepass) return Expected<SimulatedSession>::failure(prepass.error());
+    auto survey = sim::FrameGenerator::create(scenario);
+    if (!survey) return Expected<SimulatedSession>::failure(survey.error());
+    const auto& camera = scenario.cameras.front();
+    for (size_t i = 0; i < timeline->frames.size(); ++i) {
+      const sim::Frame& f = timeline->frames[i];
+      if (f.sensor == 0 && f.is_camera && prepass->wants(f.stamp))
+        prepass->add(survey->image(f, i), camera.intrinsics, f.stamp);
+    }
+    run_options.image_known_scene = prepass->scene();
+    prepass_frames = prepass->frames();
+  }
+  auto pipeline = CalibrationPipeline::create(scenario.scene.target, run_options);
   if (!pipeline) return Expected<SimulatedSession>::failure(pipeline.error());
 
   // stamp -> (still, pose) per sensor kind: the truth about every frame a view may use.
@@ -96,6 +115,9 @@ Expected<SimulatedSession> runSimulatedSession(const sim::Scenario& scenario,
   pipeline->finish();
 
   SimulatedSession out;
+  out.prepass_frames = prepass_frames;
+  out.prepass_static_rectangles = static_cast<int>(run_options.image_known_scene.rectangles.size());
+  out.prepass_static_lines = static_cast<int>(run_options.image_known_scene.lines_px.size());
   out.holds = static_cast<int>(timeline->world_T_board_poses.size());
   out.images = static_cast<int>(camera_T_board_truth.size());
   scoreImages(pipeline->sightings(), camera_T_board_truth, scenario.scene.target,

@@ -14,7 +14,9 @@ namespace board_calib {
 namespace test_support {
 
 struct SimulatedSession {
-  int holds = 0;  ///< held poses in the recording
+  int holds = 0;           ///< held poses in the recording
+  int prepass_frames = 0;  ///< offline pre-pass of the static scene: images, what is static
+  int prepass_static_rectangles = 0, prepass_static_lines = 0;
   int holds_captured =
       0;  ///< holds that gave a view whose image and cloud are still frames of that hold
   int moving_captured =

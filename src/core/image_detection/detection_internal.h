@@ -73,6 +73,12 @@ std::vector<QuadHypothesis> lineQuadHypotheses(
     LineEvidence* evidence, const ExpectedBoard* expected = nullptr,
     const std::vector<std::array<Eigen::Vector2d, 2>>* static_lines = nullptr);
 
+/// The line stage alone (an offline pre-pass of the static scene): every merged straight line a
+/// session may learn from this image, support ends in undistorted px.
+std::vector<std::array<Eigen::Vector2d, 2>> sceneLines(const cv::Mat& gray,
+                                                       const CameraModel& camera,
+                                                       const ImageBoardDetectorOptions& options);
+
 /// px: two straight lines of the line stage are one line when the ends of the shorter lie this
 /// close to the longer (the merge band: a held board's bow, or the segment ends' noise at the
 /// line detector's scale for this image width).

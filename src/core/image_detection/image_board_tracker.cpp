@@ -8,6 +8,7 @@
 #include "detection_internal.h"
 
 #include <algorithm>
+#include <chrono>
 #include <limits>
 
 namespace board_calib {
@@ -52,6 +53,8 @@ StaticScene ImageBoardTracker::staticScene() const {
           {p.corners_px, p.tolerance_px, p.sightings.last_s - p.sightings.first_s});
   for (const LinePlace& l : lines_)
     if (l.sightings.isStatic(memory_, frames_)) out.lines_px.push_back(l.ends_px);
+  out.rectangles.insert(out.rectangles.end(), known_.rectangles.begin(), known_.rectangles.end());
+  out.lines_px.insert(out.lines_px.end(), known_.lines_px.begin(), known_.lines_px.end());
   return out;
 }
 
@@ -80,11 +83,11 @@ void ImageBoardTracker::remember(const ImageDetection& detection, double stamp) 
   }
 }
 
-void ImageBoardTracker::rememberLines(const ImageDetection& detection, double stamp,
-                                      int image_width) {
+void ImageBoardTracker::rememberLines(const std::vector<std::array<Eigen::Vector2d, 2>>& lines,
+                                      double stamp, int image_width) {
   const double tolerance = image_detection::sameLineTolerancePx(detector_.options(), image_width);
   const size_t known = lines_.size();  // this frame's new lines do not match each other
-  for (const auto& ends : detection.details.lines_px) {
+  for (const auto& ends : lines) {
     bool seen = false;
     for (size_t k = 0; k < known; ++k)
       if (image_detection::sameLine(ends, lines_[k].ends_px, tolerance)) {
@@ -95,14 +98,50 @@ void ImageBoardTracker::rememberLines(const ImageDetection& detection, double st
   }
 }
 
-ImageDetection ImageBoardTracker::detect(const cv::Mat& image, const CameraModel& camera,
-                                         double stamp) {
+void ImageBoardTracker::startFrame(double stamp) {
   if (stamp < last_stamp_) reset();  // a replay started over
   last_stamp_ = stamp;
   ++frames_;
-  ImageDetection det = detector_.detect(image, camera, staticScene());
+}
+
+void ImageBoardTracker::forget(double stamp) {
+  const auto forgotten = [&](const auto& p) { return p.sightings.forgotten(memory_, stamp); };
+  places_.erase(std::remove_if(places_.begin(), places_.end(), forgotten), places_.end());
+  lines_.erase(std::remove_if(lines_.begin(), lines_.end(), forgotten), lines_.end());
+}
+
+void ImageBoardTracker::learnScene(const cv::Mat& image, const CameraModel& camera, double stamp,
+                                   bool rectangles) {
+  startFrame(stamp);
+  bool lines_seen = false;
+  if (rectangles) {
+    const ImageDetection det = detector_.detect(image, camera);
+    remember(det, stamp);
+    // The line stage is skipped when a region gave a clean board: then it runs alone below.
+    lines_seen = det.details.line_segments > 0;
+    if (lines_seen) rememberLines(det.details.lines_px, stamp, image.cols);
+  }
+  if (!lines_seen)
+    rememberLines(
+        image_detection::sceneLines(image_detection::toGray(image), camera, detector_.options()),
+        stamp, image.cols);
+  forget(stamp);
+}
+
+ImageDetection ImageBoardTracker::detect(const cv::Mat& image, const CameraModel& camera,
+                                         double stamp) {
+  startFrame(stamp);
+  const auto t0 = std::chrono::steady_clock::now();
+  const StaticScene scene = staticScene();
+  const auto t1 = std::chrono::steady_clock::now();
+  ImageDetection det = detector_.detect(image, camera, scene);
+  const auto t2 = std::chrono::steady_clock::now();
   remember(det, stamp);
-  rememberLines(det, stamp, image.cols);
+  rememberLines(det.details.lines_px, stamp, image.cols);
+  forget(stamp);
+  memory_ms_ =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t2 + t1 - t0)
+          .count();
   if (det.features.found) {
     const int k = match(det.features.corners_px);
     // This frame made the board's place static: look past it now rather than from the next one.
@@ -111,9 +150,6 @@ ImageDetection ImageBoardTracker::detect(const cv::Mat& image, const CameraModel
       remember(det, stamp);
     }
   }
-  const auto forgotten = [&](const auto& p) { return p.sightings.forgotten(memory_, stamp); };
-  places_.erase(std::remove_if(places_.begin(), places_.end(), forgotten), places_.end());
-  lines_.erase(std::remove_if(lines_.begin(), lines_.end(), forgotten), lines_.end());
   return det;
 }
 

@@ -456,6 +456,19 @@ double sameLineTolerancePx(const ImageBoardDetectorOptions& o, int image_width) 
   return mergeOffsetPx(kSegmentEndSigmaPx * lineDetectionScale(o, image_width));
 }
 
+std::vector<std::array<Eigen::Vector2d, 2>> sceneLines(const cv::Mat& gray,
+                                                       const CameraModel& camera,
+                                                       const ImageBoardDetectorOptions& o) {
+  if (o.line_detection_width_px <= 0) return {};
+  double scale = 1.0;
+  const std::vector<Member> segments = detectSegments(gray, camera, o, nullptr, &scale);
+  std::vector<std::array<Eigen::Vector2d, 2>> out;
+  for (const MergedLine& l : mergeSegments(segments, kSegmentEndSigmaPx * scale, o,
+                                           std::max(o.max_lines, o.max_lines_static_scene)))
+    out.push_back(l.ends());
+  return out;
+}
+
 std::vector<QuadHypothesis> lineQuadHypotheses(
     const cv::Mat& gray, const CameraModel& camera, const ImageBoardDetectorOptions& o,
     LineEvidence* evidence, const ExpectedBoard* expected,

@@ -21,6 +21,7 @@ std::string PipelineOptions::validate() const {
   if (auto why = lidar_memory.validate(); !why.empty()) return "lidar session memory: " + why;
   if (auto why = image.validate(); !why.empty()) return "image detector: " + why;
   if (auto why = image_memory.validate(); !why.empty()) return "image session memory: " + why;
+  if (auto why = image_prepass.validate(); !why.empty()) return "scene pre-pass: " + why;
   if (auto why = session.validate(); !why.empty()) return "session: " + why;
   if (frame_history < 1) return "frame_history must be >= 1";
   if (auto why = second_chance.validate(); !why.empty()) return "second chance: " + why;
@@ -151,6 +152,7 @@ Expected<CalibrationPipeline> CalibrationPipeline::create(const Target& target,
     auto t = ImageBoardTracker::create(target, options.image, options.image_memory);
     if (!t) return Expected<CalibrationPipeline>::failure("image session memory: " + t.error());
     image_tracker.emplace(std::move(*t));
+    image_tracker->setKnownScene(options.image_known_scene);
   }
   CalibrationPipeline p;
   p.impl_ = std::make_unique<Impl>(target, options, std::move(*detector), std::move(image_tracker));

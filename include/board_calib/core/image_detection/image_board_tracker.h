@@ -24,12 +24,26 @@ class ImageBoardTracker {
   /// when this frame's board is at a place that is static from now on, the frame is searched
   /// again without it.
   ImageDetection detect(const cv::Mat& image, const CameraModel& camera, double stamp);
+  /// Offline pre-pass: `image` (stamp in s, time order) searched alone, without exclusions,
+  /// its board-like quadrilaterals (with `rectangles`) and every merged straight line remembered;
+  /// the frame's board is not returned. A tracker fed so over a whole recording knows its static
+  /// scene by the same rule as live (staticScene()), to be given to the main pass's tracker.
+  void learnScene(const cv::Mat& image, const CameraModel& camera, double stamp, bool rectangles);
+  /// The static scene known before the first frame (an offline pre-pass over the whole
+  /// recording): excluded from every frame besides what this tracker learns. Kept by reset().
+  void setKnownScene(StaticScene scene) { known_ = std::move(scene); }
+  /// Forgets what was learnt (not the known scene).
   void reset();
   int numPlaces() const { return static_cast<int>(places_.size()); }
   int numStaticPlaces() const;
   int numStaticLines() const;
-  /// The static places and lines as the detector's exclusions (for debugging and tests).
+  /// The static places and lines as the detector's exclusions (learnt, then the known scene).
   StaticScene staticScene() const;
+  /// Remembered straight lines, static or not (the memory's size, with numPlaces()).
+  int numRememberedLines() const { return static_cast<int>(lines_.size()); }
+  /// ms the last detect() spent on the memory itself (static scene, remembering, forgetting),
+  /// besides the detector's search.
+  double memoryMs() const { return memory_ms_; }
   /// New detector options (e.g. reconfigured); the memory is kept. Returns why they are refused
   /// (then the previous ones stay), empty on success.
   std::string setDetectorOptions(const ImageBoardDetectorOptions& options);
@@ -50,13 +64,18 @@ class ImageBoardTracker {
     PlaceSightings sightings;
   };
   int match(const std::array<Eigen::Vector2d, kNumEdges>& corners) const;
-  void rememberLines(const ImageDetection& detection, double stamp, int image_width);
+  void rememberLines(const std::vector<std::array<Eigen::Vector2d, 2>>& lines, double stamp,
+                     int image_width);
+  void startFrame(double stamp);
+  void forget(double stamp);
   void remember(const ImageDetection& detection, double stamp);
   ImageBoardDetector detector_;
   StaticMemoryOptions memory_;
   std::vector<Place> places_;
   std::vector<LinePlace> lines_;
+  StaticScene known_;
   long frames_ = 0;
+  double memory_ms_ = 0.0;
   double last_stamp_ = -1e300;
 };
 

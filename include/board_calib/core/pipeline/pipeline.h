@@ -6,6 +6,7 @@
 #include <board_calib/core/image_detection/image_board_detector.h>
 #include <board_calib/core/image_detection/image_board_tracker.h>
 #include <board_calib/core/lidar_detection/lidar_board_detector.h>
+#include <board_calib/core/pipeline/scene_prepass.h>
 #include <board_calib/core/pipeline/second_chance.h>
 #include <board_calib/core/session/session.h>
 
@@ -22,6 +23,10 @@ struct PipelineOptions {
   ImageBoardDetectorOptions image;
   StaticMemoryOptions image_memory;  ///< enabled: images go through an ImageBoardTracker (static
                                      ///< scene rectangles and lines are not the board)
+  /// Offline only: the images' static scene learnt before the first frame by a ScenePrepass over
+  /// the whole recording (scene_prepass.h), excluded from the first frame on. Empty: live.
+  StaticScene image_known_scene;
+  ScenePrepassOptions image_prepass;  ///< how the offline callers run that pre-pass
   SessionOptions session;
   bool keep_view_frames = true;  ///< keep the raw image and cloud of every accepted view (reports)
   int frame_history = 64;        ///< raw frames kept per stream at most until their view is decided
