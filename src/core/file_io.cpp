@@ -7,6 +7,7 @@
 #include <atomic>
 #include <cerrno>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -38,6 +39,14 @@ Status writeAll(int fd, const std::string& text) {
 }
 
 }  // namespace
+
+Status createFolder(const std::string& dir, const std::string& what) {
+  std::error_code error;
+  std::filesystem::create_directories(dir, error);
+  if (!error && std::filesystem::is_directory(dir, error)) return Status::success();
+  return Status::failure("cannot create the " + what + " '" + dir +
+                         "': " + (error ? error.message() : "not a folder"));
+}
 
 Status writeFileAtomic(const std::string& path, const std::string& text) {
   const auto fail = [&](const std::string& why) {

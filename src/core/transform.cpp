@@ -61,6 +61,10 @@ double rotationErrorDeg(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) 
   return std::abs(aa.angle()) * kDegPerRad;
 }
 
+double angleBetweenDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * kDegPerRad;
+}
+
 double translationErrorM(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
   return (a.translation() - b.translation()).norm();
 }

@@ -71,6 +71,24 @@ TEST_F(FileIo, RefusesDirectoriesAndMissingFolders) {
   EXPECT_EQ(filesIn(dir_), 1u);
 }
 
+TEST_F(FileIo, CreatesFoldersOrSaysWhyNot) {
+  const fs::path nested = dir_ / "report" / "pair";
+  ASSERT_TRUE(createFolder(nested.string()).ok);
+  EXPECT_TRUE(fs::is_directory(nested));
+  EXPECT_TRUE(createFolder(nested.string()).ok);  // already there: fine
+
+  std::ofstream(dir_ / "plain_file") << "keep";
+  const std::string under_file = (dir_ / "plain_file" / "report").string();
+  const Status st = createFolder(under_file, "report folder");
+  ASSERT_FALSE(st.ok);
+  EXPECT_NE(st.reason.find("cannot create the report folder '" + under_file + "'"),
+            std::string::npos)
+      << st.reason;
+  const Status on_file = createFolder((dir_ / "plain_file").string());
+  ASSERT_FALSE(on_file.ok);  // a file where the folder should be
+  EXPECT_EQ(slurp(dir_ / "plain_file"), "keep");
+}
+
 // Disk full / file-size limit: the child may write 4 KB; the new text is 1 MB. The write must
 // fail with a reason and leave the previous file byte for byte.
 TEST_F(FileIo, FileSizeLimitKeepsPreviousFile) {

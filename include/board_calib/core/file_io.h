@@ -17,6 +17,10 @@ constexpr size_t kMaxTextFileBytes = size_t(1) << 28;
 /// file is left untouched, the temporary removed, and the reason names the path and the error.
 Status writeFileAtomic(const std::string& path, const std::string& text);
 
+/// Creates `dir` and its parents when missing. Fails when it cannot, or when `dir` exists but
+/// is not a folder, with a reason "cannot create the <what> '<dir>': <why>".
+Status createFolder(const std::string& dir, const std::string& what = "folder");
+
 /// Reads a whole regular file. Refuses directories, devices and files larger than
 /// `max_bytes`, with a reason naming the path: "cannot read <what> '<path>': <why>".
 Expected<std::string> readTextFile(const std::string& path, const std::string& what = "file",

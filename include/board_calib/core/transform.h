@@ -22,6 +22,8 @@ Expected<Eigen::Isometry3d> fromRowMajor(const std::vector<double>& values);
 
 /// Angle of the relative rotation between two transforms, degrees.
 double rotationErrorDeg(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b);
+/// Angle between two directions (need not be unit), degrees.
+double angleBetweenDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
 /// Norm of the translation difference, m.
 double translationErrorM(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b);
 /// Roll, pitch, yaw (rad) of a rotation about fixed x, y, z axes (R = Rz(yaw) Ry(pitch) Rx(roll)).

@@ -38,11 +38,17 @@ void ImageBoardTracker::reset() {
 }
 
 int ImageBoardTracker::numStaticPlaces() const {
-  return static_cast<int>(staticScene().rectangles.size());
+  const auto learnt = std::count_if(places_.begin(), places_.end(), [&](const Place& p) {
+    return p.sightings.isStatic(memory_, frames_);
+  });
+  return static_cast<int>(learnt + static_cast<long>(known_.rectangles.size()));
 }
 
 int ImageBoardTracker::numStaticLines() const {
-  return static_cast<int>(staticScene().lines_px.size());
+  const auto learnt = std::count_if(lines_.begin(), lines_.end(), [&](const LinePlace& l) {
+    return l.sightings.isStatic(memory_, frames_);
+  });
+  return static_cast<int>(learnt + static_cast<long>(known_.lines_px.size()));
 }
 
 StaticScene ImageBoardTracker::staticScene() const {

@@ -7,17 +7,6 @@
 #include <sstream>
 
 namespace board_calib {
-namespace {
-
-Status createFolder(const std::string& dir) {
-  std::error_code error;
-  std::filesystem::create_directories(dir, error);
-  if (error) return Status::failure("cannot create " + dir + ": " + error.message());
-  return Status::success();
-}
-
-}  // namespace
-
 Expected<std::string> writeCalibrationFiles(const std::string& dir, const std::string& name,
                                             const ResultFile& file,
                                             const std::vector<Snippet>& snippets,

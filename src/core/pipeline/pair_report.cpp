@@ -6,7 +6,6 @@
 
 #include <opencv2/imgcodecs.hpp>
 
-#include <filesystem>
 #include <sstream>
 
 namespace board_calib {
@@ -53,10 +52,7 @@ Status writePairReport(const std::string& dir, const PairCalibration& run,
                        const PairSession& session, const PairReportInputs& in) {
   if (run.runs.empty())
     return Status::failure("nothing to report: no method was run (" + run.reason + ")");
-  std::error_code error;
-  std::filesystem::create_directories(dir, error);
-  if (error)
-    return Status::failure("cannot create report folder '" + dir + "': " + error.message());
+  if (Status st = createFolder(dir, "report folder"); !st) return st;
   std::vector<CalibrationSolution> solutions;
   for (const auto& r : run.runs) solutions.push_back(r.solution);
   const ResultFile& result = run.result;

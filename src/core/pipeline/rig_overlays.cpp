@@ -2,6 +2,7 @@
 #include "rig_overlays.h"
 
 #include <board_calib/core/common/format.h>
+#include <board_calib/core/file_io.h>
 #include <board_calib/core/projection/view_overlay.h>
 
 #include <opencv2/imgcodecs.hpp>
@@ -9,7 +10,6 @@
 
 #include <array>
 #include <cctype>
-#include <filesystem>
 #include <sstream>
 
 namespace board_calib {
@@ -114,10 +114,10 @@ Expected<std::vector<RigOverlay>> writeRigOverlays(const std::string& dir,
       if (overlay->lidars.empty()) continue;
       overlay->file = "overlays/" + fileSafe(overlay->camera_frame) + "_pose_" +
                       std::to_string(pose.id) + ".jpg";
-      std::error_code error;
-      std::filesystem::create_directories(dir + "/overlays", error);
+      if (Status st = createFolder(dir + "/overlays", "overlay folder"); !st)
+        return Out::failure(st.reason);
       const std::string path = dir + "/" + overlay->file;
-      if (error || !cv::imwrite(path, canvas, {cv::IMWRITE_JPEG_QUALITY, kOverlayJpegQuality}))
+      if (!cv::imwrite(path, canvas, {cv::IMWRITE_JPEG_QUALITY, kOverlayJpegQuality}))
         return Out::failure("cannot write '" + path + "'");
       out.push_back(std::move(*overlay));
     }

@@ -8,7 +8,6 @@
 #include <board_calib/core/rig/rig_summary.h>
 
 #include <cmath>
-#include <filesystem>
 #include <iomanip>
 #include <sstream>
 
@@ -152,10 +151,7 @@ std::string overlaysSection(const std::vector<RigOverlay>& overlays, const std::
 
 Status writePairPage(const std::string& dir, const RigPairEvaluation& p, const PlotOptions& plots,
                      const std::vector<RigOverlay>& overlays) {
-  std::error_code error;
-  std::filesystem::create_directories(dir, error);
-  if (error)
-    return Status::failure("cannot create report folder '" + dir + "': " + error.message());
+  if (Status st = createFolder(dir, "report folder"); !st) return st;
   std::ostringstream md;
   md << "# " << p.camera_frame << " <- " << p.lidar_frame
      << " (MSG-Cal rig pair)\n\n[rig report](../report.md)\n\n";
@@ -199,10 +195,7 @@ Status writeRigReport(const std::string& dir, const RigConfig& rig,
                       const multi_sensor::MsgSolution& solution, const ResultFile& result,
                       const RigReportInputs& inputs) {
   if (const std::string why = inputs.plots.validate(); !why.empty()) return Status::failure(why);
-  std::error_code error;
-  std::filesystem::create_directories(dir, error);
-  if (error)
-    return Status::failure("cannot create report folder '" + dir + "': " + error.message());
+  if (Status st = createFolder(dir, "report folder"); !st) return st;
   const std::vector<RigPairEvaluation> pairs = evaluateRigPairs(problem, solution, result);
   const auto overlays = writeRigOverlays(dir, problem, solution, result, inputs.camera_frames);
   if (!overlays) return Status::failure("overlays: " + overlays.error());

@@ -40,7 +40,6 @@ bool ScenePrepass::add(const cv::Mat& image, const CameraIntrinsics& intrinsics,
     camera_ = *model;
   }
   if (image.cols != camera_->width() || image.rows != camera_->height()) return false;
-  if (stamp < last_stamp_) frames_ = 0;
   last_stamp_ = stamp;
   // OpenCV asserts on degenerate input: such an image teaches nothing.
   try {
@@ -48,7 +47,6 @@ bool ScenePrepass::add(const cv::Mat& image, const CameraIntrinsics& intrinsics,
   } catch (const cv::Exception&) {
     return false;
   }
-  ++frames_;
   return true;
 }
 

@@ -1,10 +1,11 @@
 // Live multi-sensor session (see rig_session.h).
+#include <board_calib/core/common/format.h>
 #include <board_calib/core/rig/rig_session.h>
+#include <board_calib/core/transform.h>
 
 #include <algorithm>
 #include <cmath>
 #include <functional>
-#include <iomanip>
 #include <limits>
 #include <sstream>
 
@@ -12,22 +13,11 @@ namespace board_calib {
 namespace multi_sensor {
 namespace {
 
-constexpr double kDegPerRad = 180.0 / M_PI;
 // A stamp this far behind the newest one means the source restarted (a bag looped).
 constexpr double kTimeJumpBackS = 2.0;
 constexpr size_t kMaxFeaturesPerStream = 100;
 // Stillness samples per stream: history_s of a 20 Hz LiDAR with room to spare.
 constexpr size_t kMaxSamplesPerStream = 400;
-
-double angleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * kDegPerRad;
-}
-
-std::string fixed(double v, int digits) {
-  std::ostringstream os;
-  os << std::fixed << std::setprecision(digits) << v;
-  return os.str();
-}
 
 SessionEvent event(SessionEvent::Kind kind, std::string message, int id = -1) {
   SessionEvent e;
@@ -221,12 +211,12 @@ SessionEvent RigSession::decide(const Candidate& c) {
   BoardPoseObservation o = observationAt(c.stamp, &seen_by);
   const int sensors_seen = static_cast<int>(o.cameras.size() + o.lidars.size());
   if (sensors_seen < options_.min_sensors)
-    return skip("seen by too few sensors", "board pose at t=" + fixed(c.stamp, 2) + " s seen by " +
-                                               std::to_string(sensors_seen) + " sensor(s) (" +
-                                               (seen_by.empty() ? "none" : seen_by) +
-                                               "); a pose needs " +
-                                               std::to_string(options_.min_sensors) +
-                                               " (check the other detectors and stamp_tolerance)");
+    return skip("seen by too few sensors",
+                "board pose at t=" + formatFixed(c.stamp, 2) + " s seen by " +
+                    std::to_string(sensors_seen) + " sensor(s) (" +
+                    (seen_by.empty() ? "none" : seen_by) + "); a pose needs " +
+                    std::to_string(options_.min_sensors) +
+                    " (check the other detectors and stamp_tolerance)");
   return keepPose(std::move(o), "auto: " + judged.why + "; seen by " + seen_by,
                   judged.state == StillState::kSnapshot);
 }
@@ -310,19 +300,21 @@ bool RigSession::sameHold(const BoardPoseObservation& o) const {
     if (!a || !b) continue;
     ++shared;
     if ((a->centre - b->centre).norm() > options_.still_max_translation_m ||
-        angleDeg(a->normal, b->normal) > options_.still_max_rotation_deg)
+        angleBetweenDeg(a->normal, b->normal) > options_.still_max_rotation_deg)
       return false;
   }
   return shared > 0;
 }
 
+// Normals and centres only: MSG-Cal constrains plane to plane, so a board turned within its own
+// plane adds nothing (the pair session's PBPC edges do count that turn).
 bool RigSession::seenBefore(const BoardPoseObservation& o, int* pose_id) const {
   for (const auto& p : poses_)
     for (size_t k = 0; k < sensors_.size(); ++k) {
       const auto seen = summaryOf(static_cast<int>(k), p.observation),
                  now = summaryOf(static_cast<int>(k), o);
       if (!seen || !now) continue;
-      if (angleDeg(seen->normal, now->normal) < options_.min_pose_rotation_deg &&
+      if (angleBetweenDeg(seen->normal, now->normal) < options_.min_pose_rotation_deg &&
           (seen->centre - now->centre).norm() < options_.min_pose_translation_m) {
         *pose_id = p.observation.id;
         return true;
@@ -401,7 +393,7 @@ SessionEvent RigSession::captureNow() {
   const int sensors_seen = static_cast<int>(o.cameras.size() + o.lidars.size());
   if (sensors_seen < options_.min_sensors)
     return event(SessionEvent::Kind::kRejected,
-                 "board pose at t=" + fixed(stamp, 2) + " s seen by " +
+                 "board pose at t=" + formatFixed(stamp, 2) + " s seen by " +
                      std::to_string(sensors_seen) + " sensor(s) (" +
                      (seen_by.empty() ? "none" : seen_by) + "); a pose needs " +
                      std::to_string(options_.min_sensors));

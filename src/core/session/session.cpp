@@ -10,19 +10,9 @@
 namespace board_calib {
 namespace {
 
-double angleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * kDegPerRad;
-}
-
 // Board centre seen by the camera (camera frame); the pose is the best-conditioned cue.
 Eigen::Vector3d cameraBoardCentre(const CameraBoardFeatures& c, const Target& target) {
   return c.camera_T_board * target.center();
-}
-
-double boardTurnDeg(const CameraBoardFeatures& a, const CameraBoardFeatures& b) {
-  const Eigen::Matrix3d relative =
-      a.camera_T_board.linear().transpose() * b.camera_T_board.linear();
-  return Eigen::AngleAxisd(relative).angle() * 180.0 / M_PI;
 }
 
 }  // namespace
@@ -202,12 +192,13 @@ SessionEvent PairSession::decide(const CameraBoardFeatures& camera, bool ended, 
   // One view per hold: a later frame of the same still pose replaces it when it is better.
   const BoardSample here = boardSampleOf(camera, &target_);
   const bool snapshot = judged.state == StillState::kSnapshot;
-  const bool same_hold = !snapshot && hold_view_id_ >= 0 &&
-                         (here.centre - hold_reference_.centre).norm() <=
-                             still.max_translation_m +
-                                 still.noise_factor * std::hypot(here.centre_sigma_m,
-                                                                 hold_reference_.centre_sigma_m) &&
-                         angleDeg(here.normal, hold_reference_.normal) <= still.max_rotation_deg;
+  const bool same_hold =
+      !snapshot && hold_view_id_ >= 0 &&
+      (here.centre - hold_reference_.centre).norm() <=
+          still.max_translation_m +
+              still.noise_factor *
+                  std::hypot(here.centre_sigma_m, hold_reference_.centre_sigma_m) &&
+      angleBetweenDeg(here.normal, hold_reference_.normal) <= still.max_rotation_deg;
   if (same_hold) {
     auto it = std::find_if(views_.begin(), views_.end(),
                            [&](const SessionView& v) { return v.view.id == hold_view_id_; });
@@ -274,7 +265,7 @@ SessionEvent PairSession::gate(const View& v, bool /*forced*/) const {
   }
   if (estimate_) {
     const Plane lidar_in_camera = v.lidar.plane.transformed(*estimate_);
-    const double angle = angleDeg(lidar_in_camera.normal, v.camera.plane.normal);
+    const double angle = angleBetweenDeg(lidar_in_camera.normal, v.camera.plane.normal);
     const double offset = std::abs(lidar_in_camera.offset - v.camera.plane.offset);
     if (angle > options_.max_plane_angle_deg || offset > options_.max_plane_offset_m)
       return reject("sensors disagree on the board plane under the current estimate (" +
@@ -290,7 +281,8 @@ SessionEvent PairSession::addView(const View& view, const std::string& why, bool
     for (const auto& kept : views_) {
       // The whole board rotation: a turn within the board's plane changes the edge directions
       // (PBPC's edge constraints) although the normal stays.
-      const double turn = boardTurnDeg(kept.view.camera, view.camera);
+      const double turn =
+          rotationErrorDeg(kept.view.camera.camera_T_board, view.camera.camera_T_board);
       const double move =
           (cameraBoardCentre(kept.view.camera, target_) - cameraBoardCentre(view.camera, target_))
               .norm();
@@ -361,8 +353,8 @@ CoverageReport PairSession::coverage() const {
     r.range_min_m = std::min(r.range_min_m, centre.norm());
     r.range_max_m = std::max(r.range_max_m, centre.norm());
     for (size_t j = i + 1; j < views_.size(); ++j)
-      r.tilt_span_deg =
-          std::max(r.tilt_span_deg, angleDeg(c.plane.normal, views_[j].view.camera.plane.normal));
+      r.tilt_span_deg = std::max(
+          r.tilt_span_deg, angleBetweenDeg(c.plane.normal, views_[j].view.camera.plane.normal));
     if (centre.z() > 0 && c.image_width > 0 && c.image_height > 0) {
       const double u = c.K(0, 0) * centre.x() / centre.z() + c.K(0, 2);
       const double v = c.K(1, 1) * centre.y() / centre.z() + c.K(1, 2);

@@ -35,6 +35,8 @@ class ImageBoardTracker {
   /// Forgets what was learnt (not the known scene).
   void reset();
   int numPlaces() const { return static_cast<int>(places_.size()); }
+  /// Frames seen (detect() or learnScene()) since the last reset or stamp going back.
+  long frames() const { return frames_; }
   int numStaticPlaces() const;
   int numStaticLines() const;
   /// The static places and lines as the detector's exclusions (learnt, then the known scene).

@@ -40,7 +40,8 @@ class ScenePrepass {
   /// min_seen_fraction of the pre-pass frames since their first sighting, counted to the last
   /// frame).
   StaticScene scene() const { return tracker_.staticScene(); }
-  int frames() const { return frames_; }
+  /// Images used since the start (or since the stamps went back: a second recording).
+  long frames() const { return tracker_.frames(); }
 
  private:
   ScenePrepass(ImageBoardTracker tracker, double period_s, bool rectangles)
@@ -49,7 +50,6 @@ class ScenePrepass {
   double period_s_ = 0.0;
   bool rectangles_ = true;
   double last_stamp_ = -1e300;
-  int frames_ = 0;
   std::optional<CameraIntrinsics> intrinsics_;
   std::optional<CameraModel> camera_;
 };
