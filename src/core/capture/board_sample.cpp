@@ -49,7 +49,9 @@ Eigen::Vector3d normalOf(const Moments& m, const Eigen::Vector3d& facing) {
 // column spacing along the lines (rad, median azimuth step between neighbours).
 struct ScanLines {
   std::vector<Moments> lines;
+  std::vector<BoardSample::Line> sums;
   double column_rad = 0.0;
+  double line_gap_rad = 0.0;
 };
 
 ScanLines scanLinesOf(const Points3& points) {
@@ -76,18 +78,29 @@ ScanLines scanLinesOf(const Points3& points) {
   for (size_t i = 1; i <= p.size(); ++i) {
     if (i < p.size() && p[i].elevation - p[i - 1].elevation <= split) continue;
     Moments line;
-    std::vector<double> az;
-    for (size_t k = start; k < i; ++k) {
-      line.add(points[p[k].index]);
-      az.push_back(p[k].azimuth);
+    BoardSample::Line sum;
+    std::vector<Polar> by_azimuth(p.begin() + static_cast<long>(start),
+                                  p.begin() + static_cast<long>(i));
+    std::sort(by_azimuth.begin(), by_azimuth.end(),
+              [](const Polar& a, const Polar& b) { return a.azimuth < b.azimuth; });
+    for (size_t k = 0; k < by_azimuth.size(); ++k) {
+      line.add(points[by_azimuth[k].index]);
+      sum.elevation_rad += by_azimuth[k].elevation / static_cast<double>(by_azimuth.size());
+      if (k > 0 && by_azimuth[k].azimuth > by_azimuth[k - 1].azimuth)
+        steps.push_back(by_azimuth[k].azimuth - by_azimuth[k - 1].azimuth);
     }
-    std::sort(az.begin(), az.end());
-    for (size_t k = 1; k < az.size(); ++k)
-      if (az[k] > az[k - 1]) steps.push_back(az[k] - az[k - 1]);
+    sum.points = static_cast<int>(line.n);
+    sum.sum = line.sum;
+    sum.chord_m = (points[by_azimuth.back().index] - points[by_azimuth.front().index]).norm();
     out.lines.push_back(line);
+    out.sums.push_back(sum);
     start = i;
   }
   out.column_rad = median(steps);
+  std::vector<double> line_steps;
+  for (size_t k = 1; k < out.sums.size(); ++k)
+    line_steps.push_back(out.sums[k].elevation_rad - out.sums[k - 1].elevation_rad);
+  out.line_gap_rad = median(line_steps);
   return out;
 }
 
@@ -140,6 +153,8 @@ BoardSample boardSampleOf(const LidarBoardFeatures& f) {
   const double range = s.centroid.norm();
   const ScanLines lines = scanLinesOf(f.board_points);
   s.scan_lines = static_cast<int>(lines.lines.size());
+  s.lines = lines.sums;
+  s.line_gap_rad = lines.line_gap_rad;
   // The plane fit: its offset averages the range noise; its tilt about the narrower in-plane
   // spread of the points (few scan lines: across them) is the least determined.
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(all.covariance());
@@ -154,14 +169,14 @@ BoardSample boardSampleOf(const LidarBoardFeatures& f) {
   s.centroid_sigma_m = std::hypot(noise, sampling);
   s.centre = s.centroid;
   s.centre_sigma_m = s.centroid_sigma_m;
+  // The part of the range noise that lies in the board plane (the ray's incidence on it).
+  const double incidence_sin =
+      std::sqrt(std::max(0.0, 1.0 - std::pow(s.normal.dot(s.centroid) / range, 2)));
+  s.point_sigma_m = f.plane_rms_m * incidence_sin;
   if (f.allEdgesValid()) {
-    // An edge point is off along its scan line by up to a column (uniform), and by the part of
-    // the range noise that lies in the board plane (the ray's incidence on the board).
+    // An edge point is off along its scan line by up to a column (uniform), and by the noise.
     const double column_m = lines.column_rad * range;
-    const double incidence_sin =
-        std::sqrt(std::max(0.0, 1.0 - std::pow(s.normal.dot(s.centroid) / range, 2)));
-    const double point_sigma =
-        std::hypot(column_m / std::sqrt(12.0), f.plane_rms_m * incidence_sin);
+    const double point_sigma = std::hypot(column_m / std::sqrt(12.0), s.point_sigma_m);
     double inverse_counts = 0.0;
     bool counted = true;
     for (const auto& edge : f.edge_points) {
@@ -177,6 +192,37 @@ BoardSample boardSampleOf(const LidarBoardFeatures& f) {
     }
   }
   return s;
+}
+
+bool sharedLineCentroids(const BoardSample& a, const BoardSample& b, Eigen::Vector3d* centre_a,
+                         Eigen::Vector3d* centre_b, double* sigma_a, double* sigma_b) {
+  if (a.lines.empty() || b.lines.empty()) return false;
+  double gap = std::max(a.line_gap_rad, b.line_gap_rad);
+  if (a.line_gap_rad > 0 && b.line_gap_rad > 0) gap = std::min(a.line_gap_rad, b.line_gap_rad);
+  const double tolerance = gap > 0 ? 0.5 * gap : kMinLineGapRad;
+  std::vector<std::pair<const BoardSample::Line*, const BoardSample::Line*>> shared;
+  for (const auto& la : a.lines)
+    for (const auto& lb : b.lines)
+      if (std::abs(la.elevation_rad - lb.elevation_rad) <= tolerance) shared.emplace_back(&la, &lb);
+  if (shared.empty()) return false;
+  const auto centroid = [&](bool first, double point_sigma, Eigen::Vector3d* c, double* sigma) {
+    double n = 0.0;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (const auto& [la, lb] : shared) {
+      n += (first ? la : lb)->points;
+      sum += (first ? la : lb)->sum;
+    }
+    *c = sum / n;
+    double ends2 = 0.0;  // each end: offset from the centre ~ hypot(half chord, line's offset)
+    for (const auto& [la, lb] : shared) {
+      const BoardSample::Line& l = *(first ? la : lb);
+      ends2 += 0.5 * (std::pow(0.5 * l.chord_m, 2) + (l.sum / l.points - *c).squaredNorm());
+    }
+    *sigma = std::sqrt(point_sigma * point_sigma / n + ends2 / (n * n));
+  };
+  centroid(true, a.point_sigma_m, centre_a, sigma_a);
+  centroid(false, b.point_sigma_m, centre_b, sigma_b);
+  return true;
 }
 
 BoardSample boardSampleOf(const CameraBoardFeatures& f, const Target* target) {

@@ -72,9 +72,19 @@ struct Motion {
 
 Motion motionOf(const BoardSample& x, const BoardSample& ref, const StillnessOptions& o) {
   const bool edges = x.centre_from_edges && ref.centre_from_edges;
-  const Eigen::Vector3d d = edges ? x.centre - ref.centre : x.centroid - ref.centroid;
-  const double sx = edges ? x.centre_sigma_m : x.centroid_sigma_m;
-  const double sr = edges ? ref.centre_sigma_m : ref.centroid_sigma_m;
+  Eigen::Vector3d d = x.centroid - ref.centroid;
+  double sx = x.centroid_sigma_m, sr = ref.centroid_sigma_m;
+  const char* what = " of the centroids";
+  Eigen::Vector3d cx, cr;
+  if (edges) {
+    d = x.centre - ref.centre;
+    sx = x.centre_sigma_m;
+    sr = ref.centre_sigma_m;
+    what = " from the edges";
+  } else if (sharedLineCentroids(x, ref, &cx, &cr, &sx, &sr)) {
+    d = cx - cr;
+    what = " of the shared scan lines";
+  }
   const Eigen::Vector3d n = ref.normal.normalized();
   const double along = std::abs(d.dot(n));
   const double in_plane = (d - d.dot(n) * n).norm();
@@ -88,7 +98,7 @@ Motion motionOf(const BoardSample& x, const BoardSample& ref, const StillnessOpt
   m.moving = in_plane > in_tol || along > along_tol || turn > turn_tol;
   const auto cm = [](double v) { return formatFixed(v * 100, 1); };
   m.why = cm(in_plane) + " cm in its plane (allowed " + cm(in_tol) + ", 1 sigma " + cm(sx) + "/" +
-          cm(sr) + (edges ? " from the edges" : " of the centroids") + "), " + cm(along) +
+          cm(sr) + what + "), " + cm(along) +
           " cm along its normal (allowed " + cm(along_tol) + "), turn " +
           formatFixed(turn * kDegPerRadian, 1) + " deg (allowed " +
           formatFixed(turn_tol * kDegPerRadian, 1) + ")";

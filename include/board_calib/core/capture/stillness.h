@@ -25,7 +25,7 @@ namespace board_calib {
 ///
 /// Two frames of a still board are compared like for like: the centres from the board's edges
 /// when both frames have them (they do not move when a scan line enters or leaves the board),
-/// otherwise the centroids of the board points. A centre change is split into its part in the
+/// else the centroids of the scan lines both frames have, else the centroids of all points. A centre change is split into its part in the
 /// board plane (compared with the centre's sampling noise) and its part along the normal
 /// (compared with the plane's noise, which no sampling of the board moves).
 struct BoardSample {
@@ -40,13 +40,32 @@ struct BoardSample {
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();  ///< m, mean of the board points
   double centroid_sigma_m = 0.0;  ///< m, 1 sigma of `centroid` in the plane under the sampling
   int scan_lines = 0;             ///< LiDAR: scan lines on the board (0: a camera)
+  /// LiDAR: the board points of one scan line, so two frames compare the lines both have.
+  struct Line {
+    double elevation_rad = 0.0;
+    int points = 0;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();  ///< m, sum of the line's points
+    double chord_m = 0.0;                           ///< m, between the line's two ends
+  };
+  std::vector<Line> lines;
+  double line_gap_rad = 0.0;     ///< median elevation step between the lines (0: one line)
+  double point_sigma_m = 0.0;    ///< m, in-plane part of one point's range noise
 };
+
+/// The centroids of the scan lines two LiDAR frames share (matched by elevation, within half
+/// their spacing) and each one's 1 sigma in the board plane: the range noise over the shared
+/// points, and the column sampling (a point more or less at each end of a line, each with
+/// probability about 1/2, moves the centroid by that end's offset / n). False when no line is
+/// shared or a sample has no lines.
+bool sharedLineCentroids(const BoardSample& a, const BoardSample& b, Eigen::Vector3d* centre_a,
+                         Eigen::Vector3d* centre_b, double* sigma_a, double* sigma_b);
 
 /// A LiDAR board as a stillness cue. Its noise follows the sampling measured on the board's own
 /// points: scan lines (by elevation), their spacing and the column spacing along them.
-///  - centroid: which scan lines reach the board changes between sweeps (a grazing line, a line
-///    a detector drops), so its in-plane sigma is the jackknife over scan lines (the spread of
-///    the centroids that leave one line out), plus the range noise rms / sqrt(n);
+///  - centroid of all points: which scan lines reach the board changes between sweeps (a grazing
+///    line, a line a detector drops), so its in-plane sigma is the jackknife over scan lines (the
+///    spread of the centroids that leave one line out), plus the range noise rms / sqrt(n); it
+///    is the last resort, when two frames share no scan line;
 ///  - centre from the edges (all four edges fitted): each edge point lies on its scan line within
 ///    a column spacing (uniform: spacing / sqrt(12)) and the in-plane part of the range noise
 ///    (rms x the sine of the ray's incidence on the board), and an edge line's
