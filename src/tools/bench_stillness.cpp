@@ -12,6 +12,7 @@
 //  - per image of a hold, the judge's state and why (which stream, the change, what was allowed);
 //  - per image of a move, whether the judge saw the motion.
 #include <board_calib/core/capture/stillness.h>
+#include <board_calib/core/common/format.h>
 #include <board_calib/core/image_detection/image_board_tracker.h>
 #include <board_calib/core/lidar_detection/lidar_board_detector.h>
 #include <board_calib/core/pipeline/pair_calibration.h>
@@ -111,6 +112,52 @@ void printHoldNoise(const std::map<int, std::vector<BoardSample>>& holds) {
   }
 }
 
+// BENCH_STILL_VERBOSE: one held cloud's board: points, centre, edges, points per scan line.
+void printCloud(const sim::Frame& f, const LidarBoardFeatures& l, const BoardSample& sample) {
+  std::string lines;
+  for (const auto& line : sample.lines)
+    lines += " " + std::to_string(line.points) + "@" + formatFixed(kDeg * line.elevation_rad, 2);
+  const Eigen::Vector3d& c = sample.centre;
+  std::printf("    cloud %.2f hold %d: %zu pts, c %.3f %.3f %.3f, edges %d%d%d%d, lines%s\n",
+              f.stamp, f.pose, l.board_points.size(), c.x(), c.y(), c.z(), l.edge_valid[0],
+              l.edge_valid[1], l.edge_valid[2], l.edge_valid[3], lines.c_str());
+}
+
+// Judges every image with a board, as a PairSession does, and counts against the truth.
+Counts judgeImages(const std::deque<BoardSample>& lidar_samples, const StreamClock& lidar_clock,
+                   const std::deque<BoardSample>& camera_samples, const StreamClock& camera_clock,
+                   const std::vector<std::pair<double, int>>& image_frames, unsigned seed) {
+  const StillnessOptions o = SessionOptions{}.stillness();
+  const std::vector<StillnessStream> streams{{&lidar_samples, &lidar_clock, "LiDAR"},
+                                             {&camera_samples, &camera_clock, "camera"}};
+  Counts n;
+  for (const auto& [stamp, pose] : image_frames) {
+    const StillnessJudgement j = judgeStillness(streams, stamp, o, true);
+    if (pose >= 0) {
+      ++n.held;
+      if (j.state == StillState::kStill)
+        ++n.still;
+      else if (j.state == StillState::kMoving)
+        ++n.moving;
+      else
+        ++n.other;
+    } else {
+      // Only moves the judge could see: a LiDAR board in the window.
+      if (j.state == StillState::kNoBoard || j.state == StillState::kTooFewFrames) continue;
+      ++n.moves;
+      if (j.state != StillState::kStill) ++n.moves_caught;
+    }
+    std::printf("  %6.2f s %s: %s: %s\n", stamp,
+                pose >= 0 ? ("hold " + std::to_string(pose)).c_str() : "move",
+                stillStateName(j.state), j.why.c_str());
+  }
+  std::printf(
+      "seed %u: held images %d: still %d, moving %d, other %d; moving images %d, judged moving "
+      "%d\n",
+      seed, n.held, n.still, n.moving, n.other, n.moves, n.moves_caught);
+  return n;
+}
+
 Counts runSeed(const sim::Scenario& base, unsigned seed, int poses, double hz, bool images) {
   const sim::Scenario s = test_support::captureScenario(base, 1.0, hz, false, poses, seed);
   auto timeline = sim::makeTimeline(s);
@@ -165,62 +212,13 @@ Counts runSeed(const sim::Scenario& base, unsigned seed, int poses, double hz, b
       lidar_clock.add(f.stamp);
       if (f.still && f.pose >= 0 && lidar_samples.back().found) {
         holds[f.pose].push_back(lidar_samples.back());
-        if (std::getenv("BENCH_STILL_VERBOSE")) {
-          std::vector<double> el;
-          for (const auto& q : l.board_points)
-            el.push_back(kDeg * std::atan2(q.z(), q.head<2>().norm()));
-          std::sort(el.begin(), el.end());
-          std::string lines;
-          int k = 1;
-          for (size_t m = 1; m <= el.size(); ++m) {
-            if (m == el.size() || el[m] - el[m - 1] > 0.5) {
-              lines += " " + std::to_string(k) + "@" + std::to_string(el[m - 1]).substr(0, 5);
-              k = 0;
-            }
-            ++k;
-          }
-          Eigen::Vector3d c = lidar_samples.back().centre;
-          if (l.allEdgesValid())
-            c = 0.25 * (l.corners[0] + l.corners[1] + l.corners[2] + l.corners[3]);
-          std::printf(
-              "    cloud %.2f hold %d: %zu pts, c %.3f %.3f %.3f, edges %d%d%d%d, lines%s\n",
-              f.stamp, f.pose, l.board_points.size(), c.x(), c.y(), c.z(), l.edge_valid[0],
-              l.edge_valid[1], l.edge_valid[2], l.edge_valid[3], lines.c_str());
-        }
+        if (std::getenv("BENCH_STILL_VERBOSE")) printCloud(f, l, lidar_samples.back());
       }
     }
   }
   std::printf("seed %u, camera %.0f Hz:\n", seed, hz);
   printHoldNoise(holds);
-  const StillnessOptions o = SessionOptions{}.stillness();
-  const std::vector<StillnessStream> streams{{&lidar_samples, &lidar_clock, "LiDAR"},
-                                             {&camera_samples, &camera_clock, "camera"}};
-  Counts n;
-  for (const auto& [stamp, pose] : image_frames) {
-    const StillnessJudgement j = judgeStillness(streams, stamp, o, true);
-    if (pose >= 0) {
-      ++n.held;
-      if (j.state == StillState::kStill)
-        ++n.still;
-      else if (j.state == StillState::kMoving)
-        ++n.moving;
-      else
-        ++n.other;
-    } else {
-      // Only moves the judge could see: a LiDAR board in the window.
-      if (j.state == StillState::kNoBoard || j.state == StillState::kTooFewFrames) continue;
-      ++n.moves;
-      if (j.state != StillState::kStill) ++n.moves_caught;
-    }
-    std::printf("  %6.2f s %s: %s: %s\n", stamp,
-                pose >= 0 ? ("hold " + std::to_string(pose)).c_str() : "move",
-                stillStateName(j.state), j.why.c_str());
-  }
-  std::printf(
-      "seed %u: held images %d: still %d, moving %d, other %d; moving images %d, judged moving "
-      "%d\n",
-      seed, n.held, n.still, n.moving, n.other, n.moves, n.moves_caught);
-  return n;
+  return judgeImages(lidar_samples, lidar_clock, camera_samples, camera_clock, image_frames, seed);
 }
 
 // One table row: the recording through the pipeline, calibrated, scored against the truth.
