@@ -99,7 +99,7 @@ TEST(StillnessFar, FarHeldBoardsAreStill) {
       if (!inside) continue;
       const StillnessJudgement j = judgeStillness(st.judged(), stamp, o, true);
       ++held;
-      still_per_hold[pose] += 0;
+      still_per_hold[pose] += 0;  // the hold counts even without a still image
       if (j.state == StillState::kStill) {
         ++still;
         ++still_per_hold[pose];
