@@ -152,6 +152,9 @@ CASES = {
     "ws/ci/devel/lib/board_calib/bench_image_detector --frames 20 --board plain": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/bench_capture --scale 0.5 --poses 12 --seeds 2 --rates 1,2,5,10,30": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_rig_session --gtest_filter=*Sparse*": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/bench_stillness --seeds 21,22,23,24": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/bench_stillness --session --seeds 21,22,23,24": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/test_stillness_far": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_rig_calibration": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/bench_capture --scenario config/scenarios/checker_vlp16_1280.yaml --method ppc "
     "--poses 12 --seeds 2 --rates 1,2,5,10,30": {"kind": "dev"},

@@ -223,14 +223,16 @@ TEST(ImageDetectorFarSim, StreetFramesAddNoWrongBoard) {
 // agrees with the truth within its own uncertainty, never a wrong one as a success. Printed per
 // run: images whose board is the true one, another object, or none; with the image memory and
 // its offline pre-pass (the defaults of calibrate_bag). Seed 21 calibrates (measured: doubtful,
-// 3 views, 0.30 deg / 14 mm, within 3 sigma, with and without the pre-pass): asserted.
+// 3 views, 0.145 deg / 12.1 mm, within 3 sigma, since session 6's stillness model): asserted.
+// Seed 24 (5 views since session 6) once came out doubtful, 138 mm off with a 1 sigma of 0 (no
+// covariance, too few views to cross-validate); it must fail with its reason.
 TEST(ImageDetectorFarSim, StreetSessionNeverReportsAWrongCalibration) {
   auto loaded = sim::loadScenario(std::string(BOARD_CALIB_SOURCE_DIR) +
                                   "/config/scenarios/plain_vlp16_outdoor_far.yaml");
   ASSERT_TRUE(loaded.ok()) << loaded.error();
   // The defaults: image memory and its offline pre-pass, as calibrate_bag; the other seeds and
   // the variants without them are in docs/BENCHMARKS.md, session 5 (each run is ~15 s).
-  for (const unsigned seed : {21u, 22u}) {
+  for (const unsigned seed : {21u, 22u, 24u}) {
     // Full-size camera (the board is 120-350 px only at 1440x1080), 2 Hz, the VLP-16 without ring
     // and unorganized, 8 holds, every frame of holds and moves.
     const sim::Scenario s = test_support::captureScenario(*loaded, 1.0, 2.0, false, 8, seed);

@@ -17,44 +17,6 @@ double angleRad(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
 
 }  // namespace
 
-BoardSample boardSampleOf(const LidarBoardFeatures& f) {
-  BoardSample s;
-  s.stamp = f.stamp;
-  s.found = f.found && !f.board_points.empty() && f.plane.normal.allFinite();
-  if (!s.found) return s;
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (const auto& p : f.board_points) mean += p;
-  mean /= static_cast<double>(f.board_points.size());
-  double spread2 = 0.0;
-  for (const auto& p : f.board_points) spread2 += (p - mean).squaredNorm();
-  const double n = static_cast<double>(f.board_points.size());
-  const double spread = std::sqrt(spread2 / n);
-  s.centre = mean;
-  s.normal = f.plane.normal.normalized();
-  s.centre_sigma_m = f.plane_rms_m / std::sqrt(n);
-  s.normal_sigma_rad = spread > 0 ? f.plane_rms_m / (std::sqrt(n) * spread) : 0.0;
-  return s;
-}
-
-BoardSample boardSampleOf(const CameraBoardFeatures& f, const Target* target) {
-  constexpr double kMinPixelSigma = 0.2;  // px, a PnP is never better than this
-  constexpr double kUnknownBoardSizeM = 1.0;
-  BoardSample s;
-  s.stamp = f.stamp;
-  s.found = f.found && f.plane.normal.allFinite() && f.camera_T_board.matrix().allFinite();
-  if (!s.found) return s;
-  s.centre = target ? f.camera_T_board * target->center() : f.camera_T_board.translation();
-  s.normal = f.plane.normal.normalized();
-  const double fx = f.K(0, 0) > 0 ? f.K(0, 0) : 1.0;
-  const double pixel_rad = std::max(f.reprojection_rms_px, kMinPixelSigma) / fx;
-  const double range = s.centre.norm();
-  const double size = target ? std::min(target->width, target->height) : kUnknownBoardSizeM;
-  const double half_size = 0.5 * std::max(1e-3, size);
-  s.centre_sigma_m = pixel_rad * range * std::max(1.0, range / half_size);
-  s.normal_sigma_rad = pixel_rad * range / half_size;
-  return s;
-}
-
 std::string StillnessOptions::validate() const {
   if (!(window_s > 0.0) || !std::isfinite(window_s) || window_s > 10.0)
     return "still window must be in (0, 10] s";
@@ -100,6 +62,52 @@ const char* stillStateName(StillState state) {
 
 namespace {
 
+// How far a frame's board is from the reference frame's, against what noise and the options
+// allow: in the board plane (edge centres when both have them, else centroids), along the
+// normal, and in turn.
+struct Motion {
+  bool moving = false;
+  std::string why;
+};
+
+Motion motionOf(const BoardSample& x, const BoardSample& ref, const StillnessOptions& o) {
+  const bool edges = x.centre_from_edges && ref.centre_from_edges;
+  Eigen::Vector3d d = x.centroid - ref.centroid;
+  double sx = x.centroid_sigma_m, sr = ref.centroid_sigma_m;
+  const char* what = " of the centroids";
+  Eigen::Vector3d cx, cr;
+  if (edges) {
+    d = x.centre - ref.centre;
+    sx = x.centre_sigma_m;
+    sr = ref.centre_sigma_m;
+    what = " from the edges";
+  } else if (sharedLineCentroids(x, ref, &cx, &cr, &sx, &sr)) {
+    d = cx - cr;
+    what = " of the shared scan lines";
+  }
+  const Eigen::Vector3d n = ref.normal.normalized();
+  const double along = std::abs(d.dot(n));
+  const double in_plane = (d - d.dot(n) * n).norm();
+  const double in_tol = o.max_translation_m + o.noise_factor * std::hypot(sx, sr);
+  const double along_tol =
+      o.max_translation_m + o.noise_factor * std::hypot(x.plane_sigma_m, ref.plane_sigma_m);
+  const double turn = angleRad(x.normal, ref.normal);
+  const double turn_tol = o.max_rotation_deg / kDegPerRadian +
+                          o.noise_factor * std::hypot(x.normal_sigma_rad, ref.normal_sigma_rad);
+  Motion m;
+  m.moving = in_plane > in_tol || along > along_tol || turn > turn_tol;
+  const auto cm = [](double v) { return formatFixed(v * 100, 1); };
+  m.why = cm(in_plane) + " cm in its plane (allowed " + cm(in_tol) + ", 1 sigma " + cm(sx) + "/" +
+          cm(sr) + what + "), " + cm(along) +
+          " cm along its normal (allowed " + cm(along_tol) + "), turn " +
+          formatFixed(turn * kDegPerRadian, 1) + " deg (allowed " +
+          formatFixed(turn_tol * kDegPerRadian, 1) + ")";
+  if (x.scan_lines > 0 || ref.scan_lines > 0)
+    m.why +=
+        "; " + std::to_string(x.scan_lines) + "/" + std::to_string(ref.scan_lines) + " scan lines";
+  return m;
+}
+
 // One stream's frames in [stamp - window, stamp + window] against the one nearest the moment;
 // false with `j` set when they show motion, a lost board or (the fastest stream) too few frames.
 bool streamStill(const StillnessStream& stream, bool is_fastest, double stamp,
@@ -123,19 +131,11 @@ bool streamStill(const StillnessStream& stream, bool is_fastest, double stamp,
     ++count;
     if (x.stamp < stamp) ++before;
     if (x.stamp > stamp) ++after;
-    const double move = (x.centre - ref->centre).norm();
-    const double move_tol =
-        o.max_translation_m + o.noise_factor * std::hypot(x.centre_sigma_m, ref->centre_sigma_m);
-    const double turn = angleRad(x.normal, ref->normal);
-    const double turn_tol = o.max_rotation_deg / kDegPerRadian +
-                            o.noise_factor * std::hypot(x.normal_sigma_rad, ref->normal_sigma_rad);
-    if (move > move_tol || turn > turn_tol) {
+    const Motion m = motionOf(x, *ref, o);
+    if (m.moving) {
       j->state = StillState::kMoving;
-      j->why = "board moving: " + stream.name + " saw it move " + formatFixed(move * 100, 1) +
-               " cm, turn " + formatFixed(turn * kDegPerRadian, 1) + " deg within " +
-               formatFixed(o.window_s, 2) + " s of the image (allowed " +
-               formatFixed(move_tol * 100, 1) + " cm, " + formatFixed(turn_tol * kDegPerRadian, 1) +
-               " deg)";
+      j->why = "board moving: " + stream.name + " saw it move " + m.why + " within " +
+               formatFixed(o.window_s, 2) + " s of the image";
       return false;
     }
   }

@@ -308,8 +308,16 @@ void judgeUncertainty(const CalibrationSolution& sol, const VerdictOptions& o, F
   const double st = r.stddev.translation_m.maxCoeff(), sr = r.stddev.rotation_deg.maxCoeff();
   const std::string sigma_text =
       "1 sigma " + formatFixed(st * 1e3, 1) + " mm / " + formatFixed(sr, 3) + " deg";
-  if (!std::isfinite(st) || !std::isfinite(sr) || st > o.failed_stddev_translation_m ||
-      sr > o.failed_stddev_rotation_deg)
+  // Neither the solver's covariance nor a cross-validation gave one: the uncertainty is unknown,
+  // not zero (seen: 4 far views, a covariance that Ceres could not compute, none left out).
+  const bool unknown = !sol.covariance.allFinite() && !(cv.covariance.diagonal().maxCoeff() > 0.0);
+  if (unknown)
+    f.failed.push_back(
+        "no uncertainty could be computed (the solver's covariance failed and "
+        "the views are too few to cross-validate): the views do not determine "
+        "the calibration");
+  else if (!std::isfinite(st) || !std::isfinite(sr) || st > o.failed_stddev_translation_m ||
+           sr > o.failed_stddev_rotation_deg)
     f.failed.push_back(sigma_text + ": the views do not determine the calibration");
   else if (st > o.doubtful_stddev_translation_m || sr > o.doubtful_stddev_rotation_deg)
     f.doubtful.push_back(sigma_text +

@@ -22,16 +22,59 @@
 namespace board_calib {
 
 /// One sensor's view of the board at one stamp, in that sensor's frame.
+///
+/// Two frames of a still board are compared like for like: the centres from the board's edges
+/// when both frames have them (they do not move when a scan line enters or leaves the board),
+/// else the centroids of the scan lines both frames have, else the centroids of all points. A centre change is split into its part in the
+/// board plane (compared with the centre's sampling noise) and its part along the normal
+/// (compared with the plane's noise, which no sampling of the board moves).
 struct BoardSample {
   double stamp = 0.0;  ///< s
   bool found = false;
-  Eigen::Vector3d centre = Eigen::Vector3d::Zero();   ///< m
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();   ///< m, the centre from the edges if known
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  ///< unit
-  double centre_sigma_m = 0.0;    ///< 1 sigma of the centre from the detector's own noise
-  double normal_sigma_rad = 0.0;  ///< 1 sigma of the normal
+  double centre_sigma_m = 0.0;                        ///< m, 1 sigma of `centre` in the board plane
+  double normal_sigma_rad = 0.0;                      ///< 1 sigma of the normal
+  double plane_sigma_m = 0.0;      ///< m, 1 sigma of the board plane along its normal
+  bool centre_from_edges = false;  ///< `centre` is the mean of the four edge-line corners
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();  ///< m, mean of the board points
+  double centroid_sigma_m = 0.0;  ///< m, 1 sigma of `centroid` in the plane under the sampling
+  int scan_lines = 0;             ///< LiDAR: scan lines on the board (0: a camera)
+  /// LiDAR: the board points of one scan line, so two frames compare the lines both have.
+  struct Line {
+    double elevation_rad = 0.0;
+    int points = 0;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();  ///< m, sum of the line's points
+    double chord_m = 0.0;                           ///< m, between the line's two ends
+  };
+  std::vector<Line> lines;
+  double line_gap_rad = 0.0;     ///< median elevation step between the lines (0: one line)
+  double point_sigma_m = 0.0;    ///< m, in-plane part of one point's range noise
 };
 
-/// A LiDAR board as a stillness cue: centroid and plane normal, with the plane fit's noise.
+/// The centroids of the scan lines two LiDAR frames share (matched by elevation, within half
+/// their spacing) and each one's 1 sigma in the board plane: the range noise over the shared
+/// points, and the column sampling (a point more or less at each end of a line, each with
+/// probability about 1/2, moves the centroid by that end's offset / n). False when no line is
+/// shared or a sample has no lines.
+bool sharedLineCentroids(const BoardSample& a, const BoardSample& b, Eigen::Vector3d* centre_a,
+                         Eigen::Vector3d* centre_b, double* sigma_a, double* sigma_b);
+
+/// A LiDAR board as a stillness cue. Its noise follows the sampling measured on the board's own
+/// points: scan lines (by elevation), their spacing and the column spacing along them.
+///  - centroid of all points: which scan lines reach the board changes between sweeps (a grazing
+///    line, a line a detector drops), so its in-plane sigma is the jackknife over scan lines (the
+///    spread of the centroids that leave one line out), plus the range noise rms / sqrt(n); it
+///    is the last resort, when two frames share no scan line;
+///  - centre from the edges (all four edges fitted): each edge point lies on its scan line within
+///    a column spacing (uniform: spacing / sqrt(12)) and the in-plane part of the range noise
+///    (rms x the sine of the ray's incidence on the board), and an edge line's
+///    offset averages its k points, so the centre (half of two opposite offsets per axis) has
+///    1 sigma = 0.5 sigma_point sqrt(sum_j 1 / k_j);
+///  - normal: the plane fit's tilt about the board's narrower in-plane spread, rms / (sqrt(n)
+///    spread_min), and at least the jackknife over scan lines (three or more: a few lines tilt
+///    the fit);
+///  - plane: rms / sqrt(n).
 BoardSample boardSampleOf(const LidarBoardFeatures& features);
 /// A camera board pose as a stillness cue: its error grows with distance (lateral ~ D, depth
 /// ~ D^2 / size). Without a target the board origin stands for the centre and the size is
