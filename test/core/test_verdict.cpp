@@ -224,4 +224,35 @@ TEST(Verdict, SigmaGrowsWhenResidualsExceedTheNoiseModel) {
   EXPECT_LT(errorInSigmas(r, scene.camera_T_lidar), 3.0);
 }
 
+// An uncertainty nobody could compute is not a zero one: without the solver's covariance and
+// without a cross-validation (every re-solve fails) the result is refused, never good with 0 sigma.
+TEST(Verdict, UnknownUncertaintyIsRefused) {
+  const auto scene = makeScene(21, 12);
+  const PairCalibration full = run(scene.views, "ppc");
+  ASSERT_NE(full.chosenRun(), nullptr) << full.reason;
+  const ConsistencyReport consistency = checkViewConsistency(scene.views, plainTarget());
+  const auto no_resolve = [](const std::vector<View>&) { return CalibrationSolution{}; };
+  const auto judged = [&](const Matrix6d& covariance) {
+    CalibrationSolution sol = full.chosenRun()->solution;
+    sol.covariance = covariance;
+    return judgeSolution(sol, scene.views, plainTarget(), consistency, no_resolve);
+  };
+  const std::string unknown = "no uncertainty could be computed";
+  const auto mentions = [&](const VerdictReport& r) {
+    if (r.reason.find(unknown) != std::string::npos) return true;
+    for (const auto& d : r.details)
+      if (d.find(unknown) != std::string::npos) return true;
+    return false;
+  };
+  for (const double value : {std::numeric_limits<double>::infinity(), 0.0}) {
+    const VerdictReport r = judged(Matrix6d::Constant(value));
+    EXPECT_EQ(r.verdict, Verdict::kFailed) << value;
+    EXPECT_TRUE(mentions(r)) << value << ": " << r.reason;
+  }
+  // The solver's own covariance alone is an uncertainty: not refused for that reason.
+  const VerdictReport known = judged(full.chosenRun()->solution.covariance);
+  EXPECT_GT(known.stddev.translation_m.minCoeff(), 0.0);
+  EXPECT_FALSE(mentions(known)) << known.reason;
+}
+
 }  // namespace board_calib

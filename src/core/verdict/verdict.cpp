@@ -309,8 +309,9 @@ void judgeUncertainty(const CalibrationSolution& sol, const VerdictOptions& o, F
   const std::string sigma_text =
       "1 sigma " + formatFixed(st * 1e3, 1) + " mm / " + formatFixed(sr, 3) + " deg";
   // Neither the solver's covariance nor a cross-validation gave one: the uncertainty is unknown,
-  // not zero (seen: 4 far views, a covariance that Ceres could not compute, none left out).
-  const bool unknown = !sol.covariance.allFinite() && !(cv.covariance.diagonal().maxCoeff() > 0.0);
+  // not zero (seen: 4 far views, a covariance that Ceres could not compute, none left out; or a
+  // solve run without covariance). No measured variance is exactly zero.
+  const bool unknown = !r.covariance.allFinite() || !(r.covariance.diagonal().minCoeff() > 0.0);
   if (unknown)
     f.failed.push_back(
         "no uncertainty could be computed (the solver's covariance failed and "
