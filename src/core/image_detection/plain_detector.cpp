@@ -147,7 +147,8 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
   const size_t first_regions = hypotheses.size();
   const std::string region_reason = seg.reason();
   LineEvidence evidence;
-  std::vector<QuadHypothesis> quads;
+  LineQuads line_quads;
+  std::vector<QuadHypothesis> quads;  // the line hypotheses tried, in order
 
   const ImageDetection fresh = *out;
   HypothesisSearch search;
@@ -163,9 +164,19 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     // Line evidence (the costly part) unless a region already gave a board whose four sides
     // show their edge along nearly all their visible length.
     if (i == regions && !search.cleanBoard()) {
-      quads = lineQuadHypotheses(gray, camera, o, &evidence, expected,
-                                 excluded ? &excluded->lines_px : nullptr);
+      line_quads = lineQuadHypotheses(gray, camera, o, &evidence, expected,
+                                      excluded ? &excluded->lines_px : nullptr);
+      quads = line_quads.best;
       for (const auto& q : quads) hypotheses.push_back(fromQuad(q, camera, o));
+    }
+    // Quadrilaterals of the weaker lines only when nothing else was the board.
+    if (i == hypotheses.size() && i >= regions && !search.found() &&
+        !line_quads.ending_at_corners.empty()) {
+      for (auto& q : line_quads.ending_at_corners) {
+        hypotheses.push_back(fromQuad(q, camera, o, true));
+        quads.push_back(std::move(q));
+      }
+      line_quads.ending_at_corners.clear();
     }
     if (i >= hypotheses.size()) break;
     if (i >= first_regions && i < regions && search.found())
