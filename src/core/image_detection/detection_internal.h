@@ -51,8 +51,9 @@ struct QuadHypothesis {
   std::array<Eigen::Vector2d, 4> corners;
   std::array<double, 4> support{};  ///< px of line segments along each side
   std::array<double, 4> visible{};  ///< px of each side inside the image
-  double score = 0;    ///< segment support along the sides minus support past the corners
-  double size_px = 0;  ///< mean side length
+  double score = 0;     ///< segment support along the sides minus support past the corners
+  double size_px = 0;   ///< mean side length
+  int corner_ends = 0;  ///< line ends at the corners (of 8; counted for the weaker lines only)
 };
 
 /// What the line stage saw (counts for reasons, segments for the debug image).

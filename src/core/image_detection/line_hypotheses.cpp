@@ -275,10 +275,11 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
           std::array<Eigen::Vector2d, 4> c;
           for (int s = 0; s < 4; ++s) c[s] = g.corner[idx[s]][idx[(s + 1) % 4]];
           if (!convexPolygon(c)) continue;
-          if (search.min_corner_ends > 0 && endsAtCorners(set, idx, c) < search.min_corner_ends)
-            continue;
+          const int ends = search.min_corner_ends > 0 ? endsAtCorners(set, idx, c) : 0;
+          if (ends < search.min_corner_ends) continue;
           QuadHypothesis q;
           if (!scoreQuad(lines, idx, c, ubox, o, &q)) continue;
+          q.corner_ends = ends;
           if (search.expected &&
               worstCornerOffset(c, search.expected->corners_px) > search.expected->tolerance_px)
             continue;
@@ -291,8 +292,12 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
   const auto rank = [&](const QuadHypothesis& q) {
     return search.per_perimeter ? q.score / (kNumEdges * q.size_px) : q.score;
   };
-  std::sort(quads.begin(), quads.end(),
-            [&](const QuadHypothesis& x, const QuadHypothesis& y) { return rank(x) > rank(y); });
+  // Among weak lines, the quadrilateral whose lines end at more of its corners first (a scene
+  // grid's larger cells outscore a board on support alone).
+  std::sort(quads.begin(), quads.end(), [&](const QuadHypothesis& x, const QuadHypothesis& y) {
+    if (x.corner_ends != y.corner_ends) return x.corner_ends > y.corner_ends;
+    return rank(x) > rank(y);
+  });
   return quads;
 }
 
@@ -378,6 +383,15 @@ LineQuads lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
     ends.expected = expected;
     std::vector<QuadHypothesis> more =
         enumerateQuads(set, cornerGraph(set, all, camera, true), camera, o, ends);
+    // The line cap hid them, not their support: each must carry as much as the quadrilaterals
+    // kept from the best lines (a door of a street facade does not).
+    if (out.best.size() >= static_cast<size_t>(o.max_line_hypotheses)) {
+      double least = out.best.front().score;
+      for (const auto& q : out.best) least = std::min(least, q.score);
+      more.erase(std::remove_if(more.begin(), more.end(),
+                                [&](const QuadHypothesis& q) { return q.score < least; }),
+                 more.end());
+    }
     out.ending_at_corners = keepBest(&more, camera, o);
   }
   return out;
