@@ -153,7 +153,8 @@ bool cornerOfEnds(const MergedLine& a, const MergedLine& b, const Eigen::Vector2
 // Corner of lines i and j (both below n) when it is plausible: a real angle, and near both lines'
 // support or outside the image (corners of a board held close often are). With `ends_only`,
 // only where the lines end rather than cross (cornerOfEnds).
-CornerGraph cornerGraph(const LineSet& set, int n, const CameraModel& camera, bool ends_only) {
+CornerGraph cornerGraph(const LineSet& set, int n, const CameraModel& camera,
+                        const ImageBoardDetectorOptions& o, bool ends_only) {
   const std::vector<MergedLine>& lines = set.lines;
   CornerGraph g;
   g.adjacent.assign(n, std::vector<char>(n, 0));
@@ -165,14 +166,20 @@ CornerGraph cornerGraph(const LineSet& set, int n, const CameraModel& camera, bo
       if (s < kMinCornerSin) continue;
       Eigen::Vector2d c;
       if (!intersectLines(lines[i].homogeneous(), lines[j].homogeneous(), &c)) continue;
+      const bool ends = ends_only && cornerOfEnds(lines[i], lines[j], c, set.end_sigma_px);
+      if (ends_only && !ends) continue;
+      // Where one line ends at the corner, the other may stop as far short of it as a side
+      // that shows its segments along kLineCoverageShare x min_side_coverage of its length
+      // (a hand over the rest of it).
+      const double max_gap =
+          ends ? 1.0 / (kLineCoverageShare * o.min_side_coverage) - 1.0 : kMaxCornerGapFraction;
       bool near = true;
       for (const MergedLine* l : {&lines[i], &lines[j]}) {
         const double t = l->along(c);
         const double gap = std::max({0.0, l->t_min - t, t - l->t_max});
-        near &= gap <= kMaxCornerGapFraction * (l->t_max - l->t_min);
+        near &= gap <= max_gap * (l->t_max - l->t_min);
       }
       if (!near && visibleUndistorted(camera, c, 0.0)) continue;
-      if (ends_only && !cornerOfEnds(lines[i], lines[j], c, set.end_sigma_px)) continue;
       g.adjacent[i][j] = g.adjacent[j][i] = 1;
       g.corner[i][j] = g.corner[j][i] = c;
     }
@@ -369,7 +376,7 @@ LineQuads lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
   if (best.lines < kNumEdges) return {};
   LineQuads out;
   std::vector<QuadHypothesis> quads =
-      enumerateQuads(set, cornerGraph(set, best.lines, camera, false), camera, o, best);
+      enumerateQuads(set, cornerGraph(set, best.lines, camera, o, false), camera, o, best);
   if (evidence) evidence->quads = static_cast<int>(quads.size());
   out.best = keepBest(&quads, camera, o);
   // The board's sides may rank far below a line-rich scene's (an office ceiling and floor): the
@@ -382,7 +389,7 @@ LineQuads lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
     ends.min_corner_ends = kMinCornerEnds;
     ends.expected = expected;
     std::vector<QuadHypothesis> more =
-        enumerateQuads(set, cornerGraph(set, all, camera, true), camera, o, ends);
+        enumerateQuads(set, cornerGraph(set, all, camera, o, true), camera, o, ends);
     // The line cap hid them, not their support: each must carry as much as the quadrilaterals
     // kept from the best lines (a door of a street facade does not).
     if (out.best.size() >= static_cast<size_t>(o.max_line_hypotheses)) {
