@@ -51,8 +51,9 @@ struct QuadHypothesis {
   std::array<Eigen::Vector2d, 4> corners;
   std::array<double, 4> support{};  ///< px of line segments along each side
   std::array<double, 4> visible{};  ///< px of each side inside the image
-  double score = 0;    ///< segment support along the sides minus support past the corners
-  double size_px = 0;  ///< mean side length
+  double score = 0;     ///< segment support along the sides minus support past the corners
+  double size_px = 0;   ///< mean side length
+  int corner_ends = 0;  ///< line ends at the corners (of 8; counted for the weaker lines only)
 };
 
 /// What the line stage saw (counts for reasons, segments for the debug image).
@@ -65,10 +66,17 @@ struct LineEvidence {
 };
 
 /// Quadrilateral board hypotheses from LSD segments merged into long lines (either polarity),
-/// best first, at most options.max_line_hypotheses, every side partly inside the image.
+/// each list best first, at most options.max_line_hypotheses, every side partly inside the image.
+struct LineQuads {
+  std::vector<QuadHypothesis> best;  ///< of the options.max_lines best-supported lines
+  /// of the further lines (up to options.max_lines_static_scene) with at least one side among
+  /// them, where the lines end at the corners: to try when nothing else was the board
+  std::vector<QuadHypothesis> ending_at_corners;
+};
+
 /// With `expected`, only quadrilaterals whose corners all lie near the expected ones compete;
 /// quadrilaterals of four `static_lines` (undistorted px) are not proposed.
-std::vector<QuadHypothesis> lineQuadHypotheses(
+LineQuads lineQuadHypotheses(
     const cv::Mat& gray, const CameraModel& camera, const ImageBoardDetectorOptions& options,
     LineEvidence* evidence, const ExpectedBoard* expected = nullptr,
     const std::vector<std::array<Eigen::Vector2d, 2>>* static_lines = nullptr);

@@ -3,9 +3,7 @@
 // lines of either polarity, then quadrilaterals of four such lines whose sides carry the segments.
 // Only geometry is judged here; edge support along each whole side is measured at full
 // resolution by the plain detector.
-#include "detection_internal.h"
-
-#include <Eigen/Eigenvalues>
+#include "line_internal.h"
 
 #include <opencv2/imgproc.hpp>
 
@@ -17,12 +15,6 @@ namespace board_calib {
 namespace image_detection {
 namespace {
 
-constexpr double kMinSegmentPx = 5.0;       // LSD-scale px: shorter segments are texture, not edges
-constexpr double kSegmentEndSigmaPx = 0.7;  // LSD-scale px, endpoint noise of a segment
-constexpr double kMergeSigmas = 3.0;        // angle tolerance of a merge, in endpoint-noise sigmas
-constexpr double kMinMergeAngleRad = 0.02;  // ~1 deg: floor of that tolerance (long segments)
-constexpr double kMaxMergeAngleRad = 0.10;  // ~6 deg: cap (short segments)
-constexpr double kMergeOffsetPx = 3.5;      // full-res px: a held board bows ~3 px
 constexpr size_t kMaxQuads = 20000;  // quadrilaterals scored (bounds the time in line-rich scenes)
 constexpr double kMaxOppositeAngleRad = 0.70;  // ~40 deg: opposite sides converge under perspective
 constexpr double kMinCornerSin = 0.42;         // ~25 deg: adjacent sides meet at a real angle
@@ -45,88 +37,12 @@ constexpr int kStaticSidesOfScene = 2;
 // LSD misses weak stretches the gradient search still finds: segments need only cover this share
 // of the side coverage required of the refined edge.
 constexpr double kLineCoverageShare = 0.5;
-
-// Segment ends this far from a line still lie on it: a held board's bow, or the ends' noise.
-double mergeOffsetPx(double end_sigma) { return std::max(kMergeOffsetPx, 2.0 * end_sigma); }
-
-// full-resolution px per LSD px
-double lineDetectionScale(const ImageBoardDetectorOptions& o, int image_width) {
-  return std::max(1.0, static_cast<double>(image_width) / o.line_detection_width_px);
-}
-
-double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-  return a.x() * b.y() - a.y() * b.x();
-}
-
-struct Member {
-  Eigen::Vector2d a, b;
-  double length;
-};
-
-struct MergedLine {
-  Eigen::Vector2d point, dir;  // undistorted px, unit direction
-  std::vector<Member> members;
-  std::vector<std::pair<double, double>> intervals;  // union of member projections along dir
-  double support = 0, t_min = 0, t_max = 0;
-
-  double offset(const Eigen::Vector2d& p) const { return cross2(dir, p - point); }
-  double along(const Eigen::Vector2d& p) const { return dir.dot(p - point); }
-
-  // Length-weighted total least squares through the member segments (each sampled at its ends
-  // and middle), then the union of their projections.
-  void refit() {
-    double w = 0;
-    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-    for (const auto& m : members)
-      for (const Eigen::Vector2d& p : {m.a, m.b, Eigen::Vector2d(0.5 * (m.a + m.b))}) {
-        mean += m.length * p;
-        w += m.length;
-      }
-    mean /= w;
-    Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
-    for (const auto& m : members)
-      for (const Eigen::Vector2d& p : {m.a, m.b, Eigen::Vector2d(0.5 * (m.a + m.b))})
-        cov += m.length * (p - mean) * (p - mean).transpose();
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
-    Eigen::Vector2d d = eig.eigenvectors().col(1);
-    if (d.dot(dir) < 0) d = -d;
-    point = mean;
-    dir = d.normalized();
-    intervals.clear();
-    for (const auto& m : members) {
-      const double ta = along(m.a), tb = along(m.b);
-      intervals.emplace_back(std::min(ta, tb), std::max(ta, tb));
-    }
-    std::sort(intervals.begin(), intervals.end());
-    std::vector<std::pair<double, double>> merged;
-    for (const auto& iv : intervals) {
-      if (!merged.empty() && iv.first <= merged.back().second)
-        merged.back().second = std::max(merged.back().second, iv.second);
-      else
-        merged.push_back(iv);
-    }
-    intervals = std::move(merged);
-    support = 0;
-    for (const auto& iv : intervals) support += iv.second - iv.first;
-    t_min = intervals.front().first;
-    t_max = intervals.back().second;
-  }
-
-  // Support inside [lo, hi] along the line.
-  double supportWithin(double lo, double hi) const {
-    double s = 0;
-    for (const auto& iv : intervals)
-      s += std::max(0.0, std::min(hi, iv.second) - std::max(lo, iv.first));
-    return s;
-  }
-
-  std::array<Eigen::Vector2d, 2> ends() const { return {point + t_min * dir, point + t_max * dir}; }
-
-  Eigen::Vector3d homogeneous() const {
-    const Eigen::Vector2d n(-dir.y(), dir.x());
-    return {n.x(), n.y(), -n.dot(point)};
-  }
-};
+// A line's support ends at a corner within this many segment-end sigmas (plus the corner
+// tolerance share of its extent).
+constexpr double kCornerEndSigmas = 4.0;
+// Lines past the first ones form a quadrilateral only with this many of its 8 line ends at its
+// corners (the rest may be occluded or too faint near the corner).
+constexpr int kMinCornerEnds = 3;
 
 // Bounding box of the image border in undistorted px.
 cv::Rect2d undistortedBounds(const CameraModel& camera) {
@@ -171,10 +87,6 @@ double clippedLength(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const c
   return t1 > t0 ? (t1 - t0) * d.norm() : 0.0;
 }
 
-double angleBetweenLines(const Eigen::Vector2d& d1, const Eigen::Vector2d& d2) {
-  return std::acos(std::min(1.0, std::abs(d1.dot(d2))));
-}
-
 }  // namespace
 
 bool visibleUndistorted(const CameraModel& camera, const Eigen::Vector2d& u, double margin) {
@@ -206,87 +118,6 @@ bool visibleSideInterval(const CameraModel& camera, const Eigen::Vector2d& p,
 
 namespace {
 
-// LSD segments of the downscaled image, in undistorted full-resolution px, longest first.
-// `scale`: full-resolution px per LSD px.
-std::vector<Member> detectSegments(const cv::Mat& gray, const CameraModel& camera,
-                                   const ImageBoardDetectorOptions& o, LineEvidence* evidence,
-                                   double* scale) {
-  *scale = lineDetectionScale(o, gray.cols);
-  cv::Mat small;
-  if (*scale > 1.0)
-    cv::resize(gray, small,
-               cv::Size(static_cast<int>(std::lround(gray.cols / *scale)),
-                        static_cast<int>(std::lround(gray.rows / *scale))),
-               0, 0, cv::INTER_AREA);
-  else
-    small = gray;
-  const double sx = static_cast<double>(gray.cols) / small.cols,
-               sy = static_cast<double>(gray.rows) / small.rows;
-  // LSD with its own a-contrario false-detection control; no internal rescale (done above, by
-  // area averaging, which also lowers the noise).
-  const cv::Ptr<cv::LineSegmentDetector> lsd =
-      cv::createLineSegmentDetector(cv::LSD_REFINE_NONE, 1.0);
-  std::vector<cv::Vec4f> raw_segments;
-  lsd->detect(small, raw_segments);
-
-  std::vector<Member> segments;
-  for (const auto& s : raw_segments) {
-    const double len_small = std::hypot(s[2] - s[0], s[3] - s[1]);
-    if (len_small < kMinSegmentPx) continue;
-    const Eigen::Vector2d a_raw((s[0] + 0.5) * sx - 0.5, (s[1] + 0.5) * sy - 0.5);
-    const Eigen::Vector2d b_raw((s[2] + 0.5) * sx - 0.5, (s[3] + 0.5) * sy - 0.5);
-    if (evidence) evidence->segments_raw.push_back({a_raw, b_raw});
-    Member m{camera.undistortPixel(a_raw), camera.undistortPixel(b_raw), 0};
-    m.length = (m.b - m.a).norm();
-    if (m.length > 0) segments.push_back(m);
-  }
-  if (evidence) evidence->segments = static_cast<int>(segments.size());
-  std::sort(segments.begin(), segments.end(),
-            [](const Member& x, const Member& y) { return x.length > y.length; });
-  return segments;
-}
-
-// Greedy merge, longest first: a segment joins a line when its direction agrees within its own
-// endpoint noise and both its ends lie within the bow of a held board. Returns the lines with
-// enough support, most supported first, at most max_lines (a floor or ceiling has many longer
-// than the board).
-std::vector<MergedLine> mergeSegments(const std::vector<Member>& segments, double end_sigma,
-                                      const ImageBoardDetectorOptions& o, int max_lines) {
-  std::vector<MergedLine> lines;
-  const double max_offset = mergeOffsetPx(end_sigma);
-  for (const Member& s : segments) {
-    const Eigen::Vector2d d = (s.b - s.a) / s.length;
-    const double angle_tol = std::clamp(kMergeSigmas * std::sqrt(2.0) * end_sigma / s.length,
-                                        kMinMergeAngleRad, kMaxMergeAngleRad);
-    MergedLine* host = nullptr;
-    for (auto& l : lines) {
-      if (angleBetweenLines(d, l.dir) > angle_tol) continue;
-      if (std::abs(l.offset(s.a)) > max_offset || std::abs(l.offset(s.b)) > max_offset) continue;
-      host = &l;
-      break;
-    }
-    if (host) {
-      host->members.push_back(s);
-      host->refit();
-    } else {
-      MergedLine l;
-      l.point = s.a;
-      l.dir = d;
-      l.members.push_back(s);
-      l.refit();
-      lines.push_back(std::move(l));
-    }
-  }
-  const double min_support = std::max(o.min_edge_length_px, 0.5 * o.min_board_size_px);
-  lines.erase(std::remove_if(lines.begin(), lines.end(),
-                             [&](const MergedLine& l) { return l.support < min_support; }),
-              lines.end());
-  std::sort(lines.begin(), lines.end(),
-            [](const MergedLine& x, const MergedLine& y) { return x.support > y.support; });
-  if (lines.size() > static_cast<size_t>(max_lines)) lines.resize(max_lines);
-  return lines;
-}
-
 // Which lines may meet at a board corner, and where.
 struct CornerGraph {
   std::vector<std::vector<char>> adjacent;
@@ -294,10 +125,37 @@ struct CornerGraph {
   std::vector<std::vector<int>> neighbours;
 };
 
-// Corner of lines i and j when it is plausible: a real angle, and near both lines' support or
-// outside the image (corners of a board held close often are).
-CornerGraph cornerGraph(const std::vector<MergedLine>& lines, const CameraModel& camera) {
-  const int n = static_cast<int>(lines.size());
+// px: a line's support ending this close to a corner ends there (segment end noise at the LSD
+// scale, and corner rounding of a held board as a share of the line's extent).
+double cornerEndTolerance(const MergedLine& l, double end_sigma) {
+  return kCornerEndSigmas * end_sigma + kCornerToleranceFraction * (l.t_max - l.t_min);
+}
+
+// The line carries support on both sides of c: it crosses there (a grid or a window bay), where a
+// board's side would end.
+bool crossesAt(const MergedLine& l, const Eigen::Vector2d& c, double end_sigma) {
+  const double t = l.along(c), tol = cornerEndTolerance(l, end_sigma);
+  const double inf = std::numeric_limits<double>::infinity();
+  return std::min(l.supportWithin(-inf, t - tol), l.supportWithin(t + tol, inf)) > tol;
+}
+
+// Neither line crosses c and at least one ends there (the other may stop short: occluded, faint).
+bool cornerOfEnds(const MergedLine& a, const MergedLine& b, const Eigen::Vector2d& c,
+                  double end_sigma) {
+  if (crossesAt(a, c, end_sigma) || crossesAt(b, c, end_sigma)) return false;
+  auto endsAt = [&](const MergedLine& l) {
+    const double t = l.along(c), tol = cornerEndTolerance(l, end_sigma);
+    return std::abs(l.t_min - t) <= tol || std::abs(l.t_max - t) <= tol;
+  };
+  return endsAt(a) || endsAt(b);
+}
+
+// Corner of lines i and j (both below n) when it is plausible: a real angle, and near both lines'
+// support or outside the image (corners of a board held close often are). With `ends_only`,
+// only where the lines end rather than cross (cornerOfEnds).
+CornerGraph cornerGraph(const LineSet& set, int n, const CameraModel& camera,
+                        const ImageBoardDetectorOptions& o, bool ends_only) {
+  const std::vector<MergedLine>& lines = set.lines;
   CornerGraph g;
   g.adjacent.assign(n, std::vector<char>(n, 0));
   g.corner.assign(n, std::vector<Eigen::Vector2d>(n, Eigen::Vector2d::Zero()));
@@ -308,14 +166,20 @@ CornerGraph cornerGraph(const std::vector<MergedLine>& lines, const CameraModel&
       if (s < kMinCornerSin) continue;
       Eigen::Vector2d c;
       if (!intersectLines(lines[i].homogeneous(), lines[j].homogeneous(), &c)) continue;
-      const bool outside = !visibleUndistorted(camera, c, 0.0);
+      const bool ends = ends_only && cornerOfEnds(lines[i], lines[j], c, set.end_sigma_px);
+      if (ends_only && !ends) continue;
+      // Where one line ends at the corner, the other may stop as far short of it as a side
+      // that shows its segments along kLineCoverageShare x min_side_coverage of its length
+      // (a hand over the rest of it).
+      const double max_gap =
+          ends ? 1.0 / (kLineCoverageShare * o.min_side_coverage) - 1.0 : kMaxCornerGapFraction;
       bool near = true;
       for (const MergedLine* l : {&lines[i], &lines[j]}) {
         const double t = l->along(c);
         const double gap = std::max({0.0, l->t_min - t, t - l->t_max});
-        near &= gap <= kMaxCornerGapFraction * (l->t_max - l->t_min);
+        near &= gap <= max_gap * (l->t_max - l->t_min);
       }
-      if (!near && !outside) continue;
+      if (!near && visibleUndistorted(camera, c, 0.0)) continue;
       g.adjacent[i][j] = g.adjacent[j][i] = 1;
       g.corner[i][j] = g.corner[j][i] = c;
     }
@@ -323,6 +187,20 @@ CornerGraph cornerGraph(const std::vector<MergedLine>& lines, const CameraModel&
     for (int j = 0; j < n; ++j)
       if (g.adjacent[i][j]) g.neighbours[i].push_back(j);
   return g;
+}
+
+// Line ends that lie at their quadrilateral's corners (of 8).
+int endsAtCorners(const LineSet& set, const std::array<int, 4>& idx,
+                  const std::array<Eigen::Vector2d, 4>& c) {
+  int ends = 0;
+  for (int s = 0; s < 4; ++s) {
+    const MergedLine& l = set.lines[idx[s]];
+    const double tol = cornerEndTolerance(l, set.end_sigma_px);
+    const double tp = l.along(c[(s + 3) % 4]), tr = l.along(c[s]);
+    ends += std::abs(l.t_min - std::min(tp, tr)) <= tol;
+    ends += std::abs(l.t_max - std::max(tp, tr)) <= tol;
+  }
+  return ends;
 }
 
 bool convexPolygon(const std::array<Eigen::Vector2d, 4>& c) {
@@ -366,19 +244,29 @@ bool scoreQuad(const std::vector<MergedLine>& lines, const std::array<int, 4>& i
   return true;
 }
 
+// Which quadrilaterals a search enumerates.
+struct QuadSearch {
+  int lines = 0;               // the first lines of the set that sides are taken from
+  int first_new = 0;           // at least one side from the lines from here on
+  int min_corner_ends = 0;     // line ends at the corners (of 8)
+  bool per_perimeter = false;  // ranked by support per px of perimeter
+  const std::vector<char>* is_static = nullptr;  // lines on the static scene (or none)
+  const ExpectedBoard* expected = nullptr;
+};
+
 // Every convex cycle of four lines (opposite sides may converge under perspective), scored.
-std::vector<QuadHypothesis> enumerateQuads(const std::vector<MergedLine>& lines,
-                                           const CornerGraph& g, const CameraModel& camera,
+std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph& g,
+                                           const CameraModel& camera,
                                            const ImageBoardDetectorOptions& o,
-                                           const ExpectedBoard* expected,
-                                           const std::vector<char>& is_static, bool per_perimeter) {
+                                           const QuadSearch& search) {
+  const std::vector<MergedLine>& lines = set.lines;
   std::vector<QuadHypothesis> quads;
   auto parallel = [&](int i, int k) {
     return angleBetweenLines(lines[i].dir, lines[k].dir) <= kMaxOppositeAngleRad;
   };
+  auto onStatic = [&](int i) { return search.is_static ? (*search.is_static)[i] : 0; };
   const cv::Rect2d ubox = undistortedBounds(camera);
-  const int n = static_cast<int>(lines.size());
-  for (int i = 0; i < n && quads.size() < kMaxQuads; ++i)
+  for (int i = 0; i < search.lines && quads.size() < kMaxQuads; ++i)
     for (const int j : g.neighbours[i]) {
       if (j <= i) continue;
       for (const int k : g.neighbours[j]) {
@@ -386,16 +274,21 @@ std::vector<QuadHypothesis> enumerateQuads(const std::vector<MergedLine>& lines,
         for (const int m : g.neighbours[k]) {
           // i is the smallest index and j < m: each cycle i-j-k-m is met once.
           if (m <= j || !g.adjacent[m][i] || !parallel(j, m)) continue;
+          if (std::max({j, k, m}) < search.first_new) continue;  // enumerated before
           // Four lines of the static scene: a window bay or a door, never the moving board.
-          if (is_static[i] + is_static[j] + is_static[k] + is_static[m] >= kStaticSidesOfScene)
+          if (onStatic(i) + onStatic(j) + onStatic(k) + onStatic(m) >= kStaticSidesOfScene)
             continue;
           const std::array<int, 4> idx = {i, j, k, m};
           std::array<Eigen::Vector2d, 4> c;
           for (int s = 0; s < 4; ++s) c[s] = g.corner[idx[s]][idx[(s + 1) % 4]];
           if (!convexPolygon(c)) continue;
+          const int ends = search.min_corner_ends > 0 ? endsAtCorners(set, idx, c) : 0;
+          if (ends < search.min_corner_ends) continue;
           QuadHypothesis q;
           if (!scoreQuad(lines, idx, c, ubox, o, &q)) continue;
-          if (expected && worstCornerOffset(c, expected->corners_px) > expected->tolerance_px)
+          q.corner_ends = ends;
+          if (search.expected &&
+              worstCornerOffset(c, search.expected->corners_px) > search.expected->tolerance_px)
             continue;
           quads.push_back(q);
         }
@@ -404,10 +297,14 @@ std::vector<QuadHypothesis> enumerateQuads(const std::vector<MergedLine>& lines,
   // Per perimeter, a 100 px board and a 1000 px facade rectangle whose sides are equally well
   // evidenced rank alike; by absolute support the facade always comes first.
   const auto rank = [&](const QuadHypothesis& q) {
-    return per_perimeter ? q.score / (kNumEdges * q.size_px) : q.score;
+    return search.per_perimeter ? q.score / (kNumEdges * q.size_px) : q.score;
   };
-  std::sort(quads.begin(), quads.end(),
-            [&](const QuadHypothesis& x, const QuadHypothesis& y) { return rank(x) > rank(y); });
+  // Among weak lines, the quadrilateral whose lines end at more of its corners first (a scene
+  // grid's larger cells outscore a board on support alone).
+  std::sort(quads.begin(), quads.end(), [&](const QuadHypothesis& x, const QuadHypothesis& y) {
+    if (x.corner_ends != y.corner_ends) return x.corner_ends > y.corner_ends;
+    return rank(x) > rank(y);
+  });
   return quads;
 }
 
@@ -451,52 +348,60 @@ std::vector<QuadHypothesis> keepBest(std::vector<QuadHypothesis>* quads, const C
 
 }  // namespace
 
-double sameLineTolerancePx(const ImageBoardDetectorOptions& o, int image_width) {
-  if (o.line_detection_width_px <= 0) return kMergeOffsetPx;
-  return mergeOffsetPx(kSegmentEndSigmaPx * lineDetectionScale(o, image_width));
-}
-
-std::vector<std::array<Eigen::Vector2d, 2>> sceneLines(const cv::Mat& gray,
-                                                       const CameraModel& camera,
-                                                       const ImageBoardDetectorOptions& o) {
+LineQuads lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
+                             const ImageBoardDetectorOptions& o, LineEvidence* evidence,
+                             const ExpectedBoard* expected,
+                             const std::vector<std::array<Eigen::Vector2d, 2>>* static_lines) {
   if (o.line_detection_width_px <= 0) return {};
-  double scale = 1.0;
-  const std::vector<Member> segments = detectSegments(gray, camera, o, nullptr, &scale);
-  std::vector<std::array<Eigen::Vector2d, 2>> out;
-  for (const MergedLine& l : mergeSegments(segments, kSegmentEndSigmaPx * scale, o,
-                                           std::max(o.max_lines, o.max_lines_static_scene)))
-    out.push_back(l.ends());
-  return out;
-}
-
-std::vector<QuadHypothesis> lineQuadHypotheses(
-    const cv::Mat& gray, const CameraModel& camera, const ImageBoardDetectorOptions& o,
-    LineEvidence* evidence, const ExpectedBoard* expected,
-    const std::vector<std::array<Eigen::Vector2d, 2>>* static_lines) {
-  if (o.line_detection_width_px <= 0) return {};
-  double scale = 1.0;
-  const std::vector<Member> segments = detectSegments(gray, camera, o, evidence, &scale);
   // Once a session knows the static scene, its quadrilaterals are not tried: the search can
   // afford more lines and a scale-free ranking, so a far board competes with near windows.
   // Every line a session may learn is reported (evidence), the quadrilaterals use the first
   // max_lines until the scene is known.
   const bool scene_known = static_lines && !static_lines->empty();
-  std::vector<MergedLine> lines = mergeSegments(segments, kSegmentEndSigmaPx * scale, o,
-                                                std::max(o.max_lines, o.max_lines_static_scene));
-  for (const MergedLine& l : lines)
+  const LineSet set =
+      detectLines(gray, camera, o, evidence, std::max(o.max_lines, o.max_lines_static_scene));
+  const int all = static_cast<int>(set.lines.size());
+  for (const MergedLine& l : set.lines)
     if (evidence) evidence->line_ends.push_back(l.ends());
-  const size_t used = static_cast<size_t>(scene_known ? o.max_lines_static_scene : o.max_lines);
-  if (lines.size() > used) lines.resize(used);
-  if (evidence) evidence->lines = static_cast<int>(lines.size());
+  QuadSearch best;
+  best.lines = std::min(all, scene_known ? o.max_lines_static_scene : o.max_lines);
+  best.per_perimeter = scene_known;
+  best.expected = expected;
+  if (evidence) evidence->lines = best.lines;
   const double tolerance = sameLineTolerancePx(o, gray.cols);
-  std::vector<char> is_static(lines.size(), 0);
-  for (size_t k = 0; k < lines.size() && scene_known; ++k)
-    for (const auto& s : *static_lines) is_static[k] |= sameLine(lines[k].ends(), s, tolerance);
-  if (lines.size() < static_cast<size_t>(kNumEdges)) return {};
-  std::vector<QuadHypothesis> quads = enumerateQuads(lines, cornerGraph(lines, camera), camera, o,
-                                                     expected, is_static, scene_known);
+  std::vector<char> is_static(best.lines, 0);
+  for (int k = 0; k < best.lines && scene_known; ++k)
+    for (const auto& s : *static_lines) is_static[k] |= sameLine(set.lines[k].ends(), s, tolerance);
+  best.is_static = &is_static;
+  if (best.lines < kNumEdges) return {};
+  LineQuads out;
+  std::vector<QuadHypothesis> quads =
+      enumerateQuads(set, cornerGraph(set, best.lines, camera, o, false), camera, o, best);
   if (evidence) evidence->quads = static_cast<int>(quads.size());
-  return keepBest(&quads, camera, o);
+  out.best = keepBest(&quads, camera, o);
+  // The board's sides may rank far below a line-rich scene's (an office ceiling and floor): the
+  // lines past the first ones give quadrilaterals only where the lines end at the corners, as
+  // a board's sides do and a scene grid's crossing lines do not.
+  if (all > best.lines) {
+    QuadSearch ends;
+    ends.lines = all;
+    ends.first_new = best.lines;
+    ends.min_corner_ends = kMinCornerEnds;
+    ends.expected = expected;
+    std::vector<QuadHypothesis> more =
+        enumerateQuads(set, cornerGraph(set, all, camera, o, true), camera, o, ends);
+    // The line cap hid them, not their support: each must carry as much as the quadrilaterals
+    // kept from the best lines (a door of a street facade does not).
+    if (out.best.size() >= static_cast<size_t>(o.max_line_hypotheses)) {
+      double least = out.best.front().score;
+      for (const auto& q : out.best) least = std::min(least, q.score);
+      more.erase(std::remove_if(more.begin(), more.end(),
+                                [&](const QuadHypothesis& q) { return q.score < least; }),
+                 more.end());
+    }
+    out.ending_at_corners = keepBest(&more, camera, o);
+  }
+  return out;
 }
 
 }  // namespace image_detection

@@ -24,6 +24,7 @@ constexpr double kContinuationFraction = 0.25;
 // (clutter as close as the board is small), so fewer testable ends are not judged.
 constexpr int kMinContinuingEnds = 3;
 constexpr int kMinTestedEnds = 6;
+constexpr double kWeakLinesRmsShare = 0.5;  // of the corner misfit (fromQuad)
 
 // Names and refines the sides; returns the number of valid edges (support filled).
 int refineSides(const cv::Mat& gray, const CameraModel& camera, const ImageBoardDetectorOptions& o,
@@ -115,7 +116,7 @@ PoseFit boardPose(const Target& target, const ImageBoardDetectorOptions& o, Imag
 
 // The pose must fit the declared size and put the board at a plausible distance and tilt.
 bool plausiblePose(const Target& target, const ImageBoardDetectorOptions& o, const PoseFit& pose,
-                   double perimeter, ImageDetection* out) {
+                   double perimeter, double rms_share, ImageDetection* out) {
   CameraBoardFeatures& f = out->features;
   ImageDetectionDetails& d = out->details;
   if (!pose.ok) {
@@ -129,6 +130,7 @@ bool plausiblePose(const Target& target, const ImageBoardDetectorOptions& o, con
   d.pose_covariance = pose.covariance;
   // Corner misfit grows with the board in the image (flex, a slightly wrong declared size).
   const double max_rms =
+      rms_share *
       std::min(o.max_plain_corner_rms_px, o.max_plain_corner_rms_fraction * perimeter / kNumEdges);
   if (pose.rms_px > max_rms) {
     f.reason = cv::format("corners do not fit a %.3f x %.3f m board (rms %.2f px > %.2f)",
@@ -186,9 +188,13 @@ bool sidesEndAtCorners(const cv::Mat& gray, const CameraModel& camera,
 }  // namespace
 
 Hypothesis fromQuad(const QuadHypothesis& q, const CameraModel& camera,
-                    const ImageBoardDetectorOptions& o) {
+                    const ImageBoardDetectorOptions& o, bool weak) {
   Hypothesis h;
-  h.source = "lines";
+  h.source = weak ? "weak lines" : "lines";
+  // Lines past the best-supported ones carry no prior of being the board: a scene rectangle of
+  // about the board's shape (a glass pane of the office fits a 0.8 x 0.6 m board to 8.4 px of
+  // 10) must not pass on the lenient fit a held board's flex needs.
+  if (weak) h.max_rms_share = kWeakLinesRmsShare;
   h.inside_u = 0.25 * (q.corners[0] + q.corners[1] + q.corners[2] + q.corners[3]);
   for (int s = 0; s < kNumEdges; ++s) {
     Eigen::Vector2d a, b;
@@ -253,7 +259,7 @@ bool fitCandidate(const cv::Mat& gray, const CameraModel& camera, const Target& 
   if (!convexCorners(o, &f, &perimeter)) return false;
   if (!sidesEndAtCorners(gray, camera, o, min_gradient, &f)) return false;
   const PoseFit pose = boardPose(target, o, out);
-  if (!plausiblePose(target, o, pose, perimeter, out)) return false;
+  if (!plausiblePose(target, o, pose, perimeter, h.max_rms_share, out)) return false;
   f.found = true;
   return true;
 }

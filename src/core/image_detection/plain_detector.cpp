@@ -121,6 +121,32 @@ bool onStaticRectangle(const StaticScene& excluded, ImageDetection* attempt) {
   return false;
 }
 
+// The board (or the attempt that got furthest, or why nothing was tried) and what was seen.
+void report(HypothesisSearch&& search, LineEvidence&& evidence, const std::string& region_reason,
+            bool no_hypotheses, double noise, ImageDetection* out) {
+  if (search.found()) {
+    *out = std::move(search.best_found);
+  } else if (search.best_valid >= 0) {
+    *out = std::move(search.best_miss);
+  } else {
+    out->features.reason =
+        no_hypotheses && evidence.lines < kNumEdges
+            ? region_reason + cv::format("; %d straight lines from %d segments (need 4)",
+                                         evidence.lines, evidence.segments)
+            : region_reason +
+                  cv::format("; no quadrilateral of straight edges among %d lines", evidence.lines);
+  }
+  out->details.segments_raw = std::move(evidence.segments_raw);
+  out->details.lines_px = std::move(evidence.line_ends);
+  out->details.line_segments = evidence.segments;
+  out->details.straight_lines = evidence.lines;
+  out->details.line_quads = evidence.quads;
+  out->details.hypotheses_px = std::move(search.tried);
+  out->details.hypothesis_reasons = std::move(search.reasons);
+  out->details.boards_px = std::move(search.boards);
+  out->details.noise_sigma = noise;
+}
+
 }  // namespace
 
 void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& target,
@@ -147,7 +173,8 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
   const size_t first_regions = hypotheses.size();
   const std::string region_reason = seg.reason();
   LineEvidence evidence;
-  std::vector<QuadHypothesis> quads;
+  LineQuads line_quads;
+  std::vector<QuadHypothesis> quads;  // the line hypotheses tried, in order
 
   const ImageDetection fresh = *out;
   HypothesisSearch search;
@@ -163,9 +190,19 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     // Line evidence (the costly part) unless a region already gave a board whose four sides
     // show their edge along nearly all their visible length.
     if (i == regions && !search.cleanBoard()) {
-      quads = lineQuadHypotheses(gray, camera, o, &evidence, expected,
-                                 excluded ? &excluded->lines_px : nullptr);
+      line_quads = lineQuadHypotheses(gray, camera, o, &evidence, expected,
+                                      excluded ? &excluded->lines_px : nullptr);
+      quads = line_quads.best;
       for (const auto& q : quads) hypotheses.push_back(fromQuad(q, camera, o));
+    }
+    // Quadrilaterals of the weaker lines only when nothing else was the board.
+    if (i == hypotheses.size() && i >= regions && !search.found() &&
+        !line_quads.ending_at_corners.empty()) {
+      for (auto& q : line_quads.ending_at_corners) {
+        hypotheses.push_back(fromQuad(q, camera, o, true));
+        quads.push_back(std::move(q));
+      }
+      line_quads.ending_at_corners.clear();
     }
     if (i >= hypotheses.size()) break;
     if (i >= first_regions && i < regions && search.found())
@@ -192,27 +229,7 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     const auto corners = i >= regions ? quads[i - regions].corners : attempt.features.corners_px;
     search.record(hypotheses[i], corners, is_board, support, std::move(attempt));
   }
-  if (search.found()) {
-    *out = std::move(search.best_found);
-  } else if (search.best_valid >= 0) {
-    *out = std::move(search.best_miss);
-  } else {
-    out->features.reason =
-        hypotheses.empty() && evidence.lines < kNumEdges
-            ? region_reason + cv::format("; %d straight lines from %d segments (need 4)",
-                                         evidence.lines, evidence.segments)
-            : region_reason +
-                  cv::format("; no quadrilateral of straight edges among %d lines", evidence.lines);
-  }
-  out->details.segments_raw = std::move(evidence.segments_raw);
-  out->details.lines_px = std::move(evidence.line_ends);
-  out->details.line_segments = evidence.segments;
-  out->details.straight_lines = evidence.lines;
-  out->details.line_quads = evidence.quads;
-  out->details.hypotheses_px = std::move(search.tried);
-  out->details.hypothesis_reasons = std::move(search.reasons);
-  out->details.boards_px = std::move(search.boards);
-  out->details.noise_sigma = noise;
+  report(std::move(search), std::move(evidence), region_reason, hypotheses.empty(), noise, out);
 }
 
 }  // namespace image_detection

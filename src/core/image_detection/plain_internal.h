@@ -59,12 +59,14 @@ struct Hypothesis {
   Eigen::Vector2d inside_u = Eigen::Vector2d::Zero();
   Points2 outline_raw;
   const char* source = "";
+  double max_rms_share = 1.0;  ///< of the corner misfit a board may have
 };
 
 Hypothesis fromRegion(const RegionCandidate& board, double sx, cv::Size small_size,
                       const CameraModel& camera, const ImageBoardDetectorOptions& o);
+/// `weak`: a quadrilateral of lines that the line ranking passed over.
 Hypothesis fromQuad(const QuadHypothesis& q, const CameraModel& camera,
-                    const ImageBoardDetectorOptions& o);
+                    const ImageBoardDetectorOptions& o, bool weak = false);
 
 /// One side refined at full resolution.
 struct EdgeFit {

@@ -1,0 +1,180 @@
+// The line stage of the plain detector (as PBPC-Cal does with LSD): segments from OpenCV's line
+// segment detector on a downscaled image, merged in undistorted pixels into long straight lines
+// of either polarity.
+#include "line_internal.h"
+
+#include <Eigen/Eigenvalues>
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+namespace board_calib {
+namespace image_detection {
+namespace {
+
+constexpr double kMinSegmentPx = 5.0;       // LSD-scale px: shorter segments are texture, not edges
+constexpr double kSegmentEndSigmaPx = 0.7;  // LSD-scale px, endpoint noise of a segment
+constexpr double kMergeSigmas = 3.0;        // angle tolerance of a merge, in endpoint-noise sigmas
+constexpr double kMinMergeAngleRad = 0.02;  // ~1 deg: floor of that tolerance (long segments)
+constexpr double kMaxMergeAngleRad = 0.10;  // ~6 deg: cap (short segments)
+constexpr double kMergeOffsetPx = 3.5;      // full-res px: a held board bows ~3 px
+
+// Segment ends this far from a line still lie on it: a held board's bow, or the ends' noise.
+double mergeOffsetPx(double end_sigma) { return std::max(kMergeOffsetPx, 2.0 * end_sigma); }
+
+// full-resolution px per LSD px
+double lineDetectionScale(const ImageBoardDetectorOptions& o, int image_width) {
+  return std::max(1.0, static_cast<double>(image_width) / o.line_detection_width_px);
+}
+
+// LSD segments of the downscaled image, in undistorted full-resolution px, longest first.
+// `scale`: full-resolution px per LSD px.
+std::vector<Member> detectSegments(const cv::Mat& gray, const CameraModel& camera,
+                                   const ImageBoardDetectorOptions& o, LineEvidence* evidence,
+                                   double* scale) {
+  *scale = lineDetectionScale(o, gray.cols);
+  cv::Mat small;
+  if (*scale > 1.0)
+    cv::resize(gray, small,
+               cv::Size(static_cast<int>(std::lround(gray.cols / *scale)),
+                        static_cast<int>(std::lround(gray.rows / *scale))),
+               0, 0, cv::INTER_AREA);
+  else
+    small = gray;
+  const double sx = static_cast<double>(gray.cols) / small.cols,
+               sy = static_cast<double>(gray.rows) / small.rows;
+  // LSD with its own a-contrario false-detection control; no internal rescale (done above, by
+  // area averaging, which also lowers the noise).
+  const cv::Ptr<cv::LineSegmentDetector> lsd =
+      cv::createLineSegmentDetector(cv::LSD_REFINE_NONE, 1.0);
+  std::vector<cv::Vec4f> raw_segments;
+  lsd->detect(small, raw_segments);
+
+  std::vector<Member> segments;
+  for (const auto& s : raw_segments) {
+    const double len_small = std::hypot(s[2] - s[0], s[3] - s[1]);
+    if (len_small < kMinSegmentPx) continue;
+    const Eigen::Vector2d a_raw((s[0] + 0.5) * sx - 0.5, (s[1] + 0.5) * sy - 0.5);
+    const Eigen::Vector2d b_raw((s[2] + 0.5) * sx - 0.5, (s[3] + 0.5) * sy - 0.5);
+    if (evidence) evidence->segments_raw.push_back({a_raw, b_raw});
+    Member m{camera.undistortPixel(a_raw), camera.undistortPixel(b_raw), 0};
+    m.length = (m.b - m.a).norm();
+    if (m.length > 0) segments.push_back(m);
+  }
+  if (evidence) evidence->segments = static_cast<int>(segments.size());
+  std::sort(segments.begin(), segments.end(),
+            [](const Member& x, const Member& y) { return x.length > y.length; });
+  return segments;
+}
+
+// Greedy merge, longest first: a segment joins a line when its direction agrees within its own
+// endpoint noise and both its ends lie within the bow of a held board. Returns the lines with
+// enough support, most supported first, at most max_lines (a floor or ceiling has many longer
+// than the board).
+std::vector<MergedLine> mergeSegments(const std::vector<Member>& segments, double end_sigma,
+                                      const ImageBoardDetectorOptions& o, int max_lines) {
+  std::vector<MergedLine> lines;
+  const double max_offset = mergeOffsetPx(end_sigma);
+  for (const Member& s : segments) {
+    const Eigen::Vector2d d = (s.b - s.a) / s.length;
+    const double angle_tol = std::clamp(kMergeSigmas * std::sqrt(2.0) * end_sigma / s.length,
+                                        kMinMergeAngleRad, kMaxMergeAngleRad);
+    MergedLine* host = nullptr;
+    for (auto& l : lines) {
+      if (angleBetweenLines(d, l.dir) > angle_tol) continue;
+      if (std::abs(l.offset(s.a)) > max_offset || std::abs(l.offset(s.b)) > max_offset) continue;
+      host = &l;
+      break;
+    }
+    if (host) {
+      host->members.push_back(s);
+      host->refit();
+    } else {
+      MergedLine l;
+      l.point = s.a;
+      l.dir = d;
+      l.members.push_back(s);
+      l.refit();
+      lines.push_back(std::move(l));
+    }
+  }
+  const double min_support = std::max(o.min_edge_length_px, 0.5 * o.min_board_size_px);
+  lines.erase(std::remove_if(lines.begin(), lines.end(),
+                             [&](const MergedLine& l) { return l.support < min_support; }),
+              lines.end());
+  std::sort(lines.begin(), lines.end(),
+            [](const MergedLine& x, const MergedLine& y) { return x.support > y.support; });
+  if (lines.size() > static_cast<size_t>(max_lines)) lines.resize(max_lines);
+  return lines;
+}
+
+}  // namespace
+
+void MergedLine::refit() {
+  double w = 0;
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (const auto& m : members)
+    for (const Eigen::Vector2d& p : {m.a, m.b, Eigen::Vector2d(0.5 * (m.a + m.b))}) {
+      mean += m.length * p;
+      w += m.length;
+    }
+  mean /= w;
+  Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+  for (const auto& m : members)
+    for (const Eigen::Vector2d& p : {m.a, m.b, Eigen::Vector2d(0.5 * (m.a + m.b))})
+      cov += m.length * (p - mean) * (p - mean).transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
+  Eigen::Vector2d d = eig.eigenvectors().col(1);
+  if (d.dot(dir) < 0) d = -d;
+  point = mean;
+  dir = d.normalized();
+  intervals.clear();
+  for (const auto& m : members) {
+    const double ta = along(m.a), tb = along(m.b);
+    intervals.emplace_back(std::min(ta, tb), std::max(ta, tb));
+  }
+  std::sort(intervals.begin(), intervals.end());
+  std::vector<std::pair<double, double>> merged;
+  for (const auto& iv : intervals) {
+    if (!merged.empty() && iv.first <= merged.back().second)
+      merged.back().second = std::max(merged.back().second, iv.second);
+    else
+      merged.push_back(iv);
+  }
+  intervals = std::move(merged);
+  support = 0;
+  for (const auto& iv : intervals) support += iv.second - iv.first;
+  t_min = intervals.front().first;
+  t_max = intervals.back().second;
+}
+
+LineSet detectLines(const cv::Mat& gray, const CameraModel& camera,
+                    const ImageBoardDetectorOptions& o, LineEvidence* evidence, int max_lines) {
+  double scale = 1.0;
+  const std::vector<Member> segments = detectSegments(gray, camera, o, evidence, &scale);
+  LineSet set;
+  set.end_sigma_px = kSegmentEndSigmaPx * scale;
+  set.lines = mergeSegments(segments, set.end_sigma_px, o, max_lines);
+  return set;
+}
+
+double sameLineTolerancePx(const ImageBoardDetectorOptions& o, int image_width) {
+  if (o.line_detection_width_px <= 0) return kMergeOffsetPx;
+  return mergeOffsetPx(kSegmentEndSigmaPx * lineDetectionScale(o, image_width));
+}
+
+std::vector<std::array<Eigen::Vector2d, 2>> sceneLines(const cv::Mat& gray,
+                                                       const CameraModel& camera,
+                                                       const ImageBoardDetectorOptions& o) {
+  if (o.line_detection_width_px <= 0) return {};
+  std::vector<std::array<Eigen::Vector2d, 2>> out;
+  for (const MergedLine& l :
+       detectLines(gray, camera, o, nullptr, std::max(o.max_lines, o.max_lines_static_scene)).lines)
+    out.push_back(l.ends());
+  return out;
+}
+
+}  // namespace image_detection
+}  // namespace board_calib
