@@ -1,8 +1,9 @@
 // Ground truth of a simulated LiDAR board for the detector tests: its plane, its corners in the
-// detector's order, and the error of a detected edge line against the true edge.
+// detector's order, the error of a detected edge line against the true edge, a candidate's log line.
 #pragma once
 
 #include <board_calib/core/features.h>
+#include <board_calib/core/lidar_detection/lidar_board_detector.h>
 #include <board_calib/core/sim/simulator.h>
 #include <board_calib/core/target.h>
 #include <board_calib/core/transform.h>
@@ -12,6 +13,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <vector>
 
 namespace board_calib {
@@ -74,6 +76,14 @@ inline double sampleRingSpacingRad(const sim::LidarSpec& spec, const Eigen::Vect
   if (it == el.begin()) it = el.begin() + 1;
   if (it == el.end()) it = el.end() - 1;
   return (*it - *(it - 1)) * kRadPerDeg;
+}
+
+/// One line per detector candidate, for the log of a missed board.
+inline void printCandidate(const LidarBoardCandidate& c) {
+  std::printf(
+      "    cand n=%d at (%.2f %.2f %.2f) rect %.2f x %.2f fill %.2f rms %.3f score %.1f %s\n",
+      c.num_points, c.centroid.x(), c.centroid.y(), c.centroid.z(), c.rectangle_m.x(),
+      c.rectangle_m.y(), c.fill_ratio, c.rms_m, c.score, c.rejected_because.c_str());
 }
 
 }  // namespace lidar_truth

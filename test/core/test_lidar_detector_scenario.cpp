@@ -90,12 +90,7 @@ SessionTally runSession(const sim::Scenario& scenario, bool stateful, const char
       std::printf("[%s] cloud %zu at %.1f m, %d lines: missed: %s\n", label, i, centre.norm(),
                   lines, f.reason.c_str());
       if (std::getenv("LIDAR_TEST_VERBOSE"))
-        for (const auto& c : det.candidates)
-          std::printf(
-              "    cand n=%d at (%.2f %.2f %.2f) rect %.2f x %.2f fill %.2f rms %.3f score %.1f "
-              "%s\n",
-              c.num_points, c.centroid.x(), c.centroid.y(), c.centroid.z(), c.rectangle_m.x(),
-              c.rectangle_m.y(), c.fill_ratio, c.rms_m, c.score, c.rejected_because.c_str());
+        for (const auto& c : det.candidates) printCandidate(c);
       continue;
     }
     ++t.found;

@@ -76,12 +76,7 @@ SweepResult sweep(const std::string& lidar, bool organized_with_ring, bool perso
       std::printf("%s %s frame %d: %s\n", lidar.c_str(), organized_with_ring ? "organized" : "flat",
                   i, f.reason.c_str());
       for (const auto& c : det.candidates)
-        if (c.num_points > 200)
-          std::printf(
-              "    cand n=%d at (%.2f %.2f %.2f) rect %.2f x %.2f fill %.2f rms %.3f score %.1f "
-              "%s\n",
-              c.num_points, c.centroid.x(), c.centroid.y(), c.centroid.z(), c.rectangle_m.x(),
-              c.rectangle_m.y(), c.fill_ratio, c.rms_m, c.score, c.rejected_because.c_str());
+        if (c.num_points > 200) printCandidate(c);
       continue;
     }
     ++r.found;
