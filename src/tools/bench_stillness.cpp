@@ -1,7 +1,8 @@
 // bench_stillness: the stillness judge on simulated recordings, against the simulator's truth
 // (issue 14 item 3, docs/BENCHMARKS.md "Session 6: stillness of far sparse boards").
 //   bench_stillness [--scenario FILE] [--seeds 21,22] [--poses N] [--hz RATE] [--images]
-//                   [--session]
+//                   [--pairs-only] [--session]
+// --pairs-only: the judge without the drift fit over the window (the session 6 judge).
 // --session: each seed's recording through the whole pair pipeline (as calibrate_bag: image
 // memory and its pre-pass, stillness, consistency, PBPC, verdict), one table row per seed.
 // Every cloud goes through the LiDAR detector with session memory (as the pipeline); with
@@ -126,8 +127,8 @@ void printCloud(const sim::Frame& f, const LidarBoardFeatures& l, const BoardSam
 // Judges every image with a board, as a PairSession does, and counts against the truth.
 Counts judgeImages(const std::deque<BoardSample>& lidar_samples, const StreamClock& lidar_clock,
                    const std::deque<BoardSample>& camera_samples, const StreamClock& camera_clock,
-                   const std::vector<std::pair<double, int>>& image_frames, unsigned seed) {
-  const StillnessOptions o = SessionOptions{}.stillness();
+                   const std::vector<std::pair<double, int>>& image_frames, unsigned seed,
+                   const StillnessOptions& o) {
   const std::vector<StillnessStream> streams{{&lidar_samples, &lidar_clock, "LiDAR"},
                                              {&camera_samples, &camera_clock, "camera"}};
   Counts n;
@@ -158,7 +159,8 @@ Counts judgeImages(const std::deque<BoardSample>& lidar_samples, const StreamClo
   return n;
 }
 
-Counts runSeed(const sim::Scenario& base, unsigned seed, int poses, double hz, bool images) {
+Counts runSeed(const sim::Scenario& base, unsigned seed, int poses, double hz, bool images,
+               const StillnessOptions& o) {
   const sim::Scenario s = test_support::captureScenario(base, 1.0, hz, false, poses, seed);
   auto timeline = sim::makeTimeline(s);
   auto gen = sim::FrameGenerator::create(s);
@@ -218,7 +220,8 @@ Counts runSeed(const sim::Scenario& base, unsigned seed, int poses, double hz, b
   }
   std::printf("seed %u, camera %.0f Hz:\n", seed, hz);
   printHoldNoise(holds);
-  return judgeImages(lidar_samples, lidar_clock, camera_samples, camera_clock, image_frames, seed);
+  return judgeImages(lidar_samples, lidar_clock, camera_samples, camera_clock, image_frames, seed,
+                     o);
 }
 
 // One table row: the recording through the pipeline, calibrated, scored against the truth.
@@ -258,15 +261,20 @@ int main(int argc, char** argv) {
   int poses = 8;
   double hz = 2.0;
   bool images = false, session = false;
+  StillnessOptions still = SessionOptions{}.stillness();
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--images" || a == "--session") {
       (a == "--images" ? images : session) = true;
       continue;
     }
+    if (a == "--pairs-only") {  // the judge without the drift fit, for comparison
+      still.fit_drift = false;
+      continue;
+    }
     if (i + 1 >= argc) {
       std::cerr << "usage: bench_stillness [--scenario FILE] [--seeds 21,22] [--poses N] "
-                   "[--hz RATE] [--images]\n";
+                   "[--hz RATE] [--images] [--pairs-only] [--session]\n";
       return a == "--help" ? 0 : 2;
     }
     const std::string v = argv[++i];
@@ -305,7 +313,8 @@ int main(int argc, char** argv) {
   }
   Counts all;
   for (const auto& seed : split(seeds)) {
-    const Counts n = runSeed(*base, static_cast<unsigned>(std::stoul(seed)), poses, hz, images);
+    const Counts n =
+        runSeed(*base, static_cast<unsigned>(std::stoul(seed)), poses, hz, images, still);
     all.held += n.held;
     all.still += n.still;
     all.moving += n.moving;

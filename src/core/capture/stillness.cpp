@@ -70,21 +70,38 @@ struct Motion {
   std::string why;
 };
 
-Motion motionOf(const BoardSample& x, const BoardSample& ref, const StillnessOptions& o) {
-  const bool edges = x.centre_from_edges && ref.centre_from_edges;
-  Eigen::Vector3d d = x.centroid - ref.centroid;
-  double sx = x.centroid_sigma_m, sr = ref.centroid_sigma_m;
+// The board's displacement from `ref` to `x` and each frame's in-plane 1 sigma: the centres from
+// the edges when both have them, else the centroids of the scan lines both have, else the
+// centroids of all points.
+struct Displacement {
+  Eigen::Vector3d d = Eigen::Vector3d::Zero();
+  double sx = 0.0, sr = 0.0;
   const char* what = " of the centroids";
+};
+
+Displacement displacementOf(const BoardSample& x, const BoardSample& ref) {
+  Displacement r;
+  r.d = x.centroid - ref.centroid;
+  r.sx = x.centroid_sigma_m;
+  r.sr = ref.centroid_sigma_m;
   Eigen::Vector3d cx, cr;
-  if (edges) {
-    d = x.centre - ref.centre;
-    sx = x.centre_sigma_m;
-    sr = ref.centre_sigma_m;
-    what = " from the edges";
-  } else if (sharedLineCentroids(x, ref, &cx, &cr, &sx, &sr)) {
-    d = cx - cr;
-    what = " of the shared scan lines";
+  if (x.centre_from_edges && ref.centre_from_edges) {
+    r.d = x.centre - ref.centre;
+    r.sx = x.centre_sigma_m;
+    r.sr = ref.centre_sigma_m;
+    r.what = " from the edges";
+  } else if (sharedLineCentroids(x, ref, &cx, &cr, &r.sx, &r.sr)) {
+    r.d = cx - cr;
+    r.what = " of the shared scan lines";
   }
+  return r;
+}
+
+Motion motionOf(const BoardSample& x, const BoardSample& ref, const StillnessOptions& o) {
+  const Displacement disp = displacementOf(x, ref);
+  const Eigen::Vector3d& d = disp.d;
+  const double sx = disp.sx, sr = disp.sr;
+  const char* what = disp.what;
   const Eigen::Vector3d n = ref.normal.normalized();
   const double along = std::abs(d.dot(n));
   const double in_plane = (d - d.dot(n) * n).norm();
@@ -98,13 +115,77 @@ Motion motionOf(const BoardSample& x, const BoardSample& ref, const StillnessOpt
   m.moving = in_plane > in_tol || along > along_tol || turn > turn_tol;
   const auto cm = [](double v) { return formatFixed(v * 100, 1); };
   m.why = cm(in_plane) + " cm in its plane (allowed " + cm(in_tol) + ", 1 sigma " + cm(sx) + "/" +
-          cm(sr) + what + "), " + cm(along) +
-          " cm along its normal (allowed " + cm(along_tol) + "), turn " +
-          formatFixed(turn * kDegPerRadian, 1) + " deg (allowed " +
+          cm(sr) + what + "), " + cm(along) + " cm along its normal (allowed " + cm(along_tol) +
+          "), turn " + formatFixed(turn * kDegPerRadian, 1) + " deg (allowed " +
           formatFixed(turn_tol * kDegPerRadian, 1) + ")";
   if (x.scan_lines > 0 || ref.scan_lines > 0)
     m.why +=
         "; " + std::to_string(x.scan_lines) + "/" + std::to_string(ref.scan_lines) + " scan lines";
+  return m;
+}
+
+// A steady drift over the whole window, which no single pair of frames resolves: a straight
+// line fitted (ordinary least squares in time, so no frame's claimed sigma steers the slope) to
+// the positions of every frame seeing the board, per axis of the reference board plane and along
+// its normal, and the fitted displacement from the first frame to the last against the same
+// allowance as a pair: max_translation_m + noise_factor x its own 1 sigma. That 1 sigma is the
+// frames' sigmas propagated through the fit, sigma_D = span sqrt(sum c_i^2 s_i^2) / sum c_i^2
+// (c_i = t_i - mean t): the slope averages the independent noise of all N frames, about
+// s sqrt(12 / N) over the span (5 frames: 1.3 s over 0.4 s), where a pair has sqrt(2) s over
+// half the span. Positions: the centres from the edges when every frame has them (then the
+// reference's own error is a common offset, which no slope sees); else each frame's displacement
+// from the reference as a pair measures it, with both frames' sigmas (the shared scan lines
+// differ from pair to pair, so the reference's error is counted for each: conservative). Needs 3
+// frames (2 are a pair, judged already).
+Motion driftOf(const std::vector<const BoardSample*>& xs, const BoardSample& ref,
+               const StillnessOptions& o) {
+  Motion m;
+  if (xs.size() < 3) return m;
+  bool edges = true;
+  double t_mean = 0.0;
+  for (const BoardSample* x : xs) {
+    edges = edges && x->centre_from_edges;
+    t_mean += x->stamp;
+  }
+  t_mean /= static_cast<double>(xs.size());
+  const Eigen::Vector3d n = ref.normal.normalized();
+  Eigen::Vector3d slope_sum = Eigen::Vector3d::Zero();
+  double cc = 0.0, in_var = 0.0, along_var = 0.0, t_lo = xs.front()->stamp, t_hi = t_lo;
+  for (const BoardSample* x : xs) {
+    const double c = x->stamp - t_mean;
+    Eigen::Vector3d p = x->centre - ref.centre;
+    double s = x->centre_sigma_m, a = x->plane_sigma_m;
+    if (!edges && x != &ref) {
+      const Displacement disp = displacementOf(*x, ref);
+      p = disp.d;
+      s = std::hypot(disp.sx, disp.sr);
+      a = std::hypot(x->plane_sigma_m, ref.plane_sigma_m);
+    } else if (!edges) {
+      p.setZero();  // the reference's error is in every other frame's displacement
+      s = a = 0.0;
+    }
+    slope_sum += c * p;
+    cc += c * c;
+    in_var += c * c * s * s;
+    along_var += c * c * a * a;
+    t_lo = std::min(t_lo, x->stamp);
+    t_hi = std::max(t_hi, x->stamp);
+  }
+  if (!(cc > 0.0)) return m;
+  const double span = t_hi - t_lo;
+  const Eigen::Vector3d d = span * slope_sum / cc;  // fitted displacement over the span
+  const double along = std::abs(d.dot(n));
+  const double in_plane = (d - d.dot(n) * n).norm();
+  const double in_sigma = span * std::sqrt(in_var) / cc;
+  const double along_sigma = span * std::sqrt(along_var) / cc;
+  const double in_tol = o.max_translation_m + o.noise_factor * in_sigma;
+  const double along_tol = o.max_translation_m + o.noise_factor * along_sigma;
+  m.moving = in_plane > in_tol || along > along_tol;
+  const auto cm = [](double v) { return formatFixed(v * 100, 1); };
+  m.why = "a steady drift of " + cm(in_plane) + " cm in its plane (allowed " + cm(in_tol) +
+          ", fit 1 sigma " + cm(in_sigma) + (edges ? " from the edges" : " of the pairs") +
+          ") and " + cm(along) + " cm along its normal (allowed " + cm(along_tol) + ") over " +
+          std::to_string(xs.size()) + " frames, " + formatFixed(span, 2) + " s";
   return m;
 }
 
@@ -121,6 +202,7 @@ bool streamStill(const StillnessStream& stream, bool is_fastest, double stamp,
         (!ref || std::abs(x.stamp - stamp) < std::abs(ref->stamp - stamp)))
       ref = &x;
   int before = 0, after = 0, count = 0, missing = 0;
+  std::vector<const BoardSample*> seen;
   for (const auto& x : samples) {
     if (x.stamp < lo || x.stamp > hi) continue;
     // A detector misses a still board now and then: such a frame is no evidence either way.
@@ -129,12 +211,22 @@ bool streamStill(const StillnessStream& stream, bool is_fastest, double stamp,
       continue;
     }
     ++count;
+    seen.push_back(&x);
     if (x.stamp < stamp) ++before;
     if (x.stamp > stamp) ++after;
     const Motion m = motionOf(x, *ref, o);
     if (m.moving) {
       j->state = StillState::kMoving;
       j->why = "board moving: " + stream.name + " saw it move " + m.why + " within " +
+               formatFixed(o.window_s, 2) + " s of the image";
+      return false;
+    }
+  }
+  if (o.fit_drift) {
+    const Motion m = driftOf(seen, *ref, o);
+    if (m.moving) {
+      j->state = StillState::kMoving;
+      j->why = "board moving: " + stream.name + " saw " + m.why + " within " +
                formatFixed(o.window_s, 2) + " s of the image";
       return false;
     }
