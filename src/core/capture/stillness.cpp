@@ -202,6 +202,12 @@ bool streamStill(const StillnessStream& stream, bool is_fastest, double stamp,
         (!ref || std::abs(x.stamp - stamp) < std::abs(ref->stamp - stamp)))
       ref = &x;
   int before = 0, after = 0, count = 0, missing = 0;
+  const auto refuseMoving = [&](const std::string& what) {
+    j->state = StillState::kMoving;
+    j->why = "board moving: " + stream.name + " saw " + what + " within " +
+             formatFixed(o.window_s, 2) + " s of the image";
+    return false;
+  };
   std::vector<const BoardSample*> seen;
   for (const auto& x : samples) {
     if (x.stamp < lo || x.stamp > hi) continue;
@@ -215,21 +221,11 @@ bool streamStill(const StillnessStream& stream, bool is_fastest, double stamp,
     if (x.stamp < stamp) ++before;
     if (x.stamp > stamp) ++after;
     const Motion m = motionOf(x, *ref, o);
-    if (m.moving) {
-      j->state = StillState::kMoving;
-      j->why = "board moving: " + stream.name + " saw it move " + m.why + " within " +
-               formatFixed(o.window_s, 2) + " s of the image";
-      return false;
-    }
+    if (m.moving) return refuseMoving("it move " + m.why);
   }
   if (o.fit_drift) {
     const Motion m = driftOf(seen, *ref, o);
-    if (m.moving) {
-      j->state = StillState::kMoving;
-      j->why = "board moving: " + stream.name + " saw " + m.why + " within " +
-               formatFixed(o.window_s, 2) + " s of the image";
-      return false;
-    }
+    if (m.moving) return refuseMoving(m.why);
   }
   // Lost in most of the window: the board left the view (or was never there).
   if (missing > 0 && missing >= count) {
