@@ -223,7 +223,7 @@ bool streamStill(const StillnessStream& stream, bool is_fastest, double stamp,
     const Motion m = motionOf(x, *ref, o);
     if (m.moving) return refuseMoving("it move " + m.why);
   }
-  if (o.fit_drift) {
+  if (o.fit_drift && ref) {  // no reference: no frame saw the board, nothing to fit
     const Motion m = driftOf(seen, *ref, o);
     if (m.moving) return refuseMoving(m.why);
   }
