@@ -1,5 +1,6 @@
 #include <board_calib/core/capture/stillness.h>
 #include <board_calib/core/common/format.h>
+#include <board_calib/core/transform.h>
 
 #include <algorithm>
 #include <cmath>
@@ -9,11 +10,6 @@ namespace board_calib {
 namespace {
 
 constexpr size_t kClockFrames = 32;  // recent stamps kept for the median interval
-constexpr double kDegPerRadian = 57.29577951308232;
-
-double angleRad(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0));
-}
 
 }  // namespace
 
@@ -97,8 +93,16 @@ Displacement displacementOf(const BoardSample& x, const BoardSample& ref) {
   return r;
 }
 
-Motion motionOf(const BoardSample& x, const BoardSample& ref, const StillnessOptions& o) {
-  const Displacement disp = displacementOf(x, ref);
+// A frame of the window that saw the board, with its displacement from the reference frame
+// (computed once, for the pair check and the drift fit).
+struct SeenFrame {
+  const BoardSample* sample = nullptr;
+  Displacement disp;
+};
+
+Motion motionOf(const SeenFrame& f, const BoardSample& ref, const StillnessOptions& o) {
+  const BoardSample& x = *f.sample;
+  const Displacement& disp = f.disp;
   const Eigen::Vector3d& d = disp.d;
   const double sx = disp.sx, sr = disp.sr;
   const char* what = disp.what;
@@ -108,16 +112,17 @@ Motion motionOf(const BoardSample& x, const BoardSample& ref, const StillnessOpt
   const double in_tol = o.max_translation_m + o.noise_factor * std::hypot(sx, sr);
   const double along_tol =
       o.max_translation_m + o.noise_factor * std::hypot(x.plane_sigma_m, ref.plane_sigma_m);
-  const double turn = angleRad(x.normal, ref.normal);
-  const double turn_tol = o.max_rotation_deg / kDegPerRadian +
-                          o.noise_factor * std::hypot(x.normal_sigma_rad, ref.normal_sigma_rad);
+  const double turn_deg = angleBetweenDeg(x.normal, ref.normal);
+  const double turn_tol_deg =
+      o.max_rotation_deg +
+      o.noise_factor * kDegPerRad * std::hypot(x.normal_sigma_rad, ref.normal_sigma_rad);
   Motion m;
-  m.moving = in_plane > in_tol || along > along_tol || turn > turn_tol;
+  m.moving = in_plane > in_tol || along > along_tol || turn_deg > turn_tol_deg;
   const auto cm = [](double v) { return formatFixed(v * 100, 1); };
   m.why = cm(in_plane) + " cm in its plane (allowed " + cm(in_tol) + ", 1 sigma " + cm(sx) + "/" +
           cm(sr) + what + "), " + cm(along) + " cm along its normal (allowed " + cm(along_tol) +
-          "), turn " + formatFixed(turn * kDegPerRadian, 1) + " deg (allowed " +
-          formatFixed(turn_tol * kDegPerRadian, 1) + ")";
+          "), turn " + formatFixed(turn_deg, 1) + " deg (allowed " + formatFixed(turn_tol_deg, 1) +
+          ")";
   if (x.scan_lines > 0 || ref.scan_lines > 0)
     m.why +=
         "; " + std::to_string(x.scan_lines) + "/" + std::to_string(ref.scan_lines) + " scan lines";
@@ -137,28 +142,28 @@ Motion motionOf(const BoardSample& x, const BoardSample& ref, const StillnessOpt
 // from the reference as a pair measures it, with both frames' sigmas (the shared scan lines
 // differ from pair to pair, so the reference's error is counted for each: conservative). Needs 3
 // frames (2 are a pair, judged already).
-Motion driftOf(const std::vector<const BoardSample*>& xs, const BoardSample& ref,
+Motion driftOf(const std::vector<SeenFrame>& xs, const BoardSample& ref,
                const StillnessOptions& o) {
   Motion m;
   if (xs.size() < 3) return m;
   bool edges = true;
   double t_mean = 0.0;
-  for (const BoardSample* x : xs) {
-    edges = edges && x->centre_from_edges;
-    t_mean += x->stamp;
+  for (const SeenFrame& f : xs) {
+    edges = edges && f.sample->centre_from_edges;
+    t_mean += f.sample->stamp;
   }
   t_mean /= static_cast<double>(xs.size());
   const Eigen::Vector3d n = ref.normal.normalized();
   Eigen::Vector3d slope_sum = Eigen::Vector3d::Zero();
-  double cc = 0.0, in_var = 0.0, along_var = 0.0, t_lo = xs.front()->stamp, t_hi = t_lo;
-  for (const BoardSample* x : xs) {
+  double cc = 0.0, in_var = 0.0, along_var = 0.0, t_lo = xs.front().sample->stamp, t_hi = t_lo;
+  for (const SeenFrame& f : xs) {
+    const BoardSample* x = f.sample;
     const double c = x->stamp - t_mean;
     Eigen::Vector3d p = x->centre - ref.centre;
     double s = x->centre_sigma_m, a = x->plane_sigma_m;
     if (!edges && x != &ref) {
-      const Displacement disp = displacementOf(*x, ref);
-      p = disp.d;
-      s = std::hypot(disp.sx, disp.sr);
+      p = f.disp.d;
+      s = std::hypot(f.disp.sx, f.disp.sr);
       a = std::hypot(x->plane_sigma_m, ref.plane_sigma_m);
     } else if (!edges) {
       p.setZero();  // the reference's error is in every other frame's displacement
@@ -208,7 +213,7 @@ bool streamStill(const StillnessStream& stream, bool is_fastest, double stamp,
              formatFixed(o.window_s, 2) + " s of the image";
     return false;
   };
-  std::vector<const BoardSample*> seen;
+  std::vector<SeenFrame> seen;
   for (const auto& x : samples) {
     if (x.stamp < lo || x.stamp > hi) continue;
     // A detector misses a still board now and then: such a frame is no evidence either way.
@@ -217,10 +222,10 @@ bool streamStill(const StillnessStream& stream, bool is_fastest, double stamp,
       continue;
     }
     ++count;
-    seen.push_back(&x);
+    seen.push_back({&x, displacementOf(x, *ref)});
     if (x.stamp < stamp) ++before;
     if (x.stamp > stamp) ++after;
-    const Motion m = motionOf(x, *ref, o);
+    const Motion m = motionOf(seen.back(), *ref, o);
     if (m.moving) return refuseMoving("it move " + m.why);
   }
   if (o.fit_drift && ref) {  // no reference: no frame saw the board, nothing to fit
