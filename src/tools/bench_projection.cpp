@@ -8,6 +8,7 @@
 #include <board_calib/bag_reader.h>
 #include <board_calib/core/projection/projection.h>
 #include <board_calib/core/transform.h>
+#include "support/basler_camera.h"
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -92,15 +93,7 @@ Expected<Frame> realFrame(const std::string& bag, const std::string& extrinsic_p
 Frame syntheticFrame() {
   Frame frame;
   frame.name = "synthetic, every point in view";
-  CameraIntrinsics in;
-  in.width = 1920;
-  in.height = 1200;
-  in.fx = 2813.64;
-  in.fy = 2808.33;
-  in.cx = 969.29;
-  in.cy = 624.05;
-  in.model = DistortionModel::kPlumbBob;
-  in.coeffs = {-0.1343, -0.0259, 0.00218, 0.00084, 0.0};
+  const CameraIntrinsics in = sim::baslerIntrinsics();
   frame.camera = CameraModel::create(in).value();
   frame.image = cv::Mat(in.height, in.width, CV_8UC3);
   cv::randu(frame.image, cv::Scalar::all(0), cv::Scalar::all(255));

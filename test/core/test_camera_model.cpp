@@ -1,7 +1,7 @@
 #include <board_calib/core/camera_model.h>
-
 #include <gtest/gtest.h>
 #include <opencv2/calib3d.hpp>
+#include "support/basler_camera.h"
 
 #include <random>
 
@@ -12,14 +12,7 @@ using board_calib::DistortionModel;
 namespace {
 
 CameraIntrinsics makeIntrinsics(DistortionModel model) {
-  CameraIntrinsics in;
-  in.width = 1920;
-  in.height = 1200;
-  in.fx = 2813.64;
-  in.fy = 2808.33;
-  in.cx = 969.29;
-  in.cy = 624.05;
-  in.model = model;
+  CameraIntrinsics in = board_calib::sim::baslerIntrinsics(model);
   switch (model) {
     case DistortionModel::kPlumbBob: in.coeffs = {-0.1343, -0.0259, 0.00218, 0.00084, 0.012}; break;
     case DistortionModel::kRationalPolynomial:

@@ -57,9 +57,11 @@ TEST(EdgeAssociation, RenamedLidarEdgesArePairedByProjection) {
   for (const View& v : s.views) {
     const EdgeAssociation a = associateEdges(v.camera, v.lidar, s.truth);
     EXPECT_TRUE(a.relabelled);
-    for (int j = 0; j < kNumEdges; ++j)
-      if (a.scored[j])
+    for (int j = 0; j < kNumEdges; ++j) {
+      if (a.scored[j]) {
         EXPECT_EQ(a.lidar_edge[j], (j + 1) % kNumEdges) << "view " << v.id << " edge " << j;
+      }
+    }
   }
   // Paired by projection, the renamed views score as the originals: sub-pixel at the truth
   // (0.3 px line noise, edge points up to one 0.2 deg step inside the edge).
@@ -96,8 +98,11 @@ TEST(EdgeAssociation, OverlayAndSolverReportTheSameMlre) {
     ASSERT_TRUE(view_mlre.has_value());
     EXPECT_NEAR(check->mlre_px, *view_mlre, kSameFigurePx) << "view " << v.id;
     const EdgeAssociation a = associateEdges(v.camera, v.lidar, off);
-    for (int j = 0; j < kNumEdges; ++j)
-      if (a.scored[j]) EXPECT_EQ(check->image_edge[a.lidar_edge[j]], j) << "view " << v.id;
+    for (int j = 0; j < kNumEdges; ++j) {
+      if (a.scored[j]) {
+        EXPECT_EQ(check->image_edge[a.lidar_edge[j]], j) << "view " << v.id;
+      }
+    }
     EXPECT_EQ(sol.views[i].edges[0].lidar_edge,
               associateEdges(v.camera, v.lidar, sol.camera_T_lidar).lidar_edge[0]);
   }

@@ -3,9 +3,9 @@
 #include <board_calib/core/projection/projection.h>
 #include <board_calib/core/target.h>
 #include <board_calib/core/transform.h>
-
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
+#include "support/basler_camera.h"
 
 #include <cmath>
 #include <random>
@@ -15,16 +15,7 @@ using namespace board_calib;
 namespace {
 
 CameraModel makeCamera(DistortionModel model = DistortionModel::kPlumbBob) {
-  CameraIntrinsics in;
-  in.width = 1920;
-  in.height = 1200;
-  in.fx = 2813.64;
-  in.fy = 2808.33;
-  in.cx = 969.29;
-  in.cy = 624.05;
-  in.model = model;
-  if (model == DistortionModel::kPlumbBob) in.coeffs = {-0.1343, -0.0259, 0.00218, 0.00084, 0.0};
-  return CameraModel::create(in).value();
+  return CameraModel::create(sim::baslerIntrinsics(model)).value();
 }
 
 // A wide-angle camera with strong barrel distortion: far off-axis points fold back into the

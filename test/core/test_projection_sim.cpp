@@ -10,6 +10,7 @@
 #include <board_calib/core/projection/projection.h>
 #include <board_calib/core/sim/simulator.h>
 #include <board_calib/core/transform.h>
+#include "support/basler_camera.h"
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
@@ -22,18 +23,7 @@ using namespace board_calib;
 
 namespace {
 
-CameraModel baslerCamera() {
-  CameraIntrinsics in;
-  in.width = 1920;
-  in.height = 1200;
-  in.fx = 2813.64;
-  in.fy = 2808.33;
-  in.cx = 969.29;
-  in.cy = 624.05;
-  in.model = DistortionModel::kPlumbBob;
-  in.coeffs = {-0.1343, -0.0259, 0.00218, 0.00084, 0.0};
-  return CameraModel::create(in).value();
-}
+CameraModel baslerCamera() { return CameraModel::create(sim::baslerIntrinsics()).value(); }
 
 Eigen::Vector3d beam(double az, double el) {
   return {std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el)};
