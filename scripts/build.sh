@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Builds board_calib (and its tests) into the git-ignored build/ci folder.
+# Builds board_calib (and its tests) into the git-ignored ws/ci folder.
 # Usage: scripts/build.sh [make targets...]   (default: all and tests)
 set -eo pipefail
 source "$(dirname "$0")/common.sh"

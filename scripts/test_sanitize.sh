@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Sanitizer run (scripts/test.sh --sanitize): AddressSanitizer + UndefinedBehaviorSanitizer
-# build in build/asan (separate from build/ci), then every gtest binary (core unit tests,
+# build in build/asan (separate from ws/ci), then every gtest binary (core unit tests,
 # conversions, fuzzers) under ctest. Any sanitizer report fails the run: UBSan is built
 # non-recoverable and halts, ASan halts by default, and the log is scanned as a safety net.
 set -eo pipefail

@@ -1,6 +1,7 @@
 // Solve results -> CalibrationResult / SensorPose messages (declared in conversions.h). Apart
 // from conversions.cpp so the message-level fuzzer links without the solver and graph modules.
 #include <board_calib/conversions.h>
+#include <board_calib/core/common/statistics.h>
 #include <board_calib/core/pipeline/rig_calibration.h>
 
 #include <algorithm>
@@ -92,11 +93,7 @@ visualization_msgs::MarkerArray toViewMarkers(const std::vector<View>& views,
   if (solution)
     for (const auto& vr : solution->views)
       if (vr.used) rms.push_back(vr.plane.rms_m);
-  double median_rms = 0.0;
-  if (!rms.empty()) {
-    std::nth_element(rms.begin(), rms.begin() + rms.size() / 2, rms.end());
-    median_rms = rms[rms.size() / 2];
-  }
+  const double median_rms = medianOf(rms);
   visualization_msgs::MarkerArray array;
   visualization_msgs::Marker clear;
   clear.action = visualization_msgs::Marker::DELETEALL;

@@ -4,6 +4,7 @@
 #include "calibration_panel_text.h"
 
 #include <board_calib/calibrator_status.h>
+#include <board_calib/core/common/statistics.h>
 
 #include <QComboBox>
 #include <QGridLayout>
@@ -53,13 +54,12 @@ QString number(double value, int decimals) {
   return std::isfinite(value) ? QString::number(value, 'f', decimals) : QString("-");
 }
 
-double median(std::vector<double> values) {
+// Median of the finite values; NaN for none (no view is then an outlier).
+double finiteMedian(std::vector<double> values) {
   values.erase(
       std::remove_if(values.begin(), values.end(), [](double v) { return !std::isfinite(v); }),
       values.end());
-  if (values.empty()) return std::nan("");
-  std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
-  return values[values.size() / 2];
+  return values.empty() ? std::nan("") : medianOf(std::move(values));
 }
 
 QLabel* wrappingLabel(const QString& text = QString()) {
@@ -208,7 +208,7 @@ void CalibrationPanel::showResult() {
     mlre.push_back(m);
     plane.push_back(p);
   }
-  const double mlre_median = median(mlre), plane_median = median(plane);
+  const double mlre_median = finiteMedian(mlre), plane_median = finiteMedian(plane);
   views_table_->setRowCount(static_cast<int>(status_.view_ids.size()));
   for (size_t i = 0; i < status_.view_ids.size(); ++i) {
     const int row = static_cast<int>(i);

@@ -14,6 +14,7 @@
 //  - per image of a move, whether the judge saw the motion.
 #include <board_calib/core/capture/stillness.h>
 #include <board_calib/core/common/format.h>
+#include <board_calib/core/common/statistics.h>
 #include <board_calib/core/image_detection/image_board_tracker.h>
 #include <board_calib/core/lidar_detection/lidar_board_detector.h>
 #include <board_calib/core/pipeline/pair_calibration.h>
@@ -45,12 +46,6 @@ std::vector<std::string> split(const std::string& s) {
   std::stringstream in(s);
   for (std::string item; std::getline(in, item, ',');) out.push_back(item);
   return out;
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
 }
 
 struct Counts {
@@ -106,10 +101,10 @@ void printHoldNoise(const std::map<int, std::vector<BoardSample>>& holds) {
         "[hold %2d] %.1f m, %zu clouds, %.0f lines: edge centre (%zu) scatter %.1f cm (worst %.1f) "
         "claimed %.1f; centroid scatter %.1f cm (worst %.1f) claimed %.1f; normal scatter %.2f "
         "deg (worst %.2f) claimed %.2f\n",
-        pose, samples.front().centroid.norm(), samples.size(), median(lines), edge_c.size(),
-        100 * e.first, 100 * e.second, 100 * median(es), 100 * c.first, 100 * c.second,
-        100 * median(cs), kDeg * std::sqrt(a2 / static_cast<double>(samples.size())),
-        kDeg * worst_a, kDeg * median(ns));
+        pose, samples.front().centroid.norm(), samples.size(), medianOf(lines), edge_c.size(),
+        100 * e.first, 100 * e.second, 100 * medianOf(es), 100 * c.first, 100 * c.second,
+        100 * medianOf(cs), kDeg * std::sqrt(a2 / static_cast<double>(samples.size())),
+        kDeg * worst_a, kDeg * medianOf(ns));
   }
 }
 

@@ -1,6 +1,7 @@
 // The board of one frame as a stillness cue, with its noise from the sensor's sampling
 // (issue 14: far boards cut by few scan lines; the judge is in stillness.cpp).
 #include <board_calib/core/capture/stillness.h>
+#include <board_calib/core/common/statistics.h>
 
 #include <Eigen/Eigenvalues>
 
@@ -14,12 +15,6 @@ namespace {
 // Smallest elevation step that can separate two scan lines, rad: far below any spinning LiDAR's
 // beam spacing (>= 0.1 deg = 1.7e-3 rad), far above the rounding of one beam's elevations.
 constexpr double kMinLineGapRad = 1e-4;
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
 
 // Running sums of a point set: its mean and scatter matrix, and leave-one-part-out by subtraction.
 struct Moments {
@@ -71,7 +66,7 @@ ScanLines scanLinesOf(const Points3& points) {
   std::vector<double> gaps;
   for (size_t i = 1; i < p.size(); ++i) gaps.push_back(p[i].elevation - p[i - 1].elevation);
   const double biggest = gaps.empty() ? 0.0 : *std::max_element(gaps.begin(), gaps.end());
-  const double split = std::max({kMinLineGapRad, 10.0 * median(gaps), 0.25 * biggest});
+  const double split = std::max({kMinLineGapRad, 10.0 * medianOf(gaps), 0.25 * biggest});
   ScanLines out;
   std::vector<double> steps;
   size_t start = 0;
@@ -96,11 +91,11 @@ ScanLines scanLinesOf(const Points3& points) {
     out.sums.push_back(sum);
     start = i;
   }
-  out.column_rad = median(steps);
+  out.column_rad = medianOf(steps);
   std::vector<double> line_steps;
   for (size_t k = 1; k < out.sums.size(); ++k)
     line_steps.push_back(out.sums[k].elevation_rad - out.sums[k - 1].elevation_rad);
-  out.line_gap_rad = median(line_steps);
+  out.line_gap_rad = medianOf(line_steps);
   return out;
 }
 

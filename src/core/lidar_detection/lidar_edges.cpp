@@ -2,6 +2,8 @@
 // extremes (line fits) or, for sparse boards, a rectangle fit.
 #include "detector_internal.h"
 
+#include <board_calib/core/common/statistics.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -174,10 +176,7 @@ TwoSides fitSides(const SideExtremes& x, const LidarBoardDetectorOptions& o,
   // long range, where the spacing exceeds the configured threshold.
   LidarBoardDetectorOptions edge_options = o;
   if (!left_gap.empty()) {
-    std::vector<double> gaps = left_gap;
-    std::nth_element(gaps.begin(), gaps.begin() + gaps.size() / 2, gaps.end());
-    edge_options.edge_inlier_threshold_m =
-        std::max(o.edge_inlier_threshold_m, gaps[gaps.size() / 2]);
+    edge_options.edge_inlier_threshold_m = std::max(o.edge_inlier_threshold_m, medianOf(left_gap));
   }
   SideFit left = fitSide(left2, -1.0, edge_options, rng);
   SideFit right = fitSide(right2, +1.0, edge_options, rng);

@@ -1,6 +1,8 @@
 // LiDAR board detector, stage 3: the board plane refined from its region and the points around it.
 #include "detector_internal.h"
 
+#include <board_calib/core/common/statistics.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -64,8 +66,7 @@ RefinedPlane refinePlane(const std::vector<int>& region_points, const std::vecto
     std::vector<double> abs_res;
     abs_res.reserve(best.inliers.size());
     for (int i : best.inliers) abs_res.push_back(std::abs(best_n.dot(pts[i].p) - best_d));
-    std::nth_element(abs_res.begin(), abs_res.begin() + abs_res.size() / 2, abs_res.end());
-    const double sigma = kMadToSigma * abs_res[abs_res.size() / 2];
+    const double sigma = kMadToSigma * medianOf(std::move(abs_res));
     const double band = std::clamp(kRobustBandSigmas * sigma, kMinRobustBandM, thr);
     PlaneStats s;
     for (int i : best.inliers)

@@ -1,5 +1,7 @@
 #include "scan_segments.h"
 
+#include <board_calib/core/common/statistics.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -22,12 +24,6 @@ constexpr double kLinkMarginSteps =
 constexpr double kMinInPlaneFraction = 0.7;
 // Seed triples: untrimmed RMS bound before the trimmed fit.
 constexpr double kUntrimmedRmsFactor = 4.0;
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
 
 struct Segment {
   int line = 0;
@@ -185,7 +181,7 @@ void addRunsOfLine(const std::vector<Eigen::Vector3d>& points, int l,
   steps.reserve(pts.size());
   for (size_t k = 1; k < pts.size(); ++k)
     if (pts[k].first > pts[k - 1].first) steps.push_back(pts[k].first - pts[k - 1].first);
-  const double step = std::max(median(steps), 1e-5);
+  const double step = std::max(medianOf(steps), 1e-5);
   std::vector<double> range(pts.size());
   for (size_t k = 0; k < pts.size(); ++k)
     range[k] = points[static_cast<size_t>(pts[k].second)].norm();
@@ -374,8 +370,8 @@ class RegionGrower {
     for (size_t k = 1; k < region_lines.size(); ++k)
       gaps.push_back(ls_.line_elevation[static_cast<size_t>(region_lines[k])] -
                      ls_.line_elevation[static_cast<size_t>(region_lines[k - 1])]);
-    r->column_step_rad = median(steps);
-    r->line_step_rad = median(gaps);
+    r->column_step_rad = medianOf(steps);
+    r->line_step_rad = medianOf(gaps);
     return true;
   }
 

@@ -101,8 +101,6 @@ struct PlanePairError {
 PlanePairError planePairError(const Obs& oa, const Obs& ob, const Eigen::Isometry3d& a_T_b,
                               const Sigmas& sa, const Sigmas& sb);
 
-double median(std::vector<double> v);
-
 // The state of the global solve (graph_problem.cpp).
 class Graph {
  public:

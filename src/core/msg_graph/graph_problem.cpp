@@ -39,17 +39,6 @@ PlanePairError planePairError(const Obs& oa, const Obs& ob, const Eigen::Isometr
   return e;
 }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  const size_t mid = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + mid, v.end());
-  double m = v[mid];
-  if (v.size() % 2 == 0) {
-    m = 0.5 * (m + *std::max_element(v.begin(), v.begin() + mid));
-  }
-  return m;
-}
-
 // Board poses with corner terms: >= 2 active cameras with enough pattern points.
 std::vector<int> Graph::cornerCameras(size_t p) const {
   std::vector<int> cams;

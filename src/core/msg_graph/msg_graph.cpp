@@ -3,6 +3,8 @@
 // pairwise_links.cpp, graph_problem.cpp and graph_results.cpp.
 #include "graph_internal.h"
 
+#include <board_calib/core/common/statistics.h>
+
 #include <cmath>
 
 namespace board_calib {
@@ -40,7 +42,7 @@ bool globalSolve(const MsgProblem& problem, const MsgGraphOptions& options, Grap
     for (size_t p = 0; p < o.size(); ++p)
       for (int s = 0; s < n; ++s) {
         if (!o[p][s].active || entries[p][s].empty()) continue;
-        const double m = median(entries[p][s]);
+        const double m = medianOf(entries[p][s], EvenMedian::kMeanOfMiddle);
         if (m > options.outlier_gate_sigma) {
           o[p][s].active = false;
           sol->rejected.push_back({problem.poses[p].id, s, m});

@@ -1,3 +1,4 @@
+#include <board_calib/core/common/statistics.h>
 #include <board_calib/core/pipeline/second_chance.h>
 
 #include <algorithm>
@@ -75,10 +76,7 @@ LidarSighting lidarSighting(const LidarBoardFeatures& features) {
     });
     for (size_t i = 1; i < pts.size(); ++i) gaps.push_back((pts[i] - pts[i - 1]).norm());
   }
-  if (!gaps.empty()) {
-    std::nth_element(gaps.begin(), gaps.begin() + gaps.size() / 2, gaps.end());
-    s.line_spacing_m = gaps[gaps.size() / 2];
-  }
+  if (!gaps.empty()) s.line_spacing_m = medianOf(std::move(gaps));
   return s;
 }
 

@@ -1,3 +1,5 @@
+#include <board_calib/core/common/format.h>
+#include <board_calib/core/common/statistics.h>
 #include <board_calib/core/report/report_plots.h>
 #include <board_calib/core/transform.h>
 
@@ -5,7 +7,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <iomanip>
 #include <sstream>
 
 namespace board_calib {
@@ -18,21 +19,12 @@ constexpr int kMarginLeft = 60, kMarginRight = 20, kMarginTop = 46, kMarginBotto
 const cv::Scalar kWhite(255, 255, 255), kBlack(0, 0, 0), kGrid(225, 225, 225),
     kGreyText(90, 90, 90);
 const cv::Scalar kOutlier(30, 30, 220);  // BGR red
+// Fewer edges than this give no median to judge an outlier by.
+constexpr size_t kMinEdgesForMedian = 3;
 // Per-edge colours (BGR), colour-blind friendly (Okabe-Ito): UL blue, UR bluish green, LR orange,
 // LL purple.
 const cv::Scalar kEdgeColour[kNumEdges] = {
     {178, 114, 0}, {115, 158, 0}, {0, 159, 230}, {167, 121, 204}};
-
-std::string fixed(double v, int precision) {
-  std::ostringstream s;
-  s << std::fixed << std::setprecision(precision) << v;
-  return s.str();
-}
-
-double median(std::vector<double> v) {
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
 
 /// 1, 2 or 5 times a power of ten, about range / 5.
 double niceStep(double range) {
@@ -78,14 +70,14 @@ struct Axes {
     const double ys = niceStep(y1 - y0);
     for (double y = std::ceil(y0 / ys) * ys; y <= y1 + 1e-9; y += ys) {
       cv::line(*img, {area.x, py(y)}, {area.x + area.width, py(y)}, kGrid, 1);
-      const std::string label = fixed(y, ys < 1 ? (ys < 0.1 ? 2 : 1) : 0);
+      const std::string label = formatFixed(y, ys < 1 ? (ys < 0.1 ? 2 : 1) : 0);
       text(img, label, {area.x - 6 - textWidth(label), py(y) + 4}, kGreyText);
     }
     if (x_ticks) {
       const double xs = niceStep(x1 - x0);
       for (double x = std::ceil(x0 / xs) * xs; x <= x1 + 1e-9; x += xs) {
         cv::line(*img, {px(x), area.y}, {px(x), area.y + area.height}, kGrid, 1);
-        const std::string label = fixed(x, xs < 1 ? 1 : 0);
+        const std::string label = formatFixed(x, xs < 1 ? 1 : 0);
         text(img, label, {px(x) - textWidth(label) / 2, area.y + area.height + 16}, kGreyText);
       }
     }
@@ -149,9 +141,8 @@ std::vector<EdgeOutlier> findEdgeOutliers(const CalibrationSolution& s, const Pl
     for (const auto& e : v.edges)
       if (e.used && e.mlre_px) all.push_back(*e.mlre_px);
   std::vector<EdgeOutlier> out;
-  constexpr size_t kMinEdgesForMedian = 3;
   if (all.size() < kMinEdgesForMedian) return out;
-  const double med = median(all);
+  const double med = medianOf(all);
   for (const auto& v : s.views)
     for (int j = 0; j < kNumEdges; ++j) {
       const auto& e = v.edges[j];
@@ -178,7 +169,7 @@ void drawEdgeBar(double value, bool used, bool outlier, int x, int bar, const cv
     cv::line(img, {x, y + 14}, {x + bar - 1, y + 10}, kWhite, 2);
   }
   if (outlier) {  // value on top; beside the break of a clipped bar
-    const std::string label = fixed(value, value < 10 ? 1 : 0);
+    const std::string label = formatFixed(value, value < 10 ? 1 : 0);
     const cv::Point at = clipped ? cv::Point(x + bar + 2, y + 14)
                                  : cv::Point(x + bar / 2 - textWidth(label, 0.4) / 2, y - 4);
     text(&img, label, at, kOutlier, 0.4);
@@ -206,8 +197,8 @@ Expected<cv::Mat> plotEdgeErrors(const CalibrationSolution& s, const PlotOptions
     return Expected<cv::Mat>::failure("no edge has an MLRE (" + std::string(methodName(s.method)) +
                                       ")");
   const std::vector<EdgeOutlier> outliers = findEdgeOutliers(s, o);
-  constexpr size_t kMinEdgesForMedian = 3;
-  const double threshold = all.size() >= kMinEdgesForMedian ? o.outlier_factor * median(all) : 0.0;
+  const double threshold =
+      all.size() >= kMinEdgesForMedian ? o.outlier_factor * medianOf(all) : 0.0;
   const double top = threshold > 0 ? std::min(vmax, o.axis_clip_factor * threshold) : vmax;
 
   cv::Mat img(o.height, o.width, CV_8UC3, kWhite);
@@ -251,10 +242,10 @@ Expected<cv::Mat> plotEdgeErrors(const CalibrationSolution& s, const PlotOptions
   for (int j = 0; j < kNumEdges; ++j) legendEntry(&img, &lx, 38, kEdgeColour[j], edgeName(j));
   legendEntry(&img, &lx, 38, kOutlier, "outlier");
   std::string foot = "black dashes: mean MLRE";
-  if (s.mlre_px) foot += " " + fixed(*s.mlre_px, 2) + " px";
+  if (s.mlre_px) foot += " " + formatFixed(*s.mlre_px, 2) + " px";
   if (threshold > 0)
-    foot += ";  red dashes: " + fixed(o.outlier_factor, 0) +
-            " x median edge = " + fixed(threshold, 1) + " px";
+    foot += ";  red dashes: " + formatFixed(o.outlier_factor, 0) +
+            " x median edge = " + formatFixed(threshold, 1) + " px";
   text(&img, foot, {o.width - kMarginRight - textWidth(foot, 0.4), o.height - 8}, kGreyText, 0.4);
   return img;
 }
@@ -415,7 +406,7 @@ Expected<cv::Mat> plotMethodComparison(const std::vector<CalibrationSolution>& s
       const cv::Rect r(x, y, w, ax.area.y + ax.area.height - y);
       cv::rectangle(img, r, kEdgeColour[i % kNumEdges], cv::FILLED);
       if (ok[i] == chosen) cv::rectangle(img, r, kBlack, 2);
-      const std::string label = fixed(*v, *v < 1 ? 3 : (*v < 10 ? 2 : 1));
+      const std::string label = formatFixed(*v, *v < 1 ? 3 : (*v < 10 ? 2 : 1));
       text(&img, label, {x + w / 2 - textWidth(label, 0.4) / 2, y - 4}, kBlack, 0.4);
     }
   }

@@ -1,3 +1,5 @@
+#include <board_calib/core/common/format.h>
+#include <board_calib/core/common/statistics.h>
 #include <board_calib/core/report/report.h>
 #include <board_calib/core/transform.h>
 
@@ -10,18 +12,6 @@ namespace board_calib {
 namespace {
 
 constexpr double kSizeNoteThreshold = 0.02;  // relative size difference worth reporting
-
-std::string fixed(double v, int precision) {
-  std::ostringstream s;
-  s << std::fixed << std::setprecision(precision) << v;
-  return s.str();
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return std::nan("");
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
 
 }  // namespace
 
@@ -38,10 +28,10 @@ std::vector<std::string> consistencyNotes(const std::vector<View>& views, const 
       heights.push_back(v.lidar.measured_size_m.y());
     }
   if (!widths.empty() && target.width > 0 && target.height > 0) {
-    const double w = median(widths), h = median(heights);
+    const double w = medianOf(widths), h = medianOf(heights);
     const double rw = w / target.width - 1.0, rh = h / target.height - 1.0;
     const auto pct = [](double r) {
-      return std::string(r > 0 ? "+" : "") + fixed(r * 100, 1) + " %";
+      return std::string(r > 0 ? "+" : "") + formatFixed(r * 100, 1) + " %";
     };
     std::vector<std::string> off;
     if (std::abs(rw) > kSizeNoteThreshold) off.push_back("width " + pct(rw));
@@ -49,9 +39,10 @@ std::vector<std::string> consistencyNotes(const std::vector<View>& views, const 
     if (!off.empty()) {
       const bool larger = (std::abs(rw) > kSizeNoteThreshold ? rw : rh) > 0;
       notes.push_back(
-          "board size inconsistency: the LiDAR measures " + fixed(w, 3) + " x " + fixed(h, 3) +
-          " m (median of " + std::to_string(widths.size()) + " views), the target declares " +
-          fixed(target.width, 3) + " x " + fixed(target.height, 3) + " m (" + off.front() +
+          "board size inconsistency: the LiDAR measures " + formatFixed(w, 3) + " x " +
+          formatFixed(h, 3) + " m (median of " + std::to_string(widths.size()) +
+          " views), the target declares " + formatFixed(target.width, 3) + " x " +
+          formatFixed(target.height, 3) + " m (" + off.front() +
           (off.size() > 1 ? ", " + off.back() : "") + "): " +
           (larger ? "either the board is larger than declared or the LiDAR's edge returns bloom"
                   : "either the board is smaller than declared or the LiDAR's edge returns are "
@@ -82,21 +73,21 @@ std::vector<std::string> consistencyNotes(const std::vector<View>& views, const 
   const bool scaled = std::abs(scale - 1.0) > kSizeNoteThreshold;
   if (scaled) {
     std::string note = "camera board planes fit the LiDAR best with their distances scaled by " +
-                       fixed(scale, 3) + ": the declared board size is likely off by " +
-                       fixed((scale - 1) * 100, 1) +
+                       formatFixed(scale, 3) + ": the declared board size is likely off by " +
+                       formatFixed((scale - 1) * 100, 1) +
                        " % (check target.yaml). The solve estimated this scale and used it";
     if (n > 0)
       note += ": against the scaled planes the LiDAR board points lie " +
-              fixed(std::abs(sum_scaled / n) * 100, 1) + " cm " +
+              formatFixed(std::abs(sum_scaled / n) * 100, 1) + " cm " +
               (sum_scaled > 0 ? "behind" : "in front of") + " them on average (RMS " +
-              fixed(std::sqrt(sq_scaled / n) * 1e3, 1) +
+              formatFixed(std::sqrt(sq_scaled / n) * 1e3, 1) +
               " mm); the plane RMS of the summary is against the " + "declared-size planes (" +
-              fixed(std::abs(sum_raw / n) * 100, 1) + " cm mean offset)";
+              formatFixed(std::abs(sum_raw / n) * 100, 1) + " cm mean offset)";
     notes.push_back(note);
   } else if (n > 0 && std::abs(sum_raw / n) > kOffsetNote) {
     notes.push_back(
-        "LiDAR board points lie on average " + fixed(std::abs(sum_raw / n) * 100, 1) + " cm " +
-        (sum_raw > 0 ? "behind" : "in front of") +
+        "LiDAR board points lie on average " + formatFixed(std::abs(sum_raw / n) * 100, 1) +
+        " cm " + (sum_raw > 0 ? "behind" : "in front of") +
         " the camera's board plane: the camera plane depth (from the declared board size) and the "
         "LiDAR disagree");
   }
@@ -141,33 +132,35 @@ std::string solutionSummary(const CalibrationSolution& s) {
   const Eigen::Vector3d t = s.camera_T_lidar.translation();
   const Eigen::Vector4d q = quaternionXyzw(s.camera_T_lidar);
   const Eigen::Vector3d rpy = rollPitchYaw(s.camera_T_lidar.rotation()) * kDegPerRad;
-  o << s.views_used << " views, " << s.iterations << " iterations, " << fixed(s.solve_time_ms, 1)
-    << " ms\n";
-  o << "  camera_T_lidar translation [m]   " << fixed(t.x(), 4) << " " << fixed(t.y(), 4) << " "
-    << fixed(t.z(), 4) << "\n";
-  o << "  camera_T_lidar rotation xyzw     " << fixed(q[0], 5) << " " << fixed(q[1], 5) << " "
-    << fixed(q[2], 5) << " " << fixed(q[3], 5) << "  (rpy deg " << fixed(rpy.x(), 2) << " "
-    << fixed(rpy.y(), 2) << " " << fixed(rpy.z(), 2) << ")\n";
+  o << s.views_used << " views, " << s.iterations << " iterations, "
+    << formatFixed(s.solve_time_ms, 1) << " ms\n";
+  o << "  camera_T_lidar translation [m]   " << formatFixed(t.x(), 4) << " "
+    << formatFixed(t.y(), 4) << " " << formatFixed(t.z(), 4) << "\n";
+  o << "  camera_T_lidar rotation xyzw     " << formatFixed(q[0], 5) << " " << formatFixed(q[1], 5)
+    << " " << formatFixed(q[2], 5) << " " << formatFixed(q[3], 5) << "  (rpy deg "
+    << formatFixed(rpy.x(), 2) << " " << formatFixed(rpy.y(), 2) << " " << formatFixed(rpy.z(), 2)
+    << ")\n";
   if (s.mlre_px)
-    o << "  MLRE                             " << fixed(*s.mlre_px, 2)
+    o << "  MLRE                             " << formatFixed(*s.mlre_px, 2)
       << " px  (mean distance of LiDAR edge points to the image edge lines)\n";
-  o << "  plane RMS                        " << fixed(s.plane_rms_mm, 1)
+  o << "  plane RMS                        " << formatFixed(s.plane_rms_mm, 1)
     << " mm  (LiDAR board points to the camera's board plane"
     << (std::abs(s.plane_scale - 1.0) > kSizeNoteThreshold
             ? " from the declared size, before the plane scale)\n"
             : ")\n");
-  o << "  1 sigma translation [mm]         " << fixed(s.stddev.translation_m.x() * 1e3, 2) << " "
-    << fixed(s.stddev.translation_m.y() * 1e3, 2) << " "
-    << fixed(s.stddev.translation_m.z() * 1e3, 2) << "\n";
-  o << "  1 sigma rotation [deg]           " << fixed(s.stddev.rotation_deg.x(), 3) << " "
-    << fixed(s.stddev.rotation_deg.y(), 3) << " " << fixed(s.stddev.rotation_deg.z(), 3) << "\n";
+  o << "  1 sigma translation [mm]         " << formatFixed(s.stddev.translation_m.x() * 1e3, 2)
+    << " " << formatFixed(s.stddev.translation_m.y() * 1e3, 2) << " "
+    << formatFixed(s.stddev.translation_m.z() * 1e3, 2) << "\n";
+  o << "  1 sigma rotation [deg]           " << formatFixed(s.stddev.rotation_deg.x(), 3) << " "
+    << formatFixed(s.stddev.rotation_deg.y(), 3) << " " << formatFixed(s.stddev.rotation_deg.z(), 3)
+    << "\n";
   o << "  observability                    condition " << std::scientific << std::setprecision(2)
     << s.observability.condition_number << std::defaultfloat
     << (s.observability.well_conditioned ? " (well conditioned)"
                                          : " (WEAK: " + s.observability.weakest_description + ")")
     << "\n";
   if (std::abs(s.plane_scale - 1.0) > 1e-9)
-    o << "  camera plane scale               " << fixed(s.plane_scale, 4) << "\n";
+    o << "  camera plane scale               " << formatFixed(s.plane_scale, 4) << "\n";
   for (const auto& n : s.notes) o << "  note: " << n << "\n";
   return o.str();
 }
@@ -190,11 +183,12 @@ std::string comparisonTable(const std::vector<CalibrationSolution>& solutions) {
       o << "- | - | - | - | - | - |  (" << s.reason << ")\n";
       continue;
     }
-    o << (s.mlre_px ? fixed(*s.mlre_px, 2) : std::string("-")) << " | " << fixed(s.plane_rms_mm, 1)
-      << " | " << fixed(s.stddev.translation_m.maxCoeff() * 1e3, 2) << " | "
-      << fixed(s.stddev.rotation_deg.maxCoeff(), 3) << " | "
-      << fixed(rotationErrorDeg(s.camera_T_lidar, first->camera_T_lidar), 3) << " | "
-      << fixed(translationErrorM(s.camera_T_lidar, first->camera_T_lidar) * 1e3, 1) << " |\n";
+    o << (s.mlre_px ? formatFixed(*s.mlre_px, 2) : std::string("-")) << " | "
+      << formatFixed(s.plane_rms_mm, 1) << " | "
+      << formatFixed(s.stddev.translation_m.maxCoeff() * 1e3, 2) << " | "
+      << formatFixed(s.stddev.rotation_deg.maxCoeff(), 3) << " | "
+      << formatFixed(rotationErrorDeg(s.camera_T_lidar, first->camera_T_lidar), 3) << " | "
+      << formatFixed(translationErrorM(s.camera_T_lidar, first->camera_T_lidar) * 1e3, 1) << " |\n";
   }
   return o.str();
 }
@@ -205,10 +199,10 @@ std::string perViewTable(const CalibrationSolution& s) {
   o << "|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& v : s.views) {
     o << "| " << v.view_id << " | " << (v.used ? "yes" : "no") << " | "
-      << fixed(v.plane.rms_m * 1e3, 1) << " | "
-      << (v.mlre_px ? fixed(*v.mlre_px, 2) : std::string("-"));
+      << formatFixed(v.plane.rms_m * 1e3, 1) << " | "
+      << (v.mlre_px ? formatFixed(*v.mlre_px, 2) : std::string("-"));
     for (const auto& e : v.edges)
-      o << " | " << (e.mlre_px ? fixed(*e.mlre_px, 2) : std::string("-"));
+      o << " | " << (e.mlre_px ? formatFixed(*e.mlre_px, 2) : std::string("-"));
     o << " | " << v.reason << " |\n";
   }
   return o.str();

@@ -6,6 +6,8 @@
 #include "cost_functions.h"
 #include "internal.h"
 
+#include <board_calib/core/common/statistics.h>
+
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
@@ -243,9 +245,8 @@ PlaneErrorModel estimatePlaneErrorModel(const std::vector<Cluster>& clusters, co
   }
   PlaneErrorModel model;
   if (views.size() <= kPoseDofPerKind) return model;
-  std::nth_element(distances.begin(), distances.begin() + distances.size() / 2, distances.end());
   model.distance_power = distance_power;
-  model.reference_distance_m = distances[distances.size() / 2];
+  model.reference_distance_m = medianOf(distances);
   double offset_sum = 0.0, tilt_sum = 0.0;
   for (ViewTerms& v : views) {
     v.f = std::pow(v.f / model.reference_distance_m, distance_power);

@@ -3,6 +3,7 @@
 #include "calibrate_internal.h"
 
 #include <board_calib/core/common/edge_association.h>
+#include <board_calib/core/common/statistics.h>
 
 #include <Eigen/Eigenvalues>
 
@@ -158,9 +159,7 @@ double estimateHorizontalStepRad(const std::vector<View>& views) {
     }
   }
   if (line_minima.empty()) return 0.0;
-  std::nth_element(line_minima.begin(), line_minima.begin() + line_minima.size() / 2,
-                   line_minima.end());
-  const double step = line_minima[line_minima.size() / 2];
+  const double step = medianOf(std::move(line_minima));
   return step <= kMaxPlausibleStepRad ? step : 0.0;
 }
 

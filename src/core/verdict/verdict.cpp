@@ -1,4 +1,5 @@
 #include <board_calib/core/common/format.h>
+#include <board_calib/core/common/statistics.h>
 #include <board_calib/core/transform.h>
 #include <board_calib/core/verdict/verdict.h>
 
