@@ -39,8 +39,6 @@ using namespace board_calib;
 
 namespace {
 
-constexpr double kDeg = 57.29577951308232;
-
 std::vector<std::string> split(const std::string& s) {
   std::vector<std::string> out;
   std::stringstream in(s);
@@ -103,8 +101,8 @@ void printHoldNoise(const std::map<int, std::vector<BoardSample>>& holds) {
         "deg (worst %.2f) claimed %.2f\n",
         pose, samples.front().centroid.norm(), samples.size(), medianOf(lines), edge_c.size(),
         100 * e.first, 100 * e.second, 100 * medianOf(es), 100 * c.first, 100 * c.second,
-        100 * medianOf(cs), kDeg * std::sqrt(a2 / static_cast<double>(samples.size())),
-        kDeg * worst_a, kDeg * medianOf(ns));
+        100 * medianOf(cs), kDegPerRad * std::sqrt(a2 / static_cast<double>(samples.size())),
+        kDegPerRad * worst_a, kDegPerRad * medianOf(ns));
   }
 }
 
@@ -112,7 +110,8 @@ void printHoldNoise(const std::map<int, std::vector<BoardSample>>& holds) {
 void printCloud(const sim::Frame& f, const LidarBoardFeatures& l, const BoardSample& sample) {
   std::string lines;
   for (const auto& line : sample.lines)
-    lines += " " + std::to_string(line.points) + "@" + formatFixed(kDeg * line.elevation_rad, 2);
+    lines +=
+        " " + std::to_string(line.points) + "@" + formatFixed(kDegPerRad * line.elevation_rad, 2);
   const Eigen::Vector3d& c = sample.centre;
   std::printf("    cloud %.2f hold %d: %zu pts, c %.3f %.3f %.3f, edges %d%d%d%d, lines%s\n",
               f.stamp, f.pose, l.board_points.size(), c.x(), c.y(), c.z(), l.edge_valid[0],

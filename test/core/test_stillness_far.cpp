@@ -13,6 +13,7 @@
 #include <board_calib/core/pipeline/pipeline.h>
 #include <board_calib/core/sim/scenario.h>
 #include <board_calib/core/sim/simulator.h>
+#include <board_calib/core/transform.h>
 
 #include "support/sim_session.h"
 
@@ -178,7 +179,7 @@ MotionCounts judgeMotions(const std::vector<SlowMotion>& motions, double near_m,
         f.world_T_board.translation() +=
             f.stamp * (m.towards_mps * to_sensor + m.sideways_mps * sideways + m.up_mps * up);
         f.world_T_board.linear() =
-            Eigen::AngleAxisd(m.turn_dps / 57.29577951308232 * f.stamp, up).toRotationMatrix() *
+            Eigen::AngleAxisd(m.turn_dps * kRadPerDeg * f.stamp, up).toRotationMatrix() *
             start.linear();
         found += st.addCloud(&tracker, &*gen, f, static_cast<size_t>(k));
         if (k % 5 == 0) {
