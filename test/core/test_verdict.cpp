@@ -255,4 +255,55 @@ TEST(Verdict, UnknownUncertaintyIsRefused) {
   EXPECT_FALSE(mentions(known)) << known.reason;
 }
 
+// Few far views (4 at 6-10 m, 32 scan lines over 30 deg): the error a view shares across its
+// points (the camera's board pose, the LiDAR's edge sampling at 3 cm per column) dominates, and
+// four views cannot be cross-validated. Such a result is never good, and its 1 sigma, the noise
+// model's alone, mostly covers the error: measured 24 of 28 seeds within 3 sigma on the worst of
+// the 6 axes (a Gaussian would give 98 %), worst 6.7 sigma. This is why it stays doubtful.
+TEST(Verdict, FewFarViewsStayDoubtful) {
+  int solved = 0, within3 = 0, good = 0;
+  double worst = 0.0;
+  for (unsigned seed = 100; seed < 130; ++seed) {
+    sim::SyntheticFeatureOptions o;
+    o.num_views = 4;
+    o.min_distance_m = 6.0;
+    o.max_distance_m = 10.0;
+    o.lidar_rings = 32;
+    o.lidar_vertical_fov_deg = 30.0;
+    o.lidar_range_noise_m = 0.03;
+    std::mt19937 rng(seed);
+    const Eigen::Isometry3d truth = sim::randomCameraTLidar(rng);
+    const auto scene = sim::generateSyntheticViews(o, truth, rng);
+    if (!scene.ok()) {  // too few poses fit both fields of view for this seed
+      std::printf("[few far] seed %u: %s\n", seed, scene.error().c_str());
+      continue;
+    }
+    const PairCalibration r = run(scene->views, "pbpc");
+    if (r.failed() || !r.chosenRun()) {
+      std::printf("[few far] seed %u: failed: %s\n", seed, r.reason.c_str());
+      continue;
+    }
+    ++solved;
+    good += r.verdict == Verdict::kGood;
+    const double e = errorInSigmas(r, truth);
+    within3 += e < 3.0;
+    worst = std::max(worst, e);
+    const VerdictReport& v = r.chosenRun()->verdict;
+    std::printf(
+        "[few far] seed %u: %s, %.3f deg / %.1f mm, worst axis %.1f sigma (1 sigma %.3f deg / "
+        "%.1f mm)\n",
+        seed, verdictName(r.verdict),
+        rotationErrorDeg(r.chosenRun()->solution.camera_T_lidar, truth),
+        1e3 * translationErrorM(r.chosenRun()->solution.camera_T_lidar, truth), e,
+        v.stddev.rotation_deg.maxCoeff(), 1e3 * v.stddev.translation_m.maxCoeff());
+  }
+  std::printf("[few far] %d solved, %d within 3 sigma, %d good, worst %.1f sigma\n", solved,
+              within3, good, worst);
+  ASSERT_GE(solved, 20);
+  // Four views cannot be cross-validated: never good.
+  EXPECT_EQ(good, 0);
+  // The measured 86 %, less a seed's worth: a smaller model 1 sigma would show here first.
+  EXPECT_GE(within3, 0.8 * solved);
+}
+
 }  // namespace board_calib

@@ -245,7 +245,8 @@ void crossValidate(const CalibrationSolution& sol, const std::vector<View>& view
     cv.why_not = std::to_string(n) + " views: too few to leave any out";
     f.doubtful.push_back("too few views (" + std::to_string(n) +
                          ") to cross-validate: collect at least " +
-                         std::to_string(o.min_views_to_cross_validate));
+                         std::to_string(o.min_views_to_cross_validate) +
+                         " (the 1 sigma is the noise model's alone, unchecked)");
   } else if (solve) {
     const std::vector<Vector6d> deltas = runFolds(sol, views, target, solve, o, cv);
     if (cv.failed_solves * 2 > cv.solves)
