@@ -155,6 +155,9 @@ CASES = {
     "ws/ci/devel/lib/board_calib/bench_stillness --seeds 21,22,23,24": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/bench_stillness --session --seeds 21,22,23,24": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/bench_stillness --pairs-only --seeds 21,22,23,24": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/bench_stillness --seeds 21,22,23,24 --hz 10 --images --session": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/bench_stillness --seeds 21,22 --hz 10 --images": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/bench_stillness --seeds 21,22 --hz 10 --images --pairs-only": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_stillness_far": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_rig_calibration": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/bench_capture --scenario config/scenarios/checker_vlp16_1280.yaml --method ppc "
