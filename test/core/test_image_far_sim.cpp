@@ -35,6 +35,7 @@ struct FarResult {
   int poses = 0, found = 0, wrong = 0;
   double worst_line_px = 0.0;  ///< largest distance of a true side's end from its detected line
   std::vector<double> ms;      ///< wall time per frame (detection, and the memory when tracked)
+  PlainStageTimes stages;      ///< the detector's time per stage, summed over the frames
 };
 
 double percentileMs(std::vector<double> v, double q) {
@@ -131,6 +132,7 @@ FarResult runScenario(unsigned seed, int poses, bool street,
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
             .count());
     ++out.poses;
+    out.stages += d.details.stage_times;
     double err = -1.0;
     if (d.features.found) {
       err = lineErrorPx(d.features, truth);
@@ -165,6 +167,7 @@ FarResult runSeeds(bool street, const ImageBoardDetectorOptions& options = {}, b
     all.wrong += r.wrong;
     all.worst_line_px = std::max(all.worst_line_px, r.worst_line_px);
     all.ms.insert(all.ms.end(), r.ms.begin(), r.ms.end());
+    all.stages += r.stages;
   }
   std::printf(
       "[far] %s%s: found %d/%d, wrong %d, lines within %.2f px of the truth; %.0f ms median, "
@@ -175,6 +178,8 @@ FarResult runSeeds(bool street, const ImageBoardDetectorOptions& options = {}, b
                 : "",
       all.found, all.poses, all.wrong, all.worst_line_px, percentileMs(all.ms, 0.5),
       percentileMs(all.ms, 0.95));
+  std::printf("[far] stages, mean ms per frame: %s\n",
+              all.stages.scaled(1.0 / std::max(1, all.poses)).text().c_str());
   return all;
 }
 

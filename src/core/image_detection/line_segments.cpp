@@ -35,6 +35,8 @@ std::vector<Member> detectSegments(const cv::Mat& gray, const CameraModel& camer
                                    const ImageBoardDetectorOptions& o, LineEvidence* evidence,
                                    double* scale) {
   *scale = lineDetectionScale(o, gray.cols);
+  PlainStageTimes times;
+  double start = threadCpuMs();
   cv::Mat small;
   if (*scale > 1.0)
     cv::resize(gray, small,
@@ -49,8 +51,12 @@ std::vector<Member> detectSegments(const cv::Mat& gray, const CameraModel& camer
   // area averaging, which also lowers the noise).
   const cv::Ptr<cv::LineSegmentDetector> lsd =
       cv::createLineSegmentDetector(cv::LSD_REFINE_NONE, 1.0);
+  times.line_resize_ms = msSince(start);
+  start = threadCpuMs();
   std::vector<cv::Vec4f> raw_segments;
   lsd->detect(small, raw_segments);
+  times.lsd_ms = msSince(start);
+  start = threadCpuMs();
 
   std::vector<Member> segments;
   for (const auto& s : raw_segments) {
@@ -63,9 +69,13 @@ std::vector<Member> detectSegments(const cv::Mat& gray, const CameraModel& camer
     m.length = (m.b - m.a).norm();
     if (m.length > 0) segments.push_back(m);
   }
-  if (evidence) evidence->segments = static_cast<int>(segments.size());
   std::sort(segments.begin(), segments.end(),
             [](const Member& x, const Member& y) { return x.length > y.length; });
+  times.undistort_ms = msSince(start);
+  if (evidence) {
+    evidence->segments = static_cast<int>(segments.size());
+    evidence->times += times;
+  }
   return segments;
 }
 
@@ -156,7 +166,9 @@ LineSet detectLines(const cv::Mat& gray, const CameraModel& camera,
   const std::vector<Member> segments = detectSegments(gray, camera, o, evidence, &scale);
   LineSet set;
   set.end_sigma_px = kSegmentEndSigmaPx * scale;
+  const double start = threadCpuMs();
   set.lines = mergeSegments(segments, set.end_sigma_px, o, max_lines);
+  if (evidence) evidence->times.merge_ms += msSince(start);
   return set;
 }
 

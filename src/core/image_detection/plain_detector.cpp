@@ -152,13 +152,17 @@ void report(HypothesisSearch&& search, LineEvidence&& evidence, const std::strin
 void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                  const ImageBoardDetectorOptions& o, ImageDetection* out,
                  const ExpectedBoard* expected, const StaticScene* excluded) {
-  const cv::Mat small = downscale(gray, o.segmentation_width_px);
-  const double sx = static_cast<double>(gray.cols) / small.cols;
+  PlainStageTimes times;
+  double start = threadCpuMs();
   // Edge pixels must stand out of this image's own noise (sensor, compression, texture).
   const double noise = estimateNoiseSigma(gray);
   const double min_gradient =
       std::max(o.min_edge_contrast, o.edge_snr * kGradientNoiseGain * noise);
   out->details.noise_sigma = noise;
+  times.noise_ms = msSince(start);
+  start = threadCpuMs();
+  const cv::Mat small = downscale(gray, o.segmentation_width_px);
+  const double sx = static_cast<double>(gray.cols) / small.cols;
 
   // Hypotheses: regions (best score first, then openings of the rejected ones) and quadrilaterals
   // of long straight edges. None is a gate for the others.
@@ -171,6 +175,7 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
   };
   addRegions();
   const size_t first_regions = hypotheses.size();
+  times.regions_ms = msSince(start);
   const std::string region_reason = seg.reason();
   LineEvidence evidence;
   LineQuads line_quads;
@@ -183,17 +188,23 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
   size_t regions = first_regions;
   for (size_t i = 0;; ++i) {
     if (i == first_regions && !search.found()) {
+      start = threadCpuMs();
       proposeOpenedRegions(small.size(), o, &seg);
       addRegions();
       regions = hypotheses.size();
+      times.regions_ms += msSince(start);
     }
     // Line evidence (the costly part) unless a region already gave a board whose four sides
     // show their edge along nearly all their visible length.
     if (i == regions && !search.cleanBoard()) {
+      start = threadCpuMs();
       line_quads = lineQuadHypotheses(gray, camera, o, &evidence, expected,
                                       excluded ? &excluded->lines_px : nullptr);
       quads = line_quads.best;
       for (const auto& q : quads) hypotheses.push_back(fromQuad(q, camera, o));
+      // The corner graph and 4-cycles: the line stage's total less its timed parts.
+      const PlainStageTimes& l = evidence.times;
+      times.quads_ms += msSince(start) - l.line_resize_ms - l.lsd_ms - l.undistort_ms - l.merge_ms;
     }
     // Quadrilaterals of the weaker lines only when nothing else was the board.
     if (i == hypotheses.size() && i >= regions && !search.found() &&
@@ -216,8 +227,11 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     if (expected && i < regions && !nearExpected(hypotheses[i].inside_u, *expected)) continue;
     ImageDetection attempt = fresh;
     CandidateSupport support;
+    start = threadCpuMs();
     bool is_board =
         fitCandidate(gray, camera, target, o, hypotheses[i], min_gradient, &attempt, &support);
+    times.edges_ms += attempt.details.stage_times.edges_ms;
+    times.fits_ms += msSince(start) - attempt.details.stage_times.edges_ms;
     if (is_board && expected) {
       checkExpected(*expected, &attempt);
       is_board = attempt.features.found;
@@ -229,7 +243,9 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     const auto corners = i >= regions ? quads[i - regions].corners : attempt.features.corners_px;
     search.record(hypotheses[i], corners, is_board, support, std::move(attempt));
   }
+  times += evidence.times;
   report(std::move(search), std::move(evidence), region_reason, hypotheses.empty(), noise, out);
+  out->details.stage_times = times;
 }
 
 }  // namespace image_detection
