@@ -1,6 +1,6 @@
-// The line stage of the plain detector (as PBPC-Cal does with LSD): segments from OpenCV's line
-// segment detector on a downscaled image, merged in undistorted pixels into long straight lines
-// of either polarity.
+// The line stage of the plain detector (as PBPC-Cal does with LSD): segments from the line
+// segment detector (line_segment_detector.cpp) on a downscaled image, merged in undistorted pixels
+// into long straight lines of either polarity.
 #include "line_internal.h"
 
 #include <Eigen/Eigenvalues>
@@ -47,14 +47,11 @@ std::vector<Member> detectSegments(const cv::Mat& gray, const CameraModel& camer
     small = gray;
   const double sx = static_cast<double>(gray.cols) / small.cols,
                sy = static_cast<double>(gray.rows) / small.rows;
-  // LSD with its own a-contrario false-detection control; no internal rescale (done above, by
-  // area averaging, which also lowers the noise).
-  const cv::Ptr<cv::LineSegmentDetector> lsd =
-      cv::createLineSegmentDetector(cv::LSD_REFINE_NONE, 1.0);
   times.line_resize_ms = msSince(start);
   start = threadCpuMs();
-  std::vector<cv::Vec4f> raw_segments;
-  lsd->detect(small, raw_segments);
+  // LSD's region growing, no internal rescale (done above, by area averaging, which also lowers
+  // the noise).
+  const std::vector<cv::Vec4f> raw_segments = lineSegments(small);
   times.lsd_ms = msSince(start);
   start = threadCpuMs();
 
