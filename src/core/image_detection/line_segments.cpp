@@ -20,6 +20,7 @@ constexpr double kMergeSigmas = 3.0;        // angle tolerance of a merge, in en
 constexpr double kMinMergeAngleRad = 0.02;  // ~1 deg: floor of that tolerance (long segments)
 constexpr double kMaxMergeAngleRad = 0.10;  // ~6 deg: cap (short segments)
 constexpr double kMergeOffsetPx = 3.5;      // full-res px: a held board bows ~3 px
+constexpr double kCosRoundingMargin = 1e-9;  // far above the rounding of a cosine near 1
 
 // Segment ends this far from a line still lie on it: a held board's bow, or the ends' noise.
 double mergeOffsetPx(double end_sigma) { return std::max(kMergeOffsetPx, 2.0 * end_sigma); }
@@ -88,9 +89,13 @@ std::vector<MergedLine> mergeSegments(const std::vector<Member>& segments, doubl
     const Eigen::Vector2d d = (s.b - s.a) / s.length;
     const double angle_tol = std::clamp(kMergeSigmas * std::sqrt(2.0) * end_sigma / s.length,
                                         kMinMergeAngleRad, kMaxMergeAngleRad);
+    // The angle test on |cos| first (no acos): acos only where rounding could tip it.
+    const double cos_tol = std::cos(angle_tol);
     MergedLine* host = nullptr;
     for (auto& l : lines) {
-      if (angleBetweenLines(d, l.dir) > angle_tol) continue;
+      const double c = std::abs(d.dot(l.dir));
+      if (c < cos_tol - kCosRoundingMargin) continue;
+      if (c <= cos_tol + kCosRoundingMargin && angleBetweenLines(d, l.dir) > angle_tol) continue;
       if (std::abs(l.offset(s.a)) > max_offset || std::abs(l.offset(s.b)) > max_offset) continue;
       host = &l;
       break;
