@@ -93,12 +93,18 @@ PlainStageTimes PlainStageTimes::scaled(double factor) const {
   return out;
 }
 
+double PlainStageTimes::total() const {
+  double sum = 0.0;
+  forEachStage(*this, [&](const char*, double ms) { sum += ms; });
+  return sum;
+}
+
 std::string PlainStageTimes::text() const {
   std::string out;
   forEachStage(*this, [&](const char* name, double ms) {
     out += cv::format("%s%s %.1f", out.empty() ? "" : " | ", name, ms);
   });
-  return out;
+  return out + cv::format(" = total %.1f", total());
 }
 
 struct ImageBoardDetector::Impl {

@@ -55,7 +55,7 @@ struct MergedLine {
   }
 };
 
-/// Line segments of an 8-bit grey image (x1, y1, x2, y2; pixel corners at integers): the LSD
+/// Line segments of an 8-bit grey image (x1, y1, x2, y2; pixel centres at integers): the LSD
 /// algorithm as OpenCV's LSD_REFINE_NONE, faster (line_segment_detector.cpp).
 std::vector<cv::Vec4f> lineSegments(const cv::Mat& gray);
 

@@ -107,7 +107,7 @@ Eigen::Vector2d growRegion(int seed, LevelLines* f, std::vector<int>* region) {
 }
 
 // The region's segment: through its gradient-weighted centroid along its axis of least inertia,
-// between its extreme pixels (x1, y1, x2, y2 with pixel corners at integers, as OpenCV's LSD).
+// between its extreme pixels (x1, y1, x2, y2 with pixel centres at integers, as OpenCV's LSD).
 cv::Vec4f regionSegment(const LevelLines& f, const std::vector<int>& region,
                         const Eigen::Vector2d& direction) {
   double cx = 0, cy = 0, sum = 0;

@@ -113,7 +113,8 @@ struct PlainStageTimes {
 
   PlainStageTimes& operator+=(const PlainStageTimes& other);
   PlainStageTimes scaled(double factor) const;  ///< every stage times factor (a mean)
-  /// "noise 1.2 | regions 3.4 | ..." in ms, the stages in the order they run.
+  double total() const;                         ///< ms, the sum of the stages
+  /// "noise 1.2 | regions 3.4 | ... = total 9.9" in ms, the stages in the order they run.
   std::string text() const;
 };
 
