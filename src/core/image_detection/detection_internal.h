@@ -6,6 +6,7 @@
 #include <opencv2/core.hpp>
 
 #include <ctime>
+#include <type_traits>
 
 namespace board_calib {
 namespace image_detection {
@@ -20,6 +21,20 @@ inline double threadCpuMs() {
 
 /// ms of CPU time of the calling thread since `start` (a threadCpuMs() reading).
 inline double msSince(double start) { return threadCpuMs() - start; }
+
+/// f(), with the calling thread's CPU time it took added to *ms.
+template <typename F>
+auto timed(double* ms, F&& f) {
+  const double start = threadCpuMs();
+  if constexpr (std::is_void_v<decltype(f())>) {
+    f();
+    *ms += msSince(start);
+  } else {
+    auto result = f();
+    *ms += msSince(start);
+    return result;
+  }
+}
 
 /// Result of a PnP fit on undistorted pixels (zero distortion, camera K).
 struct PoseFit {
