@@ -150,6 +150,11 @@ CASES = {
     "ws/ci/devel/lib/board_calib/bench_image_memory --hz 10 --seconds 60": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/bench_image_memory --hz 30 --seconds 60": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/bench_image_detector --frames 20 --board plain": {"kind": "dev"},
+    "scripts/build.sh bench_image_detector test_image_detector_augmented test_image_far_sim test_line_segments": {
+        "kind": "run", "expect": r"built in", "timeout": 900},
+    "ws/ci/devel/lib/board_calib/bench_image_detector --frames 20 --board plain --stages": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/test_image_far_sim --gtest_filter='*StreetFrames*:*Plain*'": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/test_line_segments": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/bench_capture --scale 0.5 --poses 12 --seeds 2 --rates 1,2,5,10,30": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_rig_session --gtest_filter=*Sparse*": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/bench_stillness --seeds 21,22,23,24": {"kind": "dev"},

@@ -4,7 +4,7 @@
 // config/targets)]
 //   [--board plain|checkerboard|apriltag_grid (default all)] [--tag-decimate X] [--tag-sigma PX]
 //   [--tag-refine 0|1]
-//   [--per-frame]
+//   [--per-frame] [--stages (plain board: mean time per detection stage)]
 #include <board_calib/core/image_detection/image_board_detector.h>
 #include <board_calib/core/sim/simulator.h>
 #include <board_calib/core/transform.h>
@@ -36,6 +36,7 @@ CameraModel benchCamera() {
 
 struct BenchFigures {
   std::vector<double> times_ms;
+  PlainStageTimes stage_sum;
   int found = 0;
   double sum_rms = 0, max_err = 0, max_point_err = 0;
 };
@@ -64,6 +65,7 @@ BenchFigures benchTarget(const Target& board, ImageBoardDetector* detector,
         camera, world_T_camera, scene, world_T_camera * camera_T_board, sim::RenderOptions(), rng);
     const ImageDetection d = detector->detect(image, camera);
     r.times_ms.push_back(d.details.time_ms);
+    r.stage_sum += d.details.stage_times;
     if (per_frame) std::printf("  frame %d: %.1f ms\n", f, d.details.time_ms);
     if (!d.features.found) continue;
     ++r.found;
@@ -99,8 +101,11 @@ int main(int argc, char** argv) {
   int frames = 10;
   std::string targets_dir = "config/targets", only;
   ImageBoardDetectorOptions options;
-  bool per_frame = false;
-  for (int i = 1; i < argc; ++i) per_frame |= std::strcmp(argv[i], "--per-frame") == 0;
+  bool per_frame = false, stages = false;
+  for (int i = 1; i < argc; ++i) {
+    per_frame |= std::strcmp(argv[i], "--per-frame") == 0;
+    stages |= std::strcmp(argv[i], "--stages") == 0;
+  }
   for (int i = 1; i + 1 < argc; ++i) {
     if (std::strcmp(argv[i], "--frames") == 0) frames = std::max(1, std::atoi(argv[i + 1]));
     if (std::strcmp(argv[i], "--targets") == 0) targets_dir = argv[i + 1];
@@ -139,6 +144,9 @@ int main(int argc, char** argv) {
                 percentile(r.times_ms, 0.5), percentile(r.times_ms, 0.95),
                 percentile(r.times_ms, 1.0), r.found ? r.sum_rms / r.found : 0.0, r.max_err,
                 r.max_point_err);
+    if (stages && target->type == TargetType::kPlain)
+      std::printf("  stages, mean ms per frame: %s\n",
+                  r.stage_sum.scaled(1.0 / frames).text().c_str());
   }
   return 0;
 }

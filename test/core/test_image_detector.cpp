@@ -339,12 +339,13 @@ TEST(ImageDetectorSim, PlainBoardInTexturedRoom) {
       "textured room: found %d of %d frames with >= 70 %% of the board visible; %d of %d edges off "
       "by > 1 px\n",
       found, visible, edges_off, edges_checked);
-  // Measured 27 of 30 with the line hypotheses of issue 14 (25 of 30 with regions alone). Before: 0
-  // of 30 (only the best-scored region was tried and the bright ceiling cut by the image border
-  // won); 21 of 30 trying regions best first. The opening of a rejected region separates a board
-  // whose top corner touches the ceiling band. Still missed: boards overlapping the ceiling over a
-  // longer stretch (board and ceiling differ by ~5 grey levels) and boards at 1.6 m with an edge
-  // mostly outside the image. A found board must never be a wrong one.
+  // Measured 27 of 30 with the line hypotheses of issue 14 (28 with session 7's segment detector;
+  // 25 of 30 with regions alone). Before: 0 of 30 (only the best-scored region was tried and the
+  // bright ceiling cut by the image border won); 21 of 30 trying regions best first. The opening
+  // of a rejected region separates a board whose top corner touches the ceiling band. Still
+  // missed: boards overlapping the ceiling over a longer stretch (board and ceiling differ by ~5
+  // grey levels) and boards at 1.6 m with an edge mostly outside the image. A found board must
+  // never be a wrong one.
   EXPECT_GE(found, visible * 3 / 4);
   EXPECT_EQ(edges_off, 0);
 }

@@ -107,6 +107,7 @@ struct CaseTally {
   EdgeScore all, basler;
   double sum_ms = 0, max_ms = 0, sum_cpu_ms = 0;
   std::vector<double> basler_cpu_ms, rs16_cpu_ms;  // per frame
+  PlainStageTimes basler_stages, rs16_stages;      // sums over the frames
 };
 
 // "mean / median / max" of per-frame CPU times.
@@ -137,6 +138,7 @@ CaseTally runCase(const std::vector<Frame>& frames, const Case& c, size_t index,
     const double cpu_ms = threadCpuMs() - cpu_start;
     t.sum_cpu_ms += cpu_ms;
     (basler ? t.basler_cpu_ms : t.rs16_cpu_ms).push_back(cpu_ms);
+    (basler ? t.basler_stages : t.rs16_stages) += d.details.stage_times;
     ++t.frames;
     t.sum_ms += d.details.time_ms;
     t.max_ms = std::max(t.max_ms, d.details.time_ms);
@@ -197,6 +199,8 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
     total.basler_cpu_ms.insert(total.basler_cpu_ms.end(), t.basler_cpu_ms.begin(),
                                t.basler_cpu_ms.end());
     total.rs16_cpu_ms.insert(total.rs16_cpu_ms.end(), t.rs16_cpu_ms.begin(), t.rs16_cpu_ms.end());
+    total.basler_stages += t.basler_stages;
+    total.rs16_stages += t.rs16_stages;
     EXPECT_GE(t.basler_found, c.basler_floor) << c.name;
     // rs16_plain (wide-angle lens, a floor and ceiling full of long lines, hands on the sides):
     // the clean frames are the floor (5 of the 5 with a reference); the augmented ones are
@@ -213,6 +217,14 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   std::printf("basler_os1_plain %d frames found, CPU per frame %s; rs16_plain %d found, %s\n",
               total.basler_found, cpuSummary(total.basler_cpu_ms).c_str(), total.rs16_found,
               cpuSummary(total.rs16_cpu_ms).c_str());
+  // Where the time goes (wall time, so the machine's load shows in it too).
+  for (const bool basler : {true, false}) {
+    const auto& cpu = basler ? total.basler_cpu_ms : total.rs16_cpu_ms;
+    if (cpu.empty()) continue;
+    std::printf(
+        "%s stages, mean ms per frame: %s\n", basler ? "basler_os1_plain" : "rs16_plain",
+        (basler ? total.basler_stages : total.rs16_stages).scaled(1.0 / cpu.size()).text().c_str());
+  }
   // Lines within 1 px of the independent reference: measured 694 of 708 basler edges (the rest
   // are shifted lines in the far, occluded and recoloured cases).
   EXPECT_GE(total.basler.within, 0.97 * total.basler.edges);

@@ -5,8 +5,36 @@
 
 #include <opencv2/core.hpp>
 
+#include <ctime>
+#include <type_traits>
+
 namespace board_calib {
 namespace image_detection {
+
+/// CPU time of the calling thread, ms (PlainStageTimes): on a shared machine it varies far less
+/// than wall time; the detector is single-threaded unless OpenCV is given worker threads.
+inline double threadCpuMs() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_nsec) * 1e-6;
+}
+
+/// ms of CPU time of the calling thread since `start` (a threadCpuMs() reading).
+inline double msSince(double start) { return threadCpuMs() - start; }
+
+/// f(), with the calling thread's CPU time it took added to *ms.
+template <typename F>
+auto timed(double* ms, F&& f) {
+  const double start = threadCpuMs();
+  if constexpr (std::is_void_v<decltype(f())>) {
+    f();
+    *ms += msSince(start);
+  } else {
+    auto result = f();
+    *ms += msSince(start);
+    return result;
+  }
+}
 
 /// Result of a PnP fit on undistorted pixels (zero distortion, camera K).
 struct PoseFit {
@@ -63,6 +91,7 @@ struct LineEvidence {
   std::vector<std::array<Eigen::Vector2d, 2>>
       line_ends;  ///< merged lines' support ends, undistorted px
   int segments = 0, lines = 0, quads = 0;
+  PlainStageTimes times;  ///< the line stage's share (resize, LSD, undistort, merge)
 };
 
 /// Quadrilateral board hypotheses from LSD segments merged into long lines (either polarity),

@@ -63,6 +63,50 @@ std::string ImageBoardDetectorOptions::validate() const {
   return {};
 }
 
+namespace {
+// The stages of PlainStageTimes with their names, in the order they run.
+template <typename Times, typename F>
+void forEachStage(Times& t, F f) {
+  f("noise", t.noise_ms);
+  f("regions", t.regions_ms);
+  f("line resize", t.line_resize_ms);
+  f("LSD", t.lsd_ms);
+  f("undistort", t.undistort_ms);
+  f("merge", t.merge_ms);
+  f("quads", t.quads_ms);
+  f("edges", t.edges_ms);
+  f("fits", t.fits_ms);
+}
+}  // namespace
+
+PlainStageTimes& PlainStageTimes::operator+=(const PlainStageTimes& other) {
+  std::vector<double> add;
+  forEachStage(other, [&](const char*, double ms) { add.push_back(ms); });
+  size_t k = 0;
+  forEachStage(*this, [&](const char*, double& ms) { ms += add[k++]; });
+  return *this;
+}
+
+PlainStageTimes PlainStageTimes::scaled(double factor) const {
+  PlainStageTimes out = *this;
+  forEachStage(out, [&](const char*, double& ms) { ms *= factor; });
+  return out;
+}
+
+double PlainStageTimes::total() const {
+  double sum = 0.0;
+  forEachStage(*this, [&](const char*, double ms) { sum += ms; });
+  return sum;
+}
+
+std::string PlainStageTimes::text() const {
+  std::string out;
+  forEachStage(*this, [&](const char* name, double ms) {
+    out += cv::format("%s%s %.1f", out.empty() ? "" : " | ", name, ms);
+  });
+  return out + cv::format(" = total %.1f", total());
+}
+
 struct ImageBoardDetector::Impl {
   Target target;
   ImageBoardDetectorOptions options;

@@ -261,23 +261,34 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
                                            const QuadSearch& search) {
   const std::vector<MergedLine>& lines = set.lines;
   std::vector<QuadHypothesis> quads;
+  // Opposite sides may converge under perspective; asked once per pair, not once per path.
+  const int n = static_cast<int>(g.adjacent.size());
+  std::vector<signed char> is_parallel(static_cast<size_t>(n) * n, -1);
   auto parallel = [&](int i, int k) {
-    return angleBetweenLines(lines[i].dir, lines[k].dir) <= kMaxOppositeAngleRad;
+    signed char& p = is_parallel[static_cast<size_t>(i) * n + k];
+    if (p < 0) p = angleBetweenLines(lines[i].dir, lines[k].dir) <= kMaxOppositeAngleRad;
+    return p == 1;
   };
   auto onStatic = [&](int i) { return search.is_static ? (*search.is_static)[i] : 0; };
   const cv::Rect2d ubox = undistortedBounds(camera);
+  // i is the smallest index and j < m: each cycle i-j-k-m is met once. The filters are pruned
+  // as early as they can be decided (neighbour lists are ascending).
   for (int i = 0; i < search.lines && quads.size() < kMaxQuads; ++i)
     for (const int j : g.neighbours[i]) {
       if (j <= i) continue;
+      // Four lines of the static scene: a window bay or a door, never the moving board.
+      const int static_ij = onStatic(i) + onStatic(j);
+      if (static_ij >= kStaticSidesOfScene) continue;
       for (const int k : g.neighbours[j]) {
-        if (k <= i || !parallel(i, k)) continue;
-        for (const int m : g.neighbours[k]) {
-          // i is the smallest index and j < m: each cycle i-j-k-m is met once.
-          if (m <= j || !g.adjacent[m][i] || !parallel(j, m)) continue;
-          if (std::max({j, k, m}) < search.first_new) continue;  // enumerated before
-          // Four lines of the static scene: a window bay or a door, never the moving board.
-          if (onStatic(i) + onStatic(j) + onStatic(k) + onStatic(m) >= kStaticSidesOfScene)
-            continue;
+        if (k <= i || static_ij + onStatic(k) >= kStaticSidesOfScene || !parallel(i, k)) continue;
+        // At least one side from the lines from search.first_new on (the others enumerated
+        // before).
+        const int m_from = std::max(j, k) < search.first_new ? search.first_new : j + 1;
+        const std::vector<int>& ms = g.neighbours[k];
+        for (auto it = std::lower_bound(ms.begin(), ms.end(), m_from); it != ms.end(); ++it) {
+          const int m = *it;
+          if (!g.adjacent[m][i] || !parallel(j, m)) continue;
+          if (static_ij + onStatic(k) + onStatic(m) >= kStaticSidesOfScene) continue;
           const std::array<int, 4> idx = {i, j, k, m};
           std::array<Eigen::Vector2d, 4> c;
           for (int s = 0; s < 4; ++s) c[s] = g.corner[idx[s]][idx[(s + 1) % 4]];

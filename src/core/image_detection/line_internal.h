@@ -55,6 +55,10 @@ struct MergedLine {
   }
 };
 
+/// Line segments of an 8-bit grey image (x1, y1, x2, y2; pixel centres at integers): the LSD
+/// algorithm as OpenCV's LSD_REFINE_NONE, faster (line_segment_detector.cpp).
+std::vector<cv::Vec4f> lineSegments(const cv::Mat& gray);
+
 /// The merged lines of an image, most supported first.
 struct LineSet {
   std::vector<MergedLine> lines;

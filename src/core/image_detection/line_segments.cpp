@@ -1,6 +1,6 @@
-// The line stage of the plain detector (as PBPC-Cal does with LSD): segments from OpenCV's line
-// segment detector on a downscaled image, merged in undistorted pixels into long straight lines
-// of either polarity.
+// The line stage of the plain detector (as PBPC-Cal does with LSD): segments from the line
+// segment detector (line_segment_detector.cpp) on a downscaled image, merged in undistorted pixels
+// into long straight lines of either polarity.
 #include "line_internal.h"
 
 #include <Eigen/Eigenvalues>
@@ -20,6 +20,7 @@ constexpr double kMergeSigmas = 3.0;        // angle tolerance of a merge, in en
 constexpr double kMinMergeAngleRad = 0.02;  // ~1 deg: floor of that tolerance (long segments)
 constexpr double kMaxMergeAngleRad = 0.10;  // ~6 deg: cap (short segments)
 constexpr double kMergeOffsetPx = 3.5;      // full-res px: a held board bows ~3 px
+constexpr double kCosRoundingMargin = 1e-9;  // far above the rounding of a cosine near 1
 
 // Segment ends this far from a line still lie on it: a held board's bow, or the ends' noise.
 double mergeOffsetPx(double end_sigma) { return std::max(kMergeOffsetPx, 2.0 * end_sigma); }
@@ -35,6 +36,8 @@ std::vector<Member> detectSegments(const cv::Mat& gray, const CameraModel& camer
                                    const ImageBoardDetectorOptions& o, LineEvidence* evidence,
                                    double* scale) {
   *scale = lineDetectionScale(o, gray.cols);
+  PlainStageTimes times;
+  double start = threadCpuMs();
   cv::Mat small;
   if (*scale > 1.0)
     cv::resize(gray, small,
@@ -45,12 +48,13 @@ std::vector<Member> detectSegments(const cv::Mat& gray, const CameraModel& camer
     small = gray;
   const double sx = static_cast<double>(gray.cols) / small.cols,
                sy = static_cast<double>(gray.rows) / small.rows;
-  // LSD with its own a-contrario false-detection control; no internal rescale (done above, by
-  // area averaging, which also lowers the noise).
-  const cv::Ptr<cv::LineSegmentDetector> lsd =
-      cv::createLineSegmentDetector(cv::LSD_REFINE_NONE, 1.0);
-  std::vector<cv::Vec4f> raw_segments;
-  lsd->detect(small, raw_segments);
+  times.line_resize_ms = msSince(start);
+  start = threadCpuMs();
+  // LSD's region growing, no internal rescale (done above, by area averaging, which also lowers
+  // the noise).
+  const std::vector<cv::Vec4f> raw_segments = lineSegments(small);
+  times.lsd_ms = msSince(start);
+  start = threadCpuMs();
 
   std::vector<Member> segments;
   for (const auto& s : raw_segments) {
@@ -63,9 +67,13 @@ std::vector<Member> detectSegments(const cv::Mat& gray, const CameraModel& camer
     m.length = (m.b - m.a).norm();
     if (m.length > 0) segments.push_back(m);
   }
-  if (evidence) evidence->segments = static_cast<int>(segments.size());
   std::sort(segments.begin(), segments.end(),
             [](const Member& x, const Member& y) { return x.length > y.length; });
+  times.undistort_ms = msSince(start);
+  if (evidence) {
+    evidence->segments = static_cast<int>(segments.size());
+    evidence->times += times;
+  }
   return segments;
 }
 
@@ -81,9 +89,13 @@ std::vector<MergedLine> mergeSegments(const std::vector<Member>& segments, doubl
     const Eigen::Vector2d d = (s.b - s.a) / s.length;
     const double angle_tol = std::clamp(kMergeSigmas * std::sqrt(2.0) * end_sigma / s.length,
                                         kMinMergeAngleRad, kMaxMergeAngleRad);
+    // The angle test on |cos| first (no acos): acos only where rounding could tip it.
+    const double cos_tol = std::cos(angle_tol);
     MergedLine* host = nullptr;
     for (auto& l : lines) {
-      if (angleBetweenLines(d, l.dir) > angle_tol) continue;
+      const double c = std::abs(d.dot(l.dir));
+      if (c < cos_tol - kCosRoundingMargin) continue;
+      if (c <= cos_tol + kCosRoundingMargin && angleBetweenLines(d, l.dir) > angle_tol) continue;
       if (std::abs(l.offset(s.a)) > max_offset || std::abs(l.offset(s.b)) > max_offset) continue;
       host = &l;
       break;
@@ -156,7 +168,9 @@ LineSet detectLines(const cv::Mat& gray, const CameraModel& camera,
   const std::vector<Member> segments = detectSegments(gray, camera, o, evidence, &scale);
   LineSet set;
   set.end_sigma_px = kSegmentEndSigmaPx * scale;
+  const double start = threadCpuMs();
   set.lines = mergeSegments(segments, set.end_sigma_px, o, max_lines);
+  if (evidence) evidence->times.merge_ms += msSince(start);
   return set;
 }
 

@@ -239,7 +239,9 @@ bool fitCandidate(const cv::Mat& gray, const CameraModel& camera, const Target& 
                " straight board edge(s) in the outline";
     return false;
   }
+  const double start = threadCpuMs();
   const int valid = refineSides(gray, camera, o, h, min_gradient, out, support);
+  d.stage_times.edges_ms = msSince(start);
   for (int j = 0; j < kNumEdges; ++j)
     if (f.edge_valid[j] && f.edge_valid[(j + 1) % 4] &&
         !intersectLines(f.edge_lines[j], f.edge_lines[(j + 1) % 4], &f.corners_px[j])) {

@@ -121,6 +121,30 @@ bool onStaticRectangle(const StaticScene& excluded, ImageDetection* attempt) {
   return false;
 }
 
+// fitCandidate, its CPU time split between the edge refinement (timed inside it) and the rest.
+bool timedFit(const cv::Mat& gray, const CameraModel& camera, const Target& target,
+              const ImageBoardDetectorOptions& o, const Hypothesis& h, double min_gradient,
+              ImageDetection* attempt, CandidateSupport* support, PlainStageTimes* times) {
+  const bool fits = timed(&times->fits_ms, [&] {
+    return fitCandidate(gray, camera, target, o, h, min_gradient, attempt, support);
+  });
+  times->edges_ms += attempt->details.stage_times.edges_ms;
+  times->fits_ms -= attempt->details.stage_times.edges_ms;
+  return fits;
+}
+
+// A fitted board stays the board where the prior expects it and off the static rectangles; every
+// fitted board is recorded (the static ones too).
+bool keptBoard(const ExpectedBoard* expected, const StaticScene* excluded, ImageDetection* attempt,
+               HypothesisSearch* search) {
+  if (expected) {
+    checkExpected(*expected, attempt);
+    if (!attempt->features.found) return false;
+  }
+  search->boards.push_back(attempt->features.corners_px);
+  return !(excluded && onStaticRectangle(*excluded, attempt));
+}
+
 // The board (or the attempt that got furthest, or why nothing was tried) and what was seen.
 void report(HypothesisSearch&& search, LineEvidence&& evidence, const std::string& region_reason,
             bool no_hypotheses, double noise, ImageDetection* out) {
@@ -152,17 +176,19 @@ void report(HypothesisSearch&& search, LineEvidence&& evidence, const std::strin
 void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                  const ImageBoardDetectorOptions& o, ImageDetection* out,
                  const ExpectedBoard* expected, const StaticScene* excluded) {
-  const cv::Mat small = downscale(gray, o.segmentation_width_px);
-  const double sx = static_cast<double>(gray.cols) / small.cols;
+  PlainStageTimes times;
   // Edge pixels must stand out of this image's own noise (sensor, compression, texture).
-  const double noise = estimateNoiseSigma(gray);
+  const double noise = timed(&times.noise_ms, [&] { return estimateNoiseSigma(gray); });
   const double min_gradient =
       std::max(o.min_edge_contrast, o.edge_snr * kGradientNoiseGain * noise);
   out->details.noise_sigma = noise;
+  const cv::Mat small =
+      timed(&times.regions_ms, [&] { return downscale(gray, o.segmentation_width_px); });
+  const double sx = static_cast<double>(gray.cols) / small.cols;
 
   // Hypotheses: regions (best score first, then openings of the rejected ones) and quadrilaterals
   // of long straight edges. None is a gate for the others.
-  Segmentation seg = segmentBoard(small, o);
+  Segmentation seg = timed(&times.regions_ms, [&] { return segmentBoard(small, o); });
   std::vector<Hypothesis> hypotheses;
   auto addRegions = [&] {
     for (size_t i = 0; i < seg.candidates.size() && i < static_cast<size_t>(o.max_board_candidates);
@@ -183,15 +209,18 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
   size_t regions = first_regions;
   for (size_t i = 0;; ++i) {
     if (i == first_regions && !search.found()) {
-      proposeOpenedRegions(small.size(), o, &seg);
+      timed(&times.regions_ms, [&] { proposeOpenedRegions(small.size(), o, &seg); });
       addRegions();
       regions = hypotheses.size();
     }
     // Line evidence (the costly part) unless a region already gave a board whose four sides
     // show their edge along nearly all their visible length.
     if (i == regions && !search.cleanBoard()) {
-      line_quads = lineQuadHypotheses(gray, camera, o, &evidence, expected,
-                                      excluded ? &excluded->lines_px : nullptr);
+      line_quads = timed(&times.quads_ms, [&] {
+        return lineQuadHypotheses(gray, camera, o, &evidence, expected,
+                                  excluded ? &excluded->lines_px : nullptr);
+      });
+      times.quads_ms -= evidence.times.total();  // the line stage's own timed parts
       quads = line_quads.best;
       for (const auto& q : quads) hypotheses.push_back(fromQuad(q, camera, o));
     }
@@ -216,20 +245,15 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     if (expected && i < regions && !nearExpected(hypotheses[i].inside_u, *expected)) continue;
     ImageDetection attempt = fresh;
     CandidateSupport support;
-    bool is_board =
-        fitCandidate(gray, camera, target, o, hypotheses[i], min_gradient, &attempt, &support);
-    if (is_board && expected) {
-      checkExpected(*expected, &attempt);
-      is_board = attempt.features.found;
-    }
-    if (is_board) {
-      search.boards.push_back(attempt.features.corners_px);
-      if (excluded && onStaticRectangle(*excluded, &attempt)) is_board = false;
-    }
+    const bool is_board = timedFit(gray, camera, target, o, hypotheses[i], min_gradient, &attempt,
+                                   &support, &times) &&
+                          keptBoard(expected, excluded, &attempt, &search);
     const auto corners = i >= regions ? quads[i - regions].corners : attempt.features.corners_px;
     search.record(hypotheses[i], corners, is_board, support, std::move(attempt));
   }
+  times += evidence.times;
   report(std::move(search), std::move(evidence), region_reason, hypotheses.empty(), noise, out);
+  out->details.stage_times = times;
 }
 
 }  // namespace image_detection

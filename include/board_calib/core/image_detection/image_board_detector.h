@@ -22,6 +22,7 @@
 #include <opencv2/core.hpp>
 
 #include <memory>
+#include <string>
 #include <vector>
 
 namespace board_calib {
@@ -96,6 +97,27 @@ struct ImageBoardDetectorOptions {
   std::string validate() const;
 };
 
+/// Plain board: where the detection time went, ms of CPU time of the calling thread per stage
+/// (the stages run one after another on it; OpenCV worker threads, if any, are not counted), for
+/// profiling (bench_image_detector --stages).
+struct PlainStageTimes {
+  double noise_ms = 0.0;        ///< ms, image noise estimate
+  double regions_ms = 0.0;      ///< ms, region proposals (segmentation, openings)
+  double line_resize_ms = 0.0;  ///< ms, downscale for the line segment detector
+  double lsd_ms = 0.0;          ///< ms, line segment detector (LSD)
+  double undistort_ms = 0.0;    ///< ms, segment ends to undistorted px
+  double merge_ms = 0.0;        ///< ms, segments merged into straight lines
+  double quads_ms = 0.0;        ///< ms, corner graph, 4-cycles, kept quadrilaterals
+  double edges_ms = 0.0;        ///< ms, sub-pixel edge refinement of the hypotheses' sides
+  double fits_ms = 0.0;         ///< ms, rest of the hypotheses' fits (corners, PnP, checks)
+
+  PlainStageTimes& operator+=(const PlainStageTimes& other);
+  PlainStageTimes scaled(double factor) const;  ///< every stage times factor (a mean)
+  double total() const;                         ///< ms, the sum of the stages
+  /// "noise 1.2 | regions 3.4 | ... = total 9.9" in ms, the stages in the order they run.
+  std::string text() const;
+};
+
 /// What the detector saw beyond the features (for debug drawing and quality checks).
 struct ImageDetectionDetails {
   std::array<Points2, kNumEdges> edge_points_raw;  ///< plain: inlier edge samples per edge, raw px
@@ -125,7 +147,8 @@ struct ImageDetectionDetails {
   /// Pose covariance, order (rotation vector rad, translation m), from the PnP Jacobian with
   /// sigma = max(residual RMS, pixel_sigma_px). Zero when no pose.
   Eigen::Matrix<double, 6, 6> pose_covariance = Eigen::Matrix<double, 6, 6>::Zero();
-  double time_ms = 0.0;  ///< detection time
+  double time_ms = 0.0;         ///< detection time
+  PlainStageTimes stage_times;  ///< plain: detection time per stage
 };
 
 struct ImageDetection {
