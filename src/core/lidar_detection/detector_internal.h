@@ -8,6 +8,7 @@
 #include "geometry_2d.h"
 #include "scan_segments.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -109,15 +110,72 @@ inline LidarBoardDetection failure(LidarBoardDetection d, LidarDetectionCode cod
   return d;
 }
 
+// Voxel key -> voxel number by open addressing (linear probing, a power-of-two table at most half
+// full): region growing asks it 26 times per voxel and every point inserts, where a node-based
+// map spent a quarter of the detector's time.
+class VoxelIndex {
+ public:
+  void reserve(size_t n) { rehash(std::max<size_t>(16, 2 * n)); }
+  /// The voxel number of `key`, inserting `value` when absent; `inserted` says which.
+  int emplace(int64_t key, int value, bool* inserted) {
+    if (2 * (size_ + 1) > keys_.size()) rehash(2 * keys_.size());
+    size_t i = slot(key);
+    while (used_[i] && keys_[i] != key) i = (i + 1) & mask_;
+    *inserted = !used_[i];
+    if (*inserted) {
+      used_[i] = 1;
+      keys_[i] = key;
+      values_[i] = value;
+      ++size_;
+    }
+    return values_[i];
+  }
+  /// The voxel number of `key`, -1 when absent.
+  int find(int64_t key) const {
+    if (keys_.empty()) return -1;
+    for (size_t i = slot(key);; i = (i + 1) & mask_) {
+      if (!used_[i]) return -1;
+      if (keys_[i] == key) return values_[i];
+    }
+  }
+
+ private:
+  size_t slot(int64_t key) const {  // Fibonacci hashing: the high bits of key x 2^64 / phi
+    return static_cast<size_t>((static_cast<uint64_t>(key) * 0x9E3779B97F4A7C15ull) >> shift_);
+  }
+  void rehash(size_t capacity) {
+    size_t cap = 16;
+    int bits = 4;
+    while (cap < capacity) {
+      cap <<= 1;
+      ++bits;
+    }
+    std::vector<int64_t> keys = std::move(keys_);
+    std::vector<int> values = std::move(values_);
+    std::vector<unsigned char> used = std::move(used_);
+    keys_.assign(cap, 0);
+    values_.assign(cap, -1);
+    used_.assign(cap, 0);
+    mask_ = cap - 1;
+    shift_ = 64 - bits;
+    size_ = 0;
+    bool inserted = false;
+    for (size_t i = 0; i < keys.size(); ++i)
+      if (used[i]) emplace(keys[i], values[i], &inserted);
+  }
+  std::vector<int64_t> keys_;
+  std::vector<int> values_;
+  std::vector<unsigned char> used_;
+  size_t mask_ = 0, size_ = 0;
+  int shift_ = 60;
+};
+
 struct VoxelGrid {
   std::vector<Voxel> voxels;
-  std::unordered_map<int64_t, int> index;
+  VoxelIndex index;
   std::vector<int> sorted_points;  // point indices grouped by voxel
 
-  int find(int ix, int iy, int iz) const {
-    const auto it = index.find(voxelKey(ix, iy, iz));
-    return it == index.end() ? -1 : it->second;
-  }
+  int find(int ix, int iy, int iz) const { return index.find(voxelKey(ix, iy, iz)); }
 };
 
 // In-plane basis of a plane: u "right" as seen from the sensor, v "up" (sensor +z projected).

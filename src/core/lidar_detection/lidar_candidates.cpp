@@ -47,18 +47,20 @@ VoxelGrid buildVoxels(const std::vector<ValidPoint>& pts, double size) {
     const int ix = static_cast<int>(std::floor(p.x() / size));
     const int iy = static_cast<int>(std::floor(p.y() / size));
     const int iz = static_cast<int>(std::floor(p.z() / size));
-    const auto ins = g.index.emplace(voxelKey(ix, iy, iz), static_cast<int>(g.voxels.size()));
-    if (ins.second) {
+    bool inserted = false;
+    const int number =
+        g.index.emplace(voxelKey(ix, iy, iz), static_cast<int>(g.voxels.size()), &inserted);
+    if (inserted) {
       Voxel v;
       v.ix = ix;
       v.iy = iy;
       v.iz = iz;
       g.voxels.push_back(v);
     }
-    Voxel& v = g.voxels[ins.first->second];
+    Voxel& v = g.voxels[number];
     v.stats.add(p);
     v.count++;
-    voxel_of[i] = ins.first->second;
+    voxel_of[i] = number;
   }
   // Counting sort of the point indices by voxel.
   int offset = 0;
@@ -105,12 +107,13 @@ std::vector<Region> growPlanarRegions(VoxelGrid& g, const LidarBoardDetectorOpti
     size_t head = 0;
     int added_since_fit = 0;
     while (head < queue.size()) {
-      const Voxel cur = g.voxels[queue[head++]];
+      const Voxel& head_voxel = g.voxels[queue[head++]];
+      const int cx = head_voxel.ix, cy = head_voxel.iy, cz = head_voxel.iz;
       for (int dx = -1; dx <= 1; ++dx)
         for (int dy = -1; dy <= 1; ++dy)
           for (int dz = -1; dz <= 1; ++dz) {
             if (!dx && !dy && !dz) continue;
-            const int q = g.find(cur.ix + dx, cur.iy + dy, cur.iz + dz);
+            const int q = g.find(cx + dx, cy + dy, cz + dz);
             if (q < 0 || g.voxels[q].region >= 0) continue;
             const Voxel& nv = g.voxels[q];
             const Eigen::Vector3d n = plane.normal();
