@@ -65,6 +65,18 @@ struct LineEvidence {
   int segments = 0, lines = 0, quads = 0;
 };
 
+/// Three lines of a board whose fourth side has no line (faint, or covered by hands or legs): two
+/// roughly parallel open sides joined by a base, each base corner where the lines end.
+struct ThreeSides {
+  std::array<Eigen::Vector3d, 3> lines;    ///< open side a, base, open side b (undistorted px)
+  std::array<Eigen::Vector2d, 2> corners;  ///< a x base, base x b (undistorted px)
+  std::array<Eigen::Vector2d, 2> inward;   ///< unit direction of each open side from its corner
+  std::array<double, 2> reach{};  ///< px from each corner that the open side reaches at least (its
+                                  ///< segments' end less the corner tolerance)
+  double score = 0;               ///< px of segments along the three sides
+  int corner_ends = 0;            ///< line ends at the two corners (of 4)
+};
+
 /// Quadrilateral board hypotheses from LSD segments merged into long lines (either polarity),
 /// each list best first, at most options.max_line_hypotheses, every side partly inside the image.
 struct LineQuads {
@@ -72,6 +84,8 @@ struct LineQuads {
   /// of the further lines (up to options.max_lines_static_scene) with at least one side among
   /// them, where the lines end at the corners: to try when nothing else was the board
   std::vector<QuadHypothesis> ending_at_corners;
+  /// three sides ending at their two corners, the fourth to be traced in the image (best first)
+  std::vector<ThreeSides> three_sides;
 };
 
 /// With `expected`, only quadrilaterals whose corners all lie near the expected ones compete;

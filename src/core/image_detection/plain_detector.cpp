@@ -204,6 +204,21 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
       }
       line_quads.ending_at_corners.clear();
     }
+    // Then three lines whose fourth side is traced in the image (faint, or under hands or legs).
+    if (i == hypotheses.size() && i >= regions && !search.found() &&
+        !line_quads.three_sides.empty()) {
+      for (const ThreeSides& sides : line_quads.three_sides)
+        for (QuadHypothesis& q : traceFourthSide(gray, camera, target, o, sides, min_gradient)) {
+          if (expected &&
+              worstCornerOffset(q.corners, expected->corners_px) > expected->tolerance_px)
+            continue;
+          Hypothesis h = fromQuad(q, camera, o, true);
+          h.source = "traced side";
+          hypotheses.push_back(std::move(h));
+          quads.push_back(std::move(q));
+        }
+      line_quads.three_sides.clear();
+    }
     if (i >= hypotheses.size()) break;
     if (i >= first_regions && i < regions && search.found())
       continue;  // openings only until one is the board
