@@ -46,6 +46,10 @@ cv::Mat toGray(const cv::Mat& image);
 /// Intersection of two lines (homogeneous), false when (nearly) parallel.
 bool intersectLines(const Eigen::Vector3d& l1, const Eigen::Vector3d& l2, Eigen::Vector2d* point);
 
+/// LSD misses weak stretches the gradient search still finds: a side's segments need only cover
+/// this share of the side coverage required of the refined edge.
+constexpr double kLineCoverageShare = 0.5;
+
 /// Four lines in cyclic order (undistorted px): corner s ends side s and starts side s+1.
 struct QuadHypothesis {
   std::array<Eigen::Vector2d, 4> corners;
@@ -113,6 +117,13 @@ bool sameLine(const std::array<Eigen::Vector2d, 2>& x, const std::array<Eigen::V
 /// Largest distance from a corner to its nearest reference corner (undistorted px).
 double worstCornerOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners,
                          const std::array<Eigen::Vector2d, kNumEdges>& reference);
+
+/// Bounding box of the image border in undistorted px.
+cv::Rect2d undistortedBounds(const CameraModel& camera);
+
+/// Length of the segment p-q inside a box (Liang-Barsky clipping): a quick upper bound of the
+/// visible length of a side.
+double clippedLength(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const cv::Rect2d& box);
 
 /// True if an undistorted pixel lies inside the image (culled by its ray first: no fold-back).
 bool visibleUndistorted(const CameraModel& camera, const Eigen::Vector2d& u, double margin);

@@ -34,9 +34,6 @@ constexpr int kVisibilitySamples = 24;  // samples along a side to measure its v
 // sides move with it and rarely lie along a scene line (measured on the street: with 3, quads of
 // two static and two flickering weak lines took the board's place; docs/BENCHMARKS.md).
 constexpr int kStaticSidesOfScene = 2;
-// LSD misses weak stretches the gradient search still finds: segments need only cover this share
-// of the side coverage required of the refined edge.
-constexpr double kLineCoverageShare = 0.5;
 // A line's support ends at a corner within this many segment-end sigmas (plus the corner
 // tolerance share of its extent).
 constexpr double kCornerEndSigmas = 4.0;
@@ -47,7 +44,8 @@ constexpr int kMinCornerEnds = 3;
 // hypothesis fits: bounds the time when nothing else was the board).
 constexpr int kMaxThreeSides = 8;
 
-// Bounding box of the image border in undistorted px.
+}  // namespace
+
 cv::Rect2d undistortedBounds(const CameraModel& camera) {
   double box[4] = {1e18, 1e18, -1e18, -1e18};
   constexpr int kSamples = 32;
@@ -68,8 +66,6 @@ cv::Rect2d undistortedBounds(const CameraModel& camera) {
   return {box[0], box[1], box[2] - box[0], box[3] - box[1]};
 }
 
-// Length of the segment p-q inside a box (Liang-Barsky clipping): a quick upper bound of the
-// visible length of a side.
 double clippedLength(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const cv::Rect2d& box) {
   const Eigen::Vector2d d = q - p;
   double t0 = 0, t1 = 1;
@@ -89,8 +85,6 @@ double clippedLength(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const c
   }
   return t1 > t0 ? (t1 - t0) * d.norm() : 0.0;
 }
-
-}  // namespace
 
 bool visibleUndistorted(const CameraModel& camera, const Eigen::Vector2d& u, double margin) {
   const Eigen::Matrix3d K = camera.K();

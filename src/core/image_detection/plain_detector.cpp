@@ -207,8 +207,18 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     // Then three lines whose fourth side is traced in the image (faint, or under hands or legs).
     if (i == hypotheses.size() && i >= regions && !search.found() &&
         !line_quads.three_sides.empty()) {
+      // A traced side is for a side without line evidence: where the line detector's segments
+      // run along as much of it as a quadrilateral's side needs, the line quadrilaterals had their
+      // chance (measured: the simulated street's window frames, 4-12 wrong boards without this).
+      std::vector<std::array<Eigen::Vector2d, 2>> segments_u;
+      for (const auto& seg : evidence.segments_raw)
+        segments_u.push_back({camera.undistortPixel(seg[0]), camera.undistortPixel(seg[1])});
+      const double tolerance = sameLineTolerancePx(o, gray.cols);
       for (const ThreeSides& sides : line_quads.three_sides)
         for (QuadHypothesis& q : traceFourthSide(gray, camera, target, o, sides, min_gradient)) {
+          if (segmentShareAlong(segments_u, q.corners[2], q.corners[3], tolerance) >=
+              kLineCoverageShare * o.min_side_coverage)
+            continue;
           if (expected &&
               worstCornerOffset(q.corners, expected->corners_px) > expected->tolerance_px)
             continue;

@@ -103,6 +103,11 @@ std::vector<QuadHypothesis> traceFourthSide(const cv::Mat& gray, const CameraMod
                                             const ImageBoardDetectorOptions& o,
                                             const ThreeSides& sides, double min_gradient);
 
+/// Share of the segment p-q (undistorted px) that line segments (undistorted px, both ends within
+/// tolerance_px of it) cover.
+double segmentShareAlong(const std::vector<std::array<Eigen::Vector2d, 2>>& segments_u,
+                         const Eigen::Vector2d& p, const Eigen::Vector2d& q, double tolerance_px);
+
 /// Edge support of a fitted hypothesis: px of edge samples along the sides, and the lowest side
 /// coverage.
 struct CandidateSupport {

@@ -93,6 +93,7 @@ bool boardAspect(const Pencil& p, const ThreeSides& u, const Eigen::Vector2d& a,
 struct Band {
   std::vector<Eigen::Vector2d> a, b;  // open corners per row (undistorted px)
   std::vector<char> row_ok, allowed, read_fine;
+  std::vector<char> seen;       // the row's side crosses the image
   std::vector<float> strength;  // rows x kSamples: strongest |gradient| read across the side
   std::vector<char> edge;       // rows x kSamples: an edge sample (markEdges)
   std::vector<float> centre;    // |gradient| on the side itself (the noise sample)
@@ -156,12 +157,14 @@ Band sweepBand(const CameraModel& camera, const Target& target, const ImageBoard
                            (b - a).norm() >= o.min_board_size_px);
   }
   band.rows = static_cast<int>(band.a.size());
+  const cv::Rect2d bounds = undistortedBounds(camera);
+  for (int k = 0; k < band.rows; ++k)
+    band.seen.push_back(band.row_ok[k] && clippedLength(band.a[k], band.b[k], bounds) > 0);
   band.strength.assign(static_cast<size_t>(band.rows) * kSamples, -1.0f);
   band.edge.assign(static_cast<size_t>(band.rows) * kSamples, 0);
   band.read_fine.assign(band.rows, 0);
   const double base = (u.corners[1] - u.corners[0]).norm();
   band.lambda0 = std::min(o.corner_exclusion_px, 0.15 * base) / std::max(base, 1.0);
-  (void)camera;
   return band;
 }
 
@@ -245,7 +248,7 @@ std::vector<QuadHypothesis> traceFourthSide(const cv::Mat& gray, const CameraMod
         near_allowed[r] |= std::abs(r - k) <= kSlackRows;
       }
   for (int k = 0; k < band.rows; ++k)
-    if (read[k] && band.row_ok[k]) readRow(gray, camera, o, k, 0, kCoarseStride, &band);
+    if (read[k] && band.seen[k]) readRow(gray, camera, o, k, 0, kCoarseStride, &band);
   if (band.centre.empty()) return {};
   // An edge sample stands out of the gradient noise of this band (board, background, texture):
   // most of the band is no edge, so the median |gradient| across the sides measures that noise.
@@ -269,7 +272,7 @@ std::vector<QuadHypothesis> traceFourthSide(const cv::Mat& gray, const CameraMod
   for (int k = 0; k < band.rows; ++k) {
     if (best[k] < coarse_floor) continue;
     for (int r = std::max(0, k - reread); r <= std::min(band.rows - 1, k + reread); ++r) {
-      if (!band.read_fine[r] && band.row_ok[r]) {
+      if (!band.read_fine[r] && band.seen[r]) {
         for (int first = 1; first < kCoarseStride; ++first)
           readRow(gray, camera, o, r, first, kCoarseStride, &band);
         band.read_fine[r] = 1;
@@ -301,6 +304,28 @@ std::vector<QuadHypothesis> traceFourthSide(const cv::Mat& gray, const CameraMod
     quads.push_back(q);
   }
   return quads;
+}
+
+double segmentShareAlong(const std::vector<std::array<Eigen::Vector2d, 2>>& segments_u,
+                         const Eigen::Vector2d& p, const Eigen::Vector2d& q, double tolerance_px) {
+  const double length = (q - p).norm();
+  if (length <= 0) return 0;
+  const Eigen::Vector2d dir = (q - p) / length, n(-dir.y(), dir.x());
+  std::vector<std::pair<double, double>> spans;
+  for (const auto& seg : segments_u) {
+    if (std::abs(n.dot(seg[0] - p)) > tolerance_px || std::abs(n.dot(seg[1] - p)) > tolerance_px)
+      continue;
+    const double t0 = dir.dot(seg[0] - p), t1 = dir.dot(seg[1] - p);
+    const double lo = std::max(0.0, std::min(t0, t1)), hi = std::min(length, std::max(t0, t1));
+    if (hi > lo) spans.emplace_back(lo, hi);
+  }
+  std::sort(spans.begin(), spans.end());
+  double covered = 0, end = 0;
+  for (const auto& sp : spans) {
+    covered += std::max(0.0, sp.second - std::max(sp.first, end));
+    end = std::max(end, sp.second);
+  }
+  return covered / length;
 }
 
 }  // namespace image_detection
