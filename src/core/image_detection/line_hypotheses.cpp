@@ -445,8 +445,11 @@ LineQuads lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
   for (int k = 0; k < best.lines && scene_known; ++k)
     for (const auto& s : *static_lines) is_static[k] |= sameLine(set.lines[k].ends(), s, tolerance);
   best.is_static = &is_static;
-  if (best.lines < kNumEdges) return {};
   LineQuads out;
+  // Three lines of a board whose fourth has none (faint, hidden) are worth a trace.
+  const CornerGraph ends_graph = cornerGraph(set, all, camera, o, true);
+  out.three_sides = threeSideChains(set, ends_graph, all, o, is_static);
+  if (best.lines < kNumEdges) return out;
   std::vector<QuadHypothesis> quads =
       enumerateQuads(set, cornerGraph(set, best.lines, camera, o, false), camera, o, best);
   if (evidence) evidence->quads = static_cast<int>(quads.size());
@@ -454,8 +457,6 @@ LineQuads lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
   // The board's sides may rank far below a line-rich scene's (an office ceiling and floor): the
   // lines past the first ones give quadrilaterals only where the lines end at the corners, as
   // a board's sides do and a scene grid's crossing lines do not.
-  const CornerGraph ends_graph = cornerGraph(set, all, camera, o, true);
-  out.three_sides = threeSideChains(set, ends_graph, all, o, is_static);
   if (all > best.lines) {
     QuadSearch ends;
     ends.lines = all;
