@@ -42,7 +42,7 @@ constexpr double kCornerEndSigmas = 4.0;
 constexpr int kMinCornerEnds = 3;
 // Three-sided chains whose fourth side is traced (each costs a 1-D gradient search and up to two
 // hypothesis fits: bounds the time when nothing else was the board).
-constexpr int kMaxThreeSides = 8;
+constexpr int kMaxThreeSides = 4;
 
 }  // namespace
 
