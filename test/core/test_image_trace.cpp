@@ -41,17 +41,25 @@ Target plainTarget() {
   return t;
 }
 
-// Board corners in the image: 3 m away, rolled 25 deg, turned 15 deg about the vertical.
-std::array<Eigen::Vector2d, 4> boardCorners(const CameraModel& camera, const Target& target) {
+// The board 3 m away, rolled 25 deg, turned 15 deg about the vertical.
+Eigen::Isometry3d boardPose(const Target& target) {
   const Eigen::Matrix3d R = (Eigen::AngleAxisd(15 * kRadPerDeg, Eigen::Vector3d::UnitY()) *
                              Eigen::AngleAxisd(25 * kRadPerDeg, Eigen::Vector3d::UnitZ()))
                                 .toRotationMatrix();
-  const Eigen::Isometry3d camera_T_board =
-      makeTransform(R, Eigen::Vector3d(0.05, 0.02, 3.0) - R * target.center());
+  return makeTransform(R, Eigen::Vector3d(0.05, 0.02, 3.0) - R * target.center());
+}
+
+Eigen::Vector2d project(const CameraModel& camera, const Eigen::Isometry3d& camera_T_board,
+                        const Eigen::Vector3d& p_board) {
+  Eigen::Vector2d px;
+  EXPECT_TRUE(camera.projectUndistorted(camera_T_board * p_board, &px));
+  return px;
+}
+
+std::array<Eigen::Vector2d, 4> boardCorners(const CameraModel& camera, const Target& target) {
   std::array<Eigen::Vector2d, 4> px;
   const auto outer = target.outerCorners();
-  for (int j = 0; j < 4; ++j)
-    EXPECT_TRUE(camera.projectUndistorted(camera_T_board * outer[j], &px[j]));
+  for (int j = 0; j < 4; ++j) px[j] = project(camera, boardPose(target), outer[j]);
   return px;
 }
 
@@ -64,14 +72,14 @@ int lowestSide(const std::array<Eigen::Vector2d, 4>& c) {
 }
 
 // Background: a ramp across the board's lower side (constant along it), from top_grey at the far
-// image corner up to side_grey at the side and on beyond it; optionally a strong floor edge
-// parallel to the side, edge_gap_px below it.
+// image corner up to side_grey at the side and on beyond it; optionally a bright floor beyond a
+// straight edge.
 struct Scene {
   double board_grey = 140, top_grey = 50, side_grey = 132;
   Eigen::Vector2d normal = Eigen::Vector2d::UnitY();  // of the lower side, pointing down
   double side_offset = 0;                             // normal . p on the lower side
   bool scene_edge = false;
-  double edge_gap_px = 0;
+  Eigen::Vector3d edge_line = Eigen::Vector3d::Zero();  // floor (200 grey) where l . (u, v, 1) > 0
 };
 
 Scene sceneUnder(const std::array<Eigen::Vector2d, 4>& c, int low) {
@@ -88,8 +96,8 @@ Scene sceneUnder(const std::array<Eigen::Vector2d, 4>& c, int low) {
 // edges), then adds Gaussian noise of 1 grey level.
 cv::Mat render(const std::array<Eigen::Vector2d, 4>& corners, const Scene& s, std::mt19937& rng) {
   double lowest = 1e18;
-  for (const Eigen::Vector2d p : {Eigen::Vector2d(0, 0), Eigen::Vector2d(kWidth, 0),
-                                  Eigen::Vector2d(0, kHeight), Eigen::Vector2d(kWidth, kHeight)})
+  for (const Eigen::Vector2d& p : {Eigen::Vector2d(0, 0), Eigen::Vector2d(kWidth, 0),
+                                   Eigen::Vector2d(0, kHeight), Eigen::Vector2d(kWidth, kHeight)})
     lowest = std::min(lowest, s.normal.dot(p));
   const double slope = (s.side_grey - s.top_grey) / (s.side_offset - lowest);
   cv::Mat big(kHeight * kSuper, kWidth * kSuper, CV_32F);
@@ -98,8 +106,8 @@ cv::Mat render(const std::array<Eigen::Vector2d, 4>& corners, const Scene& s, st
     for (int x = 0; x < big.cols; ++x) {
       const Eigen::Vector2d p((x + 0.5) / kSuper - 0.5, (y + 0.5) / kSuper - 0.5);
       const double t = s.normal.dot(p) - s.side_offset;
-      row[x] =
-          static_cast<float>(s.scene_edge && t > s.edge_gap_px ? 200.0 : s.side_grey + slope * t);
+      const bool floor = s.scene_edge && s.edge_line.dot(Eigen::Vector3d(p.x(), p.y(), 1)) > 0;
+      row[x] = static_cast<float>(floor ? 200.0 : s.side_grey + slope * t);
     }
   }
   constexpr int kShift = 4;  // fractional bits of the polygon vertices
@@ -165,9 +173,10 @@ TEST(ImageDetectorTrace, FaintSideIsTracedFromTheOtherThree) {
   }
 }
 
-// No board edge at all under the board (same grey), but a strong floor edge 40 px below it: the
-// line detector sees that edge, so it is no side without a line, and a board closed by it is 40
-// px too tall for the declared size. Nothing may be accepted.
+// No board edge at all under the board (same grey), but a strong floor edge where the board plane
+// would have its lower side 0.1 m further down: on the very line the traced side is searched on
+// (through the base's vanishing point). The line detector sees that edge, so it is no side without
+// a line; and a board closed by it is 0.8 x 0.7 m, not 0.8 x 0.6. Nothing may be accepted.
 TEST(ImageDetectorTrace, SceneEdgeIsNotTracedAsTheMissingSide) {
   const CameraModel camera = pinhole();
   const Target target = plainTarget();
@@ -176,7 +185,11 @@ TEST(ImageDetectorTrace, SceneEdgeIsNotTracedAsTheMissingSide) {
   Scene scene = sceneUnder(corners, low);
   scene.side_grey = scene.board_grey;  // no board edge along the lower side
   scene.scene_edge = true;
-  scene.edge_gap_px = 40;
+  const Eigen::Isometry3d pose = boardPose(target);
+  const Eigen::Vector2d e0 = project(camera, pose, {0.0, target.height + 0.1, 0.0});
+  const Eigen::Vector2d e1 = project(camera, pose, {target.width, target.height + 0.1, 0.0});
+  const Eigen::Vector2d centre = 0.25 * (corners[0] + corners[1] + corners[2] + corners[3]);
+  scene.edge_line = lineThrough(e0, e1, centre);  // positive beyond it, away from the board
   std::mt19937 rng(15);
   const cv::Mat image = render(corners, scene, rng);
   auto det = ImageBoardDetector::create(target, ImageBoardDetectorOptions{});
