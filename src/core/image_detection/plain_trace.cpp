@@ -313,11 +313,15 @@ double segmentShareAlong(const std::vector<std::array<Eigen::Vector2d, 2>>& segm
   const Eigen::Vector2d dir = (q - p) / length, n(-dir.y(), dir.x());
   std::vector<std::pair<double, double>> spans;
   for (const auto& seg : segments_u) {
-    if (std::abs(n.dot(seg[0] - p)) > tolerance_px || std::abs(n.dot(seg[1] - p)) > tolerance_px)
-      continue;
+    // The part of the segment beside p-q must lie within the tolerance of it (a long scene line
+    // may leave it further on).
     const double t0 = dir.dot(seg[0] - p), t1 = dir.dot(seg[1] - p);
     const double lo = std::max(0.0, std::min(t0, t1)), hi = std::min(length, std::max(t0, t1));
-    if (hi > lo) spans.emplace_back(lo, hi);
+    if (hi <= lo) continue;
+    const double d0 = n.dot(seg[0] - p), d1 = n.dot(seg[1] - p);
+    auto offset = [&](double t) { return d0 + (d1 - d0) * (t - t0) / (t1 - t0); };
+    if (std::abs(offset(lo)) <= tolerance_px && std::abs(offset(hi)) <= tolerance_px)
+      spans.emplace_back(lo, hi);
   }
   std::sort(spans.begin(), spans.end());
   double covered = 0, end = 0;
