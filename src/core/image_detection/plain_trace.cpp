@@ -236,9 +236,10 @@ std::vector<QuadHypothesis> traceFourthSide(const cv::Mat& gray, const CameraMod
   Pencil pencil;
   if (!pencilOf(u, camera.K(), &pencil)) return {};
   Band band = sweepBand(camera, target, o, u, pencil);
-  // Coarse pass: every kCoarseStride-th column of the rows an allowed side may touch.
   // An edge is the strongest gradient within the refinement's search half width.
   const int ridge = static_cast<int>(std::ceil(o.fine_search_px / kStepPx));
+  // Coarse pass: every kCoarseStride-th column of the rows an allowed side may touch (and of
+  // their ridge neighbours).
   std::vector<char> near_allowed(band.rows, 0), read(band.rows, 0);
   for (int k = 0; k < band.rows; ++k)
     if (band.allowed[k])
