@@ -142,6 +142,7 @@ CASES = {
     "ws/ci/devel/lib/board_calib/test_lidar_detector --gtest_filter='*Scenario*'": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_image_far_sim": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_image_tracker": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/test_image_trace": {"kind": "dev"},
     "scripts/build.sh test_image_detector_augmented bench_image_detector": {
         "kind": "run", "expect": r"built in", "timeout": 900},
     "ws/ci/devel/lib/board_calib/test_image_detector_augmented --gtest_filter='*RealFrames'": {"kind": "dev"},

@@ -231,9 +231,11 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   // rs16_plain over every case (the whole table, when no case is selected): measured 23 of 60
   // with the quadrilaterals of the lines past the best-supported 80 (17 before, docs/
   // BENCHMARKS.md session 6); the line search is deterministic, so a lost frame is a regression.
+  // All frames: 201 with a side traced from the other three (200 before, session 7: basler3 in
+  // far + low contrast + wood, its lower side without line segments).
   if (!only) {
     EXPECT_GE(total.rs16_found, 23);
-    EXPECT_GE(total.found, 200);
+    EXPECT_GE(total.found, 201);
   }
 }
 

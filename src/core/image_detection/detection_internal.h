@@ -74,6 +74,10 @@ cv::Mat toGray(const cv::Mat& image);
 /// Intersection of two lines (homogeneous), false when (nearly) parallel.
 bool intersectLines(const Eigen::Vector3d& l1, const Eigen::Vector3d& l2, Eigen::Vector2d* point);
 
+/// LSD misses weak stretches the gradient search still finds: a side's segments need only cover
+/// this share of the side coverage required of the refined edge.
+constexpr double kLineCoverageShare = 0.5;
+
 /// Four lines in cyclic order (undistorted px): corner s ends side s and starts side s+1.
 struct QuadHypothesis {
   std::array<Eigen::Vector2d, 4> corners;
@@ -94,6 +98,18 @@ struct LineEvidence {
   PlainStageTimes times;  ///< the line stage's share (resize, LSD, undistort, merge)
 };
 
+/// Three lines of a board whose fourth side has no line (faint, or covered by hands or legs): two
+/// roughly parallel open sides joined by a base, each base corner where the lines end.
+struct ThreeSides {
+  std::array<Eigen::Vector3d, 3> lines;    ///< open side a, base, open side b (undistorted px)
+  std::array<Eigen::Vector2d, 2> corners;  ///< a x base, base x b (undistorted px)
+  std::array<Eigen::Vector2d, 2> inward;   ///< unit direction of each open side from its corner
+  std::array<double, 2> reach{};  ///< px from each corner that the open side reaches at least (its
+                                  ///< segments' end less the corner tolerance)
+  double score = 0;               ///< px of segments along the three sides
+  int corner_ends = 0;            ///< line ends at the two corners (of 4)
+};
+
 /// Quadrilateral board hypotheses from LSD segments merged into long lines (either polarity),
 /// each list best first, at most options.max_line_hypotheses, every side partly inside the image.
 struct LineQuads {
@@ -101,6 +117,8 @@ struct LineQuads {
   /// of the further lines (up to options.max_lines_static_scene) with at least one side among
   /// them, where the lines end at the corners: to try when nothing else was the board
   std::vector<QuadHypothesis> ending_at_corners;
+  /// three sides ending at their two corners, the fourth to be traced in the image (best first)
+  std::vector<ThreeSides> three_sides;
 };
 
 /// With `expected`, only quadrilaterals whose corners all lie near the expected ones compete;
@@ -128,6 +146,13 @@ bool sameLine(const std::array<Eigen::Vector2d, 2>& x, const std::array<Eigen::V
 /// Largest distance from a corner to its nearest reference corner (undistorted px).
 double worstCornerOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners,
                          const std::array<Eigen::Vector2d, kNumEdges>& reference);
+
+/// Bounding box of the image border in undistorted px.
+cv::Rect2d undistortedBounds(const CameraModel& camera);
+
+/// Length of the segment p-q inside a box (Liang-Barsky clipping): a quick upper bound of the
+/// visible length of a side.
+double clippedLength(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const cv::Rect2d& box);
 
 /// True if an undistorted pixel lies inside the image (culled by its ray first: no fold-back).
 bool visibleUndistorted(const CameraModel& camera, const Eigen::Vector2d& u, double margin);

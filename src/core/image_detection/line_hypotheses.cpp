@@ -34,17 +34,18 @@ constexpr int kVisibilitySamples = 24;  // samples along a side to measure its v
 // sides move with it and rarely lie along a scene line (measured on the street: with 3, quads of
 // two static and two flickering weak lines took the board's place; docs/BENCHMARKS.md).
 constexpr int kStaticSidesOfScene = 2;
-// LSD misses weak stretches the gradient search still finds: segments need only cover this share
-// of the side coverage required of the refined edge.
-constexpr double kLineCoverageShare = 0.5;
 // A line's support ends at a corner within this many segment-end sigmas (plus the corner
 // tolerance share of its extent).
 constexpr double kCornerEndSigmas = 4.0;
 // Lines past the first ones form a quadrilateral only with this many of its 8 line ends at its
 // corners (the rest may be occluded or too faint near the corner).
 constexpr int kMinCornerEnds = 3;
+// Three-sided chains whose fourth side is traced (each costs a 1-D gradient search and up to two
+// hypothesis fits: bounds the time when nothing else was the board).
+constexpr int kMaxThreeSides = 4;
 
-// Bounding box of the image border in undistorted px.
+}  // namespace
+
 cv::Rect2d undistortedBounds(const CameraModel& camera) {
   double box[4] = {1e18, 1e18, -1e18, -1e18};
   constexpr int kSamples = 32;
@@ -65,8 +66,6 @@ cv::Rect2d undistortedBounds(const CameraModel& camera) {
   return {box[0], box[1], box[2] - box[0], box[3] - box[1]};
 }
 
-// Length of the segment p-q inside a box (Liang-Barsky clipping): a quick upper bound of the
-// visible length of a side.
 double clippedLength(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const cv::Rect2d& box) {
   const Eigen::Vector2d d = q - p;
   double t0 = 0, t1 = 1;
@@ -86,8 +85,6 @@ double clippedLength(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const c
   }
   return t1 > t0 ? (t1 - t0) * d.norm() : 0.0;
 }
-
-}  // namespace
 
 bool visibleUndistorted(const CameraModel& camera, const Eigen::Vector2d& u, double margin) {
   const Eigen::Matrix3d K = camera.K();
@@ -357,6 +354,81 @@ std::vector<QuadHypothesis> keepBest(std::vector<QuadHypothesis>* quads, const C
   return kept;
 }
 
+// Line ends of the chain a-base-b at its two corners (of 4).
+int chainEndsAtCorners(const LineSet& set, const std::array<int, 3>& idx,
+                       const std::array<Eigen::Vector2d, 2>& c) {
+  int ends = 0;
+  for (int k = 0; k < 3; ++k) {
+    const MergedLine& l = set.lines[idx[k]];
+    const double tol = cornerEndTolerance(l, set.end_sigma_px);
+    for (int e = 0; e < 2; ++e) {
+      if ((k == 0 && e == 1) || (k == 2 && e == 0)) continue;  // an open side at the far corner
+      const double t = l.along(c[e]);
+      ends += std::min(std::abs(l.t_min - t), std::abs(l.t_max - t)) <= tol;
+    }
+  }
+  return ends;
+}
+
+// One open side of a chain leaving its corner c: the direction its segments take, how far they
+// reach (less the corner tolerance: the far corner may lie that much short of their end), and the
+// segment support up to there; false when it shows less than a short board edge.
+bool openSide(const LineSet& set, int i, const Eigen::Vector2d& c,
+              const ImageBoardDetectorOptions& o, Eigen::Vector2d* inward, double* reach,
+              double* support) {
+  const MergedLine& l = set.lines[i];
+  const double t = l.along(c), tol = cornerEndTolerance(l, set.end_sigma_px);
+  const bool forward = 0.5 * (l.t_min + l.t_max) >= t;
+  *inward = forward ? l.dir : Eigen::Vector2d(-l.dir);
+  const double end = forward ? l.t_max - t : t - l.t_min;
+  *reach = std::max(0.0, end - tol);
+  *support = forward ? l.supportWithin(t - tol, l.t_max) : l.supportWithin(l.t_min, t + tol);
+  return end >= o.min_edge_length_px && *support >= o.min_edge_length_px;
+}
+
+// Chains a-base-b of the corner graph of line ends whose fourth side has no line: a and b roughly
+// parallel, both leaving the base towards the same side, the base carrying segments between its
+// corners as a side of a quadrilateral must. Most line ends at the corners first, then support.
+std::vector<ThreeSides> threeSideChains(const LineSet& set, const CornerGraph& g, int n,
+                                        const ImageBoardDetectorOptions& o,
+                                        const std::vector<char>& is_static) {
+  const std::vector<MergedLine>& lines = set.lines;
+  auto onStatic = [&](int i) { return i < static_cast<int>(is_static.size()) && is_static[i]; };
+  std::vector<ThreeSides> chains;
+  for (int j = 0; j < n; ++j) {
+    const MergedLine& base = lines[j];
+    const Eigen::Vector2d normal(-base.dir.y(), base.dir.x());
+    for (const int a : g.neighbours[j])
+      for (const int b : g.neighbours[j]) {
+        if (b <= a || angleBetweenLines(lines[a].dir, lines[b].dir) > kMaxOppositeAngleRad)
+          continue;
+        if (onStatic(a) + onStatic(j) + onStatic(b) >= kStaticSidesOfScene) continue;
+        ThreeSides u;
+        u.corners = {g.corner[a][j], g.corner[j][b]};
+        const double side = (u.corners[1] - u.corners[0]).norm();
+        if (side < o.min_board_size_px) continue;
+        double open_support[2];
+        if (!openSide(set, a, u.corners[0], o, &u.inward[0], &u.reach[0], &open_support[0]) ||
+            !openSide(set, b, u.corners[1], o, &u.inward[1], &u.reach[1], &open_support[1]))
+          continue;
+        if (normal.dot(u.inward[0]) * normal.dot(u.inward[1]) <= 0) continue;  // not one board
+        const double t0 = base.along(u.corners[0]), t1 = base.along(u.corners[1]);
+        const double tol = kCornerToleranceFraction * side;
+        const double on_base = base.supportWithin(std::min(t0, t1) - tol, std::max(t0, t1) + tol);
+        if (on_base < kLineCoverageShare * o.min_side_coverage * side) continue;
+        u.lines = {lines[a].homogeneous(), base.homogeneous(), lines[b].homogeneous()};
+        u.score = open_support[0] + on_base + open_support[1];
+        u.corner_ends = chainEndsAtCorners(set, {a, j, b}, u.corners);
+        chains.push_back(u);
+      }
+  }
+  std::sort(chains.begin(), chains.end(), [](const ThreeSides& x, const ThreeSides& y) {
+    return x.corner_ends != y.corner_ends ? x.corner_ends > y.corner_ends : x.score > y.score;
+  });
+  if (chains.size() > static_cast<size_t>(kMaxThreeSides)) chains.resize(kMaxThreeSides);
+  return chains;
+}
+
 }  // namespace
 
 LineQuads lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
@@ -384,8 +456,11 @@ LineQuads lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
   for (int k = 0; k < best.lines && scene_known; ++k)
     for (const auto& s : *static_lines) is_static[k] |= sameLine(set.lines[k].ends(), s, tolerance);
   best.is_static = &is_static;
-  if (best.lines < kNumEdges) return {};
   LineQuads out;
+  // Three lines of a board whose fourth has none (faint, hidden) are worth a trace.
+  const CornerGraph ends_graph = cornerGraph(set, all, camera, o, true);
+  out.three_sides = threeSideChains(set, ends_graph, all, o, is_static);
+  if (best.lines < kNumEdges) return out;
   std::vector<QuadHypothesis> quads =
       enumerateQuads(set, cornerGraph(set, best.lines, camera, o, false), camera, o, best);
   if (evidence) evidence->quads = static_cast<int>(quads.size());
@@ -399,8 +474,7 @@ LineQuads lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
     ends.first_new = best.lines;
     ends.min_corner_ends = kMinCornerEnds;
     ends.expected = expected;
-    std::vector<QuadHypothesis> more =
-        enumerateQuads(set, cornerGraph(set, all, camera, o, true), camera, o, ends);
+    std::vector<QuadHypothesis> more = enumerateQuads(set, ends_graph, camera, o, ends);
     // The line cap hid them, not their support: each must carry as much as the quadrilaterals
     // kept from the best lines (a door of a street facade does not).
     if (out.best.size() >= static_cast<size_t>(o.max_line_hypotheses)) {

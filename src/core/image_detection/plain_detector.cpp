@@ -145,6 +145,34 @@ bool keptBoard(const ExpectedBoard* expected, const StaticScene* excluded, Image
   return !(excluded && onStaticRectangle(*excluded, attempt));
 }
 
+// Hypotheses of three lines with the fourth side traced (weak: no prior of being the board). A
+// traced side is for a side without line evidence: where the line detector's segments run along
+// as much of it as a quadrilateral's side needs, the line quadrilaterals had their chance
+// (measured: the simulated street's window frames, 4-12 wrong boards without this rule).
+void addTracedSides(const cv::Mat& gray, const CameraModel& camera, const Target& target,
+                    const ImageBoardDetectorOptions& o, const LineEvidence& evidence,
+                    const ExpectedBoard* expected, double min_gradient,
+                    std::vector<ThreeSides>* chains, std::vector<Hypothesis>* hypotheses,
+                    std::vector<QuadHypothesis>* quads) {
+  std::vector<std::array<Eigen::Vector2d, 2>> segments_u;
+  for (const auto& seg : evidence.segments_raw)
+    segments_u.push_back({camera.undistortPixel(seg[0]), camera.undistortPixel(seg[1])});
+  const double tolerance = sameLineTolerancePx(o, gray.cols);
+  for (const ThreeSides& sides : *chains)
+    for (QuadHypothesis& q : traceFourthSide(gray, camera, target, o, sides, min_gradient)) {
+      if (segmentShareAlong(segments_u, q.corners[2], q.corners[3], tolerance) >=
+          kLineCoverageShare * o.min_side_coverage)
+        continue;
+      if (expected && worstCornerOffset(q.corners, expected->corners_px) > expected->tolerance_px)
+        continue;
+      Hypothesis h = fromQuad(q, camera, o, true);
+      h.source = "traced side";
+      hypotheses->push_back(std::move(h));
+      quads->push_back(std::move(q));
+    }
+  chains->clear();
+}
+
 // The board (or the attempt that got furthest, or why nothing was tried) and what was seen.
 void report(HypothesisSearch&& search, LineEvidence&& evidence, const std::string& region_reason,
             bool no_hypotheses, double noise, ImageDetection* out) {
@@ -233,6 +261,13 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
       }
       line_quads.ending_at_corners.clear();
     }
+    // Then three lines whose fourth side is traced in the image (faint, or under hands or legs).
+    if (i == hypotheses.size() && i >= regions && !search.found() &&
+        !line_quads.three_sides.empty())
+      timed(&times.quads_ms, [&] {  // the trace counts with the quadrilaterals it completes
+        addTracedSides(gray, camera, target, o, evidence, expected, min_gradient,
+                       &line_quads.three_sides, &hypotheses, &quads);
+      });
     if (i >= hypotheses.size()) break;
     if (i >= first_regions && i < regions && search.found())
       continue;  // openings only until one is the board

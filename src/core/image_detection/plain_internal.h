@@ -94,6 +94,20 @@ double edgeContinuation(const cv::Mat& gray, const CameraModel& camera, const Ei
                         double gap_px, double length_px, const ImageBoardDetectorOptions& o,
                         double min_gradient, int* positions, double* run_on_px);
 
+/// The fourth side of three board lines traced in the image (plain_trace.cpp): on the pencil of
+/// lines the three give it (through the base's vanishing point), where gradient of either polarity
+/// stands out of the band's own gradient noise along at least min_side_coverage of it, for board
+/// aspects the declared size allows. Quadrilaterals (undistorted px), most covered first.
+std::vector<QuadHypothesis> traceFourthSide(const cv::Mat& gray, const CameraModel& camera,
+                                            const Target& target,
+                                            const ImageBoardDetectorOptions& o,
+                                            const ThreeSides& sides, double min_gradient);
+
+/// Share of the segment p-q (undistorted px) that line segments (undistorted px, both ends within
+/// tolerance_px of it) cover.
+double segmentShareAlong(const std::vector<std::array<Eigen::Vector2d, 2>>& segments_u,
+                         const Eigen::Vector2d& p, const Eigen::Vector2d& q, double tolerance_px);
+
 /// Edge support of a fitted hypothesis: px of edge samples along the sides, and the lowest side
 /// coverage.
 struct CandidateSupport {
