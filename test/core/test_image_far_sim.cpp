@@ -258,7 +258,9 @@ TEST(ImageDetectorFarSim, StreetSessionNeverReportsAWrongCalibration) {
     const PairCalibration run =
         calibratePair(session->views, {Method::kPbpc}, s.scene.target, "camera", "lidar");
     std::printf("[far street] verdict %s: %s\n", verdictName(run.verdict), run.reason.c_str());
-    if (seed == 21) EXPECT_FALSE(run.failed());
+    if (seed == 21) {
+      EXPECT_FALSE(run.failed());
+    }
     if (run.failed()) {
       EXPECT_FALSE(run.reason.empty());  // a failure says why
       continue;

@@ -74,6 +74,7 @@ void forEachStage(Times& t, F f) {
   f("undistort", t.undistort_ms);
   f("merge", t.merge_ms);
   f("quads", t.quads_ms);
+  f("trace", t.trace_ms);
   f("edges", t.edges_ms);
   f("fits", t.fits_ms);
 }

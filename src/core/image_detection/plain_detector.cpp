@@ -264,7 +264,7 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     // Then three lines whose fourth side is traced in the image (faint, or under hands or legs).
     if (i == hypotheses.size() && i >= regions && !search.found() &&
         !line_quads.three_sides.empty())
-      timed(&times.quads_ms, [&] {  // the trace counts with the quadrilaterals it completes
+      timed(&times.trace_ms, [&] {
         addTracedSides(gray, camera, target, o, evidence, expected, min_gradient,
                        &line_quads.three_sides, &hypotheses, &quads);
       });

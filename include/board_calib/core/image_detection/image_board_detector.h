@@ -108,6 +108,7 @@ struct PlainStageTimes {
   double undistort_ms = 0.0;    ///< ms, segment ends to undistorted px
   double merge_ms = 0.0;        ///< ms, segments merged into straight lines
   double quads_ms = 0.0;        ///< ms, corner graph, 4-cycles, kept quadrilaterals
+  double trace_ms = 0.0;        ///< ms, fourth sides traced from three lines
   double edges_ms = 0.0;        ///< ms, sub-pixel edge refinement of the hypotheses' sides
   double fits_ms = 0.0;         ///< ms, rest of the hypotheses' fits (corners, PnP, checks)
 
