@@ -10,6 +10,7 @@
 // Usage (from the package root): bench_pcl [--scenario FILE]... [--data DIR] [--frames N]
 // Prints medians per data set: times (ms, single thread) and errors against the truth.
 #include <board_calib/bag_reader.h>
+#include <board_calib/core/common/statistics.h>
 #include <board_calib/core/lidar_detection/lidar_board_detector.h>
 #include <board_calib/core/sim/scenario.h>
 
@@ -59,10 +60,8 @@ struct Figures {
     if (std::isfinite(v)) values[key].push_back(v);
   }
   double median(const std::string& key) {
-    auto& v = values[key];
-    if (v.empty()) return NAN;
-    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-    return v[v.size() / 2];
+    const auto& v = values[key];
+    return v.empty() ? NAN : medianOf(v);
   }
 };
 

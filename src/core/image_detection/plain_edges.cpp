@@ -3,6 +3,8 @@
 // straight edge is only straight there), robustly, in passes of narrowing search.
 #include "plain_internal.h"
 
+#include <board_calib/core/common/statistics.h>
+
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
@@ -162,9 +164,7 @@ EdgeSamples searchPeaks(const cv::Mat& gray, const CameraModel& camera, const Co
 // inlier distance); fills the fit's line, inliers, rms, span and coverage.
 void fitPeaks(const EdgeSamples& s, const Eigen::Vector2d& inside_u,
               const ImageBoardDetectorOptions& o, EdgeFit* fit) {
-  std::vector<double> sorted = s.strength;
-  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
-  const double median_strength = sorted[sorted.size() / 2];
+  const double median_strength = medianOf(s.strength);
   const size_t n = s.pts_u.size();
   std::vector<bool> use(n);
   for (size_t i = 0; i < n; ++i) use[i] = s.strength[i] >= kWeakPeakFraction * median_strength;
@@ -175,9 +175,8 @@ void fitPeaks(const EdgeSamples& s, const Eigen::Vector2d& inside_u,
     for (size_t i = 0; i < n; ++i)
       if (use[i]) res.push_back(std::abs(line.head<2>().dot(s.pts_u[i]) + line.z()));
     if (res.empty()) break;
-    std::nth_element(res.begin(), res.begin() + res.size() / 2, res.end());
     const double thr =
-        std::max(o.edge_inlier_px, kRobustSigmas * kMadToSigma * res[res.size() / 2]);
+        std::max(o.edge_inlier_px, kRobustSigmas * kMadToSigma * medianOf(std::move(res)));
     for (size_t i = 0; i < n; ++i)
       use[i] = s.strength[i] >= kWeakPeakFraction * median_strength &&
                std::abs(line.head<2>().dot(s.pts_u[i]) + line.z()) <= thr;

@@ -5,6 +5,8 @@
 // measured around it, and each strong placement becomes a quadrilateral for the usual checks.
 #include "plain_internal.h"
 
+#include <board_calib/core/common/statistics.h>
+
 #include <algorithm>
 #include <cmath>
 
@@ -253,9 +255,9 @@ std::vector<QuadHypothesis> traceFourthSide(const cv::Mat& gray, const CameraMod
   if (band.centre.empty()) return {};
   // An edge sample stands out of the gradient noise of this band (board, background, texture):
   // most of the band is no edge, so the median |gradient| across the sides measures that noise.
-  std::vector<float> c = band.centre;
-  std::nth_element(c.begin(), c.begin() + c.size() / 2, c.end());
-  const double threshold = std::max(min_gradient, o.edge_snr * kMadToSigma * c[c.size() / 2]);
+  const double threshold = std::max(
+      min_gradient, o.edge_snr * kMadToSigma *
+                        medianOf(std::vector<double>(band.centre.begin(), band.centre.end())));
   std::vector<double> best;
   std::vector<int> best_delta;
   markEdges(threshold, ridge, near_allowed, 0, kCoarseStride, &band);
