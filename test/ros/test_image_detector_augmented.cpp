@@ -217,7 +217,7 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   std::printf("basler_os1_plain %d frames found, CPU per frame %s; rs16_plain %d found, %s\n",
               total.basler_found, cpuSummary(total.basler_cpu_ms).c_str(), total.rs16_found,
               cpuSummary(total.rs16_cpu_ms).c_str());
-  // Where the time goes (wall time, so the machine's load shows in it too).
+  // Where the time goes (CPU time of the detecting thread, per stage).
   for (const bool basler : {true, false}) {
     const auto& cpu = basler ? total.basler_cpu_ms : total.rs16_cpu_ms;
     if (cpu.empty()) continue;

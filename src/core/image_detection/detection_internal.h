@@ -93,6 +93,8 @@ struct LineEvidence {
   std::vector<std::array<Eigen::Vector2d, 2>>
       segments_raw;  ///< LSD segments, raw full-resolution px
   std::vector<std::array<Eigen::Vector2d, 2>>
+      segments_u;  ///< the same segments, undistorted px (for the traced sides' segment rule)
+  std::vector<std::array<Eigen::Vector2d, 2>>
       line_ends;  ///< merged lines' support ends, undistorted px
   int segments = 0, lines = 0, quads = 0;
   PlainStageTimes times;  ///< the line stage's share (resize, LSD, undistort, merge)

@@ -62,8 +62,11 @@ std::vector<Member> detectSegments(const cv::Mat& gray, const CameraModel& camer
     if (len_small < kMinSegmentPx) continue;
     const Eigen::Vector2d a_raw((s[0] + 0.5) * sx - 0.5, (s[1] + 0.5) * sy - 0.5);
     const Eigen::Vector2d b_raw((s[2] + 0.5) * sx - 0.5, (s[3] + 0.5) * sy - 0.5);
-    if (evidence) evidence->segments_raw.push_back({a_raw, b_raw});
     Member m{camera.undistortPixel(a_raw), camera.undistortPixel(b_raw), 0};
+    if (evidence) {
+      evidence->segments_raw.push_back({a_raw, b_raw});
+      evidence->segments_u.push_back({m.a, m.b});
+    }
     m.length = (m.b - m.a).norm();
     if (m.length > 0) segments.push_back(m);
   }

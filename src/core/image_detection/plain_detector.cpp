@@ -154,13 +154,10 @@ void addTracedSides(const cv::Mat& gray, const CameraModel& camera, const Target
                     const ExpectedBoard* expected, double min_gradient,
                     std::vector<ThreeSides>* chains, std::vector<Hypothesis>* hypotheses,
                     std::vector<QuadHypothesis>* quads) {
-  std::vector<std::array<Eigen::Vector2d, 2>> segments_u;
-  for (const auto& seg : evidence.segments_raw)
-    segments_u.push_back({camera.undistortPixel(seg[0]), camera.undistortPixel(seg[1])});
   const double tolerance = sameLineTolerancePx(o, gray.cols);
   for (const ThreeSides& sides : *chains)
     for (QuadHypothesis& q : traceFourthSide(gray, camera, target, o, sides, min_gradient)) {
-      if (segmentShareAlong(segments_u, q.corners[2], q.corners[3], tolerance) >=
+      if (segmentShareAlong(evidence.segments_u, q.corners[2], q.corners[3], tolerance) >=
           kLineCoverageShare * o.min_side_coverage)
         continue;
       if (expected && worstCornerOffset(q.corners, expected->corners_px) > expected->tolerance_px)
