@@ -65,9 +65,10 @@ EdgeScore scoreEdges(const Frame& f, const CameraBoardFeatures& fe, const std::s
   return s;
 }
 
-// Development aid (BOARD_CALIB_AUG_DIAG set): for a miss, every hypothesis tried whose corners lie
-// within `kNearPx` of the reference corners and why it was rejected, or the nearest one (a region
-// that failed before its corners were fitted records none).
+// Development aid (BOARD_CALIB_AUG_DIAG set): for a miss, per reference side the merged lines
+// along it (rank among the kept lines, length) and the segments on it; every hypothesis
+// tried whose corners lie within `kNearPx` of the reference corners and why it was rejected, or
+// the nearest one (a region that failed before its corners were fitted records none).
 void printNearHypotheses(const Frame& f, const ImageDetection& d) {
   if (!std::getenv("BOARD_CALIB_AUG_DIAG")) return;
   constexpr double kNearPx = 20.0;
@@ -87,6 +88,30 @@ void printNearHypotheses(const Frame& f, const ImageDetection& d) {
       nearest = worst;
       nearest_k = k;
     }
+  }
+  // Per reference side: the merged lines along it (rank, support) and the segments on it.
+  const CameraModel camera = f.camera();
+  for (int j = 0; j < kNumEdges; ++j) {
+    const Eigen::Vector3d& ref = f.lines[j];
+    auto off = [&](const Eigen::Vector2d& p) { return std::abs(ref.head<2>().dot(p) + ref.z()); };
+    const double side = (f.segments[j][1] - f.segments[j][0]).norm();
+    std::string ranks;
+    for (size_t k = 0; k < d.details.lines_px.size(); ++k) {
+      const auto& l = d.details.lines_px[k];
+      if (off(l[0]) > 4 || off(l[1]) > 4) continue;
+      ranks += " #" + std::to_string(k) + "(" +
+               std::to_string(static_cast<int>((l[1] - l[0]).norm())) + ")";
+    }
+    double on = 0;
+    int count = 0;
+    for (const auto& s : d.details.segments_raw) {
+      const Eigen::Vector2d a = camera.undistortPixel(s[0]), b = camera.undistortPixel(s[1]);
+      if (off(a) > 4 || off(b) > 4) continue;
+      on += (b - a).norm();
+      ++count;
+    }
+    std::printf("    side %s %.0f px: %d segments %.0f px; lines%s\n", edgeName(j), side, count, on,
+                ranks.empty() ? " none" : ranks.c_str());
   }
   std::printf("    %zu tried, %d lines, %d quads; nearest %.0f px%s%s\n", tried.size(),
               d.details.straight_lines, d.details.line_quads, nearest,
