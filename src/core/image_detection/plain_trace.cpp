@@ -17,7 +17,8 @@ namespace {
 constexpr double kStepPx = 1.0;  // spacing of the open corner's positions along side a
 // Gradient is read across the candidate side at -0.5, 0, +0.5 px (a difference of samples 1 px
 // apart, as the edge refinement reads it): a side within half a step of the edge sees its peak.
-constexpr double kReadOffsetsPx[] = {-0.5, 0.0, 0.5};
+// The three differences share their samples: five reads at -1 ... +1 px.
+constexpr double kReadAtPx[] = {-1.0, -0.5, 0.0, 0.5, 1.0};
 constexpr int kSamples = 48;  // gradient samples along a candidate side (coverage to ~2 %)
 // The far corner on side b may leave the pencil by this much (the pencil's direction comes from
 // measured lines: a 0.2 deg error moves a 300 px side's far end by 1 px).
@@ -42,8 +43,14 @@ bool dehom(const Eigen::Vector3d& h, Eigen::Vector2d* p) {
   return std::isfinite(p->x()) && std::isfinite(p->y());
 }
 
+// floor for the in-image coordinates read here, without a libm call per sample.
+int floorInt(double v) {
+  const int i = static_cast<int>(v);
+  return i > v ? i - 1 : i;
+}
+
 double sampleBilinear(const cv::Mat& gray, const Eigen::Vector2d& p) {
-  const int x0 = static_cast<int>(std::floor(p.x())), y0 = static_cast<int>(std::floor(p.y()));
+  const int x0 = floorInt(p.x()), y0 = floorInt(p.y());
   const double fx = p.x() - x0, fy = p.y() - y0;
   const uchar* r0 = gray.ptr<uchar>(y0);
   const uchar* r1 = gray.ptr<uchar>(y0 + 1);
@@ -114,21 +121,24 @@ void readRow(const cv::Mat& gray, const CameraModel& camera, const ImageBoardDet
   Eigen::Vector2d n = camera.distortPixel(mid + n_u) - camera.distortPixel(mid);
   n.normalize();
   const double margin = o.border_margin_px + 2.0;
+  const Eigen::Matrix3d K = camera.K();
   for (int i = first; i < kSamples; i += stride) {
     const double lambda = band->lambda0 + (1.0 - 2.0 * band->lambda0) * i / (kSamples - 1);
     const Eigen::Vector2d x_u = a + lambda * (b - a);
-    if (!visibleUndistorted(camera, x_u, 0.0)) continue;
-    const Eigen::Vector2d x = camera.distortPixel(x_u);
+    // visibleUndistorted, keeping the raw pixel its check projects (no second distortion).
+    Eigen::Vector2d x;
+    if (!camera.isVisible(
+            Eigen::Vector3d((x_u.x() - K(0, 2)) / K(0, 0), (x_u.y() - K(1, 2)) / K(1, 1), 1.0),
+            0.0, &x))
+      continue;
     if (x.x() < margin || x.y() < margin || x.x() > gray.cols - 1 - margin ||
         x.y() > gray.rows - 1 - margin)
       continue;
-    double best = 0;
-    for (const double off : kReadOffsetsPx) {
-      const double g = std::abs(sampleBilinear(gray, x + (off + 0.5) * n) -
-                                sampleBilinear(gray, x + (off - 0.5) * n));
-      best = std::max(best, g);
-      if (off == 0.0) band->centre.push_back(static_cast<float>(g));
-    }
+    double v[5];
+    for (int j = 0; j < 5; ++j) v[j] = sampleBilinear(gray, x + kReadAtPx[j] * n);
+    const double g_centre = std::abs(v[3] - v[1]);
+    const double best = std::max({0.0, std::abs(v[2] - v[0]), g_centre, std::abs(v[4] - v[2])});
+    band->centre.push_back(static_cast<float>(g_centre));
     band->strength[static_cast<size_t>(k) * kSamples + i] = static_cast<float>(best);
   }
 }
@@ -170,21 +180,34 @@ Band sweepBand(const CameraModel& camera, const Target& target, const ImageBoard
   return band;
 }
 
+// Row offset of column i on the side whose far corner is delta rows away (rounded), per delta
+// in the far corner's slack: computed once, not per side and column.
+struct SideRows {
+  int offset[2 * kSlackRows + 1][kSamples];
+  SideRows() {
+    for (int delta = -kSlackRows; delta <= kSlackRows; ++delta)
+      for (int i = 0; i < kSamples; ++i)
+        offset[delta + kSlackRows][i] =
+            static_cast<int>(std::lround(delta * static_cast<double>(i) / (kSamples - 1)));
+  }
+};
+const SideRows kSideRows;
+
 // Share of the side from row k's open corner on a to row k + delta's on b that shows an edge,
 // over the columns read with `stride`; -1 when too little of it lies inside the image.
-double coverage(const Band& band, int k, int delta, int stride,
+// `side_length` is row k's side length (b - a).
+double coverage(const Band& band, int k, int delta, int stride, double side_length,
                 const ImageBoardDetectorOptions& o) {
   int positions = 0, edges = 0;
+  const int* offset = kSideRows.offset[delta + kSlackRows];
   for (int i = 0; i < kSamples; i += stride) {
-    const int r =
-        k + static_cast<int>(std::lround(delta * static_cast<double>(i) / (kSamples - 1)));
+    const int r = k + offset[i];
     if (r < 0 || r >= band.rows || !band.row_ok[r]) continue;
     if (band.at(r, i) < 0) continue;
     ++positions;
     edges += band.edge[static_cast<size_t>(r) * kSamples + i];
   }
-  const double spacing =
-      stride * (band.b[k] - band.a[k]).norm() * (1.0 - 2.0 * band.lambda0) / (kSamples - 1);
+  const double spacing = stride * side_length * (1.0 - 2.0 * band.lambda0) / (kSamples - 1);
   if (positions * stride < o.min_edge_points || positions * spacing < o.min_edge_length_px)
     return -1;
   return static_cast<double>(edges) / positions;
@@ -217,10 +240,11 @@ void bestCoverage(const Band& band, int stride, const ImageBoardDetectorOptions&
   best_delta->assign(band.rows, 0);
   for (int k = 0; k < band.rows; ++k) {
     if (!rows[k]) continue;
+    const double side_length = (band.b[k] - band.a[k]).norm();
     for (int delta = -kSlackRows; delta <= kSlackRows; ++delta) {
       const int r = k + delta;
       if (r < 0 || r >= band.rows || !band.allowed[r]) continue;
-      const double cov = coverage(band, k, delta, stride, o);
+      const double cov = coverage(band, k, delta, stride, side_length, o);
       if (cov > (*best)[k]) {
         (*best)[k] = cov;
         (*best_delta)[k] = delta;
