@@ -136,7 +136,8 @@ Eigen::Vector3d CameraModel::unprojectRay(const Eigen::Vector2d& raw) const {
   return Eigen::Vector3d(n.x(), n.y(), 1.0).normalized();
 }
 
-bool CameraModel::isVisible(const Eigen::Vector3d& p, double margin_px) const {
+bool CameraModel::isVisible(const Eigen::Vector3d& p, double margin_px,
+                            Eigen::Vector2d* raw_out) const {
   Eigen::Vector2d u;
   if (!projectUndistorted(p, &u)) return false;
   if (u.x() < ubox_[0] - margin_px || u.x() > ubox_[2] + margin_px ||
@@ -144,6 +145,7 @@ bool CameraModel::isVisible(const Eigen::Vector3d& p, double margin_px) const {
     return false;
   Eigen::Vector2d raw = Eigen::Vector2d::Zero();
   project(p, &raw);
+  if (raw_out) *raw_out = raw;
   return raw.x() >= -margin_px && raw.y() >= -margin_px && raw.x() < in_.width + margin_px &&
          raw.y() < in_.height + margin_px;
 }

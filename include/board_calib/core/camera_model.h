@@ -76,8 +76,10 @@ class CameraModel {
   Eigen::Vector3d unprojectRay(const Eigen::Vector2d& raw_pixel) const;
   /// True if a camera-frame point lies in front of the camera and projects inside the image.
   /// Culls by the undistorted ray first, so far off-axis points cannot fold back through the
-  /// distortion polynomial into the image.
-  bool isVisible(const Eigen::Vector3d& p_camera, double margin_px = 0.0) const;
+  /// distortion polynomial into the image. `raw`, when given, receives the projected raw pixel
+  /// whenever the ray passed the cull (callers that sample there need not distort again).
+  bool isVisible(const Eigen::Vector3d& p_camera, double margin_px = 0.0,
+                 Eigen::Vector2d* raw = nullptr) const;
 
  private:
   explicit CameraModel(const CameraIntrinsics& in);

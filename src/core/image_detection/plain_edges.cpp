@@ -29,8 +29,14 @@ constexpr double kPolarityWindowSteps =
 constexpr double kPolarityWindowFraction =
     0.1;  // ... or this fraction of the side, whichever is longer
 
+// floor for the in-image coordinates read here, without a libm call per sample.
+int floorInt(double v) {
+  const int i = static_cast<int>(v);
+  return i > v ? i - 1 : i;
+}
+
 double sampleBilinear(const cv::Mat& gray, double x, double y) {
-  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+  const int x0 = floorInt(x), y0 = floorInt(y);
   const double fx = x - x0, fy = y - y0;
   const uchar* r0 = gray.ptr<uchar>(y0);
   const uchar* r1 = gray.ptr<uchar>(y0 + 1);
@@ -90,13 +96,14 @@ struct EdgeSamples {
 };
 
 // Strongest gradient of the wanted polarity (0: either) in one intensity profile across the edge;
-// false when none stands out of the noise. `offset` is in profile steps from the centre.
+// false when none stands out of the noise. `offset` is in profile steps from the centre. `g` is
+// scratch of the profile's size (reused along the side: no allocation per position).
 bool profilePeak(const std::vector<double>& profile, double polarity, double min_gradient,
-                 double* offset, double* strength, int* sign) {
+                 std::vector<double>& g, double* offset, double* strength, int* sign) {
   const int steps = static_cast<int>(profile.size() / 2);
   int best_k = 0;
   double best_g = 0;
-  std::vector<double> g(profile.size(), 0.0);
+  std::fill(g.begin(), g.end(), 0.0);
   for (int k = 1; k + 1 < static_cast<int>(profile.size()); ++k) {
     // Derivative across one full pixel (samples at +-0.5 px): robust to noise, unbiased.
     const double raw_g = (profile[k + 1] - profile[k - 1]) / (2 * kProfileStepPx);
@@ -125,7 +132,7 @@ EdgeSamples searchPeaks(const cv::Mat& gray, const CameraModel& camera, const Co
   const int steps = static_cast<int>(std::ceil(half / kProfileStepPx)) + 1;
   const double len = (b - a).norm();
   const Eigen::Vector2d dir = (b - a) / std::max(len, 1e-9);
-  std::vector<double> profile(2 * steps + 1);
+  std::vector<double> profile(2 * steps + 1), gradient(profile.size());
   // Corners are rounded by the coarse stage and crowded by the other side: skip their
   // neighbourhood, at most a fraction of a short (far) side.
   const double exclusion = std::min(o.corner_exclusion_px, kMaxCornerExclusionFraction * len);
@@ -148,7 +155,8 @@ EdgeSamples searchPeaks(const cv::Mat& gray, const CameraModel& camera, const Co
     }
     double offset = 0, strength = 0;
     int sign = 0;
-    if (!profilePeak(profile, sign_wanted, min_gradient, &offset, &strength, &sign)) continue;
+    if (!profilePeak(profile, sign_wanted, min_gradient, gradient, &offset, &strength, &sign))
+      continue;
     const Eigen::Vector2d edge_raw = x + (offset * kProfileStepPx) * d;
     if (!insideImage(gray, edge_raw, o.border_margin_px)) continue;
     s.pts_raw.push_back(edge_raw);

@@ -66,6 +66,75 @@ bool scoreRegion(const std::vector<cv::Point>& contour, const cv::Mat& blurred,
   return true;
 }
 
+int floorDiv(int a, int b) {  // b > 0
+  return a >= 0 ? a / b : -((-a + b - 1) / b);
+}
+
+// Euclidean distance of every pixel to the nearest zero pixel of `src` (CV_8U): the same float
+// values as OpenCV's precise L2 distanceTransform (the square root of the exact integer square),
+// at a fraction of its cost: column distances a row at a time (contiguous), then Meijster's lower
+// envelope along each row in integers. Without a zero pixel OpenCV's transform is no distance:
+// that case stays with OpenCV.
+void distanceToZero(const cv::Mat& src, cv::Mat* dist) {
+  const int w = src.cols, h = src.rows, inf = w + h;  // beyond any distance inside the image
+  cv::Mat g(h, w, CV_32S);
+  bool any_zero = false;
+  for (int y = 0; y < h; ++y) {
+    const uchar* s = src.ptr<uchar>(y);
+    int* gy = g.ptr<int>(y);
+    const int* above = y > 0 ? g.ptr<int>(y - 1) : nullptr;
+    for (int x = 0; x < w; ++x) {
+      any_zero |= s[x] == 0;
+      gy[x] = s[x] == 0 ? 0 : (above ? std::min(above[x] + 1, inf) : inf);
+    }
+  }
+  if (!any_zero) {
+    cv::distanceTransform(src, *dist, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+    return;
+  }
+  for (int y = h - 2; y >= 0; --y) {
+    int* gy = g.ptr<int>(y);
+    const int* below = g.ptr<int>(y + 1);
+    for (int x = 0; x < w; ++x) gy[x] = std::min(gy[x], below[x] + 1);
+  }
+  cv::Mat d2(h, w, CV_32S);
+  std::vector<int> s(w), t(w), g2(w);  // envelope: parabola columns, where each starts
+  for (int y = 0; y < h; ++y) {
+    const int* gy = g.ptr<int>(y);
+    int* out = d2.ptr<int>(y);
+    for (int x = 0; x < w; ++x) g2[x] = gy[x] * gy[x];
+    auto f = [&g2](int x, int i) { return (x - i) * (x - i) + g2[i]; };
+    // A column without a zero pixel (inf) is never the nearest while one with a zero is.
+    int first = 0;
+    while (gy[first] >= inf) ++first;
+    int q = 0;
+    s[0] = first;
+    t[0] = 0;
+    for (int u = first + 1; u < w; ++u) {
+      if (gy[u] >= inf) continue;
+      while (q >= 0 && f(t[q], s[q]) > f(t[q], u)) --q;
+      if (q < 0) {
+        q = 0;
+        s[0] = u;
+      } else {
+        const int i = s[q];
+        const int start = 1 + floorDiv(u * u - i * i + g2[u] - g2[i], 2 * (u - i));
+        if (start < w) {
+          ++q;
+          s[q] = u;
+          t[q] = start;
+        }
+      }
+    }
+    for (int u = w - 1; u >= 0; --u) {
+      out[u] = f(u, s[q]);
+      if (u == t[q]) --q;
+    }
+  }
+  d2.convertTo(*dist, CV_32F);  // exact: the squares stay far below 2^24
+  cv::sqrt(*dist, *dist);
+}
+
 // Openings of one region by discs of kOpeningInradiusFractions x its inradius (distance
 // transforms: fast for any radius); returns the remaining parts large enough to be a board.
 // Works on the region's bounding box plus a 1 px frame of background: an opening stays inside
@@ -79,17 +148,24 @@ std::vector<std::vector<cv::Point>> openRegion(const std::vector<cv::Point>& con
   cv::drawContours(mask, std::vector<std::vector<cv::Point>>{contour}, 0, 255, cv::FILLED,
                    cv::LINE_8, cv::noArray(), INT_MAX, -box.tl());
   cv::Mat inside, outside;
-  cv::distanceTransform(mask, inside, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  distanceToZero(mask, &inside);
   double inradius = 0;
   cv::minMaxLoc(inside, nullptr, &inradius);
   for (const double fraction : kOpeningInradiusFractions) {
     const double radius = fraction * inradius;
     if (radius < 1) continue;
     const cv::Mat core = inside > radius;  // erosion
-    cv::distanceTransform(255 - core, outside, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+    // The dilation only reaches radius past the core: its distance transform needs only the
+    // core's box grown by more than that (the same distances within radius, far cheaper when a
+    // long neighbour made the region's box large).
+    const int pad = static_cast<int>(std::ceil(radius)) + 1;
+    const cv::Rect grown = (cv::boundingRect(core) + cv::Size(2 * pad, 2 * pad) -
+                           cv::Point(pad, pad)) & cv::Rect(cv::Point(), core.size());
+    distanceToZero(255 - core(grown), &outside);
     const cv::Mat opened = outside <= radius;  // dilation of the eroded set
     std::vector<std::vector<cv::Point>> contours;
-    cv::findContours(opened, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE, box.tl());
+    cv::findContours(opened, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE,
+                     box.tl() + grown.tl());
     for (auto& c : contours)
       if (cv::contourArea(c) >= min_area) parts.push_back(std::move(c));
   }

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 namespace board_calib {
 namespace image_detection {
@@ -17,7 +18,8 @@ namespace {
 constexpr double kStepPx = 1.0;  // spacing of the open corner's positions along side a
 // Gradient is read across the candidate side at -0.5, 0, +0.5 px (a difference of samples 1 px
 // apart, as the edge refinement reads it): a side within half a step of the edge sees its peak.
-constexpr double kReadOffsetsPx[] = {-0.5, 0.0, 0.5};
+// The three differences share their samples: five reads at -1 ... +1 px.
+constexpr double kReadAtPx[] = {-1.0, -0.5, 0.0, 0.5, 1.0};
 constexpr int kSamples = 48;  // gradient samples along a candidate side (coverage to ~2 %)
 // The far corner on side b may leave the pencil by this much (the pencil's direction comes from
 // measured lines: a 0.2 deg error moves a 300 px side's far end by 1 px).
@@ -42,8 +44,14 @@ bool dehom(const Eigen::Vector3d& h, Eigen::Vector2d* p) {
   return std::isfinite(p->x()) && std::isfinite(p->y());
 }
 
+// floor for the in-image coordinates read here, without a libm call per sample.
+int floorInt(double v) {
+  const int i = static_cast<int>(v);
+  return i > v ? i - 1 : i;
+}
+
 double sampleBilinear(const cv::Mat& gray, const Eigen::Vector2d& p) {
-  const int x0 = static_cast<int>(std::floor(p.x())), y0 = static_cast<int>(std::floor(p.y()));
+  const int x0 = floorInt(p.x()), y0 = floorInt(p.y());
   const double fx = p.x() - x0, fy = p.y() - y0;
   const uchar* r0 = gray.ptr<uchar>(y0);
   const uchar* r1 = gray.ptr<uchar>(y0 + 1);
@@ -97,7 +105,9 @@ struct Band {
   std::vector<char> row_ok, allowed, read_fine;
   std::vector<char> seen;       // the row's side crosses the image
   std::vector<float> strength;  // rows x kSamples: strongest |gradient| read across the side
-  std::vector<char> edge;       // rows x kSamples: an edge sample (markEdges)
+  // Per row, bit i for column i: read inside the image (strength set), an edge (markEdges).
+  // Coverage counts them a run of columns at a time.
+  std::vector<uint64_t> read_bits, edge_bits;
   std::vector<float> centre;    // |gradient| on the side itself (the noise sample)
   double lambda0 = 0;           // share of the side skipped at each corner
   int rows = 0;
@@ -114,22 +124,26 @@ void readRow(const cv::Mat& gray, const CameraModel& camera, const ImageBoardDet
   Eigen::Vector2d n = camera.distortPixel(mid + n_u) - camera.distortPixel(mid);
   n.normalize();
   const double margin = o.border_margin_px + 2.0;
+  const Eigen::Matrix3d K = camera.K();
   for (int i = first; i < kSamples; i += stride) {
     const double lambda = band->lambda0 + (1.0 - 2.0 * band->lambda0) * i / (kSamples - 1);
     const Eigen::Vector2d x_u = a + lambda * (b - a);
-    if (!visibleUndistorted(camera, x_u, 0.0)) continue;
-    const Eigen::Vector2d x = camera.distortPixel(x_u);
+    // visibleUndistorted, keeping the raw pixel its check projects (no second distortion).
+    Eigen::Vector2d x;
+    if (!camera.isVisible(
+            Eigen::Vector3d((x_u.x() - K(0, 2)) / K(0, 0), (x_u.y() - K(1, 2)) / K(1, 1), 1.0),
+            0.0, &x))
+      continue;
     if (x.x() < margin || x.y() < margin || x.x() > gray.cols - 1 - margin ||
         x.y() > gray.rows - 1 - margin)
       continue;
-    double best = 0;
-    for (const double off : kReadOffsetsPx) {
-      const double g = std::abs(sampleBilinear(gray, x + (off + 0.5) * n) -
-                                sampleBilinear(gray, x + (off - 0.5) * n));
-      best = std::max(best, g);
-      if (off == 0.0) band->centre.push_back(static_cast<float>(g));
-    }
+    double v[5];
+    for (int j = 0; j < 5; ++j) v[j] = sampleBilinear(gray, x + kReadAtPx[j] * n);
+    const double g_centre = std::abs(v[3] - v[1]);
+    const double best = std::max({0.0, std::abs(v[2] - v[0]), g_centre, std::abs(v[4] - v[2])});
+    band->centre.push_back(static_cast<float>(g_centre));
     band->strength[static_cast<size_t>(k) * kSamples + i] = static_cast<float>(best);
+    band->read_bits[k] |= uint64_t{1} << i;
   }
 }
 
@@ -163,28 +177,59 @@ Band sweepBand(const CameraModel& camera, const Target& target, const ImageBoard
   for (int k = 0; k < band.rows; ++k)
     band.seen.push_back(band.row_ok[k] && clippedLength(band.a[k], band.b[k], bounds) > 0);
   band.strength.assign(static_cast<size_t>(band.rows) * kSamples, -1.0f);
-  band.edge.assign(static_cast<size_t>(band.rows) * kSamples, 0);
+  band.read_bits.assign(band.rows, 0);
+  band.edge_bits.assign(band.rows, 0);
   band.read_fine.assign(band.rows, 0);
   const double base = (u.corners[1] - u.corners[0]).norm();
   band.lambda0 = std::min(o.corner_exclusion_px, 0.15 * base) / std::max(base, 1.0);
   return band;
 }
 
-// Share of the side from row k's open corner on a to row k + delta's on b that shows an edge,
-// over the columns read with `stride`; -1 when too little of it lies inside the image.
-double coverage(const Band& band, int k, int delta, int stride,
-                const ImageBoardDetectorOptions& o) {
-  int positions = 0, edges = 0;
-  for (int i = 0; i < kSamples; i += stride) {
-    const int r =
-        k + static_cast<int>(std::lround(delta * static_cast<double>(i) / (kSamples - 1)));
-    if (r < 0 || r >= band.rows || !band.row_ok[r]) continue;
-    if (band.at(r, i) < 0) continue;
-    ++positions;
-    edges += band.edge[static_cast<size_t>(r) * kSamples + i];
+static_assert(kSamples <= 64, "a row's columns are the bits of one word");
+
+// The side whose far corner is delta rows away crosses the rows in runs of columns: column i
+// lies on row offset round(delta i / (kSamples - 1)). Per delta in the far corner's slack, the
+// runs as (row offset, column bits): computed once, not per side and column.
+struct SideRows {
+  int runs[2 * kSlackRows + 1] = {};
+  int offset[2 * kSlackRows + 1][kSlackRows + 1] = {};
+  uint64_t columns[2 * kSlackRows + 1][kSlackRows + 1] = {};
+  SideRows() {
+    for (int delta = -kSlackRows; delta <= kSlackRows; ++delta) {
+      const int d = delta + kSlackRows;
+      for (int i = 0; i < kSamples; ++i) {
+        const int r =
+            static_cast<int>(std::lround(delta * static_cast<double>(i) / (kSamples - 1)));
+        if (i == 0 || r != offset[d][runs[d] - 1]) offset[d][runs[d]++] = r;
+        columns[d][runs[d] - 1] |= uint64_t{1} << i;
+      }
+    }
   }
-  const double spacing =
-      stride * (band.b[k] - band.a[k]).norm() * (1.0 - 2.0 * band.lambda0) / (kSamples - 1);
+};
+const SideRows kSideRows;
+
+// Columns 0, stride, 2 stride, ... as bits.
+uint64_t strideColumns(int stride) {
+  uint64_t bits = 0;
+  for (int i = 0; i < kSamples; i += stride) bits |= uint64_t{1} << i;
+  return bits;
+}
+
+// Share of the side from row k's open corner on a to row k + delta's on b that shows an edge,
+// over the columns read with `stride` (their bits `columns`); -1 when too little of it lies
+// inside the image. `side_length` is row k's side length (b - a).
+double coverage(const Band& band, int k, int delta, int stride, uint64_t columns,
+                double side_length, const ImageBoardDetectorOptions& o) {
+  int positions = 0, edges = 0;
+  const int d = delta + kSlackRows;
+  for (int run = 0; run < kSideRows.runs[d]; ++run) {
+    const int r = k + kSideRows.offset[d][run];
+    if (r < 0 || r >= band.rows) continue;  // rows not ok are never read: no bits
+    const uint64_t mask = kSideRows.columns[d][run] & columns;
+    positions += __builtin_popcountll(band.read_bits[r] & mask);
+    edges += __builtin_popcountll(band.edge_bits[r] & mask);
+  }
+  const double spacing = stride * side_length * (1.0 - 2.0 * band.lambda0) / (kSamples - 1);
   if (positions * stride < o.min_edge_points || positions * spacing < o.min_edge_length_px)
     return -1;
   return static_cast<double>(edges) / positions;
@@ -204,7 +249,8 @@ void markEdges(double threshold, int ridge, const std::vector<char>& rows, int f
       for (int d = 2; d <= ridge + 1 && edge; ++d)
         edge =
             (k < d || band->at(k - d, i) <= s) && (k + d >= band->rows || band->at(k + d, i) <= s);
-      band->edge[static_cast<size_t>(k) * kSamples + i] = edge;
+      const uint64_t bit = uint64_t{1} << i;
+      band->edge_bits[k] = edge ? band->edge_bits[k] | bit : band->edge_bits[k] & ~bit;
     }
   }
 }
@@ -215,12 +261,14 @@ void bestCoverage(const Band& band, int stride, const ImageBoardDetectorOptions&
                   std::vector<int>* best_delta) {
   best->assign(band.rows, -1.0);
   best_delta->assign(band.rows, 0);
+  const uint64_t columns = strideColumns(stride);
   for (int k = 0; k < band.rows; ++k) {
     if (!rows[k]) continue;
+    const double side_length = (band.b[k] - band.a[k]).norm();
     for (int delta = -kSlackRows; delta <= kSlackRows; ++delta) {
       const int r = k + delta;
       if (r < 0 || r >= band.rows || !band.allowed[r]) continue;
-      const double cov = coverage(band, k, delta, stride, o);
+      const double cov = coverage(band, k, delta, stride, columns, side_length, o);
       if (cov > (*best)[k]) {
         (*best)[k] = cov;
         (*best_delta)[k] = delta;
