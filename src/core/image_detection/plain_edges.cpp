@@ -29,21 +29,6 @@ constexpr double kPolarityWindowSteps =
 constexpr double kPolarityWindowFraction =
     0.1;  // ... or this fraction of the side, whichever is longer
 
-// floor for the in-image coordinates read here, without a libm call per sample.
-int floorInt(double v) {
-  const int i = static_cast<int>(v);
-  return i > v ? i - 1 : i;
-}
-
-double sampleBilinear(const cv::Mat& gray, double x, double y) {
-  const int x0 = floorInt(x), y0 = floorInt(y);
-  const double fx = x - x0, fy = y - y0;
-  const uchar* r0 = gray.ptr<uchar>(y0);
-  const uchar* r1 = gray.ptr<uchar>(y0 + 1);
-  return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x0 + 1]) +
-         fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]);
-}
-
 bool insideImage(const cv::Mat& gray, const Eigen::Vector2d& p, double margin) {
   return p.x() >= margin && p.y() >= margin && p.x() <= gray.cols - 1 - margin &&
          p.y() <= gray.rows - 1 - margin;

@@ -42,6 +42,23 @@ Segmentation segmentBoard(const cv::Mat& small, const ImageBoardDetectorOptions&
 /// Second chance: openings of the rejected regions replace the candidates.
 void proposeOpenedRegions(cv::Size size, const ImageBoardDetectorOptions& o, Segmentation* seg);
 
+/// floor for in-image coordinates, without a libm call per sample.
+inline int floorInt(double v) {
+  const int i = static_cast<int>(v);
+  return i > v ? i - 1 : i;
+}
+
+/// Bilinear grey value at (x, y) (pixel centres at integers); the caller keeps (x, y) at least
+/// one pixel inside the image.
+inline double sampleBilinear(const cv::Mat& gray, double x, double y) {
+  const int x0 = floorInt(x), y0 = floorInt(y);
+  const double fx = x - x0, fy = y - y0;
+  const uchar* r0 = gray.ptr<uchar>(y0);
+  const uchar* r1 = gray.ptr<uchar>(y0 + 1);
+  return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x0 + 1]) +
+         fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]);
+}
+
 /// One straight side of a hypothesis.
 struct CoarseEdge {
   Eigen::Vector2d a = Eigen::Vector2d::Zero(),

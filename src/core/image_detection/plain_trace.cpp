@@ -44,21 +44,6 @@ bool dehom(const Eigen::Vector3d& h, Eigen::Vector2d* p) {
   return std::isfinite(p->x()) && std::isfinite(p->y());
 }
 
-// floor for the in-image coordinates read here, without a libm call per sample.
-int floorInt(double v) {
-  const int i = static_cast<int>(v);
-  return i > v ? i - 1 : i;
-}
-
-double sampleBilinear(const cv::Mat& gray, const Eigen::Vector2d& p) {
-  const int x0 = floorInt(p.x()), y0 = floorInt(p.y());
-  const double fx = p.x() - x0, fy = p.y() - y0;
-  const uchar* r0 = gray.ptr<uchar>(y0);
-  const uchar* r1 = gray.ptr<uchar>(y0 + 1);
-  return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x0 + 1]) +
-         fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]);
-}
-
 // The fourth side's pencil: it is parallel on the board to the base, so it passes through the
 // base's vanishing point. That point is the base's back-projected plane crossed with the board
 // direction of the open sides (their vanishing point, possibly at infinity): K (N_base x d_open).
@@ -108,8 +93,8 @@ struct Band {
   // Per row, bit i for column i: read inside the image (strength set), an edge (markEdges).
   // Coverage counts them a run of columns at a time.
   std::vector<uint64_t> read_bits, edge_bits;
-  std::vector<float> centre;    // |gradient| on the side itself (the noise sample)
-  double lambda0 = 0;           // share of the side skipped at each corner
+  std::vector<float> centre;  // |gradient| on the side itself (the noise sample)
+  double lambda0 = 0;         // share of the side skipped at each corner
   int rows = 0;
   float at(int k, int i) const { return strength[static_cast<size_t>(k) * kSamples + i]; }
 };
@@ -131,14 +116,15 @@ void readRow(const cv::Mat& gray, const CameraModel& camera, const ImageBoardDet
     // visibleUndistorted, keeping the raw pixel its check projects (no second distortion).
     Eigen::Vector2d x;
     if (!camera.isVisible(
-            Eigen::Vector3d((x_u.x() - K(0, 2)) / K(0, 0), (x_u.y() - K(1, 2)) / K(1, 1), 1.0),
-            0.0, &x))
+            Eigen::Vector3d((x_u.x() - K(0, 2)) / K(0, 0), (x_u.y() - K(1, 2)) / K(1, 1), 1.0), 0.0,
+            &x))
       continue;
     if (x.x() < margin || x.y() < margin || x.x() > gray.cols - 1 - margin ||
         x.y() > gray.rows - 1 - margin)
       continue;
     double v[5];
-    for (int j = 0; j < 5; ++j) v[j] = sampleBilinear(gray, x + kReadAtPx[j] * n);
+    for (int j = 0; j < 5; ++j)
+      v[j] = sampleBilinear(gray, x.x() + kReadAtPx[j] * n.x(), x.y() + kReadAtPx[j] * n.y());
     const double g_centre = std::abs(v[3] - v[1]);
     const double best = std::max({0.0, std::abs(v[2] - v[0]), g_centre, std::abs(v[4] - v[2])});
     band->centre.push_back(static_cast<float>(g_centre));
