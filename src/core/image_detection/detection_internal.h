@@ -157,7 +157,9 @@ cv::Rect2d undistortedBounds(const CameraModel& camera);
 double clippedLength(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const cv::Rect2d& box);
 
 /// True if an undistorted pixel lies inside the image (culled by its ray first: no fold-back).
-bool visibleUndistorted(const CameraModel& camera, const Eigen::Vector2d& u, double margin);
+/// `raw`, when given, receives the raw pixel the check projects (CameraModel::isVisible).
+bool visibleUndistorted(const CameraModel& camera, const Eigen::Vector2d& u, double margin,
+                        Eigen::Vector2d* raw = nullptr);
 
 /// Part of the undistorted segment p-q inside the image (sampled), false if none.
 bool visibleSideInterval(const CameraModel& camera, const Eigen::Vector2d& p,

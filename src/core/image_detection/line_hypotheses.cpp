@@ -86,10 +86,11 @@ double clippedLength(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const c
   return t1 > t0 ? (t1 - t0) * d.norm() : 0.0;
 }
 
-bool visibleUndistorted(const CameraModel& camera, const Eigen::Vector2d& u, double margin) {
+bool visibleUndistorted(const CameraModel& camera, const Eigen::Vector2d& u, double margin,
+                        Eigen::Vector2d* raw) {
   const Eigen::Matrix3d K = camera.K();
   return camera.isVisible(
-      Eigen::Vector3d((u.x() - K(0, 2)) / K(0, 0), (u.y() - K(1, 2)) / K(1, 1), 1.0), margin);
+      Eigen::Vector3d((u.x() - K(0, 2)) / K(0, 0), (u.y() - K(1, 2)) / K(1, 1), 1.0), margin, raw);
 }
 
 bool visibleSideInterval(const CameraModel& camera, const Eigen::Vector2d& p,

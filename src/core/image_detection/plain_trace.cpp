@@ -109,16 +109,11 @@ void readRow(const cv::Mat& gray, const CameraModel& camera, const ImageBoardDet
   Eigen::Vector2d n = camera.distortPixel(mid + n_u) - camera.distortPixel(mid);
   n.normalize();
   const double margin = o.border_margin_px + 2.0;
-  const Eigen::Matrix3d K = camera.K();
   for (int i = first; i < kSamples; i += stride) {
     const double lambda = band->lambda0 + (1.0 - 2.0 * band->lambda0) * i / (kSamples - 1);
     const Eigen::Vector2d x_u = a + lambda * (b - a);
-    // visibleUndistorted, keeping the raw pixel its check projects (no second distortion).
-    Eigen::Vector2d x;
-    if (!camera.isVisible(
-            Eigen::Vector3d((x_u.x() - K(0, 2)) / K(0, 0), (x_u.y() - K(1, 2)) / K(1, 1), 1.0), 0.0,
-            &x))
-      continue;
+    Eigen::Vector2d x;  // the raw pixel the visibility check projects (no second distortion)
+    if (!visibleUndistorted(camera, x_u, 0.0, &x)) continue;
     if (x.x() < margin || x.y() < margin || x.x() > gray.cols - 1 - margin ||
         x.y() > gray.rows - 1 - margin)
       continue;
