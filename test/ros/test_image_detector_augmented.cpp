@@ -89,7 +89,9 @@ void printNearHypotheses(const Frame& f, const ImageDetection& d) {
       nearest_k = k;
     }
   }
-  // Per reference side: the merged lines along it (rank, support) and the segments on it.
+  // Per reference side: the merged lines along it (rank, support) and the segments on it, both
+  // ends within kAlongPx of the reference line.
+  constexpr double kAlongPx = 4.0;
   const CameraModel camera = f.camera();
   for (int j = 0; j < kNumEdges; ++j) {
     const Eigen::Vector3d& ref = f.lines[j];
@@ -98,7 +100,7 @@ void printNearHypotheses(const Frame& f, const ImageDetection& d) {
     std::string ranks;
     for (size_t k = 0; k < d.details.lines_px.size(); ++k) {
       const auto& l = d.details.lines_px[k];
-      if (off(l[0]) > 4 || off(l[1]) > 4) continue;
+      if (off(l[0]) > kAlongPx || off(l[1]) > kAlongPx) continue;
       ranks += " #" + std::to_string(k) + "(" +
                std::to_string(static_cast<int>((l[1] - l[0]).norm())) + ")";
     }
@@ -106,7 +108,7 @@ void printNearHypotheses(const Frame& f, const ImageDetection& d) {
     int count = 0;
     for (const auto& s : d.details.segments_raw) {
       const Eigen::Vector2d a = camera.undistortPixel(s[0]), b = camera.undistortPixel(s[1]);
-      if (off(a) > 4 || off(b) > 4) continue;
+      if (off(a) > kAlongPx || off(b) > kAlongPx) continue;
       on += (b - a).norm();
       ++count;
     }
