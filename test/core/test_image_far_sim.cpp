@@ -26,6 +26,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <string>
 #include <vector>
 
 namespace board_calib {
@@ -46,19 +47,32 @@ double percentileMs(std::vector<double> v, double q) {
 
 // Distance of the true side ends from the detected lines (undistorted px), max over the lines.
 // A plain board has no marked corner: which side is named UL is the detector's convention, so
-// each detected line is matched to the true side it lies on.
-double lineErrorPx(const CameraBoardFeatures& f, const std::array<Eigen::Vector2d, 4>& truth) {
+// each detected line is matched to the true side it lies on. `sides`, when given, receives per
+// detected line the signed offsets of its true side's two ends (a shifted line shows two alike,
+// a tilted one two of opposite sign).
+double lineErrorPx(const CameraBoardFeatures& f, const std::array<Eigen::Vector2d, 4>& truth,
+                   std::string* sides = nullptr) {
   double worst = 0.0;
   for (int j = 0; j < kNumEdges; ++j) {
     const Eigen::Vector3d& l = f.edge_lines[j];
-    double best = 1e18;
+    double best = 1e18, ends[2] = {0, 0};
     for (int k = 0; k < kNumEdges; ++k) {
-      double side = 0.0;
-      for (const Eigen::Vector2d& p : {truth[(k + 3) % 4], truth[k]})
-        side = std::max(side, std::abs(l.head<2>().dot(p) + l.z()) / l.head<2>().norm());
-      best = std::min(best, side);
+      double side = 0.0, at[2];
+      for (int e = 0; e < 2; ++e) {
+        const Eigen::Vector2d& p = truth[e ? k : (k + 3) % 4];
+        at[e] = (l.head<2>().dot(p) + l.z()) / l.head<2>().norm();
+        side = std::max(side, std::abs(at[e]));
+      }
+      if (side < best) {
+        best = side;
+        ends[0] = at[0];
+        ends[1] = at[1];
+      }
     }
     worst = std::max(worst, best);
+    if (sides)
+      *sides +=
+          cv::format("%s%s %+.1f/%+.1f", sides->empty() ? "" : ", ", edgeName(j), ends[0], ends[1]);
   }
   return worst;
 }
@@ -134,8 +148,9 @@ FarResult runScenario(unsigned seed, int poses, bool street,
     ++out.poses;
     out.stages += d.details.stage_times;
     double err = -1.0;
+    std::string sides;
     if (d.features.found) {
-      err = lineErrorPx(d.features, truth);
+      err = lineErrorPx(d.features, truth, &sides);
       ++out.found;
       if (err > kWrongBoardPx)
         ++out.wrong;
@@ -146,7 +161,10 @@ FarResult runScenario(unsigned seed, int poses, bool street,
                 seed, f.pose, camera_T_board.translation().norm(), hi.x() - lo.x(), hi.y() - lo.y(),
                 d.features.found ? "found" : "miss");
     if (d.features.found)
-      std::printf(", lines within %.2f px%s\n", err, err > kWrongBoardPx ? " (WRONG board)" : "");
+      std::printf(", lines within %.2f px%s\n", err,
+                  err > kWrongBoardPx
+                      ? (" (WRONG board; true side ends from each line, px: " + sides + ")").c_str()
+                      : "");
     else
       std::printf(" (%s)\n", d.features.reason.c_str());
     if (debug_dir)
