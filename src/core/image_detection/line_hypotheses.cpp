@@ -118,9 +118,11 @@ namespace {
 
 // Which lines may meet at a board corner, and where.
 struct CornerGraph {
-  std::vector<std::vector<char>> adjacent;
-  std::vector<std::vector<Eigen::Vector2d>> corner;
-  std::vector<std::vector<int>> neighbours;
+  int n = 0;
+  std::vector<char> adjacent;                // n x n, row-major
+  std::vector<Eigen::Vector2d> corner;       // n x n, row-major
+  std::vector<std::vector<int>> neighbours;  // ascending
+  const Eigen::Vector2d& at(int i, int j) const { return corner[static_cast<size_t>(i) * n + j]; }
 };
 
 // px: a line's support ending this close to a corner ends there (segment end noise at the LSD
@@ -155,8 +157,9 @@ CornerGraph cornerGraph(const LineSet& set, int n, const CameraModel& camera,
                         const ImageBoardDetectorOptions& o, bool ends_only) {
   const std::vector<MergedLine>& lines = set.lines;
   CornerGraph g;
-  g.adjacent.assign(n, std::vector<char>(n, 0));
-  g.corner.assign(n, std::vector<Eigen::Vector2d>(n, Eigen::Vector2d::Zero()));
+  g.n = n;
+  g.adjacent.assign(static_cast<size_t>(n) * n, 0);
+  g.corner.assign(static_cast<size_t>(n) * n, Eigen::Vector2d::Zero());
   g.neighbours.resize(n);
   for (int i = 0; i < n; ++i)
     for (int j = i + 1; j < n; ++j) {
@@ -178,12 +181,12 @@ CornerGraph cornerGraph(const LineSet& set, int n, const CameraModel& camera,
         near &= gap <= max_gap * (l->t_max - l->t_min);
       }
       if (!near && visibleUndistorted(camera, c, 0.0)) continue;
-      g.adjacent[i][j] = g.adjacent[j][i] = 1;
-      g.corner[i][j] = g.corner[j][i] = c;
+      g.adjacent[i * n + j] = g.adjacent[j * n + i] = 1;
+      g.corner[i * n + j] = g.corner[j * n + i] = c;
     }
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j)
-      if (g.adjacent[i][j]) g.neighbours[i].push_back(j);
+      if (g.adjacent[i * n + j]) g.neighbours[i].push_back(j);
   return g;
 }
 
@@ -211,29 +214,40 @@ bool convexPolygon(const std::array<Eigen::Vector2d, 4>& c) {
   return true;
 }
 
-// Segment support of the quadrilateral of lines idx (corner c[s] ends side s and starts side
-// s+1); false when a side is too short or barely carries segments.
-bool scoreQuad(const std::vector<MergedLine>& lines, const std::array<int, 4>& idx,
-               const std::array<Eigen::Vector2d, 4>& c, const cv::Rect2d& ubox,
-               const ImageBoardDetectorOptions& o, QuadHypothesis* q) {
+// Side of line l from corner p to corner r: its length, the segment support between the corners
+// and its share of the quadrilateral's score; false when it is too short or barely carries
+// segments.
+struct QuadSide {
+  double length = 0, support = 0, score = 0;
+};
+
+bool scoreSide(const MergedLine& l, const Eigen::Vector2d& p, const Eigen::Vector2d& r,
+               const cv::Rect2d& ubox, const ImageBoardDetectorOptions& o, QuadSide* out) {
+  const double side = (r - p).norm();
+  if (side < o.min_board_size_px) return false;
+  const double tp = l.along(p), tr = l.along(r);
+  const double tol = kCornerToleranceFraction * side;
+  const double inside = l.supportWithin(std::min(tp, tr) - tol, std::max(tp, tr) + tol);
+  const double overshoot = l.support - inside;
+  if (inside < kMinSideSupportFraction * side && inside < o.min_edge_length_px) return false;
+  // A board shows its edge along most of each visible side: unsupported stretches count
+  // against a quadrilateral as much as supported ones count for it.
+  const double gap = std::max(0.0, clippedLength(p, r, ubox) - inside);
+  out->length = side;
+  out->support = inside;
+  out->score = inside - kGapWeight * gap - kOvershootWeight * overshoot;
+  return true;
+}
+
+// The quadrilateral of corners c (corner c[s] ends side s and starts side s+1) from its scored
+// sides; false when their segment support does not outweigh gaps and overshoots.
+bool scoreQuad(const std::array<QuadSide, 4>& sides, const std::array<Eigen::Vector2d, 4>& c,
+               QuadHypothesis* q) {
   double score = 0, size = 0;
   for (int s = 0; s < 4; ++s) {
-    const MergedLine& l = lines[idx[s]];
-    const Eigen::Vector2d& p = c[(s + 3) % 4];
-    const Eigen::Vector2d& r = c[s];
-    const double side = (r - p).norm();
-    if (side < o.min_board_size_px) return false;
-    const double tp = l.along(p), tr = l.along(r);
-    const double tol = kCornerToleranceFraction * side;
-    const double inside = l.supportWithin(std::min(tp, tr) - tol, std::max(tp, tr) + tol);
-    const double overshoot = l.support - inside;
-    if (inside < kMinSideSupportFraction * side && inside < o.min_edge_length_px) return false;
-    // A board shows its edge along most of each visible side: unsupported stretches count
-    // against a quadrilateral as much as supported ones count for it.
-    const double gap = std::max(0.0, clippedLength(p, r, ubox) - inside);
-    score += inside - kGapWeight * gap - kOvershootWeight * overshoot;
-    size += side;
-    q->support[s] = inside;
+    score += sides[s].score;
+    size += sides[s].length;
+    q->support[s] = sides[s].support;
   }
   if (score <= 0) return false;
   q->corners = c;
@@ -260,7 +274,7 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
   const std::vector<MergedLine>& lines = set.lines;
   std::vector<QuadHypothesis> quads;
   // Opposite sides may converge under perspective; asked once per pair, not once per path.
-  const int n = static_cast<int>(g.adjacent.size());
+  const int n = g.n;
   std::vector<signed char> is_parallel(static_cast<size_t>(n) * n, -1);
   auto parallel = [&](int i, int k) {
     signed char& p = is_parallel[static_cast<size_t>(i) * n + k];
@@ -269,6 +283,8 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
   };
   auto onStatic = [&](int i) { return search.is_static ? (*search.is_static)[i] : 0; };
   const cv::Rect2d ubox = undistortedBounds(camera);
+  std::vector<signed char> side_i_state(n);
+  std::vector<QuadSide> side_i_score(n);
   // i is the smallest index and j < m: each cycle i-j-k-m is met once. The filters are pruned
   // as early as they can be decided (neighbour lists are ascending).
   for (int i = 0; i < search.lines && quads.size() < kMaxQuads; ++i)
@@ -277,24 +293,38 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
       // Four lines of the static scene: a window bay or a door, never the moving board.
       const int static_ij = onStatic(i) + onStatic(j);
       if (static_ij >= kStaticSidesOfScene) continue;
+      // Side i (from its corner with m to its corner with j) depends on m alone here: scored
+      // once per m (0: not yet, 1: scored, -1: fails).
+      std::fill(side_i_state.begin(), side_i_state.end(), 0);
       for (const int k : g.neighbours[j]) {
         if (k <= i || static_ij + onStatic(k) >= kStaticSidesOfScene || !parallel(i, k)) continue;
+        // Side j lies between its corners with i and k: a quadrilateral fails with it for any m.
+        std::array<QuadSide, 4> sides;
+        if (!scoreSide(lines[j], g.at(i, j), g.at(j, k), ubox, o, &sides[1])) continue;
         // At least one side from the lines from search.first_new on (the others enumerated
         // before).
         const int m_from = std::max(j, k) < search.first_new ? search.first_new : j + 1;
         const std::vector<int>& ms = g.neighbours[k];
         for (auto it = std::lower_bound(ms.begin(), ms.end(), m_from); it != ms.end(); ++it) {
           const int m = *it;
-          if (!g.adjacent[m][i] || !parallel(j, m)) continue;
+          if (!g.adjacent[m * n + i] || !parallel(j, m)) continue;
           if (static_ij + onStatic(k) + onStatic(m) >= kStaticSidesOfScene) continue;
           const std::array<int, 4> idx = {i, j, k, m};
           std::array<Eigen::Vector2d, 4> c;
-          for (int s = 0; s < 4; ++s) c[s] = g.corner[idx[s]][idx[(s + 1) % 4]];
+          for (int s = 0; s < 4; ++s) c[s] = g.at(idx[s], idx[(s + 1) % 4]);
           if (!convexPolygon(c)) continue;
           const int ends = search.min_corner_ends > 0 ? endsAtCorners(set, idx, c) : 0;
           if (ends < search.min_corner_ends) continue;
+          signed char& side_i = side_i_state[m];
+          if (side_i == 0)
+            side_i = scoreSide(lines[i], c[3], c[0], ubox, o, &side_i_score[m]) ? 1 : -1;
+          if (side_i < 0) continue;
+          sides[0] = side_i_score[m];
+          if (!scoreSide(lines[k], c[1], c[2], ubox, o, &sides[2]) ||
+              !scoreSide(lines[m], c[2], c[3], ubox, o, &sides[3]))
+            continue;
           QuadHypothesis q;
-          if (!scoreQuad(lines, idx, c, ubox, o, &q)) continue;
+          if (!scoreQuad(sides, c, &q)) continue;
           q.corner_ends = ends;
           if (search.expected &&
               worstCornerOffset(c, search.expected->corners_px) > search.expected->tolerance_px)
@@ -405,7 +435,7 @@ std::vector<ThreeSides> threeSideChains(const LineSet& set, const CornerGraph& g
           continue;
         if (onStatic(a) + onStatic(j) + onStatic(b) >= kStaticSidesOfScene) continue;
         ThreeSides u;
-        u.corners = {g.corner[a][j], g.corner[j][b]};
+        u.corners = {g.at(a, j), g.at(j, b)};
         const double side = (u.corners[1] - u.corners[0]).norm();
         if (side < o.min_board_size_px) continue;
         double open_support[2];
