@@ -135,6 +135,8 @@ double cornerEndTolerance(const MergedLine& l, double end_sigma) {
 // board's side would end.
 bool crossesAt(const MergedLine& l, const Eigen::Vector2d& c, double end_sigma) {
   const double t = l.along(c), tol = cornerEndTolerance(l, end_sigma);
+  // No support at all on one side (the intervals lie within [t_min, t_max]).
+  if (t - tol <= l.t_min || t + tol >= l.t_max) return false;
   const double inf = std::numeric_limits<double>::infinity();
   return std::min(l.supportWithin(-inf, t - tol), l.supportWithin(t + tol, inf)) > tol;
 }
@@ -239,6 +241,15 @@ bool scoreSide(const MergedLine& l, const Eigen::Vector2d& p, const Eigen::Vecto
   return true;
 }
 
+// At least any side on l adds to a quadrilateral's score (scoreSide): no more support than the
+// whole line's, no negative gap, no less overshoot than the line's support past all of it. In
+// floating point too, as each of those steps rounds monotonically.
+double maxSideScore(const MergedLine& l) {
+  const double inf = std::numeric_limits<double>::infinity();
+  const double all = l.supportWithin(-inf, inf);
+  return all - kOvershootWeight * (l.support - all);
+}
+
 // The quadrilateral of corners c (corner c[s] ends side s and starts side s+1) from its scored
 // sides; false when their segment support does not outweigh gaps and overshoots.
 bool scoreQuad(const std::array<QuadSide, 4>& sides, const std::array<Eigen::Vector2d, 4>& c,
@@ -283,6 +294,8 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
   };
   auto onStatic = [&](int i) { return search.is_static ? (*search.is_static)[i] : 0; };
   const cv::Rect2d ubox = undistortedBounds(camera);
+  std::vector<double> max_side_score(n);
+  for (int l = 0; l < n; ++l) max_side_score[l] = maxSideScore(lines[l]);
   std::vector<signed char> side_i_state(n);
   std::vector<QuadSide> side_i_score(n);
   // i is the smallest index and j < m: each cycle i-j-k-m is met once. The filters are pruned
@@ -309,18 +322,25 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
           const int m = *it;
           if (!g.adjacent[m * n + i] || !parallel(j, m)) continue;
           if (static_ij + onStatic(k) + onStatic(m) >= kStaticSidesOfScene) continue;
+          // The cheapest tests first (all of them must pass, in any order).
+          signed char& side_i = side_i_state[m];
+          if (side_i == 0)
+            side_i =
+                scoreSide(lines[i], g.at(m, i), g.at(i, j), ubox, o, &side_i_score[m]) ? 1 : -1;
+          if (side_i < 0) continue;
+          sides[0] = side_i_score[m];
+          // Sides k and m are scored only while they could still lift the score above 0
+          // (scoreQuad adds the sides in this order; rounding is monotone, so is the bound).
+          const double score_ij = sides[0].score + sides[1].score;
+          if (score_ij + max_side_score[k] + max_side_score[m] <= 0) continue;
           const std::array<int, 4> idx = {i, j, k, m};
           std::array<Eigen::Vector2d, 4> c;
           for (int s = 0; s < 4; ++s) c[s] = g.at(idx[s], idx[(s + 1) % 4]);
           if (!convexPolygon(c)) continue;
           const int ends = search.min_corner_ends > 0 ? endsAtCorners(set, idx, c) : 0;
           if (ends < search.min_corner_ends) continue;
-          signed char& side_i = side_i_state[m];
-          if (side_i == 0)
-            side_i = scoreSide(lines[i], c[3], c[0], ubox, o, &side_i_score[m]) ? 1 : -1;
-          if (side_i < 0) continue;
-          sides[0] = side_i_score[m];
           if (!scoreSide(lines[k], c[1], c[2], ubox, o, &sides[2]) ||
+              score_ij + sides[2].score + max_side_score[m] <= 0 ||
               !scoreSide(lines[m], c[2], c[3], ubox, o, &sides[3]))
             continue;
           QuadHypothesis q;
