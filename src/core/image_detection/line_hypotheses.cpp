@@ -163,12 +163,14 @@ CornerGraph cornerGraph(const LineSet& set, int n, const CameraModel& camera,
   g.adjacent.assign(static_cast<size_t>(n) * n, 0);
   g.corner.assign(static_cast<size_t>(n) * n, Eigen::Vector2d::Zero());
   g.neighbours.resize(n);
+  std::vector<Eigen::Vector3d> homogeneous(n);
+  for (int i = 0; i < n; ++i) homogeneous[i] = lines[i].homogeneous();
   for (int i = 0; i < n; ++i)
     for (int j = i + 1; j < n; ++j) {
       const double s = std::abs(cross2(lines[i].dir, lines[j].dir));
       if (s < kMinCornerSin) continue;
       Eigen::Vector2d c;
-      if (!intersectLines(lines[i].homogeneous(), lines[j].homogeneous(), &c)) continue;
+      if (!intersectLines(homogeneous[i], homogeneous[j], &c)) continue;
       const bool ends = ends_only && cornerOfEnds(lines[i], lines[j], c, set.end_sigma_px);
       if (ends_only && !ends) continue;
       // Where one line ends at the corner, the other may stop as far short of it as a side
