@@ -144,12 +144,12 @@ bool crossesAt(const MergedLine& l, const Eigen::Vector2d& c, double end_sigma) 
 // Neither line crosses c and at least one ends there (the other may stop short: occluded, faint).
 bool cornerOfEnds(const MergedLine& a, const MergedLine& b, const Eigen::Vector2d& c,
                   double end_sigma) {
-  if (crossesAt(a, c, end_sigma) || crossesAt(b, c, end_sigma)) return false;
   auto endsAt = [&](const MergedLine& l) {
     const double t = l.along(c), tol = cornerEndTolerance(l, end_sigma);
     return std::abs(l.t_min - t) <= tol || std::abs(l.t_max - t) <= tol;
   };
-  return endsAt(a) || endsAt(b);
+  // The cheaper test first.
+  return (endsAt(a) || endsAt(b)) && !crossesAt(a, c, end_sigma) && !crossesAt(b, c, end_sigma);
 }
 
 // Corner of lines i and j (both below n) when it is plausible: a real angle, and near both lines'
