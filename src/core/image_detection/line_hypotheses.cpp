@@ -243,9 +243,9 @@ bool scoreSide(const MergedLine& l, const Eigen::Vector2d& p, const Eigen::Vecto
   return true;
 }
 
-// At least any side on l adds to a quadrilateral's score (scoreSide): no more support than the
-// whole line's, no negative gap, no less overshoot than the line's support past all of it. In
-// floating point too, as each of those steps rounds monotonically.
+// The most any side on l can add to a quadrilateral's score (scoreSide): no more support than the
+// whole line's, no negative gap, no less overshoot than the line's support past all of it. A bound
+// in floating point too, as each of those steps rounds monotonically.
 double maxSideScore(const MergedLine& l) {
   const double inf = std::numeric_limits<double>::infinity();
   const double all = l.supportWithin(-inf, inf);
@@ -324,7 +324,7 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
           const int m = *it;
           if (!g.adjacent[m * n + i] || !parallel(j, m)) continue;
           if (static_ij + onStatic(k) + onStatic(m) >= kStaticSidesOfScene) continue;
-          // The cheapest tests first (all of them must pass, in any order).
+          // Cheap tests first: every test must pass, so their order does not matter.
           signed char& side_i = side_i_state[m];
           if (side_i == 0)
             side_i =
