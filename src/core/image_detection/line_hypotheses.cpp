@@ -243,15 +243,6 @@ bool scoreSide(const MergedLine& l, const Eigen::Vector2d& p, const Eigen::Vecto
   return true;
 }
 
-// The most any side on l can add to a quadrilateral's score (scoreSide): no more support than the
-// whole line's, no negative gap, no less overshoot than the line's support past all of it. A bound
-// in floating point too, as each of those steps rounds monotonically.
-double maxSideScore(const MergedLine& l) {
-  const double inf = std::numeric_limits<double>::infinity();
-  const double all = l.supportWithin(-inf, inf);
-  return all - kOvershootWeight * (l.support - all);
-}
-
 // The quadrilateral of corners c (corner c[s] ends side s and starts side s+1) from its scored
 // sides; false when their segment support does not outweigh gaps and overshoots.
 bool scoreQuad(const std::array<QuadSide, 4>& sides, const std::array<Eigen::Vector2d, 4>& c,
@@ -296,8 +287,6 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
   };
   auto onStatic = [&](int i) { return search.is_static ? (*search.is_static)[i] : 0; };
   const cv::Rect2d ubox = undistortedBounds(camera);
-  std::vector<double> max_side_score(n);
-  for (int l = 0; l < n; ++l) max_side_score[l] = maxSideScore(lines[l]);
   std::vector<signed char> side_i_state(n);
   std::vector<QuadSide> side_i_score(n);
   // i is the smallest index and j < m: each cycle i-j-k-m is met once. The filters are pruned
@@ -331,10 +320,12 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
                 scoreSide(lines[i], g.at(m, i), g.at(i, j), ubox, o, &side_i_score[m]) ? 1 : -1;
           if (side_i < 0) continue;
           sides[0] = side_i_score[m];
-          // Sides k and m are scored only while they could still lift the score above 0
-          // (scoreQuad adds the sides in this order; rounding is monotone, so is the bound).
+          // Sides k and m are scored only while they could still lift the score above 0. A
+          // side adds at most its line's whole support (scoreSide: the support between its
+          // corners, less gap and overshoot); scoreQuad adds the sides in this order, and
+          // rounding is monotone, so the bound holds in floating point too.
           const double score_ij = sides[0].score + sides[1].score;
-          if (score_ij + max_side_score[k] + max_side_score[m] <= 0) continue;
+          if (score_ij + lines[k].support + lines[m].support <= 0) continue;
           const std::array<int, 4> idx = {i, j, k, m};
           std::array<Eigen::Vector2d, 4> c;
           for (int s = 0; s < 4; ++s) c[s] = g.at(idx[s], idx[(s + 1) % 4]);
@@ -342,7 +333,7 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
           const int ends = search.min_corner_ends > 0 ? endsAtCorners(set, idx, c) : 0;
           if (ends < search.min_corner_ends) continue;
           if (!scoreSide(lines[k], c[1], c[2], ubox, o, &sides[2]) ||
-              score_ij + sides[2].score + max_side_score[m] <= 0 ||
+              score_ij + sides[2].score + lines[m].support <= 0 ||
               !scoreSide(lines[m], c[2], c[3], ubox, o, &sides[3]))
             continue;
           QuadHypothesis q;
