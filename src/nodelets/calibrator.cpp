@@ -203,7 +203,7 @@ bool CalibratorNodelet::calibrate(Calibrate::Request& req, Calibrate::Response& 
   if (views.empty()) {
     res.success = false;
     std::lock_guard<std::mutex> lock(mutex_);
-    res.message = "no views collected yet: hold the board still in front of both sensors (" +
+    res.message = "no views collected yet: " + session_->captureStats().whyNoViews() + " (" +
                   session_->captureStats().summary() + ")";
     return true;
   }

@@ -46,8 +46,7 @@ PairCalibration solveSession(const Args& args, const PairSession& session,
                              const PairCalibrationOptions& run_options, std::string* camera_frame,
                              std::string* lidar_frame) {
   const std::vector<View> views = session.plainViews();
-  if (views.empty())
-    fail("no view has the board in both sensors at the same time (check --sync-tolerance)");
+  if (views.empty()) fail(session.captureStats().whyNoViews());
   if (camera_frame->empty()) *camera_frame = views.front().camera.frame_id;
   if (lidar_frame->empty()) *lidar_frame = views.front().lidar.frame_id;
   PairCalibration run =

@@ -186,8 +186,8 @@ int runRigCalibration(const RigArgs& args) {
   for (const auto& p : pipeline->session().problems())
     if (!args.quiet) std::cerr << "  warning: " << p << "\n";
   if (problem->poses.empty())
-    return failWith("no board pose was seen still by two sensors at once (" +
-                    pipeline->session().captureStats().summary() + "; check stamp_tolerance_s)");
+    return failWith("no board pose was seen still by two sensors at once: " +
+                    pipeline->session().captureStats().whyNoViews());
 
   const RigCalibration run = calibrateRig(*problem, *rig, *target);
   if (!run.solution.success) return failWith("calibration failed: " + run.reason);

@@ -130,6 +130,63 @@ TEST(Session, SlowCameraIsJudgedByTheLidarAroundEachImage) {
   EXPECT_GE(s.captureStats().skipped.at("board moving"), 3) << s.captureStats().summary();
 }
 
+// A session without a view says which capture step refused the images and what to change,
+// and following that advice gives views (the simulated plain_os1_noisy recording holds each pose
+// for two frames only; calibrate_bag used to point at the sync tolerance).
+TEST(Session, NoViewSaysWhichStepRefusedTheImagesAndWhatToChange) {
+  const Target target = plainTarget();
+  // As simulate_bag writes plain_os1_noisy: two frames of each pose 0.1 s apart, one frame of
+  // the move 0.6 s later, the next pose 2.5 s on; both sensors at the same stamps.
+  auto poseOf = [](int hold) {
+    return boardPose(0.3 * (hold % 4) - 0.5, 3 + 0.2 * (hold % 3), 15.0 * (hold % 3) - 15,
+                     10.0 * (hold % 2));
+  };
+  auto feedShortHolds = [&](PairSession& s) {
+    for (int hold = 0; hold < 8; ++hold)
+      for (int k = 0; k < 3; ++k) {
+        Eigen::Isometry3d pose = poseOf(hold);
+        if (k == 2)
+          pose.translation() = 0.5 * (pose.translation() + poseOf(hold + 1).translation());
+        View v = makeView(pose, 2.5 * hold + (k < 2 ? 0.1 * k : 0.7), target);
+        v.lidar.stamp = v.camera.stamp;
+        s.addCamera(v.camera);
+        s.addLidar(v.lidar);
+      }
+    s.finish();
+  };
+  PairSession strict(target, SessionOptions{});
+  feedShortHolds(strict);
+  ASSERT_TRUE(strict.views().empty()) << strict.captureStats().summary();
+  const std::string why = strict.captureStats().whyNoViews();
+  EXPECT_NE(why.find("too few frames to judge stillness"), std::string::npos) << why;
+  EXPECT_NE(why.find("still-frames setting"), std::string::npos) << why;
+  EXPECT_EQ(why.find("sync tolerance"), std::string::npos) << why;
+
+  SessionOptions no_check;
+  no_check.still_frames_required = 1;
+  PairSession relaxed(target, no_check);
+  feedShortHolds(relaxed);
+  EXPECT_GE(relaxed.views().size(), 3u) << relaxed.captureStats().summary();
+
+  // Long holds, but the clouds stamped 5 s after the images (another clock): the sync
+  // tolerance is named.
+  PairSession late(target, SessionOptions{});
+  for (int k = 0; k < 30; ++k) {
+    View v = makeView(boardPose(0, 3, 0, 10), 0.1 * k, target);
+    v.lidar.stamp = 0.1 * k + 5.0;
+    late.addCamera(v.camera);
+    late.addLidar(v.lidar);
+  }
+  late.finish();
+  ASSERT_TRUE(late.views().empty()) << late.captureStats().summary();
+  const std::string late_why = late.captureStats().whyNoViews();
+  EXPECT_NE(late_why.find("no cloud within the sync tolerance"), std::string::npos) << late_why;
+  EXPECT_NE(late_why.find("raise the tolerance"), std::string::npos) << late_why;
+
+  // Nothing found: nothing judged, and the message says to show the board.
+  EXPECT_NE(CaptureStats{}.whyNoViews().find("hold it still"), std::string::npos);
+}
+
 TEST(Session, SnapshotRecordingsMakeEveryPairACandidate) {
   const Target target = plainTarget();
   PairSession s(target, SessionOptions{});

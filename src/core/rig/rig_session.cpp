@@ -181,6 +181,7 @@ SessionEvent RigSession::decideCandidates(bool ended) {
 
 SessionEvent RigSession::skip(const std::string& kind, const std::string& why) {
   stats_.skipped[kind]++;
+  stats_.last_why[kind] = why;
   return event(SessionEvent::Kind::kRejected, why);
 }
 

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <sstream>
 
 namespace board_calib {
@@ -51,6 +52,40 @@ std::string CaptureStats::summary() const {
   std::ostringstream s;
   s << candidates << " candidate images, " << captured << " captured";
   for (const auto& [n, kind] : order) s << "; " << -n << " x " << kind;
+  return s.str();
+}
+
+std::string CaptureStats::whyNoViews() const {
+  if (candidates == 0)
+    return "no board was found to capture: hold it still in front of the sensors";
+  std::string kind;
+  int most = 0;
+  for (const auto& [k, n] : skipped)
+    if (n > most) {
+      most = n;
+      kind = k;
+    }
+  // What to change, by the capture step that refused the most candidates (pair and rig words).
+  static const std::map<std::string, std::string> kRemedy = {
+      {"too few frames to judge stillness",
+       "each pose must be held for the stillness window's frames on both sides of an image: hold "
+       "each pose longer, or lower the still-frames setting (1: no stillness check)"},
+      {"no cloud within the sync tolerance",
+       "the image and cloud stamps lie further apart than the sync tolerance: check the stamps "
+       "or raise the tolerance"},
+      {"seen by too few sensors",
+       "a pose needs two or more sensors to see the board within the stamp tolerance"},
+      {"board moving", "hold the board still at each pose"},
+      {"board lost around the image", "keep the board inside both sensors' views at each pose"},
+      {"board lost around the moment", "keep the board inside the sensors' views at each pose"},
+  };
+  std::ostringstream s;
+  s << "no view was captured: " << (kind.empty() ? std::string("none judged") : kind) << " ("
+    << most << " of " << candidates << " candidates)";
+  if (const auto it = kRemedy.find(kind); it != kRemedy.end()) s << "; " << it->second;
+  if (const auto it = last_why.find(kind);
+      it != last_why.end() && !it->second.empty() && it->second != kind)
+    s << " (the latest: " << it->second << ")";
   return s.str();
 }
 
@@ -128,6 +163,7 @@ std::optional<LidarBoardFeatures> PairSession::nearestLidar(double stamp, double
 
 SessionEvent PairSession::skip(const std::string& kind, const std::string& why) {
   stats_.skipped[kind]++;
+  stats_.last_why[kind] = why;
   return {SessionEvent::Kind::kRejected, why, -1};
 }
 
@@ -186,7 +222,9 @@ SessionEvent PairSession::decide(const CameraBoardFeatures& camera, bool ended, 
   view.camera = camera;
   const SessionEvent gated = gate(view, false);
   if (gated.kind == SessionEvent::Kind::kRejected) {
-    stats_.skipped[gated.message.substr(0, gated.message.find(" ("))]++;
+    const std::string kind = gated.message.substr(0, gated.message.find(" ("));
+    stats_.skipped[kind]++;
+    stats_.last_why[kind] = gated.message;
     return gated;
   }
   // One view per hold: a later frame of the same still pose replaces it when it is better.

@@ -67,9 +67,13 @@ struct CoverageReport {
 struct CaptureStats {
   int candidates = 0;  ///< images with the board that were judged
   int captured = 0;    ///< views accepted (a hold's later, better frame counts once more)
-  std::map<std::string, int> skipped;  ///< kind -> count
-  std::string last_stillness;          ///< the last judgement in words
-  std::string summary() const;         ///< one line, most frequent reasons first
+  std::map<std::string, int> skipped;           ///< kind -> count
+  std::map<std::string, std::string> last_why;  ///< kind -> its latest specific reason
+  std::string last_stillness;                   ///< the last judgement in words
+  std::string summary() const;                  ///< one line, most frequent reasons first
+  /// Why no view was captured, from the most frequent reason, and what to change (for a session
+  /// that ends without views).
+  std::string whyNoViews() const;
 };
 
 class PairSession {
