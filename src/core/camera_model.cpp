@@ -138,13 +138,24 @@ Eigen::Vector3d CameraModel::unprojectRay(const Eigen::Vector2d& raw) const {
 
 bool CameraModel::isVisible(const Eigen::Vector3d& p, double margin_px,
                             Eigen::Vector2d* raw_out) const {
+  // A ray through an undistorted pixel (z = 1, the image searches' case) needs no division by z:
+  // the same values, x / 1 being x.
+  const bool unit_depth = p.z() == 1.0;
   Eigen::Vector2d u;
-  if (!projectUndistorted(p, &u)) return false;
+  if (unit_depth)
+    u = {in_.fx * p.x() + in_.cx, in_.fy * p.y() + in_.cy};
+  else if (!projectUndistorted(p, &u))
+    return false;
   if (u.x() < ubox_[0] - margin_px || u.x() > ubox_[2] + margin_px ||
       u.y() < ubox_[1] - margin_px || u.y() > ubox_[3] + margin_px)
     return false;
   Eigen::Vector2d raw = Eigen::Vector2d::Zero();
-  project(p, &raw);
+  if (unit_depth) {
+    distortNormalized(p.x(), p.y(), &raw.x(), &raw.y());
+    raw = {in_.fx * raw.x() + in_.cx, in_.fy * raw.y() + in_.cy};
+  } else {
+    project(p, &raw);
+  }
   if (raw_out) *raw_out = raw;
   return raw.x() >= -margin_px && raw.y() >= -margin_px && raw.x() < in_.width + margin_px &&
          raw.y() < in_.height + margin_px;

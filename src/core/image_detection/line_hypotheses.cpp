@@ -88,9 +88,9 @@ double clippedLength(const Eigen::Vector2d& p, const Eigen::Vector2d& q, const c
 
 bool visibleUndistorted(const CameraModel& camera, const Eigen::Vector2d& u, double margin,
                         Eigen::Vector2d* raw) {
-  const Eigen::Matrix3d K = camera.K();
-  return camera.isVisible(
-      Eigen::Vector3d((u.x() - K(0, 2)) / K(0, 0), (u.y() - K(1, 2)) / K(1, 1), 1.0), margin, raw);
+  const CameraIntrinsics& in = camera.intrinsics();  // K's entries, without building K per point
+  return camera.isVisible(Eigen::Vector3d((u.x() - in.cx) / in.fx, (u.y() - in.cy) / in.fy, 1.0),
+                          margin, raw);
 }
 
 bool visibleSideInterval(const CameraModel& camera, const Eigen::Vector2d& p,

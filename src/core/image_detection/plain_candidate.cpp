@@ -29,7 +29,7 @@ constexpr double kWeakLinesRmsShare = 0.5;  // of the corner misfit (fromQuad)
 // Names and refines the sides; returns the number of valid edges (support filled).
 int refineSides(const cv::Mat& gray, const CameraModel& camera, const ImageBoardDetectorOptions& o,
                 const Hypothesis& h, double min_gradient, ImageDetection* out,
-                CandidateSupport* support) {
+                CandidateSupport* support, RefinedSides* refined) {
   CameraBoardFeatures& f = out->features;
   ImageDetectionDetails& d = out->details;
   const std::vector<CoarseEdge>& sides = h.sides;
@@ -45,7 +45,7 @@ int refineSides(const cv::Mat& gray, const CameraModel& camera, const ImageBoard
   for (size_t k = 0; k < sides.size(); ++k) {
     const int j = names[k];
     if (j < 0) continue;
-    const EdgeFit fit = refineEdge(gray, camera, sides[k], h.inside_u, o, min_gradient);
+    const EdgeFit fit = refineEdge(gray, camera, sides[k], h.inside_u, o, min_gradient, refined);
     f.edge_lines[j] = fit.line;
     f.edge_valid[j] = fit.valid;
     d.edge_points_raw[j] = fit.raw_inliers;
@@ -229,7 +229,7 @@ Hypothesis fromQuad(const QuadHypothesis& q, const CameraModel& camera,
 
 bool fitCandidate(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                   const ImageBoardDetectorOptions& o, const Hypothesis& h, double min_gradient,
-                  ImageDetection* out, CandidateSupport* support) {
+                  ImageDetection* out, CandidateSupport* support, RefinedSides* refined) {
   CameraBoardFeatures& f = out->features;
   ImageDetectionDetails& d = out->details;
   *support = CandidateSupport{};
@@ -240,7 +240,7 @@ bool fitCandidate(const cv::Mat& gray, const CameraModel& camera, const Target& 
     return false;
   }
   const double start = threadCpuMs();
-  const int valid = refineSides(gray, camera, o, h, min_gradient, out, support);
+  const int valid = refineSides(gray, camera, o, h, min_gradient, out, support, refined);
   d.stage_times.edges_ms = msSince(start);
   for (int j = 0; j < kNumEdges; ++j)
     if (f.edge_valid[j] && f.edge_valid[(j + 1) % 4] &&

@@ -124,9 +124,10 @@ bool onStaticRectangle(const StaticScene& excluded, ImageDetection* attempt) {
 // fitCandidate, its CPU time split between the edge refinement (timed inside it) and the rest.
 bool timedFit(const cv::Mat& gray, const CameraModel& camera, const Target& target,
               const ImageBoardDetectorOptions& o, const Hypothesis& h, double min_gradient,
-              ImageDetection* attempt, CandidateSupport* support, PlainStageTimes* times) {
+              ImageDetection* attempt, CandidateSupport* support, RefinedSides* refined,
+              PlainStageTimes* times) {
   const bool fits = timed(&times->fits_ms, [&] {
-    return fitCandidate(gray, camera, target, o, h, min_gradient, attempt, support);
+    return fitCandidate(gray, camera, target, o, h, min_gradient, attempt, support, refined);
   });
   times->edges_ms += attempt->details.stage_times.edges_ms;
   times->fits_ms -= attempt->details.stage_times.edges_ms;
@@ -229,6 +230,7 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
 
   const ImageDetection fresh = *out;
   HypothesisSearch search;
+  RefinedSides refined;
   // Openings of the rejected regions (distance transforms: as costly as the segmentation) are
   // made only when no region was the board; they come before the line quadrilaterals.
   size_t regions = first_regions;
@@ -278,7 +280,7 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     ImageDetection attempt = fresh;
     CandidateSupport support;
     const bool is_board = timedFit(gray, camera, target, o, hypotheses[i], min_gradient, &attempt,
-                                   &support, &times) &&
+                                   &support, &refined, &times) &&
                           keptBoard(expected, excluded, &attempt, &search);
     const auto corners = i >= regions ? quads[i - regions].corners : attempt.features.corners_px;
     search.record(hypotheses[i], corners, is_board, support, std::move(attempt));

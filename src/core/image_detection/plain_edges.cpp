@@ -34,9 +34,26 @@ bool insideImage(const cv::Mat& gray, const Eigen::Vector2d& p, double margin) {
          p.y() <= gray.rows - 1 - margin;
 }
 
+// Orients lines by the inside point and records them (RefinedSide).
+struct Orienter {
+  const Eigen::Vector2d& inside;
+  std::vector<Eigen::Vector3d>* oriented;
+  Eigen::Vector3d through(const Eigen::Vector2d& p, const Eigen::Vector2d& q) const {
+    oriented->push_back(lineThrough(p, q, inside));
+    return oriented->back();
+  }
+};
+
+// Strictly on the inner side of every line: lineThrough orients each of them the same way with p
+// (its sign test is this one's, negated when it flipped the line).
+bool insideAll(const std::vector<Eigen::Vector3d>& lines, const Eigen::Vector2d& p) {
+  for (const auto& l : lines)
+    if (!(l.head<2>().dot(p) + l.z() < 0)) return false;
+  return true;
+}
+
 // Total least squares line through points (undistorted px).
-Eigen::Vector3d fitLine(const Points2& pts, const std::vector<bool>& use,
-                        const Eigen::Vector2d& inside) {
+Eigen::Vector3d fitLine(const Points2& pts, const std::vector<bool>& use, const Orienter& orient) {
   Eigen::Vector2d mean = Eigen::Vector2d::Zero();
   int n = 0;
   for (size_t i = 0; i < pts.size(); ++i)
@@ -50,7 +67,7 @@ Eigen::Vector3d fitLine(const Points2& pts, const std::vector<bool>& use,
     if (use[i]) cov += (pts[i] - mean) * (pts[i] - mean).transpose();
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
   const Eigen::Vector2d dir = eig.eigenvectors().col(1);
-  return lineThrough(mean, mean + dir, inside);
+  return orient.through(mean, mean + dir);
 }
 
 // Sign of the intensity change walking outward. It may change along one side (the background
@@ -155,15 +172,15 @@ EdgeSamples searchPeaks(const cv::Mat& gray, const CameraModel& camera, const Co
 
 // Robust line through the peaks (weak peaks out, MAD band never tighter than the configured
 // inlier distance); fills the fit's line, inliers, rms, span and coverage.
-void fitPeaks(const EdgeSamples& s, const Eigen::Vector2d& inside_u,
-              const ImageBoardDetectorOptions& o, EdgeFit* fit) {
+void fitPeaks(const EdgeSamples& s, const Orienter& orient, const ImageBoardDetectorOptions& o,
+              EdgeFit* fit) {
   const double median_strength = medianOf(s.strength);
   const size_t n = s.pts_u.size();
   std::vector<bool> use(n);
   for (size_t i = 0; i < n; ++i) use[i] = s.strength[i] >= kWeakPeakFraction * median_strength;
   Eigen::Vector3d line = fit->line;
   for (int iter = 0; iter < kRobustIterations; ++iter) {
-    line = fitLine(s.pts_u, use, inside_u);
+    line = fitLine(s.pts_u, use, orient);
     std::vector<double> res;
     for (size_t i = 0; i < n; ++i)
       if (use[i]) res.push_back(std::abs(line.head<2>().dot(s.pts_u[i]) + line.z()));
@@ -174,7 +191,7 @@ void fitPeaks(const EdgeSamples& s, const Eigen::Vector2d& inside_u,
       use[i] = s.strength[i] >= kWeakPeakFraction * median_strength &&
                std::abs(line.head<2>().dot(s.pts_u[i]) + line.z()) <= thr;
   }
-  line = fitLine(s.pts_u, use, inside_u);
+  line = fitLine(s.pts_u, use, orient);
   fit->raw_inliers.clear();
   double sum_sq = 0, tmin = 1e18, tmax = -1e18;
   const Eigen::Vector2d ldir(-line.y(), line.x());
@@ -194,31 +211,13 @@ void fitPeaks(const EdgeSamples& s, const Eigen::Vector2d& inside_u,
   fit->line = line;
 }
 
-}  // namespace
-
-double edgeContinuation(const cv::Mat& gray, const CameraModel& camera, const Eigen::Vector3d& line,
-                        const Eigen::Vector2d& corner, const Eigen::Vector2d& outward,
-                        double gap_px, double length_px, const ImageBoardDetectorOptions& o,
-                        double min_gradient, int* positions, double* run_on_px) {
-  CoarseEdge stretch;
-  stretch.a_corner = stretch.b_corner = false;
-  const Eigen::Vector2d a = corner + gap_px * outward, b = corner + (gap_px + length_px) * outward;
-  const Eigen::Vector2d n = line.head<2>();
-  const EdgeSamples s =
-      searchPeaks(gray, camera, stretch, a, b, n, o.fine_search_px, nullptr, o, min_gradient);
-  *positions = s.positions;
-  int on_line = 0;
-  for (const auto& p : s.pts_u) on_line += std::abs(n.dot(p) + line.z()) <= o.edge_inlier_px;
-  *run_on_px = on_line * s.step;
-  return s.positions > 0 ? static_cast<double>(on_line) / s.positions : 0.0;
-}
-
-EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse,
-                   const Eigen::Vector2d& inside_u, const ImageBoardDetectorOptions& o,
+// One side refined afresh (refineEdge).
+EdgeFit refineOnce(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse,
+                   const Orienter& orient, const ImageBoardDetectorOptions& o,
                    double min_gradient) {
   EdgeFit fit;
   Eigen::Vector2d a = camera.undistortPixel(coarse.a), b = camera.undistortPixel(coarse.b);
-  fit.line = lineThrough(a, b, inside_u);
+  fit.line = orient.through(a, b);
   LocalPolarity polarity;
   for (int pass = 0; pass <= kFinePasses; ++pass) {
     const double half = pass == 0 ? o.coarse_search_px : o.fine_search_px;
@@ -242,7 +241,7 @@ EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseE
       fit.reason = "too few edge pixels (" + std::to_string(s.pts_u.size()) + ")";
       return fit;
     }
-    fitPeaks(s, inside_u, o, &fit);
+    fitPeaks(s, orient, o, &fit);
     if (static_cast<int>(fit.raw_inliers.size()) < o.min_edge_points) {
       fit.reason = "too few edge inliers (" + std::to_string(fit.raw_inliers.size()) + ")";
       return fit;
@@ -259,6 +258,42 @@ EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseE
     fit.valid = true;
   }
   return fit;
+}
+
+}  // namespace
+
+double edgeContinuation(const cv::Mat& gray, const CameraModel& camera, const Eigen::Vector3d& line,
+                        const Eigen::Vector2d& corner, const Eigen::Vector2d& outward,
+                        double gap_px, double length_px, const ImageBoardDetectorOptions& o,
+                        double min_gradient, int* positions, double* run_on_px) {
+  CoarseEdge stretch;
+  stretch.a_corner = stretch.b_corner = false;
+  const Eigen::Vector2d a = corner + gap_px * outward, b = corner + (gap_px + length_px) * outward;
+  const Eigen::Vector2d n = line.head<2>();
+  const EdgeSamples s =
+      searchPeaks(gray, camera, stretch, a, b, n, o.fine_search_px, nullptr, o, min_gradient);
+  *positions = s.positions;
+  int on_line = 0;
+  for (const auto& p : s.pts_u) on_line += std::abs(n.dot(p) + line.z()) <= o.edge_inlier_px;
+  *run_on_px = on_line * s.step;
+  return s.positions > 0 ? static_cast<double>(on_line) / s.positions : 0.0;
+}
+
+EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse,
+                   const Eigen::Vector2d& inside_u, const ImageBoardDetectorOptions& o,
+                   double min_gradient, RefinedSides* refined) {
+  if (refined)
+    for (const RefinedSide& r : *refined)
+      if (r.coarse.a == coarse.a && r.coarse.b == coarse.b &&
+          r.coarse.a_corner == coarse.a_corner && r.coarse.b_corner == coarse.b_corner &&
+          insideAll(r.oriented, inside_u))
+        return r.fit;
+  RefinedSide side;
+  side.coarse = coarse;
+  side.fit = refineOnce(gray, camera, coarse, Orienter{inside_u, &side.oriented}, o, min_gradient);
+  if (!refined || !insideAll(side.oriented, inside_u)) return side.fit;
+  refined->push_back(std::move(side));
+  return refined->back().fit;
 }
 
 }  // namespace image_detection

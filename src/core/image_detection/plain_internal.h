@@ -97,10 +97,22 @@ struct EdgeFit {
   bool valid = false;
 };
 
+/// A side refined once in a frame. Hypotheses share sides (line quadrilaterals with two corners
+/// in common, the base of traced sides): the fit is the same, bit for bit, for another inside
+/// point strictly on the inner side of every line the refinement oriented.
+struct RefinedSide {
+  CoarseEdge coarse;
+  std::vector<Eigen::Vector3d> oriented;  ///< every line oriented by the inside point, in order
+  EdgeFit fit;
+};
+using RefinedSides = std::vector<RefinedSide>;
+
 /// Sub-pixel gradient peaks along the edge normal, a robust line through them (undistorted px).
+/// `refined` (optional): the sides refined so far on this image with these options and
+/// min_gradient, reused and extended.
 EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse,
                    const Eigen::Vector2d& inside_u, const ImageBoardDetectorOptions& o,
-                   double min_gradient);
+                   double min_gradient, RefinedSides* refined = nullptr);
 
 /// Fraction of the stretch [gap, gap + length] px past `corner` along `outward` (undistorted px)
 /// where the side's line carries an edge of either polarity: a board side ends at its corners, a
@@ -135,7 +147,7 @@ struct CandidateSupport {
 /// Fits edges, corners and pose to one hypothesis; false (reason in out) when it is not a board.
 bool fitCandidate(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                   const ImageBoardDetectorOptions& o, const Hypothesis& h, double min_gradient,
-                  ImageDetection* out, CandidateSupport* support);
+                  ImageDetection* out, CandidateSupport* support, RefinedSides* refined = nullptr);
 
 }  // namespace image_detection
 }  // namespace board_calib

@@ -196,6 +196,14 @@ uint64_t strideColumns(int stride) {
   return bits;
 }
 
+// Set bits of a word (__builtin_popcountll is a library call on the baseline x86-64 target).
+int bitCount(uint64_t v) {
+  v -= (v >> 1) & 0x5555555555555555ULL;
+  v = (v & 0x3333333333333333ULL) + ((v >> 2) & 0x3333333333333333ULL);
+  v = (v + (v >> 4)) & 0x0F0F0F0F0F0F0F0FULL;
+  return static_cast<int>((v * 0x0101010101010101ULL) >> 56);
+}
+
 // Share of the side from row k's open corner on a to row k + delta's on b that shows an edge,
 // over the columns read with `stride` (their bits `columns`); -1 when too little of it lies
 // inside the image. `side_length` is row k's side length (b - a).
@@ -207,8 +215,8 @@ double coverage(const Band& band, int k, int delta, int stride, uint64_t columns
     const int r = k + kSideRows.offset[d][run];
     if (r < 0 || r >= band.rows) continue;  // rows not ok are never read: no bits
     const uint64_t mask = kSideRows.columns[d][run] & columns;
-    positions += __builtin_popcountll(band.read_bits[r] & mask);
-    edges += __builtin_popcountll(band.edge_bits[r] & mask);
+    positions += bitCount(band.read_bits[r] & mask);
+    edges += bitCount(band.edge_bits[r] & mask);
   }
   const double spacing = stride * side_length * (1.0 - 2.0 * band.lambda0) / (kSamples - 1);
   if (positions * stride < o.min_edge_points || positions * spacing < o.min_edge_length_px)
