@@ -171,6 +171,10 @@ bool prepareStart(const std::vector<View>& views, Method method, const SolverOpt
   return true;
 }
 
+// Defined after calibrate, which it calls.
+void addEdgeBiasUncertainty(const std::vector<View>& views, const SolverOptions& options,
+                            CalibrationSolution* sol);
+
 }  // namespace
 
 CalibrationSolution calibrate(const std::vector<View>& views, Method method,
@@ -220,9 +224,43 @@ CalibrationSolution calibrate(const std::vector<View>& views, Method method,
   }
   fillResidualFigures(views, prepared, method, &sol);
   finishSolution(run, options, &sol);
+  if (method == Method::kPbpc && options.compute_covariance && options.edge_bias_range_steps > 0.0)
+    addEdgeBiasUncertainty(views, options, &sol);
   sol.success = true;
   sol.solve_time_ms = elapsed_ms();
   return sol;
 }
 
+namespace {
+
+// The edge points' net sampling bias lies somewhere over edge_bias_range_steps: the result
+// solved with the shift at the range's other end says how far it can move, and half that change
+// becomes a 1 sigma along it.
+void addEdgeBiasUncertainty(const std::vector<View>& views, const SolverOptions& options,
+                            CalibrationSolution* sol) {
+  constexpr double kMaxShiftSteps = 2.0;  // SolverOptions::validate's bound
+  SolverOptions other = options;
+  other.edge_bias_range_steps = 0.0;
+  other.compute_covariance = false;
+  other.edge_outward_shift_steps += options.edge_bias_range_steps;
+  if (other.edge_outward_shift_steps > kMaxShiftSteps)
+    other.edge_outward_shift_steps -= 2.0 * options.edge_bias_range_steps;
+  const CalibrationSolution alt = calibrate(views, Method::kPbpc, other, sol->camera_T_lidar);
+  if (!alt.success) {
+    sol->notes.push_back("the LiDAR edge sampling bias could not be assessed (" + alt.reason +
+                         "): the 1 sigma leaves it out");
+    return;
+  }
+  const Vector6d half = 0.5 * poseDelta(alt.camera_T_lidar, sol->camera_T_lidar);
+  sol->edge_bias_covariance = half * half.transpose();
+  std::ostringstream note;
+  note.precision(2);
+  note << std::fixed << "1 sigma includes the LiDAR edge sampling bias: moving the edge points "
+       << options.edge_bias_range_steps << " horizontal step moves the result by "
+       << 2.0 * half.tail<3>().norm() * 1e3 << " mm / " << 2.0 * half.head<3>().norm() * kDegPerRad
+       << " deg";
+  sol->notes.push_back(note.str());
+}
+
+}  // namespace
 }  // namespace board_calib

@@ -69,9 +69,22 @@ Expected<PbpcSchedule> parsePbpcSchedule(const std::string& name) {
                                          "' (expected joint or sequential)");
 }
 
+Vector6d poseDelta(const Eigen::Isometry3d& a, const Eigen::Isometry3d& reference) {
+  Vector6d d;
+  const Eigen::AngleAxisd aa(a.linear() * reference.linear().transpose());
+  d.head<3>() = aa.angle() * aa.axis();
+  d.tail<3>() = a.translation() - reference.translation();
+  return d;
+}
+
 SolverOptions realLidarSolverOptions() {
   SolverOptions o;
   o.edge_outward_shift_steps = 0.0;
+  // Between no net bias (the footprint's bloom cancels the inset) and the whole half-step inset
+  // (a thin beam): measured on the simulated OS1-64 (1024 columns), the result moved 19 -> 9 mm
+  // from the truth over that range while its 1 sigma stayed at 6 mm; the real OS1-64 recording
+  // scores best near 0.15 steps.
+  o.edge_bias_range_steps = 0.5;
   o.loss = RobustLoss::kTukey;
   constexpr double kRealLossScaleM = 0.02;  // about twice a real LiDAR's range noise
   o.loss_scale_m = kRealLossScaleM;
@@ -95,6 +108,9 @@ std::string SolverOptions::validate() const {
     return "lidar_horizontal_resolution_deg must be in [0, 10]";
   if (!std::isfinite(edge_outward_shift_steps) || std::abs(edge_outward_shift_steps) > 2.0)
     return "edge_outward_shift_steps must be in [-2, 2]";
+  if (!std::isfinite(edge_bias_range_steps) || edge_bias_range_steps < 0.0 ||
+      edge_bias_range_steps > 2.0)
+    return "edge_bias_range_steps must be in [0, 2]";
   if (!positive(msg_normal_sigma_deg) || !positive(msg_offset_sigma_m))
     return "msg sigmas must be > 0";
   if (!std::isfinite(min_normal_spread_deg) || min_normal_spread_deg < 0.0 ||

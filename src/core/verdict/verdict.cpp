@@ -23,15 +23,6 @@ double cameraPlaneSigma(const CameraBoardFeatures& c, const Target& target,
   return pixel_rad * range * std::sqrt((range / half) * (range / half) + kSqrtHalf);
 }
 
-// Left-perturbation pose difference (rotation vector in the camera frame, translation).
-Vector6d poseDelta(const Eigen::Isometry3d& a, const Eigen::Isometry3d& reference) {
-  Vector6d d;
-  const Eigen::AngleAxisd aa(a.linear() * reference.linear().transpose());
-  d.head<3>() = aa.angle() * aa.axis();
-  d.tail<3>() = a.translation() - reference.translation();
-  return d;
-}
-
 double boardSizePx(const View& v, const Target& target) {
   const double range = (v.camera.camera_T_board * target.center()).norm();
   return range > 0 ? v.camera.K(0, 0) * std::sqrt(target.width * target.height) / range : 0.0;
@@ -302,7 +293,8 @@ void judgeUncertainty(const CalibrationSolution& sol, const VerdictOptions& o, F
   for (int i = 0; i < 6; ++i)
     if (model_cov(i, i) > 0 && cv.covariance(i, i) > 0)
       inflation2 = std::max(inflation2, cv.covariance(i, i) / model_cov(i, i));
-  r.covariance = model_cov * inflation2;
+  // The edge sampling bias is a systematic term: residuals and left-out views do not show it.
+  r.covariance = model_cov * inflation2 + sol.edge_bias_covariance;
   if (!r.covariance.allFinite() || r.covariance.diagonal().maxCoeff() <= 0)
     r.covariance = cv.covariance;
   r.stddev_inflation = std::sqrt(inflation2);

@@ -86,6 +86,11 @@ struct SolverOptions {
   /// steps (per-scan-line extremes lie up to one step inside the true edge: 0.5 removes the
   /// mean bias); 0 disables it.
   double edge_outward_shift_steps = 0.5;
+  /// PBPC: the edge points' net sampling bias is known only to within this many horizontal
+  /// steps (how far a beam's footprint blooms past the half-step inset depends on the beam and
+  /// the board): the result is solved again with the shift moved by this much and the change
+  /// enters its 1 sigma (CalibrationSolution::edge_bias_covariance); 0: not included.
+  double edge_bias_range_steps = 0.0;
 
   /// MSG pairwise: 1-sigma of a plane normal (deg) and of a plane offset (m); the normal
   /// residual is whitened into metres-equivalent so one loss scale applies to both.
@@ -115,6 +120,10 @@ SolverOptions realLidarSolverOptions();
 
 /// 1 sigma per axis of a covariance in the convention above (rotation in deg, translation in m).
 PoseStddev stddevFromCovariance(const Matrix6d& covariance);
+
+/// `a` relative to `reference` in the covariance convention above (left rotation vector in the
+/// target frame, translation difference).
+Vector6d poseDelta(const Eigen::Isometry3d& a, const Eigen::Isometry3d& reference);
 
 /// Residual statistics of one group of residuals (metres).
 struct ResidualStats {
@@ -167,7 +176,10 @@ struct CalibrationSolution {
   double line_rms_mm = 0.0;  ///< RMS LiDAR edge point to back-projected image line plane distance
   double plane_scale = 1.0;  ///< estimated camera plane offset factor (1 when not estimated)
   Matrix6d covariance = Matrix6d::Zero();  ///< see the convention at the top
-  PoseStddev stddev;                       ///< 1 sigma, mm is translation_m * 1000
+  /// PBPC: what the LiDAR edge sampling bias may add (half the change over the bias range, as a
+  /// 1 sigma along it); not in `covariance`, the verdict adds it after any inflation.
+  Matrix6d edge_bias_covariance = Matrix6d::Zero();
+  PoseStddev stddev;  ///< 1 sigma, mm is translation_m * 1000
   Observability observability;
   std::vector<ViewResidual> views;  ///< one entry per input view, in input order
   std::vector<std::string> notes;
