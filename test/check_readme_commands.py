@@ -107,6 +107,14 @@ CASES = {
     "[--seed S] [--target-out T.yaml] [--truth-out G.yaml] [--start-time SEC] [--quiet]": {
         "kind": "run", "subs": [(" S]", " 3]"), ("SEC", "100")], "files": ["tmp/sim.bag", "T.yaml", "G.yaml"],
         "timeout": 240},
+    # docs/BENCHMARKS.md, session 10's trust sweep
+    "rosrun board_calib simulate_bag --scenario config/scenarios/plain_os1_noisy.yaml --out /tmp/os1.bag --seed 202": {
+        "kind": "run", "files": ["tmp/os1.bag", "tmp/os1.truth.yaml"], "timeout": 240, "order": 1},
+    "rosrun board_calib calibrate_bag --bag /tmp/os1.bag --target /tmp/os1.target.yaml --image-topic /camera/image_raw "
+    "--camera-info-topic /camera/camera_info --cloud-topic /os1/points --method pbpc --output /tmp/os1_result.yaml "
+    "--truth /tmp/os1.truth.yaml": {
+        "kind": "run", "files": ["tmp/os1_result.yaml"], "timeout": 300, "order": 2,
+        "expect": r"error vs truth \(pbpc\)"},
     # docs/nodes/projection.md
     "roslaunch board_calib projection.launch manager:=<manager> image:=... camera_info:=... points:=...": {
         "kind": "run", "launch_check_only": True},
