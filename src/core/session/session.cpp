@@ -221,12 +221,8 @@ SessionEvent PairSession::decide(const CameraBoardFeatures& camera, bool ended, 
   view.lidar = *lidar;
   view.camera = camera;
   const SessionEvent gated = gate(view, false);
-  if (gated.kind == SessionEvent::Kind::kRejected) {
-    const std::string kind = gated.message.substr(0, gated.message.find(" ("));
-    stats_.skipped[kind]++;
-    stats_.last_why[kind] = gated.message;
-    return gated;
-  }
+  if (gated.kind == SessionEvent::Kind::kRejected)
+    return skip(gated.message.substr(0, gated.message.find(" (")), gated.message);
   // One view per hold: a later frame of the same still pose replaces it when it is better.
   const BoardSample here = boardSampleOf(camera, &target_);
   const bool snapshot = judged.state == StillState::kSnapshot;
