@@ -258,7 +258,8 @@ void CalibratorNodelet::publishRun(const PairCalibration& run, const std::vector
   if (run.verdict == Verdict::kDoubtful)
     NODELET_WARN_STREAM("calibrator: calibration DOUBTFUL:\n" << res.message);
   else
-    NODELET_INFO_STREAM("calibrator:\n" << solutionSummary(chosen) << res.message);
+    NODELET_INFO_STREAM("calibrator:\n"
+                        << solutionSummary(chosen, &shown.verdict.stddev) << res.message);
 
   result_pub_.publish(res.result);
   if (broadcast_tf_) {

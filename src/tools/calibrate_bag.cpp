@@ -205,11 +205,16 @@ void writeOutput(const Args& args, const PairCalibration& run) {
 // Every method with its verdict, the side-by-side table, the verdict and the notes.
 void printRun(const PairCalibration& run) {
   std::vector<CalibrationSolution> solutions;
-  for (const auto& r : run.runs) solutions.push_back(r.solution);
+  std::vector<PoseStddev> judged;
+  for (const auto& r : run.runs) {
+    solutions.push_back(r.solution);
+    judged.push_back(r.verdict.stddev);
+  }
   for (const auto& r : run.runs)
-    std::cout << solutionSummary(r.solution) << "  verdict: " << verdictName(r.verdict.verdict)
-              << " - " << r.verdict.reason << "\n";
-  if (solutions.size() > 1) std::cout << "\n" << comparisonTable(solutions);
+    std::cout << solutionSummary(r.solution, &r.verdict.stddev)
+              << "  verdict: " << verdictName(r.verdict.verdict) << " - " << r.verdict.reason
+              << "\n";
+  if (solutions.size() > 1) std::cout << "\n" << comparisonTable(solutions, &judged);
   std::cout << "\n" << verdictSummary(run);
   const CalibrationSolution& chosen = run.shownRun().solution;
   for (const auto& n : run.result.notes)

@@ -89,5 +89,34 @@ TEST(ReportNotes, CompensatedPlaneScaleQuotesCompensatedFigures) {
   EXPECT_NE(solutionSummary(s).find("before the plane scale"), std::string::npos);
 }
 
+TEST(ReportNotes, SummaryShowsTheOneSigmaTheResultFileCarries) {
+  // The verdict grows the solver's 1 sigma (residuals, left-out views, edge bias); the summary
+  // printed beside the result file must quote the grown one, naming the solver's beside it.
+  CalibrationSolution s;
+  s.success = true;
+  s.method = Method::kPbpc;
+  s.stddev.translation_m = {0.00053, 0.00063, 0.00056};
+  s.stddev.rotation_deg = {0.010, 0.008, 0.016};
+  PoseStddev judged;
+  judged.translation_m = {0.00090, 0.00083, 0.00641};
+  judged.rotation_deg = {0.013, 0.016, 0.020};
+  const std::string shown = solutionSummary(s, &judged);
+  EXPECT_NE(shown.find("1 sigma translation [mm]         0.90 0.83 6.41  (solver alone 0.53 0.63 "
+                       "0.56)"),
+            std::string::npos)
+      << shown;
+  EXPECT_NE(shown.find("1 sigma rotation [deg]           0.013 0.016 0.020  (solver alone 0.010 "
+                       "0.008 0.016)"),
+            std::string::npos)
+      << shown;
+  // Nothing grown, or no verdict: the one figure, no aside.
+  EXPECT_EQ(solutionSummary(s, &s.stddev).find("solver alone"), std::string::npos);
+  EXPECT_NE(solutionSummary(s).find("1 sigma translation [mm]         0.53 0.63 0.56\n"),
+            std::string::npos);
+  const std::vector<PoseStddev> per_method{judged};
+  const std::string table = comparisonTable({s}, &per_method);
+  EXPECT_NE(table.find("| 6.41 | 0.020 |"), std::string::npos) << table;
+}
+
 }  // namespace
 }  // namespace board_calib

@@ -25,10 +25,14 @@ std::string reportMarkdown(const PairCalibration& run, const PairSession& sessio
   md << "## Verdict: " << verdictName(run.verdict) << "\n\n```\n"
      << verdictSummary(run) << "```\n\n";
   md << "## Result\n\n```\n";
-  for (const auto& s : solutions) md << solutionSummary(s);
+  std::vector<PoseStddev> judged;
+  for (const auto& r : run.runs) {
+    md << solutionSummary(r.solution, &r.verdict.stddev);
+    judged.push_back(r.verdict.stddev);
+  }
   md << "```\n\n";
   if (solutions.size() > 1)
-    md << "## Methods side by side\n\n" << comparisonTable(solutions) << "\n";
+    md << "## Methods side by side\n\n" << comparisonTable(solutions, &judged) << "\n";
   if (!result.notes.empty()) {
     md << "## Findings\n\n";
     for (const auto& n : result.notes) md << "* " << n << "\n";

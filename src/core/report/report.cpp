@@ -122,7 +122,7 @@ ResultFile makeResultFile(const CalibrationSolution& s, const std::vector<View>&
   return r;
 }
 
-std::string solutionSummary(const CalibrationSolution& s) {
+std::string solutionSummary(const CalibrationSolution& s, const PoseStddev* judged) {
   std::ostringstream o;
   o << "method " << methodName(s.method) << ": ";
   if (!s.success) {
@@ -148,12 +148,19 @@ std::string solutionSummary(const CalibrationSolution& s) {
     << (std::abs(s.plane_scale - 1.0) > kSizeNoteThreshold
             ? " from the declared size, before the plane scale)\n"
             : ")\n");
-  o << "  1 sigma translation [mm]         " << formatFixed(s.stddev.translation_m.x() * 1e3, 2)
-    << " " << formatFixed(s.stddev.translation_m.y() * 1e3, 2) << " "
-    << formatFixed(s.stddev.translation_m.z() * 1e3, 2) << "\n";
-  o << "  1 sigma rotation [deg]           " << formatFixed(s.stddev.rotation_deg.x(), 3) << " "
-    << formatFixed(s.stddev.rotation_deg.y(), 3) << " " << formatFixed(s.stddev.rotation_deg.z(), 3)
-    << "\n";
+  const PoseStddev& sd = judged ? *judged : s.stddev;
+  auto triple = [](const Eigen::Vector3d& v, double scale, int digits) {
+    return formatFixed(v.x() * scale, digits) + " " + formatFixed(v.y() * scale, digits) + " " +
+           formatFixed(v.z() * scale, digits);
+  };
+  // The verdict grows the solver's 1 sigma (residuals beyond the noise model, left-out views,
+  // LiDAR edge bias): the user reads the grown one, as in the result file.
+  const bool grown = judged && !(judged->translation_m.isApprox(s.stddev.translation_m) &&
+                                 judged->rotation_deg.isApprox(s.stddev.rotation_deg));
+  o << "  1 sigma translation [mm]         " << triple(sd.translation_m, 1e3, 2)
+    << (grown ? "  (solver alone " + triple(s.stddev.translation_m, 1e3, 2) + ")" : "") << "\n";
+  o << "  1 sigma rotation [deg]           " << triple(sd.rotation_deg, 1.0, 3)
+    << (grown ? "  (solver alone " + triple(s.stddev.rotation_deg, 1.0, 3) + ")" : "") << "\n";
   o << "  observability                    condition " << std::scientific << std::setprecision(2)
     << s.observability.condition_number << std::defaultfloat
     << (s.observability.well_conditioned ? " (well conditioned)"
@@ -165,7 +172,8 @@ std::string solutionSummary(const CalibrationSolution& s) {
   return o.str();
 }
 
-std::string comparisonTable(const std::vector<CalibrationSolution>& solutions) {
+std::string comparisonTable(const std::vector<CalibrationSolution>& solutions,
+                            const std::vector<PoseStddev>* judged) {
   std::ostringstream o;
   o << "| method | ok | views | MLRE px | plane RMS mm | sigma t mm (max) | sigma r deg (max) | dR "
        "deg | dt mm |\n";
@@ -176,7 +184,9 @@ std::string comparisonTable(const std::vector<CalibrationSolution>& solutions) {
       first = &s;
       break;
     }
-  for (const auto& s : solutions) {
+  for (size_t i = 0; i < solutions.size(); ++i) {
+    const CalibrationSolution& s = solutions[i];
+    const PoseStddev& sd = judged && i < judged->size() ? (*judged)[i] : s.stddev;
     o << "| " << methodName(s.method) << " | " << (s.success ? "yes" : "no") << " | "
       << s.views_used << " | ";
     if (!s.success) {
@@ -185,8 +195,8 @@ std::string comparisonTable(const std::vector<CalibrationSolution>& solutions) {
     }
     o << (s.mlre_px ? formatFixed(*s.mlre_px, 2) : std::string("-")) << " | "
       << formatFixed(s.plane_rms_mm, 1) << " | "
-      << formatFixed(s.stddev.translation_m.maxCoeff() * 1e3, 2) << " | "
-      << formatFixed(s.stddev.rotation_deg.maxCoeff(), 3) << " | "
+      << formatFixed(sd.translation_m.maxCoeff() * 1e3, 2) << " | "
+      << formatFixed(sd.rotation_deg.maxCoeff(), 3) << " | "
       << formatFixed(rotationErrorDeg(s.camera_T_lidar, first->camera_T_lidar), 3) << " | "
       << formatFixed(translationErrorM(s.camera_T_lidar, first->camera_T_lidar) * 1e3, 1) << " |\n";
   }

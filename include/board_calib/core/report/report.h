@@ -22,10 +22,15 @@ ResultFile makeResultFile(const CalibrationSolution& solution, const std::vector
                           const Target& target, const std::string& camera_frame,
                           const std::string& lidar_frame);
 
-/// Multi-line human-readable summary: pose, quality figures with their meaning, notes.
-std::string solutionSummary(const CalibrationSolution& solution);
+/// Multi-line human-readable summary: pose, quality figures with their meaning, notes. With
+/// `judged`, the 1 sigma shown is the verdict's (the one the result file carries) and the
+/// solver's own is named beside it; without, the solver's.
+std::string solutionSummary(const CalibrationSolution& solution,
+                            const PoseStddev* judged = nullptr);
 /// One row per method: MLRE, plane RMS, 1 sigma, pose difference to the first successful row.
-std::string comparisonTable(const std::vector<CalibrationSolution>& solutions);
+/// With `judged` (one per solution), the 1 sigma columns are the verdicts'.
+std::string comparisonTable(const std::vector<CalibrationSolution>& solutions,
+                            const std::vector<PoseStddev>* judged = nullptr);
 /// Per-view residuals (Markdown table).
 std::string perViewTable(const CalibrationSolution& solution);
 
