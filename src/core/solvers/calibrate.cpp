@@ -171,6 +171,34 @@ bool prepareStart(const std::vector<View>& views, Method method, const SolverOpt
   return true;
 }
 
+// PPC puts each camera plane at the distance the declared board size gives: a size 1 % off
+// moves every plane 1 % of its distance, and the result's translation with it, while the
+// residuals barely show it (all planes move alike). The same clusters solved with one scale on
+// the camera plane offsets measure the size the LiDAR sees.
+void checkDeclaredScale(const std::vector<PreparedView>& prepared, const SolverOptions& options,
+                        const Run& ppc, CalibrationSolution* sol) {
+  Run scaled;
+  scaled.pose = ppc.pose;
+  scaled.pose.s = 1.0;
+  scaled.use_scale = true;
+  scaled.plane_model = ppc.plane_model;
+  scaled.final_terms = buildClusters(prepared, true, false, true, options.pbpc_line_weight);
+  CalibrationSolution scratch;
+  if (!solveTerms(scaled.final_terms, true, false, options, &scaled, &scratch, ppc.plane_model))
+    return;
+  Matrix6d covariance;
+  double scale_variance = 0.0;
+  if (!finalCovariance(scaled.final_terms, true, ppc.plane_model, options, scaled.pose, &covariance,
+                       &scale_variance) ||
+      !(scale_variance > 0.0) || !std::isfinite(scaled.pose.s))
+    return;
+  DeclaredScaleCheck& check = sol->declared_scale;
+  check.checked = true;
+  check.scale = scaled.pose.s;
+  check.stddev = std::sqrt(scale_variance);
+  check.shift = poseDelta(scaled.pose.isometry(), sol->camera_T_lidar);
+}
+
 // Defined after calibrate, which it calls.
 void addEdgeBiasUncertainty(const std::vector<View>& views, const SolverOptions& options,
                             CalibrationSolution* sol);
@@ -224,6 +252,8 @@ CalibrationSolution calibrate(const std::vector<View>& views, Method method,
   }
   fillResidualFigures(views, prepared, method, &sol);
   finishSolution(run, options, &sol);
+  if (method == Method::kPpc && options.compute_covariance && options.check_declared_scale)
+    checkDeclaredScale(prepared, options, run, &sol);
   if (method == Method::kPbpc && options.compute_covariance && options.edge_bias_range_steps > 0.0)
     addEdgeBiasUncertainty(views, options, &sol);
   sol.success = true;

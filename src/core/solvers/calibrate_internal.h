@@ -129,10 +129,11 @@ SolveOutcome solveStage(const std::vector<Cluster>& clusters, bool estimate_scal
 /// The more likely of a distance-independent camera plane error and one growing as a PnP's.
 PlaneErrorModel choosePlaneErrorModel(const std::vector<Cluster>& clusters, const Pose& pose,
                                       const SolverOptions& options);
-/// Cluster-robust covariance of the final problem at `pose`.
+/// Cluster-robust covariance of the final problem at `pose` (and the plane scale's variance
+/// when it is estimated and `scale_variance` is given).
 bool finalCovariance(const std::vector<Cluster>& clusters, bool estimate_scale,
                      const PlaneErrorModel& model, const SolverOptions& options, Pose pose,
-                     Matrix6d* covariance);
+                     Matrix6d* covariance, double* scale_variance = nullptr);
 
 }  // namespace calibrate_detail
 }  // namespace board_calib

@@ -28,9 +28,11 @@ using ceres_common::quietCeresLogging;
 /// (marginalised). `clusters`: residual block -> cluster id. Output 6x6 in the solvers.h
 /// convention (rotation vector of a left perturbation in rad: twice Ceres' quaternion tangent,
 /// whose Plus is [cos|d|, sin|d| d/|d|] * q; translation in m). False when H is singular.
+/// `nuisance_variances` (optional) receives the variances of the tangent entries past the pose.
 bool clusterRobustCovariance(ceres::Problem* problem, const std::vector<double*>& blocks,
                              const std::vector<std::pair<ceres::ResidualBlockId, int>>& clusters,
-                             Matrix6d* covariance);
+                             Matrix6d* covariance,
+                             std::vector<double>* nuisance_variances = nullptr);
 
 }  // namespace solvers_detail
 }  // namespace board_calib

@@ -66,11 +66,16 @@ ceres::CostFunction* clusterCost(const Cluster& cl, const Moments& m, bool scale
   double sqrt_weight = 0.0;
   Eigen::Matrix3d axes = Eigen::Matrix3d::Zero();
   if (model.enabled && cl.plane) {
+    // A view the robust loss has all but rejected (weights summing to no more than the plane's
+    // degrees of freedom) has no point variance, and the model's variances may be 0: its terms
+    // then carry no weight rather than an infinite one.
     const double s2 = pointVariance(m), f = model.factor(T * m.mean);
-    sqrt_weight = 1.0 / std::sqrt(f * model.offset_var + s2 / m.W);
-    for (int k = 1; k < 3; ++k)
-      if (m.lambda(k) > 0.0)
-        axes.col(k) = m.axes.col(k) / std::sqrt(f * model.tilt_var + s2 / m.lambda(k));
+    const double offset_var = f * model.offset_var + s2 / m.W;
+    sqrt_weight = offset_var > 0.0 ? 1.0 / std::sqrt(offset_var) : 0.0;
+    for (int k = 1; k < 3; ++k) {
+      const double tilt_var = m.lambda(k) > 0.0 ? f * model.tilt_var + s2 / m.lambda(k) : 0.0;
+      if (tilt_var > 0.0) axes.col(k) = m.axes.col(k) / std::sqrt(tilt_var);
+    }
   } else {
     sqrt_weight = std::sqrt(cl.weight * m.W);
     axes = m.axes * (cl.weight * m.lambda).cwiseSqrt().asDiagonal();
@@ -228,8 +233,8 @@ PlaneErrorModel estimatePlaneErrorModel(const std::vector<Cluster>& clusters, co
     const Cluster& cl = clusters[c];
     if (!cl.plane) continue;
     const Moments m = moments(*cl.points, &weights[c]);
-    if (!(m.W > 0.0) || !(m.lambda(1) > 0.0)) continue;
     const double s2 = pointVariance(m);
+    if (!(s2 > 0.0) || !(m.lambda(1) > 0.0)) continue;  // no point variance: nothing to split
     const double ro = residualOf(cl, T, pose.s, m.mean);
     ViewTerms v{};
     v.f = (T * m.mean).norm();  // distance for now, the factor below
@@ -287,14 +292,18 @@ PlaneErrorModel choosePlaneErrorModel(const std::vector<Cluster>& clusters, cons
 // the same residual blocks as the last solve) from Ceres, cluster-robust.
 bool finalCovariance(const std::vector<Cluster>& clusters, bool estimate_scale,
                      const PlaneErrorModel& model, const SolverOptions& options, Pose pose,
-                     Matrix6d* covariance) {
+                     Matrix6d* covariance, double* scale_variance) {
   const auto weights = robustWeights(clusters, pose, options);
   ceres::Problem problem;
   std::vector<std::pair<ceres::ResidualBlockId, int>> blocks;
   buildProblem(clusters, &weights, estimate_scale, model, &pose, &problem, &blocks);
   std::vector<double*> parameters = {pose.q, pose.t};
   if (estimate_scale) parameters.push_back(&pose.s);
-  return solvers_detail::clusterRobustCovariance(&problem, parameters, blocks, covariance);
+  std::vector<double> nuisance;
+  if (!solvers_detail::clusterRobustCovariance(&problem, parameters, blocks, covariance, &nuisance))
+    return false;
+  if (scale_variance && estimate_scale && !nuisance.empty()) *scale_variance = nuisance.front();
+  return true;
 }
 
 }  // namespace calibrate_detail

@@ -15,7 +15,7 @@ constexpr double kRotationPerQuaternionTangent = 2.0;
 
 bool clusterRobustCovariance(ceres::Problem* problem, const std::vector<double*>& blocks,
                              const std::vector<std::pair<ceres::ResidualBlockId, int>>& clusters,
-                             Matrix6d* covariance) {
+                             Matrix6d* covariance, std::vector<double>* nuisance_variances) {
   using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   std::map<const double*, int> offset_of;
   int dim = 0;
@@ -69,6 +69,10 @@ bool clusterRobustCovariance(ceres::Problem* problem, const std::vector<double*>
   scale << Eigen::Vector3d::Constant(kRotationPerQuaternionTangent), Eigen::Vector3d::Ones();
   *covariance = scale.asDiagonal() * tangent.topLeftCorner<6, 6>() * scale.asDiagonal();
   *covariance = 0.5 * (*covariance + covariance->transpose()).eval();
+  if (nuisance_variances) {
+    nuisance_variances->clear();
+    for (int i = 6; i < dim; ++i) nuisance_variances->push_back(tangent(i, i));
+  }
   return covariance->allFinite();
 }
 

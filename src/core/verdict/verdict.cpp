@@ -48,7 +48,8 @@ std::string VerdictOptions::validate() const {
       failed_edge_fraction,          doubtful_heldout_ratio,         outlier_factor,
       outlier_min_excess_px,         doubtful_inconsistent_fraction, failed_inconsistent_fraction,
       doubtful_stddev_translation_m, doubtful_stddev_rotation_deg,   failed_stddev_translation_m,
-      failed_stddev_rotation_deg,    method_disagreement_sigmas,     min_pixel_sigma_px};
+      failed_stddev_rotation_deg,    method_disagreement_sigmas,     min_pixel_sigma_px,
+      declared_scale_sigmas,         declared_size_tolerance};
   for (double v : all)
     if (!std::isfinite(v) || !(v > 0)) return "verdict thresholds must be finite and > 0";
   return {};
@@ -282,9 +283,47 @@ void crossValidate(const CalibrationSolution& sol, const std::vector<View>& view
   }
 }
 
+// PPC with a declared board size the LiDAR disputes: the planes' depth, and so the translation,
+// is off by the scale's share of the board distance. Beyond the scale's noise, the result's move
+// with it is a likely bias and is returned as a covariance to add. Beyond the tolerance of a
+// declared size too, and moving the result beyond `sigma` (its 1 sigma so far), it is named:
+// doubtful, or the headline of a failure (a wrong size makes far and near views disagree).
+Matrix6d judgeDeclaredScale(const CalibrationSolution& sol, const Target& target,
+                            const Matrix6d& sigma, const VerdictOptions& o, Findings& f) {
+  const DeclaredScaleCheck& c = sol.declared_scale;
+  const double off = std::abs(c.scale - 1.0);
+  if (!c.checked || !(off > o.declared_scale_sigmas * c.stddev)) return Matrix6d::Zero();
+  bool moves = false;
+  for (int i = 0; i < 6; ++i) moves |= c.shift(i) * c.shift(i) > sigma(i, i);
+  // s = LiDAR distance / camera distance: the declared size is 1/s of the true one.
+  const double percent = (1.0 / c.scale - 1.0) * 100.0;
+  std::string size = "board size";
+  if (target.type == TargetType::kCheckerboard && target.checkerboard.square > 0)
+    size = "square (" + formatFixed(target.checkerboard.square, 4) +
+           " m; the LiDAR's: " + formatFixed(target.checkerboard.square * c.scale, 4) + " m)";
+  const std::string text =
+      "the LiDAR sees the boards at " + formatFixed(c.scale, 3) + " +- " +
+      formatFixed(c.stddev, 4) + " of the distance the declared size gives: the target's " + size +
+      " is declared " + formatFixed(std::abs(percent), 1) + " % too " +
+      (percent > 0 ? "large" : "small") + ", or the camera's focal length is off; corrected, the " +
+      "result moves " + formatFixed(c.shift.tail<3>().norm() * 1e3, 1) + " mm / " +
+      formatFixed(c.shift.head<3>().norm() * kDegPerRad, 3) + " deg";
+  if (off > o.declared_size_tolerance && moves) {
+    const std::string finding = text + ": measure the board and fix the target file";
+    if (f.failed.empty())
+      f.doubtful.push_back(finding);
+    else
+      f.failed.insert(f.failed.begin(), finding);
+  } else {
+    f.report->details.push_back(text + " (the 1 sigma includes it)");
+  }
+  return c.shift * c.shift.transpose();
+}
+
 // Reported uncertainty: never below the cross-validation's spread, nor below the model's
 // scaled by how much the residuals exceed the noise model.
-void judgeUncertainty(const CalibrationSolution& sol, const VerdictOptions& o, Findings& f) {
+void judgeUncertainty(const CalibrationSolution& sol, const Target& target, const VerdictOptions& o,
+                      Findings& f) {
   VerdictReport& r = *f.report;
   const CrossValidation& cv = r.cross_validation;
   Matrix6d model_cov = sol.covariance;
@@ -295,6 +334,7 @@ void judgeUncertainty(const CalibrationSolution& sol, const VerdictOptions& o, F
       inflation2 = std::max(inflation2, cv.covariance(i, i) / model_cov(i, i));
   // The edge sampling bias is a systematic term: residuals and left-out views do not show it.
   r.covariance = model_cov * inflation2 + sol.edge_bias_covariance;
+  r.covariance += judgeDeclaredScale(sol, target, r.covariance, o, f);
   if (!r.covariance.allFinite() || r.covariance.diagonal().maxCoeff() <= 0)
     r.covariance = cv.covariance;
   r.stddev_inflation = std::sqrt(inflation2);
@@ -369,7 +409,7 @@ VerdictReport judgeSolution(
   if (sol.success) {
     judgeResiduals(sol, views, target, o, f);
     crossValidate(sol, views, target, solve, o, f);
-    judgeUncertainty(sol, o, f);
+    judgeUncertainty(sol, target, o, f);
   }
   conclude(f);
   return r;

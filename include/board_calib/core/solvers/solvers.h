@@ -91,6 +91,10 @@ struct SolverOptions {
   /// the board): the result is solved again with the shift moved by this much and the change
   /// enters its 1 sigma (CalibrationSolution::edge_bias_covariance); 0: not included.
   double edge_bias_range_steps = 0.0;
+  /// PPC: solve the views once more with one free scale on the camera plane offsets (as PBPC
+  /// does) to measure whether the LiDAR agrees with the declared board size
+  /// (CalibrationSolution::declared_scale); the verdict judges it. Needs compute_covariance.
+  bool check_declared_scale = true;
 
   /// MSG pairwise: 1-sigma of a plane normal (deg) and of a plane offset (m); the normal
   /// residual is whitened into metres-equivalent so one loss scale applies to both.
@@ -160,6 +164,16 @@ struct Observability {
   bool well_conditioned = false;
 };
 
+/// PPC: the camera planes' depth comes from the declared board size. The same views solved with
+/// one free scale s on the camera plane offsets (d -> s d) say what the LiDAR measures.
+struct DeclaredScaleCheck {
+  bool checked = false;
+  double scale = 1.0;   ///< LiDAR distance / camera distance of the boards
+  double stddev = 0.0;  ///< 1 sigma of scale (cluster-robust)
+  /// How far the result moves with the scale applied (poseDelta: rotation vector rad, m).
+  Vector6d shift = Vector6d::Zero();
+};
+
 struct CalibrationSolution {
   bool success = false;
   std::string reason;  ///< why it failed, empty on success
@@ -179,7 +193,8 @@ struct CalibrationSolution {
   /// PBPC: what the LiDAR edge sampling bias may add (half the change over the bias range, as a
   /// 1 sigma along it); not in `covariance`, the verdict adds it after any inflation.
   Matrix6d edge_bias_covariance = Matrix6d::Zero();
-  PoseStddev stddev;  ///< 1 sigma, mm is translation_m * 1000
+  DeclaredScaleCheck declared_scale;  ///< PPC only (check_declared_scale)
+  PoseStddev stddev;                  ///< 1 sigma, mm is translation_m * 1000
   Observability observability;
   std::vector<ViewResidual> views;  ///< one entry per input view, in input order
   std::vector<std::string> notes;

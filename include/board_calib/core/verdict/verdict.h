@@ -49,6 +49,11 @@ struct VerdictOptions {
   double failed_stddev_rotation_deg = 1.0;
   double method_disagreement_sigmas = 3.0;  ///< other methods further than this: doubtful
   double min_pixel_sigma_px = 0.3;          ///< px, floor of a camera board pose's pixel noise
+  /// PPC: the LiDAR's board scale this many of its sigmas from the declared size: the move of
+  /// the result with it enters the 1 sigma; and beyond the tolerance of a declared size (a
+  /// printed pattern, a ruler), where it moves the result beyond its own 1 sigma: doubtful.
+  double declared_scale_sigmas = 3.0;
+  double declared_size_tolerance = 0.005;
   std::string validate() const;
 };
 
