@@ -309,7 +309,8 @@ Matrix6d judgeDeclaredScale(const CalibrationSolution& sol, const Target& target
       "result moves " + formatFixed(c.shift.tail<3>().norm() * 1e3, 1) + " mm / " +
       formatFixed(c.shift.head<3>().norm() * kDegPerRad, 3) + " deg";
   if (off > o.declared_size_tolerance && moves) {
-    const std::string finding = text + ": measure the board and fix the target file";
+    const std::string finding =
+        text + ": measure the board and fix the target file, or recalibrate the camera";
     if (f.failed.empty())
       f.doubtful.push_back(finding);
     else
