@@ -288,8 +288,10 @@ void crossValidate(const CalibrationSolution& sol, const std::vector<View>& view
 // with it is a likely bias and is returned as a covariance to add. Beyond the tolerance of a
 // declared size too, and moving the result beyond `sigma` (its 1 sigma so far), it is named:
 // doubtful, or the headline of a failure (a wrong size makes far and near views disagree).
+// `finding` receives the named finding (empty when only a detail).
 Matrix6d judgeDeclaredScale(const CalibrationSolution& sol, const Target& target,
-                            const Matrix6d& sigma, const VerdictOptions& o, Findings& f) {
+                            const Matrix6d& sigma, const VerdictOptions& o, Findings& f,
+                            std::string* finding) {
   const DeclaredScaleCheck& c = sol.declared_scale;
   const double off = std::abs(c.scale - 1.0);
   if (!c.checked || !(off > o.declared_scale_sigmas * c.stddev)) return Matrix6d::Zero();
@@ -309,12 +311,7 @@ Matrix6d judgeDeclaredScale(const CalibrationSolution& sol, const Target& target
       "result moves " + formatFixed(c.shift.tail<3>().norm() * 1e3, 1) + " mm / " +
       formatFixed(c.shift.head<3>().norm() * kDegPerRad, 3) + " deg";
   if (off > o.declared_size_tolerance && moves) {
-    const std::string finding =
-        text + ": measure the board and fix the target file, or recalibrate the camera";
-    if (f.failed.empty())
-      f.doubtful.push_back(finding);
-    else
-      f.failed.insert(f.failed.begin(), finding);
+    *finding = text + ": measure the board and fix the target file, or recalibrate the camera";
   } else {
     f.report->details.push_back(text + " (the 1 sigma includes it)");
   }
@@ -335,7 +332,8 @@ void judgeUncertainty(const CalibrationSolution& sol, const Target& target, cons
       inflation2 = std::max(inflation2, cv.covariance(i, i) / model_cov(i, i));
   // The edge sampling bias is a systematic term: residuals and left-out views do not show it.
   r.covariance = model_cov * inflation2 + sol.edge_bias_covariance;
-  r.covariance += judgeDeclaredScale(sol, target, r.covariance, o, f);
+  std::string size_finding;
+  r.covariance += judgeDeclaredScale(sol, target, r.covariance, o, f, &size_finding);
   if (!r.covariance.allFinite() || r.covariance.diagonal().maxCoeff() <= 0)
     r.covariance = cv.covariance;
   r.stddev_inflation = std::sqrt(inflation2);
@@ -358,6 +356,13 @@ void judgeUncertainty(const CalibrationSolution& sol, const Target& target, cons
   else if (st > o.doubtful_stddev_translation_m || sr > o.doubtful_stddev_rotation_deg)
     f.doubtful.push_back(sigma_text +
                          ": loosely determined; add views with other tilts and distances");
+  // A wrong size is the cause the user can fix: it heads a failure it contributes to.
+  if (!size_finding.empty()) {
+    if (f.failed.empty())
+      f.doubtful.insert(f.doubtful.begin(), size_finding);
+    else
+      f.failed.insert(f.failed.begin(), size_finding);
+  }
   if (r.stddev_inflation > 1.5)
     r.details.push_back(
         "1 sigma scaled by " + formatFixed(r.stddev_inflation, 1) +
