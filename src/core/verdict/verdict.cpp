@@ -307,7 +307,8 @@ Matrix6d judgeDeclaredScale(const CalibrationSolution& sol, const Target& target
       "the LiDAR sees the boards at " + formatFixed(c.scale, 3) + " +- " +
       formatFixed(c.stddev, 4) + " of the distance the declared size gives: the target's " + size +
       " is declared " + formatFixed(std::abs(percent), 1) + " % too " +
-      (percent > 0 ? "large" : "small") + ", or the camera's focal length is off; corrected, the " +
+      (percent > 0 ? "large" : "small") +
+      ", or the camera's focal length or the LiDAR's range offset is off; corrected, the " +
       "result moves " + formatFixed(c.shift.tail<3>().norm() * 1e3, 1) + " mm / " +
       formatFixed(c.shift.head<3>().norm() * kDegPerRad, 3) + " deg";
   if (off > o.declared_size_tolerance && moves) {
