@@ -80,8 +80,10 @@ bool runPbpc(const std::vector<View>& views, std::vector<PreparedView>* prepared
   const double lw = options.pbpc_line_weight;
   bool ok = true;
   if (options.pbpc_schedule == PbpcSchedule::kSequential) {
-    const auto plane_terms = buildClusters(*prepared, true, false, false, lw);
-    ok = plane_terms.empty() || solveTerms(plane_terms, false, true, options, run, sol);
+    // With the final solve's free plane scale already here: a declared size 2 % off otherwise
+    // puts this start several cm off, enough to pair edges wrongly in some view subsets.
+    const auto plane_terms = buildClusters(*prepared, true, false, run->use_scale, lw);
+    ok = plane_terms.empty() || solveTerms(plane_terms, run->use_scale, true, options, run, sol);
     // The plane-only pose already tells which LiDAR edge lies on which image line: pair them
     // before the line terms pull the pose towards wrongly named edges.
     if (ok && !plane_terms.empty() && options.edge_reassociation)
