@@ -100,6 +100,16 @@ CalibrationSolution pairSolution(const std::vector<View>& views, const Eigen::Is
   return s;
 }
 
+// The pair's camera planes against its LiDAR's with one free depth scale (a tag_size or a focal
+// length off): MSG pairwise on the pair's views, from the graph's pose. Its move applies to the
+// graph's pair as well; the verdict judges it as for the pairwise methods.
+DeclaredScaleCheck declaredScaleOf(const std::vector<View>& views, const Eigen::Isometry3d& T) {
+  SolverOptions options;
+  options.compute_covariance = true;
+  const CalibrationSolution pair = calibrate(views, Method::kMsgPair, options, T);
+  return pair.success ? pair.declared_scale : DeclaredScaleCheck();
+}
+
 // The graph solved without some poses, once per set left out (pairs sharing poses share solves).
 class FoldSolver {
  public:
@@ -251,6 +261,7 @@ RigCalibration calibrateRig(const MsgProblem& problem, const RigConfig& rig, con
     p.solution =
         pairSolution(p.views, est.camera_T_lidar,
                      est.has_covariance ? std::optional<Matrix6d>(est.covariance) : std::nullopt);
+    p.solution.declared_scale = declaredScaleOf(p.views, est.camera_T_lidar);
     std::function<CalibrationSolution(const std::vector<View>&)> refit;
     if (options.cross_validate)
       refit = [&](const std::vector<View>& train) {

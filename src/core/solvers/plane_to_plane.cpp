@@ -98,17 +98,21 @@ std::vector<ViewScale> distanceScales(const std::vector<BoardPointPair>& points)
 struct PairOutcome : ceres_common::SolveOutcome {
   bool covariance_ok = false;
   Matrix6d covariance = Matrix6d::Zero();
+  double scale_variance = 0.0;  ///< with a free scale: its variance
 };
 
 // One solve; with `covariance`, also the cluster-robust covariance of the solved problem (each
-// correspondence's normal and offset residuals share the plane errors: one cluster).
+// correspondence's normal and offset residuals share the plane errors: one cluster). With
+// `scale`, the a-side plane offsets and board points are multiplied by *scale, solved too.
 PairOutcome solvePair(const std::vector<PlaneCorrespondence>& c,
                       const std::vector<BoardPointPair>& points,
                       const std::vector<ViewScale>& scales, RobustLoss loss,
-                      const SolverOptions& options, double* q, double* t, bool covariance = false) {
+                      const SolverOptions& options, double* q, double* t, bool covariance = false,
+                      double* scale = nullptr) {
   ceres::Problem problem;
   problem.AddParameterBlock(q, 4, new ceres::EigenQuaternionManifold());
   problem.AddParameterBlock(t, 3);
+  if (scale) problem.AddParameterBlock(scale, 1);
   // Whitening: normal residuals (unit-less) become metres-equivalent via sigma_d / sigma_n.
   const double normal_weight =
       options.msg_offset_sigma_m / (options.msg_normal_sigma_deg * kRadPerDeg);
@@ -127,13 +131,19 @@ PairOutcome solvePair(const std::vector<PlaneCorrespondence>& c,
                                   ceres::TAKE_OWNERSHIP),
             q),
         static_cast<int>(k));
+    auto* gap_loss = new ceres::ScaledLoss(solvers_detail::makeLoss(loss, options.loss_scale_m),
+                                           w, ceres::TAKE_OWNERSHIP);
     blocks.emplace_back(
-        problem.AddResidualBlock(
-            solvers_detail::PlaneGapCost::Create(pc.in_a.normal, pc.in_a.offset, at.in_a,
-                                                 pc.in_b.normal, pc.in_b.offset, at.in_b, sd),
-            new ceres::ScaledLoss(solvers_detail::makeLoss(loss, options.loss_scale_m), w,
-                                  ceres::TAKE_OWNERSHIP),
-            q, t),
+        scale ? problem.AddResidualBlock(
+                    solvers_detail::ScaledPlaneGapCost::Create(pc.in_a.normal, pc.in_a.offset,
+                                                               at.in_a, pc.in_b.normal,
+                                                               pc.in_b.offset, at.in_b, sd),
+                    gap_loss, q, t, scale)
+              : problem.AddResidualBlock(
+                    solvers_detail::PlaneGapCost::Create(pc.in_a.normal, pc.in_a.offset, at.in_a,
+                                                         pc.in_b.normal, pc.in_b.offset, at.in_b,
+                                                         sd),
+                    gap_loss, q, t),
         static_cast<int>(k));
   }
   ceres::Solver::Options so;
@@ -141,10 +151,22 @@ PairOutcome solvePair(const std::vector<PlaneCorrespondence>& c,
   solvers_detail::applyStopCriteria(options, &so);
   PairOutcome out;
   static_cast<ceres_common::SolveOutcome&>(out) = ceres_common::solveAndSummarize(so, &problem);
-  if (covariance && out.usable)
-    out.covariance_ok =
-        solvers_detail::clusterRobustCovariance(&problem, {q, t}, blocks, &out.covariance);
+  if (covariance && out.usable) {
+    std::vector<double*> parameters{q, t};
+    if (scale) parameters.push_back(scale);
+    std::vector<double> nuisance;
+    out.covariance_ok = solvers_detail::clusterRobustCovariance(&problem, parameters, blocks,
+                                                                &out.covariance, &nuisance);
+    if (scale && !nuisance.empty()) out.scale_variance = nuisance.front();
+  }
   return out;
+}
+
+Eigen::Isometry3d poseOf(const double* q, const double* t) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::Quaterniond(q[3], q[0], q[1], q[2]).normalized().toRotationMatrix();
+  T.translation() = Eigen::Vector3d(t[0], t[1], t[2]);
+  return T;
 }
 
 }  // namespace
@@ -282,9 +304,7 @@ PairwiseSolution solvePlaneToPlane(const std::vector<PlaneCorrespondence>& corre
   }
   sol.final_cost = outcome.cost;
   sol.termination = outcome.termination;
-  sol.a_T_b = Eigen::Isometry3d::Identity();
-  sol.a_T_b.linear() = Eigen::Quaterniond(q[3], q[0], q[1], q[2]).normalized().toRotationMatrix();
-  sol.a_T_b.translation() = Eigen::Vector3d(t[0], t[1], t[2]);
+  sol.a_T_b = poseOf(q, t);
   if (!outcome.usable || !sol.a_T_b.matrix().allFinite()) {
     sol.reason = "Ceres solution not usable: " + outcome.message;
     return sol;
@@ -364,6 +384,36 @@ void fillMsgPairFigures(const std::vector<View>& views, CalibrationSolution* sol
 
 }  // namespace
 
+namespace {
+
+// As PPC (calibrate.cpp, checkDeclaredScale): camera planes at a common wrong depth (the
+// declared board size, the focal length) move the translation while the residuals barely show
+// it; the same correspondences solved with a free scale on the camera side measure it.
+DeclaredScaleCheck checkCameraScale(const std::vector<PlaneCorrespondence>& correspondences,
+                                    const std::vector<BoardPointPair>& points,
+                                    const SolverOptions& options,
+                                    const Eigen::Isometry3d& camera_T_lidar) {
+  DeclaredScaleCheck check;
+  Eigen::Quaterniond q0(camera_T_lidar.linear());
+  q0.normalize();
+  double q[4] = {q0.x(), q0.y(), q0.z(), q0.w()};
+  double t[3] = {camera_T_lidar.translation().x(), camera_T_lidar.translation().y(),
+                 camera_T_lidar.translation().z()};
+  double s = 1.0;
+  const PairOutcome scaled = solvePair(correspondences, points, distanceScales(points),
+                                       options.loss, options, q, t, true, &s);
+  if (!scaled.usable || !scaled.covariance_ok || !(scaled.scale_variance > 0.0) ||
+      !std::isfinite(s))
+    return check;
+  check.checked = true;
+  check.scale = s;
+  check.stddev = std::sqrt(scaled.scale_variance);
+  check.shift = poseDelta(poseOf(q, t), camera_T_lidar);
+  return check;
+}
+
+}  // namespace
+
 CalibrationSolution calibrateMsgPair(const std::vector<View>& views, const SolverOptions& options,
                                      const std::optional<Eigen::Isometry3d>& initial_guess) {
   CalibrationSolution sol;
@@ -413,6 +463,8 @@ CalibrationSolution calibrateMsgPair(const std::vector<View>& views, const Solve
   }
   sol.views_used = pair.correspondences_used;
   fillMsgPairFigures(views, &sol);
+  if (options.compute_covariance && options.check_declared_scale)
+    sol.declared_scale = checkCameraScale(correspondences, points, options, sol.camera_T_lidar);
   sol.success = true;
   return sol;
 }

@@ -303,6 +303,9 @@ Matrix6d judgeDeclaredScale(const CalibrationSolution& sol, const Target& target
   if (target.type == TargetType::kCheckerboard && target.checkerboard.square > 0)
     size = "square (" + formatFixed(target.checkerboard.square, 4) +
            " m; the LiDAR's: " + formatFixed(target.checkerboard.square * c.scale, 4) + " m)";
+  else if (target.type == TargetType::kAprilTagGrid && target.apriltag_grid.tag_size > 0)
+    size = "tag_size (" + formatFixed(target.apriltag_grid.tag_size, 4) +
+           " m; the LiDAR's: " + formatFixed(target.apriltag_grid.tag_size * c.scale, 4) + " m)";
   const std::string text =
       "the LiDAR sees the boards at " + formatFixed(c.scale, 3) + " +- " +
       formatFixed(c.stddev, 4) + " of the distance the declared size gives: the target's " + size +
