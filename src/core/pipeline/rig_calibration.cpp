@@ -19,7 +19,6 @@ using multi_sensor::pairViews;
 
 int rank(Verdict v) { return v == Verdict::kFailed ? 2 : v == Verdict::kDoubtful ? 1 : 0; }
 
-
 std::vector<std::pair<int, int>> cameraLidarPairs(const MsgProblem& problem) {
   std::vector<std::pair<int, int>> pairs;
   for (size_t c = 0; c < problem.sensors.size(); ++c)

@@ -179,8 +179,7 @@ class ScaledPlaneGapCost {
     const T s = s_ptr[0];
     const Eigen::Matrix<T, 3, 1> na = normal_a_.cast<T>();
     const Eigen::Matrix<T, 3, 1> nb = q * normal_b_.cast<T>();
-    const Eigen::Matrix<T, 3, 1> p =
-        (point_a_.cast<T>() * s + q * point_b_.cast<T>() + t) * T(0.5);
+    const Eigen::Matrix<T, 3, 1> p = (point_a_.cast<T>() * s + q * point_b_.cast<T>() + t) * T(0.5);
     residual[0] = T(weight_) * ((na.dot(p) - T(offset_a_) * s) - (nb.dot(p - t) - T(offset_b_)));
     return true;
   }

@@ -131,19 +131,17 @@ PairOutcome solvePair(const std::vector<PlaneCorrespondence>& c,
                                   ceres::TAKE_OWNERSHIP),
             q),
         static_cast<int>(k));
-    auto* gap_loss = new ceres::ScaledLoss(solvers_detail::makeLoss(loss, options.loss_scale_m),
-                                           w, ceres::TAKE_OWNERSHIP);
+    auto* gap_loss = new ceres::ScaledLoss(solvers_detail::makeLoss(loss, options.loss_scale_m), w,
+                                           ceres::TAKE_OWNERSHIP);
     blocks.emplace_back(
-        scale ? problem.AddResidualBlock(
-                    solvers_detail::ScaledPlaneGapCost::Create(pc.in_a.normal, pc.in_a.offset,
-                                                               at.in_a, pc.in_b.normal,
-                                                               pc.in_b.offset, at.in_b, sd),
-                    gap_loss, q, t, scale)
-              : problem.AddResidualBlock(
-                    solvers_detail::PlaneGapCost::Create(pc.in_a.normal, pc.in_a.offset, at.in_a,
-                                                         pc.in_b.normal, pc.in_b.offset, at.in_b,
-                                                         sd),
-                    gap_loss, q, t),
+        scale ? problem.AddResidualBlock(solvers_detail::ScaledPlaneGapCost::Create(
+                                             pc.in_a.normal, pc.in_a.offset, at.in_a,
+                                             pc.in_b.normal, pc.in_b.offset, at.in_b, sd),
+                                         gap_loss, q, t, scale)
+              : problem.AddResidualBlock(solvers_detail::PlaneGapCost::Create(
+                                             pc.in_a.normal, pc.in_a.offset, at.in_a,
+                                             pc.in_b.normal, pc.in_b.offset, at.in_b, sd),
+                                         gap_loss, q, t),
         static_cast<int>(k));
   }
   ceres::Solver::Options so;
