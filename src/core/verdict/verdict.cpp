@@ -1,3 +1,4 @@
+#include <board_calib/core/common/edge_association.h>
 #include <board_calib/core/common/format.h>
 #include <board_calib/core/common/statistics.h>
 #include <board_calib/core/transform.h>
@@ -5,6 +6,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <optional>
 #include <sstream>
 
 namespace board_calib {
@@ -49,7 +52,8 @@ std::string VerdictOptions::validate() const {
       outlier_min_excess_px,         doubtful_inconsistent_fraction, failed_inconsistent_fraction,
       doubtful_stddev_translation_m, doubtful_stddev_rotation_deg,   failed_stddev_translation_m,
       failed_stddev_rotation_deg,    method_disagreement_sigmas,     min_pixel_sigma_px,
-      declared_scale_sigmas,         declared_size_tolerance};
+      declared_scale_sigmas,         declared_size_tolerance,        lens_bias_sigmas,
+      lens_residual_sigmas};
   for (double v : all)
     if (!std::isfinite(v) || !(v > 0)) return "verdict thresholds must be finite and > 0";
   return {};
@@ -117,6 +121,151 @@ void judgeConsistency(const ConsistencyReport& consistency, const VerdictOptions
                         " inconsistent view(s) left out before solving");
   if (!consistency.checkable && consistency.ok)
     f.doubtful.push_back("only 3 usable views: nothing to check them against");
+}
+
+// Camera intrinsics that do not match the images (a camera_info without the lens distortion,
+// a rectified image with the raw camera_info) bend the board's edges: the lines fitted to them
+// sit off the true edges by an amount that grows as r^3 from the image centre. The solve
+// absorbs part of it and the residuals stay small, but what is left keeps that shape: the
+// LiDAR edge points' signed distances to their lines, fitted against f |rho|^2 (n . rho) (a
+// radial term k1 would add, rho the normalized image position, n the line's outward normal),
+// with a constant for the edge points' inward sampling bias.
+struct LensResidual {
+  double k = 0.0, k_stddev = 0.0;  ///< residual radial coefficient and its cluster-robust 1 sigma
+  double corner_px = 0.0;          ///< what k moves a point at the farthest edge point, px
+  int views = 0;
+};
+
+std::optional<LensResidual> lensResidual(const std::vector<View>& views,
+                                         const Eigen::Isometry3d& T) {
+  struct Sums {
+    Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
+    Eigen::Vector2d b = Eigen::Vector2d::Zero();
+    std::vector<Eigen::Vector2d> x;  // regressors (1, g)
+    std::vector<double> y;           // signed distances
+  };
+  std::vector<Sums> per_view;
+  double rho_max = 0.0, focal = 0.0;
+  for (const View& v : views) {
+    if (!v.camera.found || !v.lidar.found) continue;
+    const Eigen::Matrix3d& K = v.camera.K;
+    const double f = 0.5 * (K(0, 0) + K(1, 1));
+    if (!(f > 0.0)) continue;
+    const Eigen::Vector2d c(K(0, 2), K(1, 2));
+    const EdgeAssociation a = associateEdges(v.camera, v.lidar, T);
+    Sums sums;
+    for (int j = 0; j < kNumEdges; ++j) {
+      if (!a.scored[j]) continue;
+      const Eigen::Vector3d& line = v.camera.edge_lines[static_cast<size_t>(j)];
+      for (const auto& p : v.lidar.edge_points[static_cast<size_t>(a.lidar_edge[j])]) {
+        const Eigen::Vector3d q = T * p;
+        if (!(q.z() > 0.0)) continue;
+        const Eigen::Vector3d uh = K * q;
+        const Eigen::Vector2d u = uh.head<2>() / uh.z();
+        const Eigen::Vector2d rho = (u - c) / f;
+        const double y = line.head<2>().dot(u) + line.z();
+        const double g = f * rho.squaredNorm() * line.head<2>().dot(rho);
+        if (!std::isfinite(y) || !std::isfinite(g)) continue;
+        const Eigen::Vector2d x(1.0, g);
+        sums.A += x * x.transpose();
+        sums.b += x * y;
+        sums.x.push_back(x);
+        sums.y.push_back(y);
+        rho_max = std::max(rho_max, rho.norm());
+      }
+    }
+    if (!sums.y.empty()) {
+      per_view.push_back(std::move(sums));
+      focal = f;
+    }
+  }
+  if (per_view.size() < 3) return std::nullopt;
+  Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d b = Eigen::Vector2d::Zero();
+  for (const auto& s : per_view) {
+    A += s.A;
+    b += s.b;
+  }
+  if (!(std::abs(A.determinant()) > 0.0)) return std::nullopt;
+  const Eigen::Matrix2d Ainv = A.inverse();
+  const Eigen::Vector2d beta = Ainv * b;
+  // Sandwich over views: a view's points share its pose error.
+  Eigen::Matrix2d B = Eigen::Matrix2d::Zero();
+  for (const auto& s : per_view) {
+    Eigen::Vector2d score = Eigen::Vector2d::Zero();
+    for (size_t i = 0; i < s.y.size(); ++i) score += s.x[i] * (s.y[i] - s.x[i].dot(beta));
+    B += score * score.transpose();
+  }
+  const double m = static_cast<double>(per_view.size());
+  const Eigen::Matrix2d C = Ainv * B * Ainv * (m / (m - 1.0));
+  LensResidual r;
+  r.k = -beta(1);
+  r.k_stddev = std::sqrt(std::max(C(1, 1), 0.0));
+  r.corner_px = std::abs(r.k) * focal * rho_max * rho_max * rho_max;
+  r.views = static_cast<int>(per_view.size());
+  return r;
+}
+
+// What a lens residual does to a PBPC result: beyond lens_bias_sigmas of its noise, the views
+// are solved again with each image line moved by what the fitted term puts at the middle of the
+// side, and the move is returned as a covariance to add. Beyond lens_residual_sigmas, moving
+// the result beyond its 1 sigma too (judged with it in judgeUncertainty), it is named.
+struct LensCheck {
+  Matrix6d covariance = Matrix6d::Zero();
+  std::string text;  ///< empty: nothing beyond the noise
+  bool nameable = false;
+  Vector6d shift = Vector6d::Zero();
+};
+
+LensCheck checkLens(const CalibrationSolution& sol, const std::vector<View>& views,
+                    const std::function<CalibrationSolution(const std::vector<View>&)>& solve,
+                    const VerdictOptions& o, Findings& f) {
+  LensCheck out;
+  if (sol.method != Method::kPbpc) return out;  // the others do not fit the edges
+  const auto lens = lensResidual(views, sol.camera_T_lidar);
+  if (!lens || !(std::abs(lens->k) > o.lens_bias_sigmas * lens->k_stddev)) return out;
+  const std::string measured =
+      "the LiDAR edges sit off the image edges in the pattern of a lens "
+      "distortion the images still have (radial k1 " +
+      formatFixed(lens->k, 3) + " +- " + formatFixed(lens->k_stddev, 3) + ", " +
+      formatFixed(lens->corner_px, 1) + " px at the farthest edge point)";
+  if (!solve) {
+    f.report->details.push_back(measured + "; its effect could not be assessed (no re-solve)");
+    return out;
+  }
+  std::vector<View> corrected = views;
+  for (View& v : corrected) {
+    if (!v.camera.found) continue;
+    const Eigen::Matrix3d& K = v.camera.K;
+    const double focal = 0.5 * (K(0, 0) + K(1, 1));
+    const Eigen::Vector2d c(K(0, 2), K(1, 2));
+    Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+    for (const auto& corner : v.camera.corners_px) centre += 0.25 * corner;
+    for (int j = 0; j < kNumEdges; ++j) {
+      Eigen::Vector3d& line = v.camera.edge_lines[static_cast<size_t>(j)];
+      if (!v.camera.edge_valid[static_cast<size_t>(j)] || !centre.allFinite()) continue;
+      const Eigen::Vector2d n = line.head<2>();
+      const Eigen::Vector2d mid = centre - (n.dot(centre) + line.z()) * n;
+      const Eigen::Vector2d rho = (mid - c) / focal;
+      line.z() += lens->k * focal * rho.squaredNorm() * n.dot(rho);
+    }
+  }
+  const CalibrationSolution alt = solve(corrected);
+  if (!alt.success) {
+    f.report->details.push_back(measured + "; its effect could not be assessed (" + alt.reason +
+                                ")");
+    return out;
+  }
+  out.shift = poseDelta(alt.camera_T_lidar, sol.camera_T_lidar);
+  out.covariance = out.shift * out.shift.transpose();
+  out.nameable = std::abs(lens->k) > o.lens_residual_sigmas * lens->k_stddev;
+  out.text = measured +
+             ": the camera_info's distortion does not match the images (a raw image "
+             "with a rectified camera_info, or none given); corrected for it, the "
+             "result moves " +
+             formatFixed(out.shift.tail<3>().norm() * 1e3, 1) + " mm / " +
+             formatFixed(out.shift.head<3>().norm() * kDegPerRad, 3) + " deg";
+  return out;
 }
 
 // Residuals against the noise model, the board's size in the image, outlier edges.
@@ -325,7 +474,7 @@ Matrix6d judgeDeclaredScale(const CalibrationSolution& sol, const Target& target
 // Reported uncertainty: never below the cross-validation's spread, nor below the model's
 // scaled by how much the residuals exceed the noise model.
 void judgeUncertainty(const CalibrationSolution& sol, const Target& target, const VerdictOptions& o,
-                      Findings& f) {
+                      const LensCheck& lens, Findings& f) {
   VerdictReport& r = *f.report;
   const CrossValidation& cv = r.cross_validation;
   Matrix6d model_cov = sol.covariance;
@@ -338,6 +487,16 @@ void judgeUncertainty(const CalibrationSolution& sol, const Target& target, cons
   r.covariance = model_cov * inflation2 + sol.edge_bias_covariance;
   std::string size_finding;
   r.covariance += judgeDeclaredScale(sol, target, r.covariance, o, f, &size_finding);
+  std::string lens_finding;
+  if (!lens.text.empty()) {
+    bool moves = false;
+    for (int i = 0; i < 6; ++i) moves |= lens.shift(i) * lens.shift(i) > r.covariance(i, i);
+    if (lens.nameable && moves)
+      lens_finding = lens.text + ": give the camera_info that matches the image topic";
+    else
+      r.details.push_back(lens.text + " (the 1 sigma includes it)");
+    r.covariance += lens.covariance;
+  }
   if (!r.covariance.allFinite() || r.covariance.diagonal().maxCoeff() <= 0)
     r.covariance = cv.covariance;
   r.stddev_inflation = std::sqrt(inflation2);
@@ -360,12 +519,14 @@ void judgeUncertainty(const CalibrationSolution& sol, const Target& target, cons
   else if (st > o.doubtful_stddev_translation_m || sr > o.doubtful_stddev_rotation_deg)
     f.doubtful.push_back(sigma_text +
                          ": loosely determined; add views with other tilts and distances");
-  // A wrong size is the cause the user can fix: it heads a failure it contributes to.
-  if (!size_finding.empty()) {
+  // A wrong size or lens model is the cause the user can fix: it heads a failure it contributes
+  // to.
+  for (const std::string* finding : {&lens_finding, &size_finding}) {
+    if (finding->empty()) continue;
     if (f.failed.empty())
-      f.doubtful.insert(f.doubtful.begin(), size_finding);
+      f.doubtful.insert(f.doubtful.begin(), *finding);
     else
-      f.failed.insert(f.failed.begin(), size_finding);
+      f.failed.insert(f.failed.begin(), *finding);
   }
   if (r.stddev_inflation > 1.5)
     r.details.push_back(
@@ -419,7 +580,8 @@ VerdictReport judgeSolution(
   if (sol.success) {
     judgeResiduals(sol, views, target, o, f);
     crossValidate(sol, views, target, solve, o, f);
-    judgeUncertainty(sol, target, o, f);
+    const LensCheck lens = checkLens(sol, views, solve, o, f);
+    judgeUncertainty(sol, target, o, lens, f);
   }
   conclude(f);
   return r;
