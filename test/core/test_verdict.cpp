@@ -416,6 +416,72 @@ TEST(Verdict, PbpcNamesALensDistortionTheCameraInfoLeavesIn) {
   }
 }
 
+// Checkerboard corners as a detector reports them from images that still hold the radial
+// distortion k1 (0.1 px noise), with the board pose PnP fits to them.
+void addPattern(sim::SyntheticScene* scene, double k1, double w, double h, std::mt19937& rng) {
+  std::normal_distribution<double> noise(0.0, 0.1);
+  for (size_t i = 0; i < scene->views.size(); ++i) {
+    CameraBoardFeatures& cam = scene->views[i].camera;
+    const double f = 0.5 * (cam.K(0, 0) + cam.K(1, 1));
+    const Eigen::Vector2d c(cam.K(0, 2), cam.K(1, 2));
+    std::vector<cv::Point3d> object;
+    std::vector<cv::Point2d> image;
+    cam.pattern.clear();
+    for (int row = 0; row < 5; ++row)
+      for (int col = 0; col < 7; ++col) {
+        const Eigen::Vector3d b(w * (0.15 + 0.7 * col / 6.0), h * (0.15 + 0.7 * row / 4.0), 0.0);
+        const Eigen::Vector3d q = cam.K * (scene->camera_T_board[i] * b);
+        Eigen::Vector2d u = q.head<2>() / q.z();
+        const Eigen::Vector2d rho = (u - c) / f;
+        u += f * k1 * rho.squaredNorm() * rho + Eigen::Vector2d(noise(rng), noise(rng));
+        PatternObservation obs;
+        obs.id = row * 7 + col;
+        obs.board_point = b;
+        obs.pixel = u;
+        cam.pattern.push_back(obs);
+        object.emplace_back(b.x(), b.y(), b.z());
+        image.emplace_back(u.x(), u.y());
+      }
+    cv::Mat K, rvec, tvec, R;
+    cv::eigen2cv(cam.K, K);
+    ASSERT_TRUE(cv::solvePnP(object, image, K, cv::noArray(), rvec, tvec));
+    cv::Rodrigues(rvec, R);
+    Eigen::Matrix3d board_R;
+    Eigen::Vector3d board_t;
+    cv::cv2eigen(R, board_R);
+    cv::cv2eigen(tvec, board_t);
+    cam.camera_T_board.linear() = board_R;
+    cam.camera_T_board.translation() = board_t;
+  }
+}
+
+// The corners of a pattern board show the same bend without the LiDAR (k1 -0.113 +- 0.002, 79 %
+// of the corners' residual on the simulated checkerboard session with its k1 -0.12 left out;
+// the real checkerboard recording: 0.0005 +- 0.011, 0 %). Named for every method; nothing with
+// the distortion right. Measured here: -0.130 to -0.132 +- 0.003 (62-75 %) for -0.12.
+TEST(Verdict, PatternCornersNameALensDistortionTheCameraInfoLeavesIn) {
+  for (unsigned seed = 51; seed <= 53; ++seed) {
+    for (const double k1 : {0.0, -0.12}) {
+      sim::SyntheticFeatureOptions o;
+      o.num_views = 20;
+      std::mt19937 rng(seed);
+      const Eigen::Isometry3d truth = sim::randomCameraTLidar(rng);
+      auto scene = sim::generateSyntheticViews(o, truth, rng);
+      ASSERT_TRUE(scene.ok()) << scene.error();
+      addPattern(&*scene, k1, o.board_width_m, o.board_height_m, rng);
+      const PairCalibration r = run(scene->views, "ppc");
+      ASSERT_NE(r.chosenRun(), nullptr) << r.reason;
+      const std::string where =
+          "seed " + std::to_string(seed) + " k1 " + std::to_string(k1) + ": " + r.reason;
+      bool mentioned = false;
+      for (const auto& d : r.chosenRun()->verdict.details)
+        mentioned |= d.find("corners bend") != std::string::npos;
+      EXPECT_EQ(mentioned, k1 != 0.0) << where;
+      if (k1 != 0.0) EXPECT_NE(r.verdict, Verdict::kGood) << where;
+    }
+  }
+}
+
 // An uncertainty nobody could compute is not a zero one: without the solver's covariance and
 // without a cross-validation (every re-solve fails) the result is refused, never good with 0 sigma.
 TEST(Verdict, UnknownUncertaintyIsRefused) {
