@@ -31,6 +31,48 @@ Expected<std::vector<Method>> parseMethods(const std::string& name) {
   return std::vector<Method>{*m};
 }
 
+namespace {
+
+// PPC and MSG put the LiDAR's board planes on the camera's: a LiDAR range offset (or a declared
+// size) moves every plane along its view, and the translation follows with residuals as the
+// noise predicts. PBPC's edges do not move with it. Asked without PBPC, the asked methods are
+// judged against a PBPC solve on the same views, which is then dropped (not a run of its own).
+void checkAgainstPbpc(const std::vector<Method>& methods, const Target& target,
+                      const PairCalibration& out, const PairCalibrationOptions& options,
+                      const std::optional<Eigen::Isometry3d>& start,
+                      std::vector<CalibrationSolution>* solutions,
+                      std::vector<VerdictReport>* verdicts) {
+  if (!options.check_against_pbpc ||
+      std::find(methods.begin(), methods.end(), Method::kPbpc) != methods.end())
+    return;
+  const CalibrationSolution pbpc = calibrate(out.used_views, Method::kPbpc, options.solver, start);
+  if (!pbpc.success) return;
+  SolverOptions fold_options = options.solver;
+  fold_options.compute_covariance = false;
+  std::function<CalibrationSolution(const std::vector<View>&)> refit;
+  if (options.cross_validate)
+    refit = [&](const std::vector<View>& subset) {
+      return calibrate(subset, Method::kPbpc, fold_options, start);
+    };
+  VerdictReport judged =
+      judgeSolution(pbpc, out.used_views, target, out.consistency, refit, options.verdict);
+  if (judged.verdict == Verdict::kFailed) return;
+  const std::string why =
+      " (PBPC, solved on the same views as a check: the board planes move with a LiDAR range "
+      "offset or a wrong declared size, the edges do not)";
+  for (size_t i = 0; i < solutions->size(); ++i) {
+    std::vector<CalibrationSolution> pair{(*solutions)[i], pbpc};
+    std::vector<VerdictReport> judged_pair{(*verdicts)[i], judged};
+    judgeMethodAgreement(pair, &judged_pair, options.verdict);
+    VerdictReport& v = judged_pair.front();
+    if (v.reason != (*verdicts)[i].reason) v.reason += why;
+    if (v.details.size() > (*verdicts)[i].details.size()) v.details.back() += why;
+    (*verdicts)[i] = std::move(v);
+  }
+}
+
+}  // namespace
+
 PairCalibration calibratePair(const std::vector<View>& views, const std::vector<Method>& methods,
                               const Target& target, const std::string& camera_frame,
                               const std::string& lidar_frame, const PairCalibrationOptions& options,
@@ -73,6 +115,7 @@ PairCalibration calibratePair(const std::vector<View>& views, const std::vector<
         judgeSolution(sol, out.used_views, target, out.consistency, refit, options.verdict));
     solutions.push_back(std::move(sol));
   }
+  checkAgainstPbpc(methods, target, out, options, start, &solutions, &verdicts);
   judgeMethodAgreement(solutions, &verdicts, options.verdict);
   out.chosen = chooseMethod(solutions, verdicts, &out.choice);
   for (size_t i = 0; i < methods.size(); ++i) out.runs.push_back({solutions[i], verdicts[i]});
