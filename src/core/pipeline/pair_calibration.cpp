@@ -31,12 +31,43 @@ Expected<std::vector<Method>> parseMethods(const std::string& name) {
   return std::vector<Method>{*m};
 }
 
+std::optional<MethodRun> pbpcReferee(const std::vector<View>& views, const Target& target,
+                                     const ConsistencyReport& consistency,
+                                     const SolverOptions& solver, const VerdictOptions& verdict,
+                                     bool cross_validate,
+                                     const std::optional<Eigen::Isometry3d>& start) {
+  MethodRun run;
+  run.solution = calibrate(views, Method::kPbpc, solver, start);
+  if (!run.solution.success) return std::nullopt;
+  SolverOptions fold_options = solver;
+  fold_options.compute_covariance = false;
+  std::function<CalibrationSolution(const std::vector<View>&)> refit;
+  if (cross_validate)
+    refit = [&](const std::vector<View>& subset) {
+      return calibrate(subset, Method::kPbpc, fold_options, start);
+    };
+  run.verdict = judgeSolution(run.solution, views, target, consistency, refit, verdict);
+  if (run.verdict.verdict == Verdict::kFailed) return std::nullopt;
+  return run;
+}
+
+void judgeAgainstPbpc(const MethodRun& referee, const CalibrationSolution& solution,
+                      const VerdictOptions& options, VerdictReport* verdict) {
+  const std::string why =
+      " (PBPC, solved on the same views as a check: the board planes move with a LiDAR range "
+      "offset or a wrong declared size, the edges do not)";
+  std::vector<CalibrationSolution> pair{solution, referee.solution};
+  std::vector<VerdictReport> judged{*verdict, referee.verdict};
+  judgeMethodAgreement(pair, &judged, options);
+  VerdictReport& v = judged.front();
+  if (v.reason != verdict->reason) v.reason += why;
+  if (v.details.size() > verdict->details.size()) v.details.back() += why;
+  *verdict = std::move(v);
+}
+
 namespace {
 
-// PPC and MSG put the LiDAR's board planes on the camera's: a LiDAR range offset (or a declared
-// size) moves every plane along its view, and the translation follows with residuals as the
-// noise predicts. PBPC's edges do not move with it. Asked without PBPC, the asked methods are
-// judged against a PBPC solve on the same views, which is then dropped (not a run of its own).
+// Asked without PBPC, the asked methods are judged against a PBPC solve on the same views.
 void checkAgainstPbpc(const std::vector<Method>& methods, const Target& target,
                       const PairCalibration& out, const PairCalibrationOptions& options,
                       const std::optional<Eigen::Isometry3d>& start,
@@ -45,30 +76,11 @@ void checkAgainstPbpc(const std::vector<Method>& methods, const Target& target,
   if (!options.check_against_pbpc ||
       std::find(methods.begin(), methods.end(), Method::kPbpc) != methods.end())
     return;
-  const CalibrationSolution pbpc = calibrate(out.used_views, Method::kPbpc, options.solver, start);
-  if (!pbpc.success) return;
-  SolverOptions fold_options = options.solver;
-  fold_options.compute_covariance = false;
-  std::function<CalibrationSolution(const std::vector<View>&)> refit;
-  if (options.cross_validate)
-    refit = [&](const std::vector<View>& subset) {
-      return calibrate(subset, Method::kPbpc, fold_options, start);
-    };
-  VerdictReport judged =
-      judgeSolution(pbpc, out.used_views, target, out.consistency, refit, options.verdict);
-  if (judged.verdict == Verdict::kFailed) return;
-  const std::string why =
-      " (PBPC, solved on the same views as a check: the board planes move with a LiDAR range "
-      "offset or a wrong declared size, the edges do not)";
-  for (size_t i = 0; i < solutions->size(); ++i) {
-    std::vector<CalibrationSolution> pair{(*solutions)[i], pbpc};
-    std::vector<VerdictReport> judged_pair{(*verdicts)[i], judged};
-    judgeMethodAgreement(pair, &judged_pair, options.verdict);
-    VerdictReport& v = judged_pair.front();
-    if (v.reason != (*verdicts)[i].reason) v.reason += why;
-    if (v.details.size() > (*verdicts)[i].details.size()) v.details.back() += why;
-    (*verdicts)[i] = std::move(v);
-  }
+  const auto referee = pbpcReferee(out.used_views, target, out.consistency, options.solver,
+                                   options.verdict, options.cross_validate, start);
+  if (!referee) return;
+  for (size_t i = 0; i < solutions->size(); ++i)
+    judgeAgainstPbpc(*referee, (*solutions)[i], options.verdict, &(*verdicts)[i]);
 }
 
 }  // namespace

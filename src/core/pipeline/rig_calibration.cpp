@@ -1,5 +1,6 @@
 // One rig calibration run (see rig_calibration.h).
 #include <board_calib/core/common/format.h>
+#include <board_calib/core/pipeline/pair_calibration.h>
 #include <board_calib/core/pipeline/rig_calibration.h>
 #include <board_calib/core/transform.h>
 
@@ -267,6 +268,11 @@ RigCalibration calibrateRig(const MsgProblem& problem, const RigConfig& rig, con
         return folds.pair(train, p.views, est.camera, est.lidar);
       };
     p.verdict = judgeSolution(p.solution, p.views, target, p.consistency, refit, options.verdict);
+    if (options.check_against_pbpc)
+      if (const auto referee =
+              pbpcReferee(p.views, target, p.consistency, options.pbpc_solver, options.verdict,
+                          options.cross_validate, est.camera_T_lidar))
+        judgeAgainstPbpc(*referee, p.solution, options.verdict, &p.verdict);
     to_check.insert(p.verdict.views_to_check.begin(), p.verdict.views_to_check.end());
     run.pairs.push_back(std::move(p));
   }

@@ -132,7 +132,7 @@ void judgeConsistency(const ConsistencyReport& consistency, const VerdictOptions
 // absorbs part of it and the residuals stay small, but what is left keeps that shape: the
 // LiDAR edge points' signed distances to their lines, fitted against f |rho|^2 (n . rho) (a
 // radial term k1 would add, rho the normalized image position, n the line's outward normal),
-// with a constant for the edge points' inward sampling bias.
+// with a constant per view for the edge points' inward sampling bias.
 struct LensResidual {
   double k = 0.0, k_stddev = 0.0;  ///< residual radial coefficient and its cluster-robust 1 sigma
   double corner_px = 0.0;          ///< what k moves a point at the farthest edge point, px
@@ -177,10 +177,24 @@ std::optional<LensResidual> lensResidual(const std::vector<View>& views,
         rho_max = std::max(rho_max, rho.norm());
       }
     }
-    if (!sums.y.empty()) {
-      per_view.push_back(std::move(sums));
-      focal = f;
+    if (sums.y.empty()) continue;
+    // A per-view constant: the edge points' inward sampling bias is a share of the column step,
+    // so its pixels change with the distance from view to view.
+    double y_mean = 0.0, g_mean = 0.0;
+    for (size_t i = 0; i < sums.y.size(); ++i) {
+      y_mean += sums.y[i] / static_cast<double>(sums.y.size());
+      g_mean += sums.x[i](1) / static_cast<double>(sums.y.size());
     }
+    sums.A.setZero();
+    sums.b.setZero();
+    for (size_t i = 0; i < sums.y.size(); ++i) {
+      sums.y[i] -= y_mean;
+      sums.x[i] = Eigen::Vector2d(0.0, sums.x[i](1) - g_mean);
+      sums.A += sums.x[i] * sums.x[i].transpose();
+      sums.b += sums.x[i] * sums.y[i];
+    }
+    per_view.push_back(std::move(sums));
+    focal = f;
   }
   if (per_view.size() < 3) return std::nullopt;
   Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
@@ -189,6 +203,7 @@ std::optional<LensResidual> lensResidual(const std::vector<View>& views,
     A += s.A;
     b += s.b;
   }
+  A(0, 0) = 1.0;  // the intercepts are per view, removed above: only the slope is solved
   if (!(std::abs(A.determinant()) > 0.0)) return std::nullopt;
   const Eigen::Matrix2d Ainv = A.inverse();
   const Eigen::Vector2d beta = Ainv * b;

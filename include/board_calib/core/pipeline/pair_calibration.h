@@ -56,6 +56,20 @@ struct PairCalibration {
 /// Methods by name: "ppc", "pbpc", "msg" or "all".
 Expected<std::vector<Method>> parseMethods(const std::string& name);
 
+/// PPC and MSG put the LiDAR's board planes on the camera's: a LiDAR range offset (or a declared
+/// size) moves every plane along its view and the translation follows, with residuals as the
+/// noise predicts, while PBPC's edges hardly move. A PBPC solve on `views` judged as a run
+/// (nullopt when it fails or its verdict does), to check a plane method's result against.
+std::optional<MethodRun> pbpcReferee(const std::vector<View>& views, const Target& target,
+                                     const ConsistencyReport& consistency,
+                                     const SolverOptions& solver, const VerdictOptions& verdict,
+                                     bool cross_validate,
+                                     const std::optional<Eigen::Isometry3d>& start);
+/// `verdict` (of `solution`) doubtful when the referee differs beyond their combined 1 sigma,
+/// saying why the two can differ.
+void judgeAgainstPbpc(const MethodRun& referee, const CalibrationSolution& solution,
+                      const VerdictOptions& options, VerdictReport* verdict);
+
 PairCalibration calibratePair(const std::vector<View>& views, const std::vector<Method>& methods,
                               const Target& target, const std::string& camera_frame,
                               const std::string& lidar_frame,

@@ -11,6 +11,7 @@
 #include <board_calib/core/msg_graph/msg_graph.h>
 #include <board_calib/core/result_io.h>
 #include <board_calib/core/rig/rig_config.h>
+#include <board_calib/core/solvers/solvers.h>
 #include <board_calib/core/target.h>
 #include <board_calib/core/verdict/consistency.h>
 #include <board_calib/core/verdict/verdict.h>
@@ -25,6 +26,11 @@ struct RigCalibrationOptions {
   ConsistencyOptions consistency;
   VerdictOptions verdict;
   bool cross_validate = true;  ///< false: no left-out solves (faster, doubtful at best)
+  /// Each camera <- LiDAR pair also solved with PBPC on its views and doubted when that differs
+  /// beyond the combined 1 sigma (PairCalibrationOptions::check_against_pbpc: the graph rests
+  /// on planes, which a LiDAR range offset moves).
+  bool check_against_pbpc = true;
+  SolverOptions pbpc_solver = realLidarSolverOptions();  ///< that check's PBPC
   /// Loop closure of the pairwise estimates: they are independent solves, so a loop's error is
   /// their noise added up; beyond this many times the graph's worst pair 1 sigma (and these
   /// floors) the pairwise links contradict each other.
