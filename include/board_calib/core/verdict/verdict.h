@@ -57,9 +57,9 @@ struct VerdictOptions {
   /// not matching the images). Beyond lens_bias_sigmas of its noise the result is solved again
   /// without it and the move enters the 1 sigma; beyond lens_residual_sigmas, moving the result
   /// beyond its 1 sigma, it is named: doubtful. The noise is a sandwich over 15-30 views, itself
-  /// uncertain by a fifth or more, hence more than 3. Measured: 0.3 sigma with the right
-  /// distortion (simulated), 1.4 and 3.2 sigma on the real recordings, 6.4-7.6 sigma with half
-  /// or none of the simulated lens's distortion given.
+  /// uncertain by a fifth or more, hence more than 3. Measured: under 1 sigma with the right
+  /// distortion (simulated), under 4 on the real recordings, 8-12.6 sigma with half or none of
+  /// the simulated lens's distortion given.
   double lens_bias_sigmas = 4.0;
   double lens_residual_sigmas = 5.0;
   /// Checkerboard and AprilTag corners: the same radial term fitted to their residuals from the
