@@ -136,22 +136,8 @@ MsgProblem stampsOffset(MsgProblem p, int lidar) {
 // Every return of the LiDAR `delta` metres long (a range offset): the planes move along their
 // views and the graph follows with residuals as the noise predicts; only the edges tell.
 MsgProblem rangeOffset(MsgProblem p, int lidar, double delta) {
-  const auto move = [delta](Eigen::Vector3d* q) {
-    const double r = q->norm();
-    if (r > 0.0) *q *= 1.0 + delta / r;
-  };
-  for (auto& pose : p.poses) {
-    if (!pose.lidars.count(lidar)) continue;
-    LidarBoardFeatures& l = pose.lidars.at(lidar);
-    for (auto& q : l.board_points) move(&q);
-    for (auto& edge : l.edge_points)
-      for (auto& q : edge) move(&q);
-    for (auto& q : l.edge_line_point) move(&q);
-    for (auto& q : l.corners) move(&q);
-    double offset = 0.0;
-    for (const auto& q : l.board_points) offset += l.plane.normal.dot(q);
-    if (!l.board_points.empty()) l.plane.offset = offset / l.board_points.size();
-  }
+  for (auto& pose : p.poses)
+    if (pose.lidars.count(lidar)) sim::lengthenRanges(&pose.lidars.at(lidar), delta);
   return p;
 }
 

@@ -416,14 +416,9 @@ void bendImageEdges(std::vector<View>* views, double k1) {
 TEST(Verdict, PbpcNamesALensDistortionTheCameraInfoLeavesIn) {
   for (unsigned seed = 41; seed <= 43; ++seed) {
     for (const double k1 : {0.0, -0.08}) {
-      sim::SyntheticFeatureOptions o;
-      o.num_views = 20;
-      std::mt19937 rng(seed);
-      const Eigen::Isometry3d truth = sim::randomCameraTLidar(rng);
-      auto scene = sim::generateSyntheticViews(o, truth, rng);
-      ASSERT_TRUE(scene.ok()) << scene.error();
-      bendImageEdges(&scene->views, k1);
-      const PairCalibration r = run(scene->views, "pbpc");
+      sim::SyntheticScene scene = makeScene(seed, 20);
+      bendImageEdges(&scene.views, k1);
+      const PairCalibration r = run(scene.views, "pbpc");
       const std::string where =
           "seed " + std::to_string(seed) + " k1 " + std::to_string(k1) + ": " + r.reason;
       bool mentioned = r.reason.find("lens distortion") != std::string::npos;
@@ -509,26 +504,6 @@ TEST(Verdict, PatternCornersNameALensDistortionTheCameraInfoLeavesIn) {
   }
 }
 
-// Every LiDAR return `delta` metres further along its ray (a range offset): points, edge points,
-// corners, and the plane refitted through the moved points.
-void offsetRanges(std::vector<View>* views, double delta) {
-  const auto move = [delta](Eigen::Vector3d* p) {
-    const double r = p->norm();
-    if (r > 0.0) *p *= 1.0 + delta / r;
-  };
-  for (View& v : *views) {
-    LidarBoardFeatures& l = v.lidar;
-    for (auto& p : l.board_points) move(&p);
-    for (auto& edge : l.edge_points)
-      for (auto& p : edge) move(&p);
-    for (auto& p : l.edge_line_point) move(&p);
-    for (auto& p : l.corners) move(&p);
-    double offset = 0.0;
-    for (const auto& p : l.board_points) offset += l.plane.normal.dot(p);
-    if (!l.board_points.empty()) l.plane.offset = offset / l.board_points.size();
-  }
-}
-
 // A LiDAR range offset moves every board plane along its view: PPC and MSG follow it with
 // residuals as the noise predicts (3 cm on a simulated checkerboard session: both "good" 31 mm
 // off at 5-24 sigma), while PBPC's edges hardly move. Asked alone, they are checked against
@@ -537,14 +512,9 @@ TEST(Verdict, PlaneMethodsAskedAloneAreCheckedAgainstPbpc) {
   for (unsigned seed = 61; seed <= 63; ++seed) {
     for (const double delta : {0.0, 0.05}) {
       for (const std::string method : {"ppc", "msg"}) {
-        sim::SyntheticFeatureOptions o;
-        o.num_views = 20;
-        std::mt19937 rng(seed);
-        const Eigen::Isometry3d truth = sim::randomCameraTLidar(rng);
-        auto scene = sim::generateSyntheticViews(o, truth, rng);
-        ASSERT_TRUE(scene.ok()) << scene.error();
-        offsetRanges(&scene->views, delta);
-        const PairCalibration r = run(scene->views, method);
+        sim::SyntheticScene scene = makeScene(seed, 20);
+        for (View& v : scene.views) sim::lengthenRanges(&v.lidar, delta);
+        const PairCalibration r = run(scene.views, method);
         ASSERT_NE(r.chosenRun(), nullptr) << r.reason;
         const std::string where = method + " seed " + std::to_string(seed) + " delta " +
                                   std::to_string(delta) + ": " + r.reason;

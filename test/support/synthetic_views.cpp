@@ -440,5 +440,21 @@ Expected<SyntheticScene> generateSyntheticViews(const SyntheticFeatureOptions& o
   return scene;
 }
 
+void lengthenRanges(LidarBoardFeatures* lidar, double delta_m) {
+  const auto move = [delta_m](Eigen::Vector3d* p) {
+    const double r = p->norm();
+    if (r > 0.0) *p *= 1.0 + delta_m / r;
+  };
+  for (auto& p : lidar->board_points) move(&p);
+  for (auto& edge : lidar->edge_points)
+    for (auto& p : edge) move(&p);
+  for (auto& p : lidar->edge_line_point) move(&p);
+  for (auto& p : lidar->corners) move(&p);
+  double offset = 0.0;
+  for (const auto& p : lidar->board_points) offset += lidar->plane.normal.dot(p);
+  if (!lidar->board_points.empty())
+    lidar->plane.offset = offset / static_cast<double>(lidar->board_points.size());
+}
+
 }  // namespace sim
 }  // namespace board_calib

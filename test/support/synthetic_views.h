@@ -72,5 +72,9 @@ Expected<SyntheticScene> generateSyntheticViews(const SyntheticFeatureOptions& o
                                                 const Eigen::Isometry3d& camera_T_lidar,
                                                 std::mt19937& rng);
 
+/// A LiDAR range offset: every return `delta_m` further along its ray (board points, edge
+/// points, edge lines' points, corners), the plane refitted through the moved points.
+void lengthenRanges(LidarBoardFeatures* lidar, double delta_m);
+
 }  // namespace sim
 }  // namespace board_calib

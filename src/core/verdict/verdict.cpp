@@ -133,6 +133,37 @@ void judgeConsistency(const ConsistencyReport& consistency, const VerdictOptions
 // LiDAR edge points' signed distances to their lines, fitted against f |rho|^2 (n . rho) (a
 // radial term k1 would add, rho the normalized image position, n the line's outward normal),
 // with a constant per view for the edge points' inward sampling bias.
+// What both lens findings give as the cause.
+constexpr const char* kLensCause =
+    ": the camera_info's distortion does not match the images (a raw image with a rectified "
+    "camera_info, or none given)";
+
+// Per view, the sums a slope through the origin needs (y regressed on g).
+struct SlopeSums {
+  double gy = 0.0, gg = 0.0;
+};
+
+// The slope over every view and its cluster-robust 1 sigma: a sandwich over views, whose points
+// share their pose error. False with fewer than 3 views or no spread in g.
+bool clusterSlope(const std::vector<SlopeSums>& per_view, double* slope, double* stddev) {
+  if (per_view.size() < 3) return false;
+  double gy = 0.0, gg = 0.0;
+  for (const auto& v : per_view) {
+    gy += v.gy;
+    gg += v.gg;
+  }
+  if (!(gg > 0.0)) return false;
+  *slope = gy / gg;
+  double b = 0.0;
+  for (const auto& v : per_view) {
+    const double score = v.gy - *slope * v.gg;
+    b += score * score;
+  }
+  const double m = static_cast<double>(per_view.size());
+  *stddev = std::sqrt(b * m / (m - 1.0)) / gg;
+  return true;
+}
+
 struct LensResidual {
   double k = 0.0, k_stddev = 0.0;  ///< residual radial coefficient and its cluster-robust 1 sigma
   double corner_px = 0.0;          ///< what k moves a point at the farthest edge point, px
@@ -141,13 +172,7 @@ struct LensResidual {
 
 std::optional<LensResidual> lensResidual(const std::vector<View>& views,
                                          const Eigen::Isometry3d& T) {
-  struct Sums {
-    Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
-    Eigen::Vector2d b = Eigen::Vector2d::Zero();
-    std::vector<Eigen::Vector2d> x;  // regressors (1, g)
-    std::vector<double> y;           // signed distances
-  };
-  std::vector<Sums> per_view;
+  std::vector<SlopeSums> per_view;
   double rho_max = 0.0, focal = 0.0;
   for (const View& v : views) {
     if (!v.camera.found || !v.lidar.found) continue;
@@ -156,7 +181,8 @@ std::optional<LensResidual> lensResidual(const std::vector<View>& views,
     if (!(f > 0.0)) continue;
     const Eigen::Vector2d c(K(0, 2), K(1, 2));
     const EdgeAssociation a = associateEdges(v.camera, v.lidar, T);
-    Sums sums;
+    double n = 0.0, sy = 0.0, sg = 0.0;
+    SlopeSums sums;
     for (int j = 0; j < kNumEdges; ++j) {
       if (!a.scored[j]) continue;
       const Eigen::Vector3d& line = v.camera.edge_lines[static_cast<size_t>(j)];
@@ -169,56 +195,27 @@ std::optional<LensResidual> lensResidual(const std::vector<View>& views,
         const double y = line.head<2>().dot(u) + line.z();
         const double g = f * rho.squaredNorm() * line.head<2>().dot(rho);
         if (!std::isfinite(y) || !std::isfinite(g)) continue;
-        const Eigen::Vector2d x(1.0, g);
-        sums.A += x * x.transpose();
-        sums.b += x * y;
-        sums.x.push_back(x);
-        sums.y.push_back(y);
+        n += 1.0;
+        sy += y;
+        sg += g;
+        sums.gy += g * y;
+        sums.gg += g * g;
         rho_max = std::max(rho_max, rho.norm());
       }
     }
-    if (sums.y.empty()) continue;
+    if (n == 0.0) continue;
     // A per-view constant: the edge points' inward sampling bias is a share of the column step,
-    // so its pixels change with the distance from view to view.
-    double y_mean = 0.0, g_mean = 0.0;
-    for (size_t i = 0; i < sums.y.size(); ++i) {
-      y_mean += sums.y[i] / static_cast<double>(sums.y.size());
-      g_mean += sums.x[i](1) / static_cast<double>(sums.y.size());
-    }
-    sums.A.setZero();
-    sums.b.setZero();
-    for (size_t i = 0; i < sums.y.size(); ++i) {
-      sums.y[i] -= y_mean;
-      sums.x[i] = Eigen::Vector2d(0.0, sums.x[i](1) - g_mean);
-      sums.A += sums.x[i] * sums.x[i].transpose();
-      sums.b += sums.x[i] * sums.y[i];
-    }
-    per_view.push_back(std::move(sums));
+    // so its pixels change with the distance from view to view. Removed as each view's means.
+    sums.gy -= sg * sy / n;
+    sums.gg -= sg * sg / n;
+    per_view.push_back(sums);
     focal = f;
   }
-  if (per_view.size() < 3) return std::nullopt;
-  Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
-  Eigen::Vector2d b = Eigen::Vector2d::Zero();
-  for (const auto& s : per_view) {
-    A += s.A;
-    b += s.b;
-  }
-  A(0, 0) = 1.0;  // the intercepts are per view, removed above: only the slope is solved
-  if (!(std::abs(A.determinant()) > 0.0)) return std::nullopt;
-  const Eigen::Matrix2d Ainv = A.inverse();
-  const Eigen::Vector2d beta = Ainv * b;
-  // Sandwich over views: a view's points share its pose error.
-  Eigen::Matrix2d B = Eigen::Matrix2d::Zero();
-  for (const auto& s : per_view) {
-    Eigen::Vector2d score = Eigen::Vector2d::Zero();
-    for (size_t i = 0; i < s.y.size(); ++i) score += s.x[i] * (s.y[i] - s.x[i].dot(beta));
-    B += score * score.transpose();
-  }
-  const double m = static_cast<double>(per_view.size());
-  const Eigen::Matrix2d C = Ainv * B * Ainv * (m / (m - 1.0));
+  double slope = 0.0, stddev = 0.0;
+  if (!clusterSlope(per_view, &slope, &stddev)) return std::nullopt;
   LensResidual r;
-  r.k = -beta(1);
-  r.k_stddev = std::sqrt(std::max(C(1, 1), 0.0));
+  r.k = -slope;  // the lines sit where the bend put the edges: the LiDAR points off by -k g
+  r.k_stddev = stddev;
   r.corner_px = std::abs(r.k) * focal * rho_max * rho_max * rho_max;
   r.views = static_cast<int>(per_view.size());
   return r;
@@ -236,11 +233,8 @@ struct PatternLens {
 
 std::optional<PatternLens> patternLens(const std::vector<View>& views) {
   constexpr size_t kMinCorners = 8;  // 16 components against the 8 removed fields
-  struct ViewSums {
-    double eg = 0.0, gg = 0.0, ee = 0.0;
-    std::vector<Eigen::Vector2d> e, g;
-  };
-  std::vector<ViewSums> per_view;
+  std::vector<SlopeSums> per_view;
+  double ee = 0.0, gg = 0.0;
   for (const View& v : views) {
     const CameraBoardFeatures& cam = v.camera;
     if (!cam.found || cam.pattern.size() < kMinCorners) continue;
@@ -276,34 +270,12 @@ std::optional<PatternLens> patternLens(const std::vector<View>& views) {
     const auto qr = X.colPivHouseholderQr();
     if (qr.rank() < 8) continue;
     const Eigen::VectorXd Er = E - X * qr.solve(E), Gr = G - X * qr.solve(G);
-    ViewSums sums;
-    for (Eigen::Index i = 0; i + 1 < Er.size(); i += 2) {
-      sums.e.emplace_back(Er(i), Er(i + 1));
-      sums.g.emplace_back(Gr(i), Gr(i + 1));
-      sums.eg += sums.e.back().dot(sums.g.back());
-      sums.gg += sums.g.back().squaredNorm();
-      sums.ee += sums.e.back().squaredNorm();
-    }
-    per_view.push_back(std::move(sums));
+    per_view.push_back({Gr.dot(Er), Gr.squaredNorm()});
+    ee += Er.squaredNorm();
+    gg += per_view.back().gg;
   }
-  if (per_view.size() < 3) return std::nullopt;
-  double eg = 0.0, gg = 0.0, ee = 0.0;
-  for (const auto& s : per_view) {
-    eg += s.eg;
-    gg += s.gg;
-    ee += s.ee;
-  }
-  if (!(gg > 0.0) || !(ee > 0.0)) return std::nullopt;
   PatternLens out;
-  out.k = eg / gg;
-  double b = 0.0;  // sandwich over views: a view's corners share its pose error
-  for (const auto& s : per_view) {
-    double score = 0.0;
-    for (size_t i = 0; i < s.e.size(); ++i) score += (s.e[i] - out.k * s.g[i]).dot(s.g[i]);
-    b += score * score;
-  }
-  const double m = static_cast<double>(per_view.size());
-  out.k_stddev = std::sqrt(b * m / (m - 1.0)) / gg;
+  if (!(ee > 0.0) || !clusterSlope(per_view, &out.k, &out.k_stddev)) return std::nullopt;
   out.explained = out.k * out.k * gg / ee;
   out.views = static_cast<int>(per_view.size());
   return out;
@@ -321,10 +293,8 @@ void judgePatternLens(const std::vector<View>& views, const VerdictOptions& o, F
               "the board's corners bend in the pattern of a lens distortion the images "
               "still have (radial k1 " +
                   formatFixed(lens->k, 3) + " +- " + formatFixed(lens->k_stddev, 3) + ", " +
-                  formatFixed(100.0 * lens->explained, 0) +
-                  " % of the corners' residual): the camera_info's distortion does not "
-                  "match the images (a raw image with a rectified camera_info, or none "
-                  "given); give the camera_info that matches the image topic");
+                  formatFixed(100.0 * lens->explained, 0) + " % of the corners' residual)" +
+                  kLensCause + "; give the camera_info that matches the image topic");
 }
 
 // What a lens residual does to a PBPC result: beyond lens_bias_sigmas of its noise, the views
@@ -380,10 +350,7 @@ LensCheck checkLens(const CalibrationSolution& sol, const std::vector<View>& vie
   out.shift = poseDelta(alt.camera_T_lidar, sol.camera_T_lidar);
   out.covariance = out.shift * out.shift.transpose();
   out.nameable = std::abs(lens->k) > o.lens_residual_sigmas * lens->k_stddev;
-  out.text = measured +
-             ": the camera_info's distortion does not match the images (a raw image "
-             "with a rectified camera_info, or none given); corrected for it, the "
-             "result moves " +
+  out.text = measured + kLensCause + "; corrected for it, the result moves " +
              formatFixed(out.shift.tail<3>().norm() * 1e3, 1) + " mm / " +
              formatFixed(out.shift.head<3>().norm() * kDegPerRad, 3) + " deg";
   return out;
@@ -553,6 +520,13 @@ void crossValidate(const CalibrationSolution& sol, const std::vector<View>& view
   }
 }
 
+// A systematic move of the result beyond its 1 sigma so far on any axis.
+bool movesBeyond(const Vector6d& shift, const Matrix6d& covariance) {
+  for (int i = 0; i < 6; ++i)
+    if (shift(i) * shift(i) > covariance(i, i)) return true;
+  return false;
+}
+
 // PPC with a declared board size the LiDAR disputes: the planes' depth, and so the translation,
 // is off by the scale's share of the board distance. Beyond the scale's noise, the result's move
 // with it is a likely bias and is returned as a covariance to add. Beyond the tolerance of a
@@ -565,8 +539,7 @@ Matrix6d judgeDeclaredScale(const CalibrationSolution& sol, const Target& target
   const DeclaredScaleCheck& c = sol.declared_scale;
   const double off = std::abs(c.scale - 1.0);
   if (!c.checked || !(off > o.declared_scale_sigmas * c.stddev)) return Matrix6d::Zero();
-  bool moves = false;
-  for (int i = 0; i < 6; ++i) moves |= c.shift(i) * c.shift(i) > sigma(i, i);
+  const bool moves = movesBeyond(c.shift, sigma);
   // s = LiDAR distance / camera distance: the declared size is 1/s of the true one.
   const double percent = (1.0 / c.scale - 1.0) * 100.0;
   std::string size = "board size";
@@ -610,9 +583,7 @@ void judgeUncertainty(const CalibrationSolution& sol, const Target& target, cons
   r.covariance += judgeDeclaredScale(sol, target, r.covariance, o, f, &size_finding);
   std::string lens_finding;
   if (!lens.text.empty()) {
-    bool moves = false;
-    for (int i = 0; i < 6; ++i) moves |= lens.shift(i) * lens.shift(i) > r.covariance(i, i);
-    if (lens.nameable && moves)
+    if (lens.nameable && movesBeyond(lens.shift, r.covariance))
       lens_finding = lens.text + ": give the camera_info that matches the image topic";
     else
       r.details.push_back(lens.text + " (the 1 sigma includes it)");
