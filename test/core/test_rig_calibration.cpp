@@ -6,6 +6,7 @@
 #include <board_calib/core/pipeline/rig_calibration.h>
 #include <board_calib/core/transform.h>
 #include "support/synthetic_rig.h"
+#include "support/synthetic_views.h"
 
 #include <gtest/gtest.h>
 
