@@ -132,12 +132,17 @@ class PlaneGapCost {
 
   template <typename T>
   bool operator()(const T* const q_ptr, const T* const t_ptr, T* residual) const {
-    const Eigen::Map<const Eigen::Quaternion<T>> q(q_ptr);
-    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> t(t_ptr);
-    const Eigen::Matrix<T, 3, 1> na = normal_a_.cast<T>();
-    const Eigen::Matrix<T, 3, 1> nb = q * normal_b_.cast<T>();
-    const Eigen::Matrix<T, 3, 1> p = (point_a_.cast<T>() + q * point_b_.cast<T>() + t) * T(0.5);
-    residual[0] = T(weight_) * ((na.dot(p) - T(offset_a_)) - (nb.dot(p - t) - T(offset_b_)));
+    residual[0] = gap(q_ptr, t_ptr, T(1.0));
+    return true;
+  }
+
+  // The a-side (camera) plane offset and board point multiplied by a free scale: a camera whose
+  // board geometry comes from a declared board size (or a focal length) that is off sees every
+  // board at a common factor of its true distance.
+  template <typename T>
+  bool operator()(const T* const q_ptr, const T* const t_ptr, const T* const s_ptr,
+                  T* residual) const {
+    residual[0] = gap(q_ptr, t_ptr, s_ptr[0]);
     return true;
   }
 
@@ -149,50 +154,26 @@ class PlaneGapCost {
         new PlaneGapCost(normal_a, offset_a, point_a, normal_b, offset_b, point_b, weight));
   }
 
+  // Blocks q, t and the camera-side scale.
+  static ceres::CostFunction* CreateScaled(const Eigen::Vector3d& normal_a, double offset_a,
+                                           const Eigen::Vector3d& point_a,
+                                           const Eigen::Vector3d& normal_b, double offset_b,
+                                           const Eigen::Vector3d& point_b, double weight = 1.0) {
+    return new ceres::AutoDiffCostFunction<PlaneGapCost, 1, 4, 3, 1>(
+        new PlaneGapCost(normal_a, offset_a, point_a, normal_b, offset_b, point_b, weight));
+  }
+
  private:
-  const Eigen::Vector3d normal_a_, point_a_, normal_b_, point_b_;
-  const double offset_a_, offset_b_;
-  const double weight_;
-};
-
-/// PlaneGapCost with the a-side (camera) plane offset and board point multiplied by a free
-/// scale: a camera whose board geometry comes from a declared board size (or a focal length)
-/// that is off sees every board at a common factor of its true distance.
-class ScaledPlaneGapCost {
- public:
-  ScaledPlaneGapCost(const Eigen::Vector3d& normal_a, double offset_a,
-                     const Eigen::Vector3d& point_a, const Eigen::Vector3d& normal_b,
-                     double offset_b, const Eigen::Vector3d& point_b, double weight)
-      : normal_a_(normal_a),
-        point_a_(point_a),
-        normal_b_(normal_b),
-        point_b_(point_b),
-        offset_a_(offset_a),
-        offset_b_(offset_b),
-        weight_(weight) {}
-
   template <typename T>
-  bool operator()(const T* const q_ptr, const T* const t_ptr, const T* const s_ptr,
-                  T* residual) const {
+  T gap(const T* const q_ptr, const T* const t_ptr, const T& s) const {
     const Eigen::Map<const Eigen::Quaternion<T>> q(q_ptr);
     const Eigen::Map<const Eigen::Matrix<T, 3, 1>> t(t_ptr);
-    const T s = s_ptr[0];
     const Eigen::Matrix<T, 3, 1> na = normal_a_.cast<T>();
     const Eigen::Matrix<T, 3, 1> nb = q * normal_b_.cast<T>();
     const Eigen::Matrix<T, 3, 1> p = (point_a_.cast<T>() * s + q * point_b_.cast<T>() + t) * T(0.5);
-    residual[0] = T(weight_) * ((na.dot(p) - T(offset_a_) * s) - (nb.dot(p - t) - T(offset_b_)));
-    return true;
+    return T(weight_) * ((na.dot(p) - T(offset_a_) * s) - (nb.dot(p - t) - T(offset_b_)));
   }
 
-  static ceres::CostFunction* Create(const Eigen::Vector3d& normal_a, double offset_a,
-                                     const Eigen::Vector3d& point_a,
-                                     const Eigen::Vector3d& normal_b, double offset_b,
-                                     const Eigen::Vector3d& point_b, double weight = 1.0) {
-    return new ceres::AutoDiffCostFunction<ScaledPlaneGapCost, 1, 4, 3, 1>(
-        new ScaledPlaneGapCost(normal_a, offset_a, point_a, normal_b, offset_b, point_b, weight));
-  }
-
- private:
   const Eigen::Vector3d normal_a_, point_a_, normal_b_, point_b_;
   const double offset_a_, offset_b_;
   const double weight_;

@@ -134,7 +134,7 @@ PairOutcome solvePair(const std::vector<PlaneCorrespondence>& c,
     auto* gap_loss = new ceres::ScaledLoss(solvers_detail::makeLoss(loss, options.loss_scale_m), w,
                                            ceres::TAKE_OWNERSHIP);
     blocks.emplace_back(
-        scale ? problem.AddResidualBlock(solvers_detail::ScaledPlaneGapCost::Create(
+        scale ? problem.AddResidualBlock(solvers_detail::PlaneGapCost::CreateScaled(
                                              pc.in_a.normal, pc.in_a.offset, at.in_a,
                                              pc.in_b.normal, pc.in_b.offset, at.in_b, sd),
                                          gap_loss, q, t, scale)
