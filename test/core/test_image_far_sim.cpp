@@ -220,10 +220,13 @@ TEST(ImageDetectorFarSim, FarBoardsOnPlainBackground) {
 // found (2, both facade rectangles, before session 7's segment detector). Through an
 // ImageBoardTracker in time order (the camera frames 2.5 s apart): the first frames are as alone;
 // once the static scene is known (6 s), its quadrilaterals are skipped and the line search
-// widens: measured 4 true boards, 1 wrong (2 before session 7); with the offline pre-pass over
-// the same frames (known from the first): 6 true, 2 wrong. What is
-// asserted is that the memory adds no wrong board (the hard rule) and keeps what it gains
-// (one true board less allowed for the noise of another machine's LSD run).
+// widens; once the frames span 6 s, the session's background is known too, and a board is what
+// departs from it, searched in its own colour contrast (the cardboard is the facade's grey):
+// measured 9 true boards, 0 wrong (4 and 1 before the background); with the offline pre-pass
+// over the same frames (scene and background known from the first): 17 true, 2 wrong (6 and 2
+// before). What is asserted is that the memory adds no wrong board (the hard rule) and keeps what
+// it gains (one true board less allowed for the noise of another machine's LSD run; the
+// background's gain is asserted at three quarters of what was measured).
 TEST(ImageDetectorFarSim, StreetFramesAddNoWrongBoard) {
   const FarResult alone = runSeeds(true);
   const FarResult tracked = runSeeds(true, ImageBoardDetectorOptions{}, true);
@@ -235,7 +238,8 @@ TEST(ImageDetectorFarSim, StreetFramesAddNoWrongBoard) {
   EXPECT_LT(prepass.worst_line_px, 1.5);
   EXPECT_LE(alone.wrong, 2);
   EXPECT_LE(tracked.wrong, 2);
-  EXPECT_GE(tracked.found - tracked.wrong, 3);
+  EXPECT_GE(tracked.found - tracked.wrong, 7);
+  EXPECT_GE(prepass.found - prepass.wrong, 13);
   // The true boards' lines: sub-pixel to ~1 px at 120-350 px in the street (measured 1.08 px;
   // the kWrongBoardPx bound separates them from other objects).
   EXPECT_LT(tracked.worst_line_px, 1.5);

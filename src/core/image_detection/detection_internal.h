@@ -5,6 +5,8 @@
 
 #include <opencv2/core.hpp>
 
+#include <deque>
+
 #include <ctime>
 #include <type_traits>
 
@@ -149,6 +151,11 @@ bool sameLine(const std::array<Eigen::Vector2d, 2>& x, const std::array<Eigen::V
 double worstCornerOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners,
                          const std::array<Eigen::Vector2d, kNumEdges>& reference);
 
+/// How far a board's corners lie from what `expected` allows: from the nearest expected corner,
+/// or (expected.inside) outside the expected quadrilateral. They fit within its tolerance.
+double expectedOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners,
+                      const ExpectedBoard& expected);
+
 /// Bounding box of the image border in undistorted px.
 cv::Rect2d undistortedBounds(const CameraModel& camera);
 
@@ -175,6 +182,25 @@ double estimateNoiseSigma(const cv::Mat& gray);
 void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                  const ImageBoardDetectorOptions& options, ImageDetection* out,
                  const ExpectedBoard* expected = nullptr, const StaticScene* excluded = nullptr);
+/// One channel in which the expected board stands out most of the ring around it: the bgr image
+/// projected on Fisher's colour axis between the two (the board and ring means 100 grey levels
+/// apart). Empty for a mono image or when the two do not differ.
+cv::Mat boardContrastImage(const cv::Mat& bgr, const CameraModel& camera,
+                           const ExpectedBoard& expected);
+/// Per pixel and channel, the median of same-sized 8-bit images.
+cv::Mat medianImage(const std::deque<cv::Mat>& frames);
+/// Where a bgr frame departs from the scene's background (StaticScene::background, downscaled
+/// bgr): a pixel whose largest channel difference exceeds 4 times the frame's median one (noise
+/// and lighting drift). Empty mask when there is no background of this image's size.
+struct Foreground {
+  cv::Mat mask;        ///< 8-bit, the background's size
+  double scale = 1.0;  ///< background px per image px
+};
+Foreground foregroundMask(const cv::Mat& bgr, const cv::Mat& background);
+/// Board-sized, nearly convex parts of the foreground (openings cut the holder off) as expected
+/// boards (ExpectedBoard::inside) that a board may exceed by a quarter of its size. Largest first.
+std::vector<ExpectedBoard> foregroundBoards(const Foreground& foreground, const CameraModel& camera,
+                                            const ImageBoardDetectorOptions& options);
 void detectCheckerboard(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                         const ImageBoardDetectorOptions& options, ImageDetection* out);
 

@@ -5,12 +5,15 @@
 #include <apriltag/apriltag.h>
 #include <apriltag/tag36h11.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <map>
 
 namespace board_calib {
 
 namespace {
+
 // libapriltag puts pixel centres at integer + 0.5 (libapriltag convention); OpenCV and CameraModel
 // at integers.
 constexpr double kAprilTagPixelOffset = 0.5;
@@ -121,6 +124,9 @@ struct ImageBoardDetector::Impl {
   }
 
   void detectAprilTags(const cv::Mat& gray, const CameraModel& camera, ImageDetection* out);
+  void searchInColour(const cv::Mat& image, const CameraModel& camera,
+                      const ExpectedBoard* expected, const StaticScene* excluded,
+                      ImageDetection* out) const;
 };
 
 Expected<ImageBoardDetector> ImageBoardDetector::create(const Target& target,
@@ -183,6 +189,42 @@ ImageDetection ImageBoardDetector::detectNear(const cv::Mat& image, const Camera
   return run(image, camera, &expected, nullptr);
 }
 
+// A board of the scene's grey but another colour (cardboard on a facade): searched once more in
+// the channel where it stands out of its surroundings, inside a second chance's expected board or
+// where the frame departs from the session's background. The place is what tells board from
+// surroundings; a single frame alone has none and keeps its grey search.
+void ImageBoardDetector::Impl::searchInColour(const cv::Mat& image, const CameraModel& camera,
+                                              const ExpectedBoard* expected,
+                                              const StaticScene* excluded,
+                                              ImageDetection* out) const {
+  std::vector<ExpectedBoard> places;
+  image_detection::Foreground foreground;
+  if (expected) {
+    places.push_back(*expected);
+  } else if (excluded && !excluded->background.empty()) {
+    foreground = image_detection::foregroundMask(image, excluded->background);
+    places = image_detection::foregroundBoards(foreground, camera, options);
+  }
+  if (!expected && !foreground.mask.empty() && places.empty())
+    out->features.reason += "; no board-sized part of the frame departs from the scene";
+  for (const ExpectedBoard& place : places) {
+    const cv::Mat contrast = image_detection::boardContrastImage(image, camera, place);
+    if (contrast.empty()) continue;
+    ImageDetection colour;
+    colour.features.K = out->features.K;
+    colour.features.image_width = image.cols;
+    colour.features.image_height = image.rows;
+    image_detection::detectPlain(contrast, camera, target, options, &colour, &place, excluded);
+    if (colour.features.found) {
+      *out = std::move(colour);
+      return;
+    }
+    out->features.reason +=
+        expected ? "; in its colour contrast: " + colour.features.reason
+                 : "; where the frame departs from the scene, in colour: " + colour.features.reason;
+  }
+}
+
 ImageDetection ImageBoardDetector::run(const cv::Mat& image, const CameraModel& camera,
                                        const ExpectedBoard* expected, const StaticScene* excluded) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -210,6 +252,8 @@ ImageDetection ImageBoardDetector::run(const cv::Mat& image, const CameraModel& 
         case TargetType::kPlain:
           image_detection::detectPlain(gray, camera, impl_->target, impl_->options, &out, expected,
                                        excluded);
+          if (!f.found && image.channels() == 3)
+            impl_->searchInColour(image, camera, expected, excluded, &out);
           break;
         case TargetType::kCheckerboard:
           image_detection::detectCheckerboard(gray, camera, impl_->target, impl_->options, &out);
@@ -301,6 +345,41 @@ void ImageBoardDetector::Impl::detectAprilTags(const cv::Mat& gray_in, const Cam
   }
   if (d.rejected_tags > 0) f.reason = "ignored tags not on the grid: " + wrong_ids;
   f.found = true;
+}
+
+std::vector<BoardCandidate> boardCandidates(const ImageDetection& detection,
+                                            const CameraModel& camera, const Target& target,
+                                            double corner_sigma_px) {
+  std::vector<std::array<Eigen::Vector2d, kNumEdges>> quads = detection.details.hypotheses_px;
+  if (detection.features.found) quads.push_back(detection.features.corners_px);
+  const auto outer = target.outerCorners();
+  const Points3 board(outer.begin(), outer.end());
+  const Eigen::Matrix3d K = camera.K();
+  const double f = K(0, 0);
+  std::vector<BoardCandidate> out;
+  for (const auto& q : quads) {
+    double perimeter = 0;
+    for (int k = 0; k < kNumEdges; ++k) perimeter += (q[(k + 1) % 4] - q[k]).norm();
+    if (!(perimeter > 0) || !std::isfinite(perimeter)) continue;
+    // Either side of the quadrilateral may be the board's width.
+    image_detection::PoseFit best;
+    for (int shift = 0; shift < 2; ++shift) {
+      Points2 pixels;
+      for (int k = 0; k < kNumEdges; ++k) pixels.push_back(q[(k + shift) % 4]);
+      const image_detection::PoseFit fit =
+          image_detection::fitPose(board, pixels, K, corner_sigma_px);
+      if (fit.ok && (!best.ok || fit.rms_px < best.rms_px)) best = fit;
+    }
+    if (!best.ok || best.rms_px > 0.25 * perimeter / kNumEdges) continue;
+    BoardCandidate c;
+    c.centre = best.camera_T_board * target.center();
+    const double depth = c.centre.norm(), sigma_px = std::max(best.rms_px, corner_sigma_px);
+    // Depth from the apparent size: d = f w / w_px, so sigma_d = d^2 sigma_px / (f w).
+    c.depth_sigma_m = depth * depth * sigma_px / (f * std::min(target.width, target.height));
+    c.lateral_sigma_m = depth * sigma_px / f;
+    out.push_back(c);
+  }
+  return out;
 }
 
 }  // namespace board_calib

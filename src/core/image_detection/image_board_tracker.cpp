@@ -11,7 +11,14 @@
 #include <chrono>
 #include <limits>
 
+#include <opencv2/imgproc.hpp>
+
 namespace board_calib {
+namespace {
+
+constexpr size_t kMinBackgroundFrames = 5;  // a median of fewer is the board wherever it held
+
+}  // namespace
 
 Expected<ImageBoardTracker> ImageBoardTracker::create(const Target& target,
                                                       const ImageBoardDetectorOptions& detector,
@@ -35,6 +42,34 @@ void ImageBoardTracker::reset() {
   lines_.clear();
   frames_ = 0;
   last_stamp_ = -1e300;
+  background_frames_.clear();
+  background_last_s_ = -1e300;
+  background_ = cv::Mat();
+}
+
+// One frame every quarter of static_after_s, over forget_after_s at most: the board and its holder
+// stay at one place for a hold, seldom half of that. The median is used once the frames span
+// static_after_s (a board held still from the start is not yet background then).
+void ImageBoardTracker::learnBackground(const cv::Mat& image, double stamp) {
+  if (image.channels() != 3 || stamp - background_last_s_ < memory_.static_after_s / 4) return;
+  background_last_s_ = stamp;
+  const double scale =
+      static_cast<double>(detector_.options().segmentation_width_px) / std::max(1, image.cols);
+  cv::Mat small;
+  cv::resize(image, small, cv::Size(), std::min(1.0, scale), std::min(1.0, scale), cv::INTER_AREA);
+  if (!background_frames_.empty() && background_frames_.front().size() != small.size())
+    background_frames_.clear();
+  background_frames_.push_back(std::move(small));
+  background_stamps_.push_back(stamp);
+  while (!background_stamps_.empty() &&
+         stamp - background_stamps_.front() > memory_.forget_after_s) {
+    background_frames_.pop_front();
+    background_stamps_.pop_front();
+  }
+  const bool spans = stamp - background_stamps_.front() >= memory_.static_after_s;
+  background_ = spans && background_frames_.size() >= kMinBackgroundFrames
+                    ? image_detection::medianImage(background_frames_)
+                    : cv::Mat();
 }
 
 int ImageBoardTracker::numStaticPlaces() const {
@@ -60,6 +95,8 @@ StaticScene ImageBoardTracker::staticScene() const {
   for (const LinePlace& l : lines_)
     if (l.sightings.isStatic(memory_, frames_)) out.lines_px.push_back(l.ends_px);
   out.rectangles.insert(out.rectangles.end(), known_.rectangles.begin(), known_.rectangles.end());
+  // A pre-pass saw the whole recording: its background is the better one.
+  out.background = !known_.background.empty() ? known_.background : background_;
   out.lines_px.insert(out.lines_px.end(), known_.lines_px.begin(), known_.lines_px.end());
   return out;
 }
@@ -132,12 +169,14 @@ void ImageBoardTracker::learnScene(const cv::Mat& image, const CameraModel& came
         image_detection::sceneLines(image_detection::toGray(image), camera, detector_.options()),
         stamp, image.cols);
   forget(stamp);
+  learnBackground(image, stamp);
 }
 
 ImageDetection ImageBoardTracker::detect(const cv::Mat& image, const CameraModel& camera,
                                          double stamp) {
   startFrame(stamp);
   const auto t0 = std::chrono::steady_clock::now();
+  learnBackground(image, stamp);
   const StaticScene scene = staticScene();
   const auto t1 = std::chrono::steady_clock::now();
   ImageDetection det = detector_.detect(image, camera, scene);

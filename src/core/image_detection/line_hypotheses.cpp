@@ -340,7 +340,7 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
           if (!scoreQuad(sides, c, &q)) continue;
           q.corner_ends = ends;
           if (search.expected &&
-              worstCornerOffset(c, search.expected->corners_px) > search.expected->tolerance_px)
+              expectedOffset(c, *search.expected) > search.expected->tolerance_px)
             continue;
           quads.push_back(q);
         }

@@ -15,6 +15,10 @@ namespace board_calib {
 namespace image_detection {
 namespace {
 
+// Near an expected board, a region is tried down to this share of its area (a board partly
+// hidden by a hand, or whose expected corners are a quarter of its size off).
+constexpr double kExpectedAreaShare = 0.25;
+
 constexpr double kCleanBoardCoverage =
     0.9;  // a region board this well evidenced on every side needs no line search
 // The edge gradient is a difference of two samples 1 px apart: its noise is sqrt(2) x the pixel
@@ -57,8 +61,14 @@ struct HypothesisSearch {
     tried.push_back(corners);
     reasons.push_back(std::string(h.source) + ": " + (is_board ? "board" : af.reason));
     if (is_board) {
-      if (support.score > best_score) {
-        best_score = support.score;
+      // Of two boards, a steeply turned one is the likelier other rectangle (a door or the
+      // holder's legs seen edge-on fit a board only near the largest turn): support is weighed
+      // by the cosine of the turn from the line of sight.
+      const Eigen::Vector3d centre = af.camera_T_board.translation();
+      const double facing = std::abs(af.camera_T_board.linear().col(2).dot(centre.normalized()));
+      const double score = support.score * (std::isfinite(facing) ? facing : 0.0);
+      if (score > best_score) {
+        best_score = score;
         best_min_coverage = support.min_coverage;
         best_found = std::move(attempt);
       }
@@ -100,12 +110,18 @@ bool nearExpected(const Eigen::Vector2d& point, const ExpectedBoard& expected) {
 // A board that the prior does not put there is another rectangle.
 void checkExpected(const ExpectedBoard& expected, ImageDetection* attempt) {
   CameraBoardFeatures& f = attempt->features;
-  const double off = worstCornerOffset(f.corners_px, expected.corners_px);
+  const double off = expectedOffset(f.corners_px, expected);
   if (off <= expected.tolerance_px) return;
   f.found = false;
-  f.reason =
-      cv::format("a board %.0f px from where the prior extrinsic puts it (tolerance %.0f px)", off,
-                 expected.tolerance_px);
+  f.reason = expected.inside
+                 ? cv::format(
+                       "a board reaching %.0f px out of the part of the frame that moved "
+                       "(tolerance %.0f px)",
+                       off, expected.tolerance_px)
+                 : cv::format(
+                       "a board %.0f px from where the prior extrinsic puts it (tolerance "
+                       "%.0f px)",
+                       off, expected.tolerance_px);
 }
 
 // A board where the session has seen a static scene rectangle is that rectangle.
@@ -161,8 +177,7 @@ void addTracedSides(const cv::Mat& gray, const CameraModel& camera, const Target
       if (segmentShareAlong(evidence.segments_u, q.corners[2], q.corners[3], tolerance) >=
           kLineCoverageShare * o.min_side_coverage)
         continue;
-      if (expected && worstCornerOffset(q.corners, expected->corners_px) > expected->tolerance_px)
-        continue;
+      if (expected && expectedOffset(q.corners, *expected) > expected->tolerance_px) continue;
       Hypothesis h = fromQuad(q, camera, o, true);
       h.source = "traced side";
       hypotheses->push_back(std::move(h));
@@ -214,7 +229,18 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
 
   // Hypotheses: regions (best score first, then openings of the rejected ones) and quadrilaterals
   // of long straight edges. None is a gate for the others.
-  Segmentation seg = timed(&times.regions_ms, [&] { return segmentBoard(small, o); });
+  // Near an expected board, a region need only be as large as a good part of it: the image
+  // share that keeps small clutter out of a whole-image search would refuse a far board.
+  double min_area = 0;
+  if (expected) {
+    std::vector<cv::Point2f> quad;
+    for (const auto& c : expected->corners_px)
+      quad.emplace_back(static_cast<float>(c.x() / sx), static_cast<float>(c.y() / sx));
+    min_area = std::min(o.min_board_area_fraction * small.total(),
+                        kExpectedAreaShare * cv::contourArea(quad));
+  }
+  Segmentation seg =
+      timed(&times.regions_ms, [&] { return segmentBoard(small, o, std::max(min_area, 0.0)); });
   std::vector<Hypothesis> hypotheses;
   auto addRegions = [&] {
     for (size_t i = 0; i < seg.candidates.size() && i < static_cast<size_t>(o.max_board_candidates);
@@ -234,6 +260,7 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
   // Openings of the rejected regions (distance transforms: as costly as the segmentation) are
   // made only when no region was the board; they come before the line quadrilaterals.
   size_t regions = first_regions;
+  bool projected_tried = false;
   for (size_t i = 0;; ++i) {
     if (i == first_regions && !search.found()) {
       timed(&times.regions_ms, [&] { proposeOpenedRegions(small.size(), o, &seg); });
@@ -267,6 +294,25 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
         addTracedSides(gray, camera, target, o, evidence, expected, min_gradient,
                        &line_quads.three_sides, &hypotheses, &quads);
       });
+    // Last, a second chance's expected board itself: where the other sensor's board projects,
+    // its sides searched as wide as the prior is uncertain (a board no hypothesis of its own
+    // outlined: too faint or too small against the scene's longer lines).
+    if (i == hypotheses.size() && i >= regions && !search.found() && expected && !projected_tried) {
+      projected_tried = true;
+      QuadHypothesis q;
+      q.corners = expected->corners_px;
+      Hypothesis h = fromQuad(q, camera, o);
+      h.source = "projected board";
+      double perimeter = 0;
+      for (int k = 0; k < kNumEdges; ++k)
+        perimeter += (q.corners[(k + 1) % 4] - q.corners[k]).norm();
+      // Never as far as the opposite side: a third of the mean side at most.
+      const double half = std::min(std::max(o.coarse_search_px, expected->tolerance_px),
+                                   perimeter / (3.0 * kNumEdges));
+      for (auto& side : h.sides) side.search_px = half;
+      hypotheses.push_back(std::move(h));
+      quads.push_back(std::move(q));
+    }
     if (i >= hypotheses.size()) break;
     if (i >= first_regions && i < regions && search.found())
       continue;  // openings only until one is the board

@@ -220,7 +220,8 @@ EdgeFit refineOnce(const cv::Mat& gray, const CameraModel& camera, const CoarseE
   fit.line = orient.through(a, b);
   LocalPolarity polarity;
   for (int pass = 0; pass <= kFinePasses; ++pass) {
-    const double half = pass == 0 ? o.coarse_search_px : o.fine_search_px;
+    const double half = pass > 0 ? o.fine_search_px
+                                 : (coarse.search_px > 0 ? coarse.search_px : o.coarse_search_px);
     const Eigen::Vector2d n = fit.line.head<2>();
     // Project the segment ends onto the current line.
     a = a - (n.dot(a) + fit.line.z()) * n;
@@ -285,8 +286,8 @@ EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseE
   if (refined)
     for (const RefinedSide& r : *refined)
       if (r.coarse.a == coarse.a && r.coarse.b == coarse.b &&
-          r.coarse.a_corner == coarse.a_corner && r.coarse.b_corner == coarse.b_corner &&
-          insideAll(r.oriented, inside_u))
+          r.coarse.search_px == coarse.search_px && r.coarse.a_corner == coarse.a_corner &&
+          r.coarse.b_corner == coarse.b_corner && insideAll(r.oriented, inside_u))
         return r.fit;
   RefinedSide side;
   side.coarse = coarse;

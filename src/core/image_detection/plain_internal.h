@@ -36,8 +36,15 @@ struct Segmentation {
   void sort();
 };
 
-/// Proposes board regions from brightness (Otsu, both polarities) and uniformity.
-Segmentation segmentBoard(const cv::Mat& small, const ImageBoardDetectorOptions& o);
+/// Proposes board regions from brightness (Otsu, both polarities) and uniformity, of at least
+/// `min_area` downscaled px (0: the options' fraction of the image).
+Segmentation segmentBoard(const cv::Mat& small, const ImageBoardDetectorOptions& o,
+                          double min_area = 0);
+
+/// The parts of a region (a contour in an image of `size`) left by openings at fractions of its
+/// inradius: a board with a thinner neighbour attached (a ceiling band, the holder's legs).
+std::vector<std::vector<cv::Point>> openedParts(const std::vector<cv::Point>& contour,
+                                                cv::Size size, double min_area);
 
 /// Second chance: openings of the rejected regions replace the candidates.
 void proposeOpenedRegions(cv::Size size, const ImageBoardDetectorOptions& o, Segmentation* seg);
@@ -67,6 +74,9 @@ struct CoarseEdge {
   double length = 0;                            ///< px; 0 marks a stretch along the image border
   bool a_corner = true,
        b_corner = true;  ///< an end at a board corner (not where the image cuts the side)
+  /// px, half width of the first edge search across the side; 0: the options' coarse_search_px.
+  /// Wider for a side projected from the other sensor's board (its prior's uncertainty).
+  double search_px = 0;
 };
 
 /// One board hypothesis: its straight sides (raw px; in cyclic order when there are four) and a

@@ -159,8 +159,9 @@ std::vector<std::vector<cv::Point>> openRegion(const std::vector<cv::Point>& con
     // core's box grown by more than that (the same distances within radius, far cheaper when a
     // long neighbour made the region's box large).
     const int pad = static_cast<int>(std::ceil(radius)) + 1;
-    const cv::Rect grown = (cv::boundingRect(core) + cv::Size(2 * pad, 2 * pad) -
-                           cv::Point(pad, pad)) & cv::Rect(cv::Point(), core.size());
+    const cv::Rect grown =
+        (cv::boundingRect(core) + cv::Size(2 * pad, 2 * pad) - cv::Point(pad, pad)) &
+        cv::Rect(cv::Point(), core.size());
     distanceToZero(255 - core(grown), &outside);
     const cv::Mat opened = outside <= radius;  // dilation of the eroded set
     std::vector<std::vector<cv::Point>> contours;
@@ -173,6 +174,11 @@ std::vector<std::vector<cv::Point>> openRegion(const std::vector<cv::Point>& con
 }
 
 }  // namespace
+
+std::vector<std::vector<cv::Point>> openedParts(const std::vector<cv::Point>& contour,
+                                                cv::Size size, double min_area) {
+  return openRegion(contour, size, min_area);
+}
 
 void Segmentation::add(const std::vector<cv::Point>& contour, const ImageBoardDetectorOptions& o,
                        bool keep_rejected) {
@@ -192,7 +198,8 @@ void Segmentation::sort() {
 // Proposes board regions. Proposals come from brightness (Otsu, both polarities) and uniformity
 // (connected low-gradient areas: they separate a board from an equally bright neighbour across
 // a faint edge); convexity, uniformity and size decide.
-Segmentation segmentBoard(const cv::Mat& small, const ImageBoardDetectorOptions& o) {
+Segmentation segmentBoard(const cv::Mat& small, const ImageBoardDetectorOptions& o,
+                          double min_area) {
   Segmentation seg;
   cv::Mat bright, gradient, flat;
   cv::GaussianBlur(small, seg.blurred, cv::Size(5, 5), 0);
@@ -200,7 +207,7 @@ Segmentation segmentBoard(const cv::Mat& small, const ImageBoardDetectorOptions&
   cv::morphologyEx(seg.blurred, gradient, cv::MORPH_GRADIENT, cv::Mat());
   cv::threshold(gradient, flat, o.max_flat_gradient, 255, cv::THRESH_BINARY_INV);
   const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5));
-  seg.min_area = o.min_board_area_fraction * small.total();
+  seg.min_area = min_area > 0 ? min_area : o.min_board_area_fraction * small.total();
   // Flat areas leak into the background through short stretches of low-contrast edge: a larger
   // opening cuts those bridges (the board is far wider than them).
   const cv::Mat wide_kernel =

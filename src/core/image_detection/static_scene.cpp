@@ -20,6 +20,27 @@ double worstCornerOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners,
   return worst;
 }
 
+double expectedOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners,
+                      const ExpectedBoard& expected) {
+  if (!expected.inside) return worstCornerOffset(corners, expected.corners_px);
+  // Outside the quadrilateral: the largest distance beyond any of its sides (0 inside). The
+  // corners are in the image's cyclic order either way round.
+  const auto& q = expected.corners_px;
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+  for (const auto& c : q) centre += 0.25 * c;
+  double worst = 0;
+  for (const auto& c : corners)
+    for (size_t k = 0; k < q.size(); ++k) {
+      const Eigen::Vector2d d = q[(k + 1) % q.size()] - q[k];
+      Eigen::Vector2d n(d.y(), -d.x());
+      if (!(n.norm() > 0)) continue;
+      n.normalize();
+      if (n.dot(centre - q[k]) > 0) n = -n;  // outward
+      worst = std::max(worst, n.dot(c - q[k]));
+    }
+  return worst;
+}
+
 bool sameLine(const std::array<Eigen::Vector2d, 2>& x, const std::array<Eigen::Vector2d, 2>& y,
               double tolerance_px) {
   const bool x_longer = (x[1] - x[0]).squaredNorm() >= (y[1] - y[0]).squaredNorm();

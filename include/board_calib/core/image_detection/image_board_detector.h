@@ -164,6 +164,9 @@ struct ExpectedBoard {
   std::array<Eigen::Vector2d, kNumEdges> corners_px{};
   double tolerance_px =
       0.0;  ///< px, how far the true corners may lie from these (the prior's projection error)
+  /// A board anywhere inside the quadrilateral (within the tolerance) fits, not only one whose
+  /// corners lie near these: the part of a frame that moved, the holder included.
+  bool inside = false;
 };
 
 /// A rectangle of the static scene (window, door, poster) that a session saw at one place
@@ -181,8 +184,28 @@ struct StaticRectangle {
 struct StaticScene {
   std::vector<StaticRectangle> rectangles;
   std::vector<std::array<Eigen::Vector2d, 2>> lines_px;  ///< support ends, undistorted px
-  bool empty() const { return rectangles.empty() && lines_px.empty(); }
+  /// bgr, the image downscaled to segmentation_width_px: per pixel the median of frames spread
+  /// over the session, where the moving board and its holder are rarely twice at one place.
+  /// Empty until the session has seen enough of the scene. A board the whole-image search
+  /// misses is searched again, in its own colour contrast, where a frame departs from it.
+  cv::Mat background;
+  bool empty() const { return rectangles.empty() && lines_px.empty() && background.empty(); }
 };
+
+/// A quadrilateral an image search tried (the board or not), placed as the declared board by PnP
+/// on its corners: what a session without a calibration yet compares with the LiDAR's boards.
+struct BoardCandidate {
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();  ///< m, board centre in the camera frame
+  double depth_sigma_m = 0.0;    ///< m, 1 sigma of the centre along its viewing ray
+  double lateral_sigma_m = 0.0;  ///< m, 1 sigma across it
+};
+
+/// Plain board: the board found and every quadrilateral tried (ImageDetectionDetails), as
+/// candidates. Their 1 sigmas follow the corners' misfit to the declared board (at least
+/// `corner_sigma_px`); a quadrilateral that misfits by a quarter of its size is no view of it.
+std::vector<BoardCandidate> boardCandidates(const ImageDetection& detection,
+                                            const CameraModel& camera, const Target& target,
+                                            double corner_sigma_px);
 
 class ImageBoardDetector {
  public:

@@ -7,6 +7,7 @@
 #include <board_calib/core/common/static_memory.h>
 #include <board_calib/core/image_detection/image_board_detector.h>
 
+#include <deque>
 #include <vector>
 
 namespace board_calib {
@@ -71,6 +72,7 @@ class ImageBoardTracker {
   void startFrame(double stamp);
   void forget(double stamp);
   void remember(const ImageDetection& detection, double stamp);
+  void learnBackground(const cv::Mat& image, double stamp);
   ImageBoardDetector detector_;
   StaticMemoryOptions memory_;
   std::vector<Place> places_;
@@ -79,6 +81,11 @@ class ImageBoardTracker {
   long frames_ = 0;
   double memory_ms_ = 0.0;
   double last_stamp_ = -1e300;
+  // Downscaled bgr frames, one per background period, and their median (StaticScene::background).
+  std::deque<cv::Mat> background_frames_;
+  std::deque<double> background_stamps_;
+  double background_last_s_ = -1e300;
+  cv::Mat background_;
 };
 
 }  // namespace board_calib
