@@ -65,6 +65,14 @@ void secondPass(const Args& args, const std::vector<Method>& methods, const Targ
   std::string why_not;
   options.prior =
       secondChancePrior(*run, (*pipeline)->sightings(), options.second_chance, &why_not);
+  std::string consensus;
+  if (!options.prior && target.type == TargetType::kPlain) {
+    // No first calibration: the session's moving board may still fix a prior.
+    std::string why_consensus;
+    options.prior = consensusPrior((*pipeline)->sightings(), options.session.sync_tolerance_s,
+                                   target, options.second_chance, &why_consensus, &consensus);
+    if (!options.prior) why_not += "; no prior from the session's boards either: " + why_consensus;
+  }
   const size_t first_views = run->used_views.size();
   const int candidates = secondChanceCandidates((*pipeline)->sightings(),
                                                 secondChanceWindowS(options.session), target);
@@ -78,8 +86,10 @@ void secondPass(const Args& args, const std::vector<Method>& methods, const Targ
     std::cerr << "calibrate_bag: first pass: " << (*pipeline)->session().views().size()
               << " views, " << first_views << " consistent, verdict " << verdictName(run->verdict)
               << "; " << candidates
-              << " frame(s) where one sensor missed the board: second pass with that result as "
-                 "the prior\n";
+              << " frame(s) where one sensor missed the board: second pass with "
+              << (consensus.empty() ? "that result"
+                                    : "a prior from the session's boards (" + consensus + ")")
+              << " as the prior\n";
   auto p = CalibrationPipeline::create(target, options);
   if (!p) fail(p.error());
   std::string camera_frame = run->result.camera_frame, lidar_frame = run->result.lidar_frame;
@@ -275,12 +285,17 @@ int main(int argc, char** argv) {
   // Consistency, every method, the verdict and the choice: the same run as the live calibrator's.
   PairCalibrationOptions run_options;
   run_options.solver = solver;
-  PairCalibration run =
-      solveSession(args, *session, methods, *target, run_options, &camera_frame, &lidar_frame);
+  PairCalibration run;
+  if (pipeline && args.second_chance && target->type == TargetType::kPlain &&
+      session->plainViews().empty())
+    run.reason = session->captureStats().whyNoViews();  // the second pass may still find views
+  else
+    run = solveSession(args, *session, methods, *target, run_options, &camera_frame, &lidar_frame);
   if (pipeline && args.second_chance) {
     secondPass(args, methods, *target, options, run_options, &pipeline, &run);
     session = &pipeline->session();
   }
+  if (run.runs.empty()) fail(run.reason);
   if (!args.save_session.empty()) {
     const Status st = session->save(args.save_session);
     if (!st) fail(st.reason);

@@ -197,6 +197,12 @@ FrameOutcome CalibrationPipeline::addImage(const cv::Mat& image, const CameraInt
     d.stats.image_failures[det.features.reason]++;
     d.sightings.images_missed.push_back(stamp);
   }
+  // A first pass keeps every board-shaped quadrilateral for a consensus without a calibration.
+  if (!d.options.prior && d.target.type == TargetType::kPlain) {
+    auto candidates =
+        boardCandidates(det, *d.camera, d.target, d.options.second_chance.corner_sigma_px);
+    if (!candidates.empty()) d.sightings.image_candidates[stamp] = std::move(candidates);
+  }
   if (d.options.keep_view_frames) {
     d.recent_images.emplace_back(stamp, image);
     d.trimFrames(d.recent_images);

@@ -42,6 +42,7 @@ std::string SecondChanceOptions::validate() const {
   if (!(min_translation_sigma_m >= 0.0)) return "min_translation_sigma_m must be >= 0";
   if (!(corner_sigma_px > 0.0)) return "corner_sigma_px must be > 0";
   if (!(min_tolerance_px >= 0.0)) return "min_tolerance_px must be >= 0";
+  if (min_consensus_boards < 3) return "min_consensus_boards must be >= 3";
   return {};
 }
 

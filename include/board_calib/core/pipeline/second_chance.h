@@ -29,6 +29,9 @@ struct SecondChanceOptions {
   double corner_sigma_px = 1.0;   ///< px, 1 sigma of a plain board's image corner (the depth
                                   ///< error of its PnP grows with range^2 from it)
   double min_tolerance_px = 4.0;  ///< px, smallest image search tolerance (line fits and bowing)
+  /// Distinct board positions that must agree before a prior is taken from the session's
+  /// consensus alone, without a first calibration (consensusPrior; at least 3: a rigid motion).
+  int min_consensus_boards = 5;
   std::string validate() const;
 };
 
@@ -53,6 +56,9 @@ struct BoardSightings {
   std::map<double, ImageSighting> images;
   std::map<double, LidarSighting> clouds;
   std::vector<double> images_missed, clouds_missed;
+  /// First pass, plain boards: every board-shaped quadrilateral each image search tried, found
+  /// or not (boardCandidates), for a consensus without a calibration.
+  std::map<double, std::vector<BoardCandidate>> image_candidates;
 };
 
 /// s, how far in time the other sensor's board may be from a missed frame: the session's still
@@ -83,6 +89,17 @@ std::optional<SecondChancePrior> secondChancePrior(const PairCalibration& run,
                                                    const SecondChanceOptions& options,
                                                    std::string* why_not);
 
+/// Without a first calibration (issue 14, 3a: the board is what moves): a placement of the LiDAR
+/// in the camera frame that puts the LiDAR's boards on image candidates of the same moments
+/// (within `pair_tolerance_s`), drawn from triples of them and scored by the distinct board
+/// positions it explains. The best, refitted on those, is the prior when at least
+/// options.min_consensus_boards positions agree and they span more than a line; its 1 sigmas
+/// come from their residuals. A scene rectangle stays put while the board moves, so it cannot
+/// take part in such a consensus. nullopt with the reason otherwise; `summary` says what agreed.
+std::optional<SecondChancePrior> consensusPrior(const BoardSightings& first_pass,
+                                                double pair_tolerance_s, const Target& target,
+                                                const SecondChanceOptions& options,
+                                                std::string* why_not, std::string* summary);
 /// Where the prior puts the board the LiDAR saw nearest to an image at `stamp` (within
 /// `window_s`); nullopt with the reason when there is none.
 std::optional<ExpectedBoard> expectedImageBoard(const SecondChancePrior& prior, double stamp,
