@@ -293,6 +293,69 @@ TEST(ImageBoardTracker, TimeGoingBackForgetsTheStaticScene) {
   EXPECT_GT(tracker->numPlaces(), 0);  // the replay's first frame is remembered anew
 }
 
+// The session's background: per pixel the median of frames spread over the session. A board of
+// the background's grey but another colour, moved from hold to hold, is not in it; it is used only
+// once its frames span static_after_s; bad stamps and a camera that changes size leave it sane.
+TEST(ImageBoardTracker, BackgroundIsTheSceneNotTheMovingBoard) {
+  const CameraModel camera = testCamera();
+  const Target target = testTarget();
+  auto tracker = ImageBoardTracker::create(target, {});
+  ASSERT_TRUE(tracker.ok());
+  cv::RNG rng(11);
+  const cv::Scalar scene(110, 120, 130), board_colour(60, 125, 175);  // bgr: orange-ish, one grey
+  auto frame = [&](const Corners& board) {
+    cv::Mat image(camera.height(), camera.width(), CV_8UC3, scene);
+    std::vector<cv::Point> poly;
+    for (const auto& p : board) poly.emplace_back(static_cast<int>(p.x()), static_cast<int>(p.y()));
+    cv::fillConvexPoly(image, poly, board_colour);
+    cv::Mat noise(image.size(), CV_16SC3);
+    rng.fill(noise, cv::RNG::NORMAL, 0.0, 2.0);
+    cv::Mat out;
+    image.convertTo(out, CV_16SC3);
+    out += noise;
+    out.convertTo(out, CV_8UC3);
+    return out;
+  };
+  // Holds over the whole image (no two boards overlap, 7 m away).
+  std::vector<Eigen::Vector3d> holds;
+  for (double y : {-1.0, 1.0})
+    for (double x : {-2.4, -0.8, 0.8, 2.4}) holds.emplace_back(x, y, 7.0);
+  double t = 100.0;
+  for (size_t k = 0; k < holds.size(); ++k, t += 1.5) {
+    tracker->detect(frame(boardCorners(camera, target, holds[k], 30.0)), camera, t);
+    // Frames 1.5 s apart span static_after_s (6 s) from the fifth on.
+    EXPECT_EQ(tracker->staticScene().background.empty(), k < 4) << "frame " << k;
+  }
+  const cv::Mat background = tracker->staticScene().background;
+  ASSERT_FALSE(background.empty());
+  EXPECT_EQ(background.cols, ImageBoardDetectorOptions{}.segmentation_width_px);
+  // Where every board was, the background is the scene (the median's noise is well under 3).
+  const double scale = static_cast<double>(background.cols) / camera.width();
+  for (const auto& centre : holds) {
+    Eigen::Vector2d px;
+    ASSERT_TRUE(camera.projectUndistorted(centre, &px));
+    const cv::Vec3b v = background.at<cv::Vec3b>(static_cast<int>(px.y() * scale),
+                                                 static_cast<int>(px.x() * scale));
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(v[c], scene[c], 3.0) << "at " << px.transpose();
+  }
+  // A NaN stamp and a camera of another size: no crash, the background is not corrupted.
+  tracker->detect(frame(boardCorners(camera, target, holds[0], 0.0)), camera, std::nan(""));
+  EXPECT_EQ(tracker->staticScene().background.size(), background.size());
+  CameraIntrinsics small = testIntrinsics();
+  small.width = 640;
+  small.height = 480;
+  small.cx = 319.5;
+  small.cy = 239.5;
+  const auto small_camera = CameraModel::create(small);
+  ASSERT_TRUE(small_camera.ok());
+  tracker->detect(cv::Mat(480, 640, CV_8UC3, scene), *small_camera, t + 1.5);
+  EXPECT_TRUE(tracker->staticScene().background.empty());  // another camera: starts over
+  // Time going back (a replay) starts the background over too, and it is built again.
+  for (int k = 0; k < 6; ++k)
+    tracker->detect(frame(boardCorners(camera, target, holds[k], 30.0)), camera, 10.0 + 1.5 * k);
+  EXPECT_FALSE(tracker->staticScene().background.empty());
+}
+
 TEST(ImageBoardTracker, InvalidMemoryOptionsAreRefused) {
   StaticMemoryOptions memory;
   memory.static_after_s = 0.0;

@@ -377,7 +377,7 @@ std::vector<BoardCandidate> boardCandidates(const ImageDetection& detection,
     // Depth from the apparent size: d = f w / w_px, so sigma_d = d^2 sigma_px / (f w).
     c.depth_sigma_m = depth * depth * sigma_px / (f * std::min(target.width, target.height));
     c.lateral_sigma_m = depth * sigma_px / f;
-    out.push_back(c);
+    if (c.centre.allFinite() && std::isfinite(c.depth_sigma_m)) out.push_back(c);
   }
   return out;
 }

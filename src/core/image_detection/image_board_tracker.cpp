@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <limits>
 
 #include <opencv2/imgproc.hpp>
@@ -17,6 +18,9 @@ namespace board_calib {
 namespace {
 
 constexpr size_t kMinBackgroundFrames = 5;  // a median of fewer is the board wherever it held
+// At most this many frames (4 per static_after_s over forget_after_s is 20 by default): a short
+// static_after_s must not fill memory with frames.
+constexpr size_t kMaxBackgroundFrames = 24;
 
 }  // namespace
 
@@ -43,6 +47,7 @@ void ImageBoardTracker::reset() {
   frames_ = 0;
   last_stamp_ = -1e300;
   background_frames_.clear();
+  background_stamps_.clear();
   background_last_s_ = -1e300;
   background_ = cv::Mat();
 }
@@ -51,18 +56,24 @@ void ImageBoardTracker::reset() {
 // stay at one place for a hold, seldom half of that. The median is used once the frames span
 // static_after_s (a board held still from the start is not yet background then).
 void ImageBoardTracker::learnBackground(const cv::Mat& image, double stamp) {
-  if (image.channels() != 3 || stamp - background_last_s_ < memory_.static_after_s / 4) return;
+  if (image.type() != CV_8UC3 || image.empty() || !std::isfinite(stamp) ||
+      stamp - background_last_s_ < memory_.static_after_s / 4)
+    return;
   background_last_s_ = stamp;
   const double scale =
       static_cast<double>(detector_.options().segmentation_width_px) / std::max(1, image.cols);
   cv::Mat small;
   cv::resize(image, small, cv::Size(), std::min(1.0, scale), std::min(1.0, scale), cv::INTER_AREA);
-  if (!background_frames_.empty() && background_frames_.front().size() != small.size())
+  if (image.size() != background_source_) {  // another camera or resolution: start over
     background_frames_.clear();
+    background_stamps_.clear();
+    background_source_ = image.size();
+  }
   background_frames_.push_back(std::move(small));
   background_stamps_.push_back(stamp);
   while (!background_stamps_.empty() &&
-         stamp - background_stamps_.front() > memory_.forget_after_s) {
+         (stamp - background_stamps_.front() > memory_.forget_after_s ||
+          background_frames_.size() > kMaxBackgroundFrames)) {
     background_frames_.pop_front();
     background_stamps_.pop_front();
   }

@@ -84,6 +84,7 @@ class ImageBoardTracker {
   // Downscaled bgr frames, one per background period, and their median (StaticScene::background).
   std::deque<cv::Mat> background_frames_;
   std::deque<double> background_stamps_;
+  cv::Size background_source_;  // full-size image the frames were taken from
   double background_last_s_ = -1e300;
   cv::Mat background_;
 };
