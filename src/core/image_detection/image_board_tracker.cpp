@@ -56,6 +56,8 @@ void ImageBoardTracker::reset() {
 // stay at one place for a hold, seldom half of that. The median is used once the frames span
 // static_after_s (a board held still from the start is not yet background then).
 void ImageBoardTracker::learnBackground(const cv::Mat& image, double stamp) {
+  // Only a plain board is searched where the frame departs from the background.
+  if (detector_.target().type != TargetType::kPlain) return;
   if (image.type() != CV_8UC3 || image.empty() || !std::isfinite(stamp) ||
       stamp - background_last_s_ < memory_.static_after_s / 4)
     return;
