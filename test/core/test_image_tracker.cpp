@@ -66,19 +66,25 @@ void fill(cv::Mat* image, const Corners& c, int grey) {
   cv::fillConvexPoly(*image, poly, cv::Scalar(grey), cv::LINE_AA, kShift);
 }
 
+// `image` (8-bit, any channels) with 2 grey levels of Gaussian noise per channel.
+cv::Mat withNoise(const cv::Mat& image, cv::RNG& rng) {
+  const int type = CV_16SC(image.channels());
+  cv::Mat noise(image.size(), type);
+  rng.fill(noise, cv::RNG::NORMAL, 0.0, 2.0);
+  cv::Mat out;
+  image.convertTo(out, type);
+  out += noise;
+  out.convertTo(out, image.type());
+  return out;
+}
+
 // Grey background, the poster (bright) when given, the board (dark), 2 grey levels of noise.
 cv::Mat render(const CameraModel& camera, const Corners* poster, const Corners& board,
                cv::RNG& rng) {
   cv::Mat image(camera.height(), camera.width(), CV_8UC1, cv::Scalar(120));
   if (poster) fill(&image, *poster, 215);
   fill(&image, board, 40);
-  cv::Mat noise(image.size(), CV_16SC1);
-  rng.fill(noise, cv::RNG::NORMAL, 0.0, 2.0);
-  cv::Mat out;
-  image.convertTo(out, CV_16SC1);
-  out += noise;
-  out.convertTo(out, CV_8UC1);
-  return out;
+  return withNoise(image, rng);
 }
 
 // Corners this close: the same quadrilateral (a found board's corners are within a px of the
@@ -308,13 +314,7 @@ TEST(ImageBoardTracker, BackgroundIsTheSceneNotTheMovingBoard) {
     std::vector<cv::Point> poly;
     for (const auto& p : board) poly.emplace_back(static_cast<int>(p.x()), static_cast<int>(p.y()));
     cv::fillConvexPoly(image, poly, board_colour);
-    cv::Mat noise(image.size(), CV_16SC3);
-    rng.fill(noise, cv::RNG::NORMAL, 0.0, 2.0);
-    cv::Mat out;
-    image.convertTo(out, CV_16SC3);
-    out += noise;
-    out.convertTo(out, CV_8UC3);
-    return out;
+    return withNoise(image, rng);
   };
   // Holds over the whole image (no two boards overlap, 7 m away).
   std::vector<Eigen::Vector3d> holds;

@@ -147,6 +147,9 @@ double sameLineTolerancePx(const ImageBoardDetectorOptions& options, int image_w
 bool sameLine(const std::array<Eigen::Vector2d, 2>& x, const std::array<Eigen::Vector2d, 2>& y,
               double tolerance_px);
 
+/// Mean side length of a quadrilateral (px; corners in cyclic order).
+double meanSidePx(const std::array<Eigen::Vector2d, kNumEdges>& corners);
+
 /// Largest distance from a corner to its nearest reference corner (undistorted px).
 double worstCornerOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners,
                          const std::array<Eigen::Vector2d, kNumEdges>& reference);

@@ -358,9 +358,8 @@ std::vector<BoardCandidate> boardCandidates(const ImageDetection& detection,
   const double f = K(0, 0);
   std::vector<BoardCandidate> out;
   for (const auto& q : quads) {
-    double perimeter = 0;
-    for (int k = 0; k < kNumEdges; ++k) perimeter += (q[(k + 1) % 4] - q[k]).norm();
-    if (!(perimeter > 0) || !std::isfinite(perimeter)) continue;
+    const double side = image_detection::meanSidePx(q);
+    if (!(side > 0) || !std::isfinite(side)) continue;
     // Either side of the quadrilateral may be the board's width.
     image_detection::PoseFit best;
     for (int shift = 0; shift < 2; ++shift) {
@@ -370,7 +369,7 @@ std::vector<BoardCandidate> boardCandidates(const ImageDetection& detection,
           image_detection::fitPose(board, pixels, K, corner_sigma_px);
       if (fit.ok && (!best.ok || fit.rms_px < best.rms_px)) best = fit;
     }
-    if (!best.ok || best.rms_px > 0.25 * perimeter / kNumEdges) continue;
+    if (!best.ok || best.rms_px > 0.25 * side) continue;
     BoardCandidate c;
     c.centre = best.camera_T_board * target.center();
     const double depth = c.centre.norm(), sigma_px = std::max(best.rms_px, corner_sigma_px);

@@ -303,12 +303,9 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
       q.corners = expected->corners_px;
       Hypothesis h = fromQuad(q, camera, o);
       h.source = "projected board";
-      double perimeter = 0;
-      for (int k = 0; k < kNumEdges; ++k)
-        perimeter += (q.corners[(k + 1) % 4] - q.corners[k]).norm();
       // Never as far as the opposite side: a third of the mean side at most.
       const double half = std::min(std::max(o.coarse_search_px, expected->tolerance_px),
-                                   perimeter / (3.0 * kNumEdges));
+                                   meanSidePx(q.corners) / 3.0);
       for (auto& side : h.sides) side.search_px = half;
       hypotheses.push_back(std::move(h));
       quads.push_back(std::move(q));

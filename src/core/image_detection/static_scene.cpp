@@ -9,6 +9,12 @@
 namespace board_calib {
 namespace image_detection {
 
+double meanSidePx(const std::array<Eigen::Vector2d, kNumEdges>& corners) {
+  double perimeter = 0;
+  for (int k = 0; k < kNumEdges; ++k) perimeter += (corners[(k + 1) % 4] - corners[k]).norm();
+  return perimeter / kNumEdges;
+}
+
 double worstCornerOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners,
                          const std::array<Eigen::Vector2d, kNumEdges>& reference) {
   double worst = 0;

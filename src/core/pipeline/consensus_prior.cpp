@@ -265,23 +265,23 @@ std::optional<SecondChancePrior> consensusPrior(const BoardSightings& first_pass
     return refuse("the " + std::to_string(best.positions) +
                   " board positions that agree lie along a line: move the board sideways and in "
                   "depth");
+  // How far another placement moves the agreeing boards from the best one's, on average.
+  const auto meanMove = [&](const Eigen::Isometry3d& other) {
+    double moved = 0;
+    for (const auto& p : agreeing)
+      moved += (other * p - best.camera_T_lidar * p).norm() / static_cast<double>(agreeing.size());
+    return moved;
+  };
   // Another placement as well supported once refitted, elsewhere: the candidates cannot tell
   // which is right. (Drawn placements carry their triple's error: judged after their refit.)
   for (const auto& [other_T, other_positions] : strong) {
-    if (other_positions < best.positions) continue;
-    double moved = 0;
-    for (const auto& p : agreeing)
-      moved +=
-          (other_T * p - best.camera_T_lidar * p).norm() / static_cast<double>(agreeing.size());
-    if (moved <= limit * std::max(rms, separation)) continue;
+    if (other_positions < best.positions || meanMove(other_T) <= limit * std::max(rms, separation))
+      continue;
     double other_rms = 0.0;
     const Agreement other =
         refined(pairs, agreementOf(other_T, pairs, kSampleVariance, 0.0, limit, separation), limit,
                 separation, options.min_consensus_boards, &other_rms);
-    moved = 0;
-    for (const auto& p : agreeing)
-      moved += (other.camera_T_lidar * p - best.camera_T_lidar * p).norm() /
-               static_cast<double>(agreeing.size());
+    const double moved = meanMove(other.camera_T_lidar);
     if (other.positions >= best.positions && other_rms <= kMaxScatterOfBoard * board_side &&
         moved > limit * std::max(rms, separation))
       return refuse("two placements of the LiDAR agree with " + std::to_string(best.positions) +
