@@ -185,6 +185,14 @@ double estimateNoiseSigma(const cv::Mat& gray);
 void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                  const ImageBoardDetectorOptions& options, ImageDetection* out,
                  const ExpectedBoard* expected = nullptr, const StaticScene* excluded = nullptr);
+/// Weakest edge gradient (grey levels per px) a board edge sample needs in an image of this noise.
+double minEdgeGradient(const ImageBoardDetectorOptions& options, double noise_sigma);
+/// A board found in another channel, its sides tested in the grey image: a coloured tile of a
+/// scene grid ends at its corners in its colour but its grid lines run on in grey. False (reason
+/// set, found cleared) for a scene rectangle.
+bool sidesEndInGray(const cv::Mat& gray, const CameraModel& camera,
+                    const ImageBoardDetectorOptions& options, double noise_sigma,
+                    CameraBoardFeatures* features);
 /// One channel in which the expected board stands out most of the ring around it: the bgr image
 /// projected on Fisher's colour axis between the two (the board and ring means 100 grey levels
 /// apart). Empty for a mono image or when the two do not differ.
@@ -204,6 +212,11 @@ Foreground foregroundMask(const cv::Mat& bgr, const cv::Mat& background);
 /// boards (ExpectedBoard::inside) that a board may exceed by a quarter of its size. Largest first.
 std::vector<ExpectedBoard> foregroundBoards(const Foreground& foreground, const CameraModel& camera,
                                             const ImageBoardDetectorOptions& options);
+/// A single frame's board-like regions of uniform colour (the downscaled image's two chroma
+/// channels, segmented as the grey image is) as expected boards (ExpectedBoard::inside): a board
+/// of the scene's grey but another colour. Best region first.
+std::vector<ExpectedBoard> colourRegionBoards(const cv::Mat& bgr, const CameraModel& camera,
+                                              const ImageBoardDetectorOptions& options);
 void detectCheckerboard(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                         const ImageBoardDetectorOptions& options, ImageDetection* out);
 

@@ -124,7 +124,7 @@ struct ImageBoardDetector::Impl {
   }
 
   void detectAprilTags(const cv::Mat& gray, const CameraModel& camera, ImageDetection* out);
-  void searchInColour(const cv::Mat& image, const CameraModel& camera,
+  void searchInColour(const cv::Mat& image, const cv::Mat& gray, const CameraModel& camera,
                       const ExpectedBoard* expected, const StaticScene* excluded,
                       ImageDetection* out) const;
 };
@@ -193,7 +193,8 @@ ImageDetection ImageBoardDetector::detectNear(const cv::Mat& image, const Camera
 // the channel where it stands out of its surroundings, inside a second chance's expected board or
 // where the frame departs from the session's background. The place is what tells board from
 // surroundings; a single frame alone has none and keeps its grey search.
-void ImageBoardDetector::Impl::searchInColour(const cv::Mat& image, const CameraModel& camera,
+void ImageBoardDetector::Impl::searchInColour(const cv::Mat& image, const cv::Mat& gray,
+                                              const CameraModel& camera,
                                               const ExpectedBoard* expected,
                                               const StaticScene* excluded,
                                               ImageDetection* out) const {
@@ -207,6 +208,8 @@ void ImageBoardDetector::Impl::searchInColour(const cv::Mat& image, const Camera
   }
   if (!expected && !foreground.mask.empty() && places.empty())
     out->features.reason += "; no board-sized part of the frame departs from the scene";
+  const bool colour_regions = !expected && places.empty();
+  if (colour_regions) places = image_detection::colourRegionBoards(image, camera, options);
   for (const ExpectedBoard& place : places) {
     const cv::Mat contrast = image_detection::boardContrastImage(image, camera, place);
     if (contrast.empty()) continue;
@@ -215,13 +218,20 @@ void ImageBoardDetector::Impl::searchInColour(const cv::Mat& image, const Camera
     colour.features.image_width = image.cols;
     colour.features.image_height = image.rows;
     image_detection::detectPlain(contrast, camera, target, options, &colour, &place, excluded);
+    // A single frame's colour region has no place to vouch for it: its sides must also end at
+    // its corners in grey.
+    if (colour.features.found && colour_regions)
+      image_detection::sidesEndInGray(gray, camera, options, out->details.noise_sigma,
+                                      &colour.features);
     if (colour.features.found) {
       *out = std::move(colour);
       return;
     }
     out->features.reason +=
         expected ? "; in its colour contrast: " + colour.features.reason
-                 : "; where the frame departs from the scene, in colour: " + colour.features.reason;
+        : colour_regions
+            ? "; in a region of one colour: " + colour.features.reason
+            : "; where the frame departs from the scene, in colour: " + colour.features.reason;
   }
 }
 
@@ -253,7 +263,7 @@ ImageDetection ImageBoardDetector::run(const cv::Mat& image, const CameraModel& 
           image_detection::detectPlain(gray, camera, impl_->target, impl_->options, &out, expected,
                                        excluded);
           if (!f.found && image.channels() == 3)
-            impl_->searchInColour(image, camera, expected, excluded, &out);
+            impl_->searchInColour(image, gray, camera, expected, excluded, &out);
           break;
         case TargetType::kCheckerboard:
           image_detection::detectCheckerboard(gray, camera, impl_->target, impl_->options, &out);

@@ -154,8 +154,8 @@ bool plausiblePose(const Target& target, const ImageBoardDetectorOptions& o, con
   return true;
 }
 
-// Counts the corner ends past which the side's line still carries an edge that would itself count
-// as a seen board edge; false (reason set) for a scene rectangle.
+}  // namespace
+
 bool sidesEndAtCorners(const cv::Mat& gray, const CameraModel& camera,
                        const ImageBoardDetectorOptions& o, double min_gradient,
                        CameraBoardFeatures* f) {
@@ -184,8 +184,6 @@ bool sidesEndAtCorners(const cv::Mat& gray, const CameraModel& camera,
                  continuing, tested);
   return false;
 }
-
-}  // namespace
 
 Hypothesis fromQuad(const QuadHypothesis& q, const CameraModel& camera,
                     const ImageBoardDetectorOptions& o, bool weak) {

@@ -25,6 +25,9 @@ constexpr double kForegroundFloor = 6.0;
 constexpr double kForegroundSolidity = 0.8;
 constexpr double kForegroundCornerShare = 0.25;
 constexpr size_t kMaxForegroundBoards = 4;
+// A single frame's colour regions tried (each a detection on its own colour channel).
+constexpr size_t kMaxColourRegionBoards = 2;
+constexpr double kColourMinSides = 2.0;
 
 // The expected board scaled about its centre, as a raw-pixel polygon.
 std::vector<cv::Point> scaledQuad(const ExpectedBoard& expected, const CameraModel& camera,
@@ -61,6 +64,37 @@ bool colourStats(const cv::Mat& bgr, const cv::Mat& mask, Eigen::Vector3d* mean,
   *mean = sum / n;
   *cov = sq / n - *mean * mean->transpose();
   return true;
+}
+
+// A convex outline on an image downscaled by `scale` as an expected board (ExpectedBoard::inside)
+// that a board may exceed by a quarter of its size (openings round the corners off, and a
+// threshold may eat into a faint side); one downscaled pixel off a place already found is that
+// place.
+void addPlace(const std::vector<cv::Point>& hull, double scale, const CameraModel& camera,
+              double rank, std::vector<std::pair<double, ExpectedBoard>>* found) {
+  cv::Point2f box[4];
+  cv::minAreaRect(hull).points(box);
+  ExpectedBoard e;
+  e.inside = true;
+  double perimeter = 0;
+  for (int k = 0; k < kNumEdges; ++k) {
+    const Eigen::Vector2d raw((box[k].x + 0.5) / scale - 0.5, (box[k].y + 0.5) / scale - 0.5);
+    e.corners_px[static_cast<size_t>(k)] = camera.undistortPixel(raw);
+    perimeter += cv::norm(box[(k + 1) % 4] - box[k]) / scale;
+  }
+  e.tolerance_px = kForegroundCornerShare * perimeter / kNumEdges + 2.0 / scale;
+  for (const auto& [r, other] : *found)
+    if (worstCornerOffset(e.corners_px, other.corners_px) <= 2.0 / scale) return;
+  found->emplace_back(rank, e);
+}
+
+std::vector<ExpectedBoard> largestPlaces(std::vector<std::pair<double, ExpectedBoard>> found,
+                                         size_t max_places) {
+  std::sort(found.begin(), found.end(),
+            [](const auto& a, const auto& b) { return a.first > b.first; });
+  std::vector<ExpectedBoard> out;
+  for (size_t k = 0; k < found.size() && k < max_places; ++k) out.push_back(found[k].second);
+  return out;
 }
 
 }  // namespace
@@ -171,31 +205,31 @@ std::vector<ExpectedBoard> foregroundBoards(const Foreground& foreground, const 
       cv::convexHull(part, hull);
       const double area = cv::contourArea(part), hull_area = cv::contourArea(hull);
       if (!(hull_area > 0) || area / hull_area < kForegroundSolidity) continue;
-      cv::Point2f box[4];
-      cv::minAreaRect(hull).points(box);
-      ExpectedBoard e;
-      e.inside = true;
-      double perimeter = 0;
-      for (int k = 0; k < kNumEdges; ++k) {
-        const Eigen::Vector2d raw((box[k].x + 0.5) / scale - 0.5, (box[k].y + 0.5) / scale - 0.5);
-        e.corners_px[static_cast<size_t>(k)] = camera.undistortPixel(raw);
-        perimeter += cv::norm(box[(k + 1) % 4] - box[k]) / scale;
-      }
-      // Openings round the corners off, and the threshold may eat into a faint side: the board
-      // may reach a quarter of its size out of the moving part's bounding rectangle.
-      e.tolerance_px = kForegroundCornerShare * perimeter / kNumEdges + 2.0 / scale;
-      bool duplicate = false;
-      for (const auto& [a, other] : found)
-        duplicate = duplicate || worstCornerOffset(e.corners_px, other.corners_px) <=
-                                     2.0 / scale;  // one downscaled pixel either way
-      if (!duplicate) found.emplace_back(area, e);
+      addPlace(hull, scale, camera, area, &found);
     }
   }
-  std::sort(found.begin(), found.end(),
-            [](const auto& a, const auto& b) { return a.first > b.first; });
-  for (size_t k = 0; k < found.size() && k < kMaxForegroundBoards; ++k)
-    out.push_back(found[k].second);
-  return out;
+  return largestPlaces(std::move(found), kMaxForegroundBoards);
+}
+
+std::vector<ExpectedBoard> colourRegionBoards(const cv::Mat& bgr, const CameraModel& camera,
+                                              const ImageBoardDetectorOptions& o) {
+  if (bgr.channels() != 3 || o.segmentation_width_px <= 0) return {};
+  const double scale = std::min(1.0, o.segmentation_width_px / static_cast<double>(bgr.cols));
+  cv::Mat small, lab;
+  cv::resize(bgr, small, cv::Size(), scale, scale, cv::INTER_AREA);
+  cv::cvtColor(small, lab, cv::COLOR_BGR2Lab);
+  cv::Mat channels[3];
+  cv::split(lab, channels);
+  std::vector<std::pair<double, ExpectedBoard>> found;
+  // The two chroma axes (green-red, blue-yellow): lightness is the grey search's.
+  for (int c = 1; c < 3; ++c) {
+    const double side = kColourMinSides * o.min_board_size_px * scale;
+    const Segmentation seg = segmentBoard(channels[c], o, side * side);
+    for (size_t i = 0; i < seg.candidates.size() && i < static_cast<size_t>(o.max_board_candidates);
+         ++i)
+      addPlace(seg.candidates[i].contour, scale, camera, seg.candidates[i].score, &found);
+  }
+  return largestPlaces(std::move(found), kMaxColourRegionBoards);
 }
 
 }  // namespace image_detection

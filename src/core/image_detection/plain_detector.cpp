@@ -214,14 +214,26 @@ void report(HypothesisSearch&& search, LineEvidence&& evidence, const std::strin
 
 }  // namespace
 
+double minEdgeGradient(const ImageBoardDetectorOptions& o, double noise_sigma) {
+  return std::max(o.min_edge_contrast, o.edge_snr * kGradientNoiseGain * noise_sigma);
+}
+
+bool sidesEndInGray(const cv::Mat& gray, const CameraModel& camera,
+                    const ImageBoardDetectorOptions& o, double noise_sigma,
+                    CameraBoardFeatures* features) {
+  if (sidesEndAtCorners(gray, camera, o, minEdgeGradient(o, noise_sigma), features)) return true;
+  features->found = false;
+  features->reason += " (in grey)";
+  return false;
+}
+
 void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                  const ImageBoardDetectorOptions& o, ImageDetection* out,
                  const ExpectedBoard* expected, const StaticScene* excluded) {
   PlainStageTimes times;
   // Edge pixels must stand out of this image's own noise (sensor, compression, texture).
   const double noise = timed(&times.noise_ms, [&] { return estimateNoiseSigma(gray); });
-  const double min_gradient =
-      std::max(o.min_edge_contrast, o.edge_snr * kGradientNoiseGain * noise);
+  const double min_gradient = minEdgeGradient(o, noise);
   out->details.noise_sigma = noise;
   const cv::Mat small =
       timed(&times.regions_ms, [&] { return downscale(gray, o.segmentation_width_px); });

@@ -133,6 +133,12 @@ double edgeContinuation(const cv::Mat& gray, const CameraModel& camera, const Ei
                         double gap_px, double length_px, const ImageBoardDetectorOptions& o,
                         double min_gradient, int* positions, double* run_on_px);
 
+/// Counts the corner ends past which a found board's side lines still carry an edge that would
+/// itself count as a seen board edge; false (reason set) for a scene rectangle.
+bool sidesEndAtCorners(const cv::Mat& gray, const CameraModel& camera,
+                       const ImageBoardDetectorOptions& options, double min_gradient,
+                       CameraBoardFeatures* features);
+
 /// The fourth side of three board lines traced in the image (plain_trace.cpp): on the pencil of
 /// lines the three give it (through the base's vanishing point), where gradient of either polarity
 /// stands out of the band's own gradient noise along at least min_side_coverage of it, for board
