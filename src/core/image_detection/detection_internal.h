@@ -212,9 +212,13 @@ Foreground foregroundMask(const cv::Mat& bgr, const cv::Mat& background);
 /// boards (ExpectedBoard::inside) that a board may exceed by a quarter of its size. Largest first.
 std::vector<ExpectedBoard> foregroundBoards(const Foreground& foreground, const CameraModel& camera,
                                             const ImageBoardDetectorOptions& options);
-/// A single frame's board-like regions of uniform colour (the downscaled image's two chroma
-/// channels, segmented as the grey image is) as expected boards (ExpectedBoard::inside): a board
-/// of the scene's grey but another colour. Best region first.
+/// Where a bgr frame's colour (its two Lab chroma channels, downscaled to width_px) departs from
+/// the frame's median colour by more than 4 times the median departure: a board of another colour
+/// than most of the scene.
+Foreground chromaDeparture(const cv::Mat& bgr, int width_px);
+/// A single frame's board-sized, nearly convex parts of one colour (chromaDeparture) as expected
+/// boards (ExpectedBoard::inside), the most rectangular first: a board of the scene's grey but
+/// another colour.
 std::vector<ExpectedBoard> colourRegionBoards(const cv::Mat& bgr, const CameraModel& camera,
                                               const ImageBoardDetectorOptions& options);
 void detectCheckerboard(const cv::Mat& gray, const CameraModel& camera, const Target& target,

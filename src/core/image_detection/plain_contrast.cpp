@@ -26,8 +26,10 @@ constexpr double kForegroundSolidity = 0.8;
 constexpr double kForegroundCornerShare = 0.25;
 constexpr size_t kMaxForegroundBoards = 4;
 // A single frame's colour regions tried (each a detection on its own colour channel).
-constexpr size_t kMaxColourRegionBoards = 2;
-constexpr double kColourMinSides = 2.0;
+constexpr size_t kMaxColourRegionBoards = 4;
+// An opened part keeping this share of its region's area cut nothing off (a holder's legs are a
+// larger share of a board's region).
+constexpr double kSamePartShare = 0.9;
 
 // The expected board scaled about its centre, as a raw-pixel polygon.
 std::vector<cv::Point> scaledQuad(const ExpectedBoard& expected, const CameraModel& camera,
@@ -66,30 +68,84 @@ bool colourStats(const cv::Mat& bgr, const cv::Mat& mask, Eigen::Vector3d* mean,
   return true;
 }
 
-// A convex outline on an image downscaled by `scale` as an expected board (ExpectedBoard::inside)
-// that a board may exceed by a quarter of its size (openings round the corners off, and a
-// threshold may eat into a faint side); one downscaled pixel off a place already found is that
-// place.
-void addPlace(const std::vector<cv::Point>& hull, double scale, const CameraModel& camera,
-              double rank, std::vector<std::pair<double, ExpectedBoard>>* found) {
-  cv::Point2f box[4];
-  cv::minAreaRect(hull).points(box);
-  ExpectedBoard e;
-  e.inside = true;
-  double perimeter = 0;
-  for (int k = 0; k < kNumEdges; ++k) {
-    const Eigen::Vector2d raw((box[k].x + 0.5) / scale - 0.5, (box[k].y + 0.5) / scale - 0.5);
-    e.corners_px[static_cast<size_t>(k)] = camera.undistortPixel(raw);
-    perimeter += cv::norm(box[(k + 1) % 4] - box[k]) / scale;
+// Median of an 8-bit single-channel image.
+int medianLevel(const cv::Mat& image) {
+  int histogram[256] = {};
+  for (int y = 0; y < image.rows; ++y) {
+    const uchar* p = image.ptr<uchar>(y);
+    for (int x = 0; x < image.cols; ++x) ++histogram[p[x]];
   }
-  e.tolerance_px = kForegroundCornerShare * perimeter / kNumEdges + 2.0 / scale;
-  for (const auto& [r, other] : *found)
-    if (worstCornerOffset(e.corners_px, other.corners_px) <= 2.0 / scale) return;
-  found->emplace_back(rank, e);
+  int median = 0;
+  for (long seen = 0; median < 255; ++median)
+    if ((seen += histogram[median]) * 2 >= static_cast<long>(image.total())) break;
+  return median;
 }
 
-std::vector<ExpectedBoard> largestPlaces(std::vector<std::pair<double, ExpectedBoard>> found,
-                                         size_t max_places) {
+// Pixels departing by more than kForegroundMedians x the image's median departure (most of a
+// frame departs by its noise only), at least kForegroundFloor; specks opened away, gaps closed.
+cv::Mat departureMask(const cv::Mat& departure) {
+  const double threshold = std::max(kForegroundFloor, kForegroundMedians * medianLevel(departure));
+  cv::Mat mask = departure > threshold;
+  cv::morphologyEx(mask, mask, cv::MORPH_OPEN, cv::Mat());
+  cv::morphologyEx(mask, mask, cv::MORPH_CLOSE,
+                   cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
+  return mask;
+}
+
+// Board-sized, nearly convex parts of a mask (openings cut a holder off) as expected boards
+// (ExpectedBoard::inside) that a board may exceed by a quarter of its size: openings round the
+// corners off, and a threshold may eat into a faint side. Largest first. A part within one
+// downscaled pixel of one already kept is that one. `by_colour` (a single frame's colour parts,
+// not what moved): openings that only round a part's corners are that part, and parts cut by the
+// image border come last.
+std::vector<ExpectedBoard> boardPlaces(const Foreground& parts_of, const CameraModel& camera,
+                                       const ImageBoardDetectorOptions& o, bool by_colour,
+                                       size_t max_places) {
+  if (parts_of.mask.empty()) return {};
+  const cv::Mat& mask = parts_of.mask;
+  const double scale = parts_of.scale;
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+  const double min_side = o.min_board_size_px * scale, min_area = min_side * min_side;
+  std::vector<std::pair<double, ExpectedBoard>> found;
+  for (const auto& contour : contours) {
+    const double contour_area = cv::contourArea(contour);
+    if (contour_area < min_area) continue;
+    std::vector<std::vector<cv::Point>> parts;
+    // An opening that only rounds the corners off is the part itself.
+    for (auto& part : openedParts(contour, mask.size(), min_area))
+      if (!by_colour || cv::contourArea(part) < kSamePartShare * contour_area)
+        parts.push_back(std::move(part));
+    parts.push_back(contour);
+    for (const auto& part : parts) {
+      std::vector<cv::Point> hull;
+      cv::convexHull(part, hull);
+      const double area = cv::contourArea(part), hull_area = cv::contourArea(hull);
+      if (!(hull_area > 0) || area / hull_area < kForegroundSolidity) continue;
+      const cv::RotatedRect rect = cv::minAreaRect(hull);
+      cv::Point2f box[4];
+      rect.points(box);
+      ExpectedBoard e;
+      e.inside = true;
+      double perimeter = 0;
+      for (int k = 0; k < kNumEdges; ++k) {
+        const Eigen::Vector2d raw((box[k].x + 0.5) / scale - 0.5, (box[k].y + 0.5) / scale - 0.5);
+        e.corners_px[static_cast<size_t>(k)] = camera.undistortPixel(raw);
+        perimeter += cv::norm(box[(k + 1) % 4] - box[k]) / scale;
+      }
+      e.tolerance_px = kForegroundCornerShare * perimeter / kNumEdges + 2.0 / scale;
+      bool duplicate = false;
+      for (const auto& [r, other] : found)
+        duplicate = duplicate || worstCornerOffset(e.corners_px, other.corners_px) <= 2.0 / scale;
+      if (duplicate) continue;
+      // A colour part cut by the image border (the sky, a wall) has no outline of its own:
+      // tried after the whole ones.
+      const cv::Rect box_px = cv::boundingRect(hull);
+      const bool cut = box_px.x <= 0 || box_px.y <= 0 || box_px.br().x >= mask.cols ||
+                       box_px.br().y >= mask.rows;
+      found.emplace_back(by_colour && cut ? area - mask.total() : area, e);
+    }
+  }
   std::sort(found.begin(), found.end(),
             [](const auto& a, const auto& b) { return a.first > b.first; });
   std::vector<ExpectedBoard> out;
@@ -167,69 +223,42 @@ Foreground foregroundMask(const cv::Mat& bgr, const cv::Mat& background) {
   cv::absdiff(small, background, diff3);
   cv::Mat channels[3];
   cv::split(diff3, channels);
-  const cv::Mat diff = cv::max(cv::max(channels[0], channels[1]), channels[2]);
   // Most of a frame is background: its median departure is the noise and the lighting's drift.
-  int histogram[256] = {};
-  for (int y = 0; y < diff.rows; ++y) {
-    const uchar* d = diff.ptr<uchar>(y);
-    for (int x = 0; x < diff.cols; ++x) ++histogram[d[x]];
-  }
-  int median = 0;
-  for (long seen = 0; median < 255; ++median)
-    if ((seen += histogram[median]) * 2 >= static_cast<long>(diff.total())) break;
-  const double threshold = std::max(kForegroundFloor, kForegroundMedians * median);
-  out.mask = diff > threshold;
-  cv::morphologyEx(out.mask, out.mask, cv::MORPH_OPEN, cv::Mat());
-  cv::morphologyEx(out.mask, out.mask, cv::MORPH_CLOSE,
-                   cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
+  out.mask = departureMask(cv::max(cv::max(channels[0], channels[1]), channels[2]));
   out.scale = scale;
   return out;
 }
 
 std::vector<ExpectedBoard> foregroundBoards(const Foreground& foreground, const CameraModel& camera,
                                             const ImageBoardDetectorOptions& o) {
-  std::vector<ExpectedBoard> out;
-  if (foreground.mask.empty()) return out;
-  const cv::Mat& mask = foreground.mask;
-  const double scale = foreground.scale;
-  std::vector<std::vector<cv::Point>> contours;
-  cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
-  const double min_side = o.min_board_size_px * scale, min_area = min_side * min_side;
-  std::vector<std::pair<double, ExpectedBoard>> found;
-  for (const auto& contour : contours) {
-    if (cv::contourArea(contour) < min_area) continue;
-    auto parts = openedParts(contour, mask.size(), min_area);
-    parts.push_back(contour);
-    for (const auto& part : parts) {
-      std::vector<cv::Point> hull;
-      cv::convexHull(part, hull);
-      const double area = cv::contourArea(part), hull_area = cv::contourArea(hull);
-      if (!(hull_area > 0) || area / hull_area < kForegroundSolidity) continue;
-      addPlace(hull, scale, camera, area, &found);
-    }
+  return boardPlaces(foreground, camera, o, false, kMaxForegroundBoards);
+}
+
+Foreground chromaDeparture(const cv::Mat& bgr, int width_px) {
+  Foreground out;
+  if (bgr.channels() != 3 || width_px <= 0 || bgr.empty()) return out;
+  out.scale = std::min(1.0, width_px / static_cast<double>(bgr.cols));
+  cv::Mat small, lab;
+  cv::resize(bgr, small, cv::Size(), out.scale, out.scale, cv::INTER_AREA);
+  cv::cvtColor(small, lab, cv::COLOR_BGR2Lab);
+  cv::Mat channels[3];
+  cv::split(lab, channels);
+  // Per chroma axis (green-red, blue-yellow) the departure from the frame's median colour;
+  // lightness is the grey search's.
+  cv::Mat diff = cv::Mat::zeros(small.size(), CV_8U);
+  for (int c = 1; c < 3; ++c) {
+    cv::Mat d;
+    cv::absdiff(channels[c], cv::Scalar(medianLevel(channels[c])), d);
+    diff = cv::max(diff, d);
   }
-  return largestPlaces(std::move(found), kMaxForegroundBoards);
+  out.mask = departureMask(diff);
+  return out;
 }
 
 std::vector<ExpectedBoard> colourRegionBoards(const cv::Mat& bgr, const CameraModel& camera,
                                               const ImageBoardDetectorOptions& o) {
-  if (bgr.channels() != 3 || o.segmentation_width_px <= 0) return {};
-  const double scale = std::min(1.0, o.segmentation_width_px / static_cast<double>(bgr.cols));
-  cv::Mat small, lab;
-  cv::resize(bgr, small, cv::Size(), scale, scale, cv::INTER_AREA);
-  cv::cvtColor(small, lab, cv::COLOR_BGR2Lab);
-  cv::Mat channels[3];
-  cv::split(lab, channels);
-  std::vector<std::pair<double, ExpectedBoard>> found;
-  // The two chroma axes (green-red, blue-yellow): lightness is the grey search's.
-  for (int c = 1; c < 3; ++c) {
-    const double side = kColourMinSides * o.min_board_size_px * scale;
-    const Segmentation seg = segmentBoard(channels[c], o, side * side);
-    for (size_t i = 0; i < seg.candidates.size() && i < static_cast<size_t>(o.max_board_candidates);
-         ++i)
-      addPlace(seg.candidates[i].contour, scale, camera, seg.candidates[i].score, &found);
-  }
-  return largestPlaces(std::move(found), kMaxColourRegionBoards);
+  return boardPlaces(chromaDeparture(bgr, o.segmentation_width_px), camera, o, false,
+                     kMaxColourRegionBoards);
 }
 
 }  // namespace image_detection
