@@ -218,7 +218,7 @@ void ImageBoardDetector::Impl::searchInColour(const cv::Mat& image, const cv::Ma
     colour.features.image_width = image.cols;
     colour.features.image_height = image.rows;
     image_detection::detectPlain(contrast, camera, target, options, &colour, &place, excluded);
-    // A single frame's colour region has no place to vouch for it: its sides must also end at
+    // A single frame's colour part has no place to vouch for it: its sides must also end at
     // its corners in grey.
     if (colour.features.found && colour_regions)
       image_detection::sidesEndInGray(gray, camera, options, out->details.noise_sigma,
@@ -230,7 +230,7 @@ void ImageBoardDetector::Impl::searchInColour(const cv::Mat& image, const cv::Ma
     out->features.reason +=
         expected ? "; in its colour contrast: " + colour.features.reason
         : colour_regions
-            ? "; in a region of one colour: " + colour.features.reason
+            ? "; in a part of one colour: " + colour.features.reason
             : "; where the frame departs from the scene, in colour: " + colour.features.reason;
   }
 }

@@ -25,11 +25,9 @@ constexpr double kForegroundFloor = 6.0;
 constexpr double kForegroundSolidity = 0.8;
 constexpr double kForegroundCornerShare = 0.25;
 constexpr size_t kMaxForegroundBoards = 4;
-// A single frame's colour regions tried (each a detection on its own colour channel).
-constexpr size_t kMaxColourRegionBoards = 4;
-// An opened part keeping this share of its region's area cut nothing off (a holder's legs are a
-// larger share of a board's region).
-constexpr double kSamePartShare = 0.9;
+// A single frame's colour parts tried (each a detection in its own colour contrast; with the parts
+// cut by the image border last, the board was among the first two in every frame measured).
+constexpr size_t kMaxColourRegionBoards = 2;
 
 // The expected board scaled about its centre, as a raw-pixel polygon.
 std::vector<cv::Point> scaledQuad(const ExpectedBoard& expected, const CameraModel& camera,
@@ -96,8 +94,7 @@ cv::Mat departureMask(const cv::Mat& departure) {
 // (ExpectedBoard::inside) that a board may exceed by a quarter of its size: openings round the
 // corners off, and a threshold may eat into a faint side. Largest first. A part within one
 // downscaled pixel of one already kept is that one. `by_colour` (a single frame's colour parts,
-// not what moved): openings that only round a part's corners are that part, and parts cut by the
-// image border come last.
+// not what moved): parts cut by the image border come last.
 std::vector<ExpectedBoard> boardPlaces(const Foreground& parts_of, const CameraModel& camera,
                                        const ImageBoardDetectorOptions& o, bool by_colour,
                                        size_t max_places) {
@@ -109,13 +106,8 @@ std::vector<ExpectedBoard> boardPlaces(const Foreground& parts_of, const CameraM
   const double min_side = o.min_board_size_px * scale, min_area = min_side * min_side;
   std::vector<std::pair<double, ExpectedBoard>> found;
   for (const auto& contour : contours) {
-    const double contour_area = cv::contourArea(contour);
-    if (contour_area < min_area) continue;
-    std::vector<std::vector<cv::Point>> parts;
-    // An opening that only rounds the corners off is the part itself.
-    for (auto& part : openedParts(contour, mask.size(), min_area))
-      if (!by_colour || cv::contourArea(part) < kSamePartShare * contour_area)
-        parts.push_back(std::move(part));
+    if (cv::contourArea(contour) < min_area) continue;
+    auto parts = openedParts(contour, mask.size(), min_area);
     parts.push_back(contour);
     for (const auto& part : parts) {
       std::vector<cv::Point> hull;
@@ -257,7 +249,7 @@ Foreground chromaDeparture(const cv::Mat& bgr, int width_px) {
 
 std::vector<ExpectedBoard> colourRegionBoards(const cv::Mat& bgr, const CameraModel& camera,
                                               const ImageBoardDetectorOptions& o) {
-  return boardPlaces(chromaDeparture(bgr, o.segmentation_width_px), camera, o, false,
+  return boardPlaces(chromaDeparture(bgr, o.segmentation_width_px), camera, o, true,
                      kMaxColourRegionBoards);
 }
 
