@@ -406,5 +406,45 @@ TEST(ImageDetectorSim, PlainBoardOfTheRoomsGreyFoundByItsColour) {
   EXPECT_EQ(wrong, 0);
 }
 
+// The single frame's colour search on colour images no camera should give (tiny, thin, one
+// colour, colour noise, saturated blobs touching every border): a reason, never a crash (run
+// under the sanitizers by scripts/test.sh --sanitize).
+TEST(ImageDetectorSim, HostileColourImagesGiveReasons) {
+  const Target plain = configTarget("plain_1016.yaml");
+  auto det = ImageBoardDetector::create(plain, ImageBoardDetectorOptions{});
+  ASSERT_TRUE(det.ok());
+  std::mt19937 rng(5);
+  const cv::Size sizes[] = {{1, 1},   {2, 3},   {7, 1},   {1, 9},
+                            {40, 30}, {640, 4}, {3, 480}, {800, 600}};
+  for (const cv::Size& size : sizes) {
+    CameraIntrinsics in;
+    in.width = size.width;
+    in.height = size.height;
+    in.fx = in.fy = std::max(size.width, size.height);
+    in.cx = 0.5 * size.width;
+    in.cy = 0.5 * size.height;
+    auto camera = CameraModel::create(in);
+    ASSERT_TRUE(camera.ok()) << camera.error();
+    std::vector<cv::Mat> images;
+    images.emplace_back(size, CV_8UC3, cv::Scalar(200, 40, 10));
+    cv::Mat noise(size, CV_8UC3);
+    cv::randu(noise, cv::Scalar::all(0), cv::Scalar::all(256));
+    images.push_back(noise);
+    cv::Mat blobs(size, CV_8UC3, cv::Scalar(128, 128, 128));
+    for (int k = 0; k < 12; ++k) {
+      const cv::Point a(static_cast<int>(rng() % (size.width + 1)) - size.width / 4,
+                        static_cast<int>(rng() % (size.height + 1)) - size.height / 4);
+      const cv::Point b = a + cv::Point(static_cast<int>(rng() % (size.width + 1)),
+                                        static_cast<int>(rng() % (size.height + 1)));
+      cv::rectangle(blobs, a, b, cv::Scalar(rng() % 256, rng() % 256, rng() % 256), cv::FILLED);
+    }
+    images.push_back(blobs);
+    for (const cv::Mat& image : images) {
+      const ImageDetection d = det->detect(image, *camera);
+      if (!d.features.found) EXPECT_FALSE(d.features.reason.empty()) << size;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace board_calib
