@@ -165,6 +165,8 @@ CASES = {
     "ws/ci/devel/lib/board_calib/test_image_far_sim --gtest_filter='*StreetFrames*:*Plain*'": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_image_far_sim --gtest_filter='*StreetFrames*'": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_line_segments": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/test_image_detector --gtest_filter='*RoomsGrey*'": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/bench_image_detector": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/bench_capture --scale 0.5 --poses 12 --seeds 2 --rates 1,2,5,10,30": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_rig_session --gtest_filter=*Sparse*": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/bench_stillness --seeds 21,22,23,24": {"kind": "dev"},
