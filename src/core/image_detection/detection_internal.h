@@ -217,10 +217,10 @@ std::vector<ExpectedBoard> foregroundBoards(const Foreground& foreground, const 
 /// than most of the scene.
 Foreground chromaDeparture(const cv::Mat& bgr, int width_px);
 /// A single frame's board-sized, nearly convex parts of one colour (chromaDeparture) as expected
-/// boards (ExpectedBoard::inside), the most rectangular first: a board of the scene's grey but
-/// another colour.
-std::vector<ExpectedBoard> colourRegionBoards(const cv::Mat& bgr, const CameraModel& camera,
-                                              const ImageBoardDetectorOptions& options);
+/// boards (ExpectedBoard::inside), largest first, parts cut by the image border last: a board of
+/// the scene's grey but another colour.
+std::vector<ExpectedBoard> colourPartBoards(const cv::Mat& bgr, const CameraModel& camera,
+                                            const ImageBoardDetectorOptions& options);
 void detectCheckerboard(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                         const ImageBoardDetectorOptions& options, ImageDetection* out);
 

@@ -191,8 +191,9 @@ ImageDetection ImageBoardDetector::detectNear(const cv::Mat& image, const Camera
 
 // A board of the scene's grey but another colour (cardboard on a facade): searched once more in
 // the channel where it stands out of its surroundings, inside a second chance's expected board or
-// where the frame departs from the session's background. The place is what tells board from
-// surroundings; a single frame alone has none and keeps its grey search.
+// where the frame departs from the session's background, or (a single frame, or a session whose
+// frame does not depart from its background) in the frame's parts of another colour than most of
+// it. The place is what tells board from surroundings.
 void ImageBoardDetector::Impl::searchInColour(const cv::Mat& image, const cv::Mat& gray,
                                               const CameraModel& camera,
                                               const ExpectedBoard* expected,
@@ -208,8 +209,8 @@ void ImageBoardDetector::Impl::searchInColour(const cv::Mat& image, const cv::Ma
   }
   if (!expected && !foreground.mask.empty() && places.empty())
     out->features.reason += "; no board-sized part of the frame departs from the scene";
-  const bool colour_regions = !expected && places.empty();
-  if (colour_regions) places = image_detection::colourRegionBoards(image, camera, options);
+  const bool colour_parts = !expected && places.empty();
+  if (colour_parts) places = image_detection::colourPartBoards(image, camera, options);
   for (const ExpectedBoard& place : places) {
     const cv::Mat contrast = image_detection::boardContrastImage(image, camera, place);
     if (contrast.empty()) continue;
@@ -220,7 +221,7 @@ void ImageBoardDetector::Impl::searchInColour(const cv::Mat& image, const cv::Ma
     image_detection::detectPlain(contrast, camera, target, options, &colour, &place, excluded);
     // A single frame's colour part has no place to vouch for it: its sides must also end at
     // its corners in grey.
-    if (colour.features.found && colour_regions)
+    if (colour.features.found && colour_parts)
       image_detection::sidesEndInGray(gray, camera, options, out->details.noise_sigma,
                                       &colour.features);
     if (colour.features.found) {
@@ -229,7 +230,7 @@ void ImageBoardDetector::Impl::searchInColour(const cv::Mat& image, const cv::Ma
     }
     out->features.reason +=
         expected ? "; in its colour contrast: " + colour.features.reason
-        : colour_regions
+        : colour_parts
             ? "; in a part of one colour: " + colour.features.reason
             : "; where the frame departs from the scene, in colour: " + colour.features.reason;
   }

@@ -27,7 +27,7 @@ constexpr double kForegroundCornerShare = 0.25;
 constexpr size_t kMaxForegroundBoards = 4;
 // A single frame's colour parts tried (each a detection in its own colour contrast; with the parts
 // cut by the image border last, the board was among the first two in every frame measured).
-constexpr size_t kMaxColourRegionBoards = 2;
+constexpr size_t kMaxColourPartBoards = 2;
 
 // The expected board scaled about its centre, as a raw-pixel polygon.
 std::vector<cv::Point> scaledQuad(const ExpectedBoard& expected, const CameraModel& camera,
@@ -135,7 +135,7 @@ std::vector<ExpectedBoard> boardPlaces(const Foreground& parts_of, const CameraM
       const cv::Rect box_px = cv::boundingRect(hull);
       const bool cut = box_px.x <= 0 || box_px.y <= 0 || box_px.br().x >= mask.cols ||
                        box_px.br().y >= mask.rows;
-      found.emplace_back(by_colour && cut ? area - mask.total() : area, e);
+      found.emplace_back(by_colour && cut ? area - static_cast<double>(mask.total()) : area, e);
     }
   }
   std::sort(found.begin(), found.end(),
@@ -247,10 +247,10 @@ Foreground chromaDeparture(const cv::Mat& bgr, int width_px) {
   return out;
 }
 
-std::vector<ExpectedBoard> colourRegionBoards(const cv::Mat& bgr, const CameraModel& camera,
-                                              const ImageBoardDetectorOptions& o) {
+std::vector<ExpectedBoard> colourPartBoards(const cv::Mat& bgr, const CameraModel& camera,
+                                            const ImageBoardDetectorOptions& o) {
   return boardPlaces(chromaDeparture(bgr, o.segmentation_width_px), camera, o, true,
-                     kMaxColourRegionBoards);
+                     kMaxColourPartBoards);
 }
 
 }  // namespace image_detection
