@@ -43,8 +43,11 @@ struct ImageSighting {
 
 /// A board the LiDAR found.
 struct LidarSighting {
-  std::array<Eigen::Vector3d, kNumEdges> corners{};  ///< m, LiDAR frame (when corners_valid)
-  bool corners_valid = false;                        ///< all four edges fitted
+  /// m, LiDAR frame (when corners_valid); zeros otherwise (Eigen's `{}` leaves them unset)
+  std::array<Eigen::Vector3d, kNumEdges> corners = {
+      Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(),
+      Eigen::Vector3d::Zero()};
+  bool corners_valid = false;  ///< all four edges fitted
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   double line_spacing_m =
       0.0;  ///< m, median gap between consecutive scan lines along the edges (0: unknown)
