@@ -89,6 +89,16 @@ double normalErrorDeg(const CameraBoardFeatures& f, const Eigen::Isometry3d& tru
   return std::acos(std::clamp(f.plane.normal.dot(truth.linear().col(2)), -1.0, 1.0)) * kDegPerRad;
 }
 
+// px from the found edge line j to the true edge's midpoint.
+double edgeOffPx(const CameraBoardFeatures& f, const Eigen::Isometry3d& truth, const Target& target,
+                 const CameraModel& camera, int j) {
+  const auto outer = target.outerCorners();
+  const Eigen::Vector2d mid = 0.5 * (projectTruth(truth, outer[(j + 3) % 4], camera) +
+                                     projectTruth(truth, outer[j], camera));
+  const Eigen::Vector3d& l = f.edge_lines[j];
+  return std::abs(l.head<2>().dot(mid) + l.z());
+}
+
 bool insideImage(const CameraModel& camera, const Eigen::Vector2d& undistorted) {
   const Eigen::Vector2d r = camera.distortPixel(undistorted);
   return r.x() >= 0 && r.y() >= 0 && r.x() <= camera.width() - 1 && r.y() <= camera.height() - 1;
@@ -326,12 +336,8 @@ TEST(ImageDetectorSim, PlainBoardInTexturedRoom) {
     ++visible;
     found += d.features.found;
     double worst_px = 0;  // found edges vs truth at the true edge midpoint
-    const auto outer = target.outerCorners();
     for (int j = 0; j < kNumEdges && d.features.found; ++j) {
-      const Eigen::Vector2d mid = 0.5 * (projectTruth(truth, outer[(j + 3) % 4], camera) +
-                                         projectTruth(truth, outer[j], camera));
-      const Eigen::Vector3d& l = d.features.edge_lines[j];
-      const double off = std::abs(l.head<2>().dot(mid) + l.z());
+      const double off = edgeOffPx(d.features, truth, target, camera, j);
       ++edges_checked;
       edges_off += off > 1.0;
       worst_px = std::max(worst_px, off);
@@ -386,13 +392,8 @@ TEST(ImageDetectorSim, PlainBoardOfTheRoomsGreyFoundByItsColour) {
       if (!d.features.found) continue;
       (colour ? found_colour : found_grey) += 1;
       double worst = 0;
-      const auto outer = target.outerCorners();
-      for (int j = 0; j < kNumEdges; ++j) {
-        const Eigen::Vector2d mid = 0.5 * (projectTruth(truth, outer[(j + 3) % 4], camera) +
-                                           projectTruth(truth, outer[j], camera));
-        const Eigen::Vector3d& l = d.features.edge_lines[j];
-        worst = std::max(worst, std::abs(l.head<2>().dot(mid) + l.z()));
-      }
+      for (int j = 0; j < kNumEdges; ++j)
+        worst = std::max(worst, edgeOffPx(d.features, truth, target, camera, j));
       wrong += worst > 1.0;
       std::printf("tinted frame %2d %s: %.1f m, worst edge %.2f px\n", i,
                   colour ? "colour" : "grey  ", z, worst);
@@ -441,7 +442,9 @@ TEST(ImageDetectorSim, HostileColourImagesGiveReasons) {
     images.push_back(blobs);
     for (const cv::Mat& image : images) {
       const ImageDetection d = det->detect(image, *camera);
-      if (!d.features.found) EXPECT_FALSE(d.features.reason.empty()) << size;
+      if (!d.features.found) {
+        EXPECT_FALSE(d.features.reason.empty()) << size;
+      }
     }
   }
 }
