@@ -221,6 +221,20 @@ Foreground chromaDeparture(const cv::Mat& bgr, int width_px);
 /// the scene's grey but another colour.
 std::vector<ExpectedBoard> colourPartBoards(const cv::Mat& bgr, const CameraModel& camera,
                                             const ImageBoardDetectorOptions& options);
+/// A plain board searched only in the part of the frame around `place` (the ring its colour
+/// contrast is measured against: 2 board sizes about its centre), at the whole frame's scale: the
+/// principal point moves with the window and the downscaled widths shrink with it, so the
+/// window's pixels are processed as in the whole frame. `out` is in whole-frame pixels.
+void detectPlainInColourWindow(const cv::Mat& bgr, const CameraModel& camera, const Target& target,
+                               const ImageBoardDetectorOptions& options, const ExpectedBoard& place,
+                               const StaticScene* excluded, ImageDetection* out);
+/// In a colour contrast image (boardContrastImage: the board's mean and its ring's 100 levels
+/// apart), every side must show a share of that contrast between a band just inside it and one
+/// just outside: a quadrilateral of lines inside the board (printed marks, a holder's legs) has
+/// board on both sides of one of them. Medians over the middle of each side, so an occluder over
+/// part of it does not decide. False (reason set, found cleared) otherwise.
+bool sidesPartColours(const cv::Mat& contrast, const CameraModel& camera,
+                      CameraBoardFeatures* features);
 void detectCheckerboard(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                         const ImageBoardDetectorOptions& options, ImageDetection* out);
 

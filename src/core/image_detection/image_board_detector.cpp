@@ -212,13 +212,19 @@ void ImageBoardDetector::Impl::searchInColour(const cv::Mat& image, const cv::Ma
   const bool colour_parts = !expected && places.empty();
   if (colour_parts) places = image_detection::colourPartBoards(image, camera, options);
   for (const ExpectedBoard& place : places) {
-    const cv::Mat contrast = image_detection::boardContrastImage(image, camera, place);
-    if (contrast.empty()) continue;
     ImageDetection colour;
-    colour.features.K = out->features.K;
-    colour.features.image_width = image.cols;
-    colour.features.image_height = image.rows;
-    image_detection::detectPlain(contrast, camera, target, options, &colour, &place, excluded);
+    if (colour_parts) {
+      // A colour part is searched in the window its contrast is measured in, not the frame.
+      image_detection::detectPlainInColourWindow(image, camera, target, options, place, excluded,
+                                                 &colour);
+    } else {
+      const cv::Mat contrast = image_detection::boardContrastImage(image, camera, place);
+      if (contrast.empty()) continue;
+      colour.features.K = out->features.K;
+      colour.features.image_width = image.cols;
+      colour.features.image_height = image.rows;
+      image_detection::detectPlain(contrast, camera, target, options, &colour, &place, excluded);
+    }
     // A single frame's colour part has no place to vouch for it: its sides must also end at
     // its corners in grey.
     if (colour.features.found && colour_parts)

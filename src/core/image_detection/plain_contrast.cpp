@@ -5,6 +5,8 @@
 // detector then runs on it as on a grey image, inside the expected board only.
 #include "plain_internal.h"
 
+#include <board_calib/core/common/statistics.h>
+
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
@@ -28,6 +30,25 @@ constexpr size_t kMaxForegroundBoards = 4;
 // A single frame's colour parts tried (each a detection in its own colour contrast; with the parts
 // cut by the image border last, the board was among the first two in every frame measured).
 constexpr size_t kMaxColourPartBoards = 2;
+// The ring a place's colour contrast is measured against, in board sizes about its centre
+// (boardContrastImage); the outer one also bounds a place's search window.
+constexpr double kContrastRingInner = 1.5;
+constexpr double kContrastRingOuter = 2.0;
+constexpr int kWindowGridPx = 12;
+// boardContrastImage's mapping: the board's and the ring's means this far either side of the
+// midpoint.
+constexpr double kContrastMidpoint = 127.5;
+constexpr double kContrastHalfSeparation = 50.0;
+// The bands either side of a colour board's side (sidesPartColours): this far from it, over the
+// middle of the side.
+constexpr double kBandMinPx = 3.0;
+constexpr double kBandSideShare = 0.05;
+constexpr double kBandFrom = 0.15;
+constexpr double kBandStep = 0.02;
+// Measured across the sides of true colour boards: 34-120 levels (simulated rooms and streets,
+// held boards beside a same-coloured holder or tile), on the augmented real frames 77 and more;
+// a quadrilateral inside a printed, occluded board: 14.
+constexpr double kMinSideContrastShare = 0.25;
 
 // The expected board scaled about its centre, as a raw-pixel polygon.
 std::vector<cv::Point> scaledQuad(const ExpectedBoard& expected, const CameraModel& camera,
@@ -155,8 +176,8 @@ cv::Mat boardContrastImage(const cv::Mat& bgr, const CameraModel& camera,
   // error); holder and clutter there are part of what the board must stand out from.
   cv::Mat inside = cv::Mat::zeros(bgr.size(), CV_8U), around = inside.clone();
   cv::fillConvexPoly(inside, scaledQuad(expected, camera, 0.5), 255);
-  cv::fillConvexPoly(around, scaledQuad(expected, camera, 2.0), 255);
-  cv::fillConvexPoly(around, scaledQuad(expected, camera, 1.5), 0);
+  cv::fillConvexPoly(around, scaledQuad(expected, camera, kContrastRingOuter), 255);
+  cv::fillConvexPoly(around, scaledQuad(expected, camera, kContrastRingInner), 0);
   Eigen::Vector3d mean_in, mean_out;
   Eigen::Matrix3d cov_in, cov_out;
   if (!colourStats(bgr, inside, &mean_in, &cov_in) ||
@@ -170,8 +191,8 @@ cv::Mat boardContrastImage(const cv::Mat& bgr, const CameraModel& camera,
   if (!(separation > 0) || !std::isfinite(separation)) return {};
   // Board and ring means 100 grey levels apart, centred in the 8-bit range; the detector's
   // thresholds follow the noise it measures in this image.
-  axis *= 100.0 / separation;
-  const double offset = 127.5 - axis.dot(0.5 * (mean_in + mean_out));
+  axis *= 2.0 * kContrastHalfSeparation / separation;
+  const double offset = kContrastMidpoint - axis.dot(0.5 * (mean_in + mean_out));
   cv::Mat out(bgr.size(), CV_8U);
   for (int y = 0; y < bgr.rows; ++y) {
     const cv::Vec3b* row = bgr.ptr<cv::Vec3b>(y);
@@ -181,6 +202,141 @@ cv::Mat boardContrastImage(const cv::Mat& bgr, const CameraModel& camera,
                                       axis.z() * row[x][2] + offset);
   }
   return out;
+}
+
+namespace {
+
+// The window's camera: same intrinsics, principal point in window pixels. Raw and undistorted
+// pixels both move by the window's corner (distortion acts on normalised coordinates).
+Expected<CameraModel> windowCamera(const CameraModel& camera, const cv::Rect& window) {
+  CameraIntrinsics in = camera.intrinsics();
+  in.width = window.width;
+  in.height = window.height;
+  in.cx -= window.x;
+  in.cy -= window.y;
+  return CameraModel::create(in);
+}
+
+void shiftPoints(const Eigen::Vector2d& by, Points2* pts) {
+  for (auto& p : *pts) p += by;
+}
+
+template <size_t N>
+void shiftPoints(const Eigen::Vector2d& by, std::vector<std::array<Eigen::Vector2d, N>>* sets) {
+  for (auto& set : *sets)
+    for (auto& p : set) p += by;
+}
+
+// A line a u + b v + c = 0 moved by `by`.
+Eigen::Vector3d shiftLine(const Eigen::Vector3d& l, const Eigen::Vector2d& by) {
+  return {l.x(), l.y(), l.z() - l.head<2>().dot(by)};
+}
+
+}  // namespace
+
+bool sidesPartColours(const cv::Mat& contrast, const CameraModel& camera, CameraBoardFeatures* f) {
+  for (int j = 0; j < kNumEdges; ++j) {
+    const Eigen::Vector2d a = f->corners_px[(j + 3) % 4], b = f->corners_px[j];
+    const Eigen::Vector2d outward = f->edge_lines[j].head<2>();
+    // Past the edge's blur, inside a far board.
+    const double band = std::max(kBandMinPx, kBandSideShare * (b - a).norm());
+    std::vector<double> inside, outside;
+    for (double t = kBandFrom; t <= 1.0 - kBandFrom; t += kBandStep)
+      for (const double side : {-1.0, 1.0}) {
+        const Eigen::Vector2d q = camera.distortPixel(a + t * (b - a) + side * band * outward);
+        const int x = static_cast<int>(std::lround(q.x())),
+                  y = static_cast<int>(std::lround(q.y()));
+        if (x < 0 || y < 0 || x >= contrast.cols || y >= contrast.rows) continue;
+        (side < 0 ? inside : outside).push_back(contrast.at<uchar>(y, x));
+      }
+    const double in = inside.empty() ? 0.0 : medianOf(inside);
+    const double out = outside.empty() ? 0.0 : medianOf(outside);
+    const double needed = kMinSideContrastShare * 2.0 * kContrastHalfSeparation;
+    if (inside.empty() || outside.empty() || in - out >= needed) continue;
+    f->found = false;
+    f->reason = cv::format(
+        "side %s does not part the board's colour from its surroundings' (%.0f levels across it, "
+        "need %.0f of the board's %.0f)",
+        edgeName(j), in - out, needed, 2.0 * kContrastHalfSeparation);
+    return false;
+  }
+  return true;
+}
+
+void detectPlainInColourWindow(const cv::Mat& bgr, const CameraModel& camera, const Target& target,
+                               const ImageBoardDetectorOptions& options, const ExpectedBoard& place,
+                               const StaticScene* excluded, ImageDetection* out) {
+  out->features.K = camera.K();
+  out->features.image_width = bgr.cols;
+  out->features.image_height = bgr.rows;
+  cv::Rect window = cv::boundingRect(scaledQuad(place, camera, kContrastRingOuter));
+  // The board may exceed its place by the place's tolerance: so may its ring.
+  const int grow = std::isfinite(place.tolerance_px)
+                       ? static_cast<int>(std::ceil(
+                             std::clamp(place.tolerance_px, 0.0, double(bgr.cols + bgr.rows))))
+                       : 0;
+  window =
+      cv::Rect(window.x - grow, window.y - grow, window.width + 2 * grow, window.height + 2 * grow);
+  // On the downscaled images' pixel grid (12 px: whole downscaled pixels at factors 2, 3, 4 and
+  // 6, e.g. 4 and 3 at the default widths of a 1920 px frame): the window's pixels then average
+  // as the whole frame's do.
+  const int grid = kWindowGridPx;
+  const int x0 = (window.x / grid) * grid, y0 = (window.y / grid) * grid;
+  window = cv::Rect(x0, y0, window.x + window.width - x0, window.y + window.height - y0);
+  window = cv::Rect(window.x, window.y, (window.width + grid - 1) / grid * grid,
+                    (window.height + grid - 1) / grid * grid) &
+           cv::Rect(0, 0, bgr.cols, bgr.rows);
+  const Expected<CameraModel> window_camera = windowCamera(camera, window);
+  if (window.area() == 0 || !window_camera) {
+    out->features.reason = "the place lies outside the image";
+    return;
+  }
+  const Eigen::Vector2d to_window(-window.x, -window.y);
+  ExpectedBoard local = place;
+  for (auto& c : local.corners_px) c += to_window;
+  const cv::Mat contrast = boardContrastImage(bgr(window), *window_camera, local);
+  if (contrast.empty()) {
+    out->features.reason = "the place does not differ in colour from its surroundings";
+    return;
+  }
+  ImageBoardDetectorOptions o = options;
+  const double share = static_cast<double>(window.width) / bgr.cols;
+  auto narrowed = [share](int width_px) {
+    return width_px > 0 ? std::max(1, static_cast<int>(std::lround(width_px * share))) : width_px;
+  };
+  o.segmentation_width_px = narrowed(o.segmentation_width_px);
+  o.line_detection_width_px = narrowed(o.line_detection_width_px);
+  StaticScene local_scene;
+  if (excluded) {
+    local_scene.rectangles = excluded->rectangles;
+    for (auto& r : local_scene.rectangles)
+      for (auto& c : r.corners_px) c += to_window;
+    local_scene.lines_px = excluded->lines_px;
+    shiftPoints(to_window, &local_scene.lines_px);
+  }
+  ImageDetection found;
+  found.features.K = window_camera->K();
+  found.features.image_width = window.width;
+  found.features.image_height = window.height;
+  detectPlain(contrast, *window_camera, target, o, &found, &local,
+              excluded ? &local_scene : nullptr);
+  if (found.features.found) sidesPartColours(contrast, *window_camera, &found.features);
+  // Back to whole-frame pixels.
+  const Eigen::Vector2d back = -to_window;
+  CameraBoardFeatures& f = found.features;
+  f.K = camera.K();
+  f.image_width = bgr.cols;
+  f.image_height = bgr.rows;
+  for (auto& c : f.corners_px) c += back;
+  for (auto& l : f.edge_lines) l = shiftLine(l, back);
+  ImageDetectionDetails& d = found.details;
+  for (auto& pts : d.edge_points_raw) shiftPoints(back, &pts);
+  shiftPoints(back, &d.outline_raw);
+  shiftPoints(back, &d.hypotheses_px);
+  shiftPoints(back, &d.boards_px);
+  shiftPoints(back, &d.lines_px);
+  shiftPoints(back, &d.segments_raw);
+  *out = std::move(found);
 }
 
 cv::Mat medianImage(const std::deque<cv::Mat>& frames) {

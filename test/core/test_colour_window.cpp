@@ -1,0 +1,229 @@
+// A single frame's colour part searched in its window (issue 14): the board found there is given in
+// whole-frame pixels (corners, lines, pose) through a distorting lens, and a colour board's every
+// side must part its colour from its surroundings'. Synthetic frames rendered at 2x through the
+// distortion and area-averaged, so the truth is the board's corners projected.
+#include "../../src/core/image_detection/detection_internal.h"
+
+#include <board_calib/core/transform.h>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include <cmath>
+#include <random>
+
+namespace board_calib {
+namespace {
+
+using image_detection::detectPlainInColourWindow;
+using image_detection::sidesPartColours;
+
+constexpr int kWidth = 1920, kHeight = 1080, kSuper = 2;
+
+CameraModel lens() {
+  CameraIntrinsics in;
+  in.width = kWidth;
+  in.height = kHeight;
+  in.fx = in.fy = 1300;
+  in.cx = 961.3;
+  in.cy = 537.8;
+  in.model = DistortionModel::kPlumbBob;
+  in.coeffs = {-0.12, 0.05, 0.0004, -0.0003, 0.0};
+  return *CameraModel::create(in);
+}
+
+Target board() {
+  Target t;
+  t.type = TargetType::kPlain;
+  t.width = 0.8;
+  t.height = 0.6;
+  return t;
+}
+
+// Corners (undistorted px) of the board at this pose.
+std::array<Eigen::Vector2d, kNumEdges> projectedCorners(const CameraModel& camera,
+                                                        const Eigen::Isometry3d& camera_T_board) {
+  std::array<Eigen::Vector2d, kNumEdges> out;
+  const auto corners = board().outerCorners();
+  for (int k = 0; k < kNumEdges; ++k)
+    EXPECT_TRUE(camera.projectUndistorted(camera_T_board * corners[k], &out[k]));
+  return out;
+}
+
+bool insideQuad(const std::array<Eigen::Vector2d, kNumEdges>& q, const Eigen::Vector2d& p) {
+  int sign = 0;
+  for (int k = 0; k < kNumEdges; ++k) {
+    const Eigen::Vector2d e = q[(k + 1) % 4] - q[k], r = p - q[k];
+    const int s = e.x() * r.y() - e.y() * r.x() > 0 ? 1 : -1;
+    if (sign != 0 && s != sign) return false;
+    sign = s;
+  }
+  return true;
+}
+
+// A grey, noisy scene with grey rectangles, and the board in blue.
+cv::Mat render(const CameraModel& camera, const std::array<Eigen::Vector2d, kNumEdges>& quad,
+               std::mt19937& rng) {
+  cv::Mat big(kHeight * kSuper, kWidth * kSuper, CV_8UC3, cv::Scalar(118, 120, 122));
+  std::uniform_int_distribution<int> x(0, big.cols - 300), y(0, big.rows - 300), g(60, 190);
+  for (int k = 0; k < 25; ++k) {
+    const int level = g(rng);
+    cv::rectangle(big, cv::Rect(x(rng), y(rng), 60 + x(rng) % 240, 60 + y(rng) % 240),
+                  cv::Scalar(level, level, level), cv::FILLED);
+  }
+  for (int v = 0; v < big.rows; ++v)
+    for (int u = 0; u < big.cols; ++u) {
+      const Eigen::Vector2d raw((u + 0.5) / kSuper - 0.5, (v + 0.5) / kSuper - 0.5);
+      if (insideQuad(quad, camera.undistortPixel(raw)))
+        big.at<cv::Vec3b>(v, u) = cv::Vec3b(170, 110, 60);
+    }
+  cv::Mat image;
+  cv::resize(big, image, cv::Size(kWidth, kHeight), 0, 0, cv::INTER_AREA);
+  cv::Mat noise(image.size(), CV_16SC3);
+  cv::randn(noise, 0, 2.0);
+  image.convertTo(image, CV_16SC3);
+  image += noise;
+  image.convertTo(image, CV_8UC3);
+  return image;
+}
+
+// A colour part as chromaDeparture gives it: a rough rectangle around the board.
+ExpectedBoard roughPlace(const std::array<Eigen::Vector2d, kNumEdges>& quad) {
+  ExpectedBoard place;
+  place.inside = true;
+  double perimeter = 0;
+  for (int k = 0; k < kNumEdges; ++k) {
+    place.corners_px[k] = quad[k] + Eigen::Vector2d(k % 2 ? 5.0 : -4.0, k < 2 ? -3.0 : 6.0);
+    perimeter += (quad[(k + 1) % 4] - quad[k]).norm();
+  }
+  place.tolerance_px = 0.25 * perimeter / kNumEdges + 2.0;
+  return place;
+}
+
+TEST(ColourWindow, BoardFoundInItsWindowIsGivenInWholeFramePixels) {
+  const CameraModel camera = lens();
+  std::mt19937 rng(15);
+  // Boards near the centre and near the corners, where the lens distorts most.
+  const Eigen::Vector3d places[] = {
+      {-0.3, -0.2, 4.0}, {1.1, 0.3, 3.6}, {-1.9, 0.5, 4.2}, {1.0, -1.0, 3.2}};
+  int k = 0;
+  for (const Eigen::Vector3d& at : places) {
+    const Eigen::Isometry3d camera_T_board =
+        makeTransform(fromRollPitchYaw({0.15 * (k % 3), -0.2 + 0.1 * k, 0.3 * k}), at);
+    const auto truth = projectedCorners(camera, camera_T_board);
+    for (const auto& t : truth) {
+      const Eigen::Vector2d raw = camera.distortPixel(t);
+      ASSERT_TRUE(raw.x() > 20 && raw.y() > 20 && raw.x() < kWidth - 20 && raw.y() < kHeight - 20)
+          << "board " << k << " leaves the image";
+    }
+    const cv::Mat image = render(camera, truth, rng);
+    ImageDetection d;
+    detectPlainInColourWindow(image, camera, board(), ImageBoardDetectorOptions{},
+                              roughPlace(truth), nullptr, &d);
+    ASSERT_TRUE(d.features.found) << "board " << k << ": " << d.features.reason;
+    // Whole-frame pixels and intrinsics: the corners, the lines through them, the pose.
+    EXPECT_EQ(d.features.image_width, kWidth);
+    EXPECT_EQ(d.features.image_height, kHeight);
+    EXPECT_TRUE(d.features.K.isApprox(camera.K()));
+    // The same board as the whole frame's colour contrast gives (the window's pixels are
+    // processed as the frame's: measured identical to 1e-4 px), and at the truth: measured
+    // within 0.26 px (the contrast image's noise); a window shifted by one pixel is off by one.
+    const ExpectedBoard place = roughPlace(truth);
+    ImageDetection whole;
+    whole.features.K = camera.K();
+    image_detection::detectPlain(image_detection::boardContrastImage(image, camera, place), camera,
+                                 board(), ImageBoardDetectorOptions{}, &whole, &place, nullptr);
+    ASSERT_TRUE(whole.features.found) << "board " << k << ": " << whole.features.reason;
+    for (int c = 0; c < kNumEdges; ++c) {
+      EXPECT_LT((d.features.corners_px[c] - whole.features.corners_px[c]).norm(), 1e-3)
+          << "board " << k << " corner " << c;
+      double nearest = 1e9;
+      for (const auto& t : truth)
+        nearest = std::min(nearest, (d.features.corners_px[c] - t).norm());
+      EXPECT_LT(nearest, 0.5) << "board " << k << " corner " << c;
+      for (const auto& l : {d.features.edge_lines[c], d.features.edge_lines[(c + 1) % 4]})
+        EXPECT_LT(std::abs(l.head<2>().dot(d.features.corners_px[c]) + l.z()), 1e-6);
+    }
+    const Eigen::Vector3d centre = camera_T_board * board().center();
+    EXPECT_LT((d.features.camera_T_board * board().center() - centre).norm(), 0.01 * at.norm())
+        << "board " << k;
+    // The debug outline is in whole-frame raw pixels too: near the board.
+    for (const auto& p : d.details.edge_points_raw[0])
+      EXPECT_LT(std::abs(d.features.edge_lines[0].head<2>().dot(camera.undistortPixel(p)) +
+                         d.features.edge_lines[0].z()),
+                1.0);
+    ++k;
+  }
+}
+
+// The colour contrast as boardContrastImage maps it: board at 177.5, surroundings at 77.5.
+cv::Mat contrastOf(const std::array<Eigen::Vector2d, kNumEdges>& board_quad) {
+  cv::Mat c(600, 800, CV_8U, cv::Scalar(78));
+  std::vector<cv::Point> poly;
+  for (const auto& p : board_quad)
+    poly.emplace_back(int(std::lround(p.x())), int(std::lround(p.y())));
+  cv::fillConvexPoly(c, poly, cv::Scalar(178), cv::LINE_AA);
+  cv::Mat noise(c.size(), CV_16S);
+  cv::randn(noise, 0, 6.0);
+  c.convertTo(c, CV_16S);
+  c += noise;
+  c.convertTo(c, CV_8U);
+  return c;
+}
+
+CameraModel plainCamera() {
+  CameraIntrinsics in;
+  in.width = 800;
+  in.height = 600;
+  in.fx = in.fy = 800;
+  in.cx = 399.5;
+  in.cy = 299.5;
+  return *CameraModel::create(in);
+}
+
+CameraBoardFeatures quadFeatures(const std::array<Eigen::Vector2d, kNumEdges>& q) {
+  CameraBoardFeatures f;
+  f.found = true;
+  // Corner j ends side j; side j runs from corner j-1 (clockwise, image v down).
+  for (int j = 0; j < kNumEdges; ++j) {
+    f.corners_px[j] = q[j];
+    const Eigen::Vector2d a = q[(j + 3) % 4], b = q[j], centre = 0.25 * (q[0] + q[1] + q[2] + q[3]);
+    Eigen::Vector2d n(b.y() - a.y(), a.x() - b.x());
+    n.normalize();
+    if (n.dot(centre - a) > 0) n = -n;  // outward
+    f.edge_lines[j] = Eigen::Vector3d(n.x(), n.y(), -n.dot(a));
+    f.edge_valid[j] = true;
+  }
+  return f;
+}
+
+TEST(ColourWindow, EverySideMustPartTheBoardsColourFromItsSurroundings) {
+  const CameraModel camera = plainCamera();
+  const std::array<Eigen::Vector2d, kNumEdges> board_quad = {
+      Eigen::Vector2d(200, 150), {600, 170}, {590, 450}, {210, 430}};
+  const cv::Mat contrast = contrastOf(board_quad);
+  // The board itself.
+  CameraBoardFeatures f = quadFeatures(board_quad);
+  EXPECT_TRUE(sidesPartColours(contrast, camera, &f)) << f.reason;
+  // The board with a same-coloured occluder over a third of its right side: medians decide.
+  cv::Mat occluded = contrast.clone();
+  cv::circle(occluded, cv::Point(600, 240), 45, cv::Scalar(178), cv::FILLED);
+  f = quadFeatures(board_quad);
+  EXPECT_TRUE(sidesPartColours(occluded, camera, &f)) << f.reason;
+  // A quadrilateral whose right side (LR: corner j ends side j, clockwise from the left side)
+  // runs inside the board (printed marks, a leg in front):
+  // board on both sides of it.
+  const std::array<Eigen::Vector2d, kNumEdges> inner = {
+      Eigen::Vector2d(200, 150), {470, 163}, {463, 440}, {210, 430}};
+  f = quadFeatures(inner);
+  EXPECT_FALSE(sidesPartColours(contrast, camera, &f));
+  EXPECT_FALSE(f.found);
+  EXPECT_NE(f.reason.find("side LR does not part"), std::string::npos) << f.reason;
+  // A scene rectangle of the board's colour's opposite: inside darker than outside.
+  cv::Mat inverted = 255 - contrast;
+  f = quadFeatures(board_quad);
+  EXPECT_FALSE(sidesPartColours(inverted, camera, &f));
+}
+
+}  // namespace
+}  // namespace board_calib
