@@ -221,10 +221,11 @@ Foreground chromaDeparture(const cv::Mat& bgr, int width_px);
 /// the scene's grey but another colour.
 std::vector<ExpectedBoard> colourPartBoards(const cv::Mat& bgr, const CameraModel& camera,
                                             const ImageBoardDetectorOptions& options);
-/// A plain board searched only in the part of the frame around `place` (the ring its colour
-/// contrast is measured against: 2 board sizes about its centre), at the whole frame's scale: the
-/// principal point moves with the window and the downscaled widths shrink with it, so the
-/// window's pixels are processed as in the whole frame. `out` is in whole-frame pixels.
+/// A plain board searched in `place`'s colour contrast, only in the part of the frame around it
+/// (the ring the contrast is measured against, 2 board sizes about its centre, grown by the
+/// place's tolerance), at the whole frame's scale: the principal point moves with the window and
+/// the downscaled widths shrink with it, so the window's pixels are processed as in the whole
+/// frame. A board found must also pass sidesPartColours. `out` is in whole-frame pixels.
 void detectPlainInColourWindow(const cv::Mat& bgr, const CameraModel& camera, const Target& target,
                                const ImageBoardDetectorOptions& options, const ExpectedBoard& place,
                                const StaticScene* excluded, ImageDetection* out);
