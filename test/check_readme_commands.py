@@ -77,6 +77,11 @@ CASES = {
         "expect": r"report written to report/",
         "files": ["result.yaml", "report/report.md", "report/edge_errors.png", "report/pose_coverage.png",
                   "report/overlay_view_0.jpg"]},
+    # The report's session from the command above (order 0), two of its views left out.
+    "scripts/env.sh rosrun board_calib calibrate_bag --load-session report/session.yaml --method pbpc "
+    "--drop-views 3,7 --output result_kept.yaml": {
+        "kind": "run", "timeout": 120, "order": 1, "expect": r"views 3, 7 left out \(--drop-views\)",
+        "files": ["result_kept.yaml"]},
     "roslaunch board_calib calibration.launch target_file:=/path/target.yaml image:=/camera/image_raw "
     "camera_info:=/camera/camera_info points:=/os1/points rviz:=true": {"kind": "live_pair"},
     'rosservice call /calibrator/calibrate "{method: pbpc}"': {"kind": "live_pair"},

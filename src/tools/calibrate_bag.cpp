@@ -107,6 +107,43 @@ void secondPass(const Args& args, const std::vector<Method>& methods, const Targ
   pipeline->emplace(std::move(*p));
 }
 
+// Ascending ids as ranges: "0-3, 5, 7-9".
+std::string idRanges(std::vector<int> ids) {
+  std::sort(ids.begin(), ids.end());
+  std::string out;
+  for (size_t i = 0; i < ids.size();) {
+    size_t j = i;
+    while (j + 1 < ids.size() && ids[j + 1] == ids[j] + 1) ++j;
+    out += (out.empty() ? "" : ", ") + std::to_string(ids[i]) +
+           (j > i ? "-" + std::to_string(ids[j]) : std::string());
+    i = j + 1;
+  }
+  return out.empty() ? "none" : out;
+}
+
+// --drop-views: the views the user judged bad are left out and the session is solved again with
+// every check, so the verdict is the one of the views kept.
+void dropViewsAndSolve(const Args& args, PairSession* session, const std::vector<Method>& methods,
+                       const Target& target, const PairCalibrationOptions& run_options,
+                       std::string* camera_frame, std::string* lidar_frame, PairCalibration* run) {
+  std::vector<int> kept;
+  for (const SessionView& v : session->views()) kept.push_back(v.view.id);
+  for (const int id : args.drop_views)
+    if (std::find(kept.begin(), kept.end(), id) == kept.end())
+      fail("--drop-views: no view " + std::to_string(id) + " in the session (its views: " +
+               idRanges(kept) + ")",
+           kExitUsage);
+  for (const int id : args.drop_views)
+    if (const Status st = session->dropView(id); !st) fail("--drop-views: " + st.reason);
+  const std::string dropped = idRanges(args.drop_views);
+  if (session->plainViews().empty())
+    fail("--drop-views " + dropped + " leaves no view to solve", kExitUsage);
+  std::cout << "views " << dropped << " left out (--drop-views): " << kept.size() << " -> "
+            << session->views().size() << " views, solved again\n";
+  *run = solveSession(args, *session, methods, target, run_options, camera_frame, lidar_frame);
+  run->result.notes.push_back("views " + dropped + " left out by the user (--drop-views)");
+}
+
 // Errors of every method against a truth file; --check-truth fails on the reported one.
 void checkTruth(const Args& args, const std::vector<CalibrationSolution>& solutions,
                 const CalibrationSolution& chosen, const std::string& camera_frame,
@@ -286,14 +323,21 @@ int main(int argc, char** argv) {
   PairCalibrationOptions run_options;
   run_options.solver = solver;
   PairCalibration run;
-  if (pipeline && args.second_chance && target->type == TargetType::kPlain &&
-      session->plainViews().empty())
+  // Views to drop: the whole session is solved only when the second pass needs its result.
+  const bool second_pass = pipeline && args.second_chance;
+  if (second_pass && target->type == TargetType::kPlain && session->plainViews().empty())
     run.reason = session->captureStats().whyNoViews();  // the second pass may still find views
-  else
+  else if (args.drop_views.empty() || second_pass)
     run = solveSession(args, *session, methods, *target, run_options, &camera_frame, &lidar_frame);
-  if (pipeline && args.second_chance) {
+  if (second_pass) {
     secondPass(args, methods, *target, options, run_options, &pipeline, &run);
     session = &pipeline->session();
+  }
+  if (!args.drop_views.empty()) {
+    PairSession* kept = pipeline ? &pipeline->session() : &loaded_session;
+    dropViewsAndSolve(args, kept, methods, *target, run_options, &camera_frame, &lidar_frame,
+                      &run);
+    session = kept;
   }
   if (run.runs.empty()) fail(run.reason);
   if (!args.save_session.empty()) {

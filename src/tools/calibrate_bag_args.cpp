@@ -3,8 +3,10 @@
 
 #include <board_calib/core/transform.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <iostream>
 #include <sstream>
 
@@ -36,6 +38,11 @@ const char* const kUsage =
     "  --sync-tolerance S  max image/cloud stamp difference of one view, s (default 0.05)\n"
     "  --load-session F    solve a saved session (no bag needed); --save-session F keeps the "
     "views\n"
+    "  --drop-views IDS    leave out these views (comma-separated ids, as the verdict names them "
+    "under\n"
+    "                      views_to_check) and solve again; the ids are those of the loaded "
+    "session, or\n"
+    "                      of the same command's run without this option\n"
     "  --truth FILE        a ground-truth result file (simulate_bag's *.truth.yaml): print the "
     "errors\n"
     "  --check-truth R T   with --truth: exit non-zero if the reported result is off by more than "
@@ -72,6 +79,7 @@ constexpr double kMaxStillFrames = 1000;           // frames (at 10 Hz, 100 s of
 constexpr double kMaxSyncToleranceS = 5.0;         // s; sensors are never further apart than this
 constexpr double kMaxLossScaleM = 10.0;            // m, larger than any board
 constexpr double kMaxEdgeShiftSteps = 100.0;       // horizontal LiDAR steps
+constexpr int kMaxViewId = 1000000;               // far more views than any session holds
 constexpr double kQuaternionNormTolerance = 0.01;  // |q| - 1, four typed decimals pass
 
 // A finite number, or a usage error naming the flag and the text.
@@ -117,6 +125,20 @@ Eigen::Isometry3d parseGuess(const double (&v)[7]) {
     fail(s.str(), kExitUsage);
   }
   return makeTransform(Eigen::Vector3d(v[0], v[1], v[2]), q);
+}
+
+// --drop-views 3,7: whole non-negative ids, appended to `ids`.
+void parseViewIds(const std::string& flag, const std::string& text, std::vector<int>* ids) {
+  std::stringstream list(text);
+  std::string id;
+  bool any = false;
+  while (std::getline(list, id, ',')) {
+    if (id.empty()) fail(flag + " expects ids separated by commas, got '" + text + "'", kExitUsage);
+    ids->push_back(parseCount(flag, id, 0, kMaxViewId));
+    any = true;
+  }
+  if (!any || text.back() == ',')
+    fail(flag + " expects ids separated by commas, got '" + text + "'", kExitUsage);
 }
 
 }  // namespace
@@ -176,6 +198,8 @@ Args parseArgs(int argc, char** argv) {
       a.config = need(i, f);
     else if (f == "--capture")
       a.capture = need(i, f);
+    else if (f == "--drop-views")
+      parseViewIds(f, need(i, f), &a.drop_views);
     else if (f == "--check-truth") {
       a.check_rot_deg = parseInRange(f + " ROT_DEG", need(i, f), 0, 180, false);
       a.check_trans_m = parseInRange(f + " TRANS_M", need(i, f), 0, 1000, false);
@@ -190,11 +214,24 @@ Args parseArgs(int argc, char** argv) {
   if (a.method.empty()) fail("--method is required (ppc, pbpc, msg or all)", kExitUsage);
   if (a.capture != "all" && a.capture != "still")
     fail("--capture must be all or still, got '" + a.capture + "'", kExitUsage);
+  std::sort(a.drop_views.begin(), a.drop_views.end());
+  a.drop_views.erase(std::unique(a.drop_views.begin(), a.drop_views.end()), a.drop_views.end());
   if (!a.config.empty()) {
+    if (!a.drop_views.empty())
+      fail("--drop-views is for a camera-LiDAR pair; a rig's board poses are dropped live "
+           "(~drop_view)",
+           kExitUsage);
     if (a.method != "msg") fail("--config (a multi-sensor rig) needs --method msg", kExitUsage);
     return a;
   }
   if (a.target.empty() && a.load_session.empty()) fail("--target is required", kExitUsage);
+  // The views a user drops stay in the loaded file: it is never overwritten with fewer.
+  if (!a.drop_views.empty() && !a.load_session.empty() && !a.save_session.empty() &&
+      std::filesystem::weakly_canonical(a.load_session) ==
+          std::filesystem::weakly_canonical(a.save_session))
+    fail("--save-session with --drop-views would overwrite the loaded session '" +
+             a.load_session + "' without the dropped views; save to another file",
+         kExitUsage);
   if (a.load_session.empty()) {
     if (a.bags.empty()) fail("--bag is required", kExitUsage);
     if (a.image_topic.empty() || a.info_topic.empty() || a.cloud_topic.empty())

@@ -33,6 +33,7 @@ struct Args {
   double check_rot_deg = 0, check_trans_m = 0;
   double edge_shift = -1;         // horizontal steps; < 0: solver default
   std::string capture = "still";  // rig: still | all
+  std::vector<int> drop_views;    // view ids left out before the final solve, ascending
 };
 
 /// One-line failure "calibrate_bag: <why>" on stderr, then exit with `code`.

@@ -175,8 +175,8 @@ std::string verdictSummary(const PairCalibration& run) {
   switch (run.verdict) {
     case Verdict::kGood: s << "  next: use it (the result file and static TF carry it)\n"; break;
     case Verdict::kDoubtful:
-      s << "  next: look at the named views (report overlays), drop bad ones or add views, then "
-           "solve again\n";
+      s << "  next: look at the named views (report overlays), drop bad ones (live ~drop_view, "
+           "offline --drop-views) or add views, then solve again\n";
       break;
     case Verdict::kFailed:
       s << "  next: do not use this result; fix the cause above (views, board, sync, target) and "
