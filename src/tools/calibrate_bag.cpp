@@ -130,8 +130,8 @@ void dropViewsAndSolve(const Args& args, PairSession* session, const std::vector
   for (const SessionView& v : session->views()) kept.push_back(v.view.id);
   for (const int id : args.drop_views)
     if (std::find(kept.begin(), kept.end(), id) == kept.end())
-      fail("--drop-views: no view " + std::to_string(id) + " in the session (its views: " +
-               idRanges(kept) + ")",
+      fail("--drop-views: no view " + std::to_string(id) +
+               " in the session (its views: " + idRanges(kept) + ")",
            kExitUsage);
   for (const int id : args.drop_views)
     if (const Status st = session->dropView(id); !st) fail("--drop-views: " + st.reason);
@@ -335,8 +335,7 @@ int main(int argc, char** argv) {
   }
   if (!args.drop_views.empty()) {
     PairSession* kept = pipeline ? &pipeline->session() : &loaded_session;
-    dropViewsAndSolve(args, kept, methods, *target, run_options, &camera_frame, &lidar_frame,
-                      &run);
+    dropViewsAndSolve(args, kept, methods, *target, run_options, &camera_frame, &lidar_frame, &run);
     session = kept;
   }
   if (run.runs.empty()) fail(run.reason);

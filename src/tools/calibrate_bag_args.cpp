@@ -79,7 +79,7 @@ constexpr double kMaxStillFrames = 1000;           // frames (at 10 Hz, 100 s of
 constexpr double kMaxSyncToleranceS = 5.0;         // s; sensors are never further apart than this
 constexpr double kMaxLossScaleM = 10.0;            // m, larger than any board
 constexpr double kMaxEdgeShiftSteps = 100.0;       // horizontal LiDAR steps
-constexpr int kMaxViewId = 1000000;               // far more views than any session holds
+constexpr int kMaxViewId = 1000000;                // far more views than any session holds
 constexpr double kQuaternionNormTolerance = 0.01;  // |q| - 1, four typed decimals pass
 
 // A finite number, or a usage error naming the flag and the text.
@@ -218,9 +218,10 @@ Args parseArgs(int argc, char** argv) {
   a.drop_views.erase(std::unique(a.drop_views.begin(), a.drop_views.end()), a.drop_views.end());
   if (!a.config.empty()) {
     if (!a.drop_views.empty())
-      fail("--drop-views is for a camera-LiDAR pair; a rig's board poses are dropped live "
-           "(~drop_view)",
-           kExitUsage);
+      fail(
+          "--drop-views is for a camera-LiDAR pair; a rig's board poses are dropped live "
+          "(~drop_view)",
+          kExitUsage);
     if (a.method != "msg") fail("--config (a multi-sensor rig) needs --method msg", kExitUsage);
     return a;
   }
@@ -229,8 +230,8 @@ Args parseArgs(int argc, char** argv) {
   if (!a.drop_views.empty() && !a.load_session.empty() && !a.save_session.empty() &&
       std::filesystem::weakly_canonical(a.load_session) ==
           std::filesystem::weakly_canonical(a.save_session))
-    fail("--save-session with --drop-views would overwrite the loaded session '" +
-             a.load_session + "' without the dropped views; save to another file",
+    fail("--save-session with --drop-views would overwrite the loaded session '" + a.load_session +
+             "' without the dropped views; save to another file",
          kExitUsage);
   if (a.load_session.empty()) {
     if (a.bags.empty()) fail("--bag is required", kExitUsage);
