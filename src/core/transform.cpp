@@ -1,5 +1,7 @@
 #include <board_calib/core/transform.h>
 
+#include <Eigen/SVD>
+
 #include <cmath>
 
 namespace board_calib {
@@ -101,6 +103,24 @@ Eigen::Isometry3d perturb(const Eigen::Isometry3d& T, double sigma_rot, double s
   const Eigen::Vector3d dt(nt(rng), nt(rng), nt(rng));
   Eigen::Isometry3d delta = makeTransform(expSO3(w), dt);
   return delta * T;
+}
+
+Expected<Eigen::Matrix3d> rotationAligning(const std::vector<Eigen::Vector3d>& from,
+                                           const std::vector<Eigen::Vector3d>& to,
+                                           const std::vector<double>& weights,
+                                           double min_relative_second) {
+  if (to.size() != from.size() || (!weights.empty() && weights.size() != from.size()))
+    return Expected<Eigen::Matrix3d>::failure("rotationAligning: sizes differ");
+  Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+  for (size_t i = 0; i < from.size(); ++i)
+    H += (weights.empty() ? 1.0 : weights[i]) * from[i] * to[i].transpose();
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::Vector3d sv = svd.singularValues();
+  if (!(sv(0) > 0.0) || !(sv(1) > min_relative_second * sv(0)))
+    return Expected<Eigen::Matrix3d>::failure("the directions do not fix a rotation");
+  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
+  D(2, 2) = (svd.matrixV() * svd.matrixU().transpose()).determinant() < 0 ? -1.0 : 1.0;
+  return Eigen::Matrix3d(svd.matrixV() * D * svd.matrixU().transpose());
 }
 
 }  // namespace board_calib

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <random>
 
 using namespace board_calib;
 
@@ -23,6 +24,45 @@ TEST(Transform, QuaternionAndMatrixRoundTrip) {
   }
   EXPECT_FALSE(fromRowMajor({1, 2, 3}).ok());
   EXPECT_FALSE(fromRowMajor({2, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}).ok());
+}
+
+// The one Kabsch of the core (solvers, consistency check, consensus prior): the rotation that
+// generated the pairs, a weight that silences an outlier, never a reflection, and a refusal when
+// one direction cannot fix a rotation.
+TEST(Transform, RotationAligningFindsTheRotationOrSaysWhyNot) {
+  std::mt19937 rng(11);
+  std::normal_distribution<double> unit(0.0, 1.0);
+  for (int trial = 0; trial < 20; ++trial) {
+    const Eigen::Matrix3d R = perturb(Eigen::Isometry3d::Identity(), 1.5, 0.0, rng).rotation();
+    std::vector<Eigen::Vector3d> from, to;
+    for (int i = 0; i < 6; ++i) {
+      from.emplace_back(unit(rng), unit(rng), unit(rng));
+      to.push_back(R * from.back());
+    }
+    auto found = rotationAligning(from, to, {}, 1e-6);
+    ASSERT_TRUE(found.ok());
+    EXPECT_TRUE(found->isApprox(R, 1e-9));
+    // A far outlier at weight 0 changes nothing.
+    from.push_back(Eigen::Vector3d(1, 0, 0));
+    to.push_back(Eigen::Vector3d(-5, 3, 1));
+    std::vector<double> weights(from.size(), 1.0);
+    weights.back() = 0.0;
+    found = rotationAligning(from, to, weights, 1e-6);
+    ASSERT_TRUE(found.ok());
+    EXPECT_TRUE(found->isApprox(R, 1e-9));
+  }
+  // Mirrored pairs: the best proper rotation, determinant +1.
+  const std::vector<Eigen::Vector3d> from = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  const std::vector<Eigen::Vector3d> mirrored = {{1, 0, 0}, {0, 1, 0}, {0, 0, -1}};
+  const auto proper = rotationAligning(from, mirrored, {}, 1e-6);
+  ASSERT_TRUE(proper.ok());
+  EXPECT_NEAR(proper->determinant(), 1.0, 1e-12);
+  // One direction (parallel pairs) or nothing does not fix a rotation; sizes must match.
+  const std::vector<Eigen::Vector3d> parallel = {{0, 0, 1}, {0, 0, 2}};
+  EXPECT_FALSE(rotationAligning(parallel, parallel, {}, 1e-6).ok());
+  EXPECT_FALSE(rotationAligning({}, {}, {}, 1e-6).ok());
+  EXPECT_FALSE(rotationAligning(from, parallel, {}, 1e-6).ok());
+  EXPECT_FALSE(rotationAligning(from, from, {1.0}, 1e-6).ok());
 }
 
 TEST(Plane, TransformKeepsPointsOnPlane) {

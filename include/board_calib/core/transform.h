@@ -33,6 +33,15 @@ Eigen::Matrix3d fromRollPitchYaw(const Eigen::Vector3d& rpy);
 Eigen::Matrix3d expSO3(const Eigen::Vector3d& rotation_vector);
 Eigen::Vector3d logSO3(const Eigen::Matrix3d& rotation);
 
+/// The rotation R minimising sum_i w_i |to_i - R from_i|^2 (Kabsch; never a reflection); all
+/// weights 1 when `weights` is empty. Fails when the pairs do not fix a rotation: the second
+/// singular value of sum_i w_i from_i to_i^T is at most `min_relative_second` of the first (one
+/// direction only, or nothing).
+Expected<Eigen::Matrix3d> rotationAligning(const std::vector<Eigen::Vector3d>& from,
+                                           const std::vector<Eigen::Vector3d>& to,
+                                           const std::vector<double>& weights,
+                                           double min_relative_second);
+
 /// A perturbation drawn as a rotation vector ~ N(0, sigma_rot_rad) per axis and a
 /// translation ~ N(0, sigma_trans_m) per axis, applied as T_perturbed = delta * T.
 Eigen::Isometry3d perturb(const Eigen::Isometry3d& transform, double sigma_rot_rad,

@@ -6,9 +6,9 @@
 // rectangle stays where it is while the LiDAR's board moves, so no placement maps several board
 // positions onto it.
 #include <board_calib/core/pipeline/second_chance.h>
+#include <board_calib/core/transform.h>
 
 #include <Eigen/Eigenvalues>
-#include <Eigen/SVD>
 
 #include <algorithm>
 #include <cmath>
@@ -56,17 +56,17 @@ bool alignPoints(const std::vector<Eigen::Vector3d>& from, const std::vector<Eig
     mean_from += from[i] / static_cast<double>(n);
     mean_to += to[i] / static_cast<double>(n);
   }
-  Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
-  for (size_t i = 0; i < n; ++i) H += (from[i] - mean_from) * (to[i] - mean_to).transpose();
-  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  const Eigen::Vector3d sv = svd.singularValues();
-  if (!(sv(1) > 1e-9 * std::max(1.0, sv(0)))) return false;
-  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
-  D(2, 2) = (svd.matrixV() * svd.matrixU().transpose()).determinant() < 0 ? -1.0 : 1.0;
-  const Eigen::Matrix3d R = svd.matrixV() * D * svd.matrixU().transpose();
+  std::vector<Eigen::Vector3d> centred_from, centred_to;
+  for (size_t i = 0; i < n; ++i) {
+    centred_from.push_back(from[i] - mean_from);
+    centred_to.push_back(to[i] - mean_to);
+  }
+  constexpr double kMinRelativeSecond = 1e-9;  // points on a line leave the roll about it free
+  const auto R = rotationAligning(centred_from, centred_to, {}, kMinRelativeSecond);
+  if (!R) return false;
   T->setIdentity();
-  T->linear() = R;
-  T->translation() = mean_to - R * mean_from;
+  T->linear() = *R;
+  T->translation() = mean_to - *R * mean_from;
   return T->matrix().allFinite();
 }
 

@@ -4,7 +4,6 @@
 #include <board_calib/core/transform.h>
 
 #include <Eigen/Eigenvalues>
-#include <Eigen/SVD>
 
 #include <algorithm>
 #include <cctype>
@@ -191,17 +190,12 @@ Observability analyseObservability(const Matrix6d& covariance, bool ok, double m
 Expected<Eigen::Matrix3d> alignVectors(const std::vector<Eigen::Vector3d>& a,
                                        const std::vector<Eigen::Vector3d>& b,
                                        const std::vector<double>& weights) {
-  Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
-  for (size_t i = 0; i < a.size(); ++i) M += weights[i] * a[i] * b[i].transpose();
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  const Eigen::Vector3d sv = svd.singularValues();
   // Two independent directions fix a rotation; the third singular value may be zero.
   constexpr double kMinRelativeSecond = 1e-6;
-  if (!(sv(0) > 0.0) || sv(1) < kMinRelativeSecond * sv(0))
+  auto R = rotationAligning(b, a, weights, kMinRelativeSecond);
+  if (!R)
     return Expected<Eigen::Matrix3d>::failure("the normals do not fix a rotation (all parallel)");
-  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
-  D(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
-  return Eigen::Matrix3d(svd.matrixU() * D * svd.matrixV().transpose());
+  return R;
 }
 
 double normalSpreadDeg(const std::vector<Eigen::Vector3d>& normals, int k) {

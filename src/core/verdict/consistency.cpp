@@ -29,13 +29,18 @@ struct Obs {
   double fa = 1, fo = 1;  // distance factors of the normal and offset errors
 };
 
+// The rotation taking the LiDAR normals to the camera's, each weighted by its normal error; a
+// sample of parallel normals still gives one (its views are then judged by the others).
 Eigen::Matrix3d kabsch(const std::vector<const Obs*>& obs) {
-  Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
-  for (const Obs* o : obs) H += (o->nl / o->fa) * (o->nc / o->fa).transpose();
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
-  D(2, 2) = (svd.matrixV() * svd.matrixU().transpose()).determinant() < 0 ? -1.0 : 1.0;
-  return svd.matrixV() * D * svd.matrixU().transpose();
+  std::vector<Eigen::Vector3d> lidar, camera;
+  std::vector<double> weights;
+  for (const Obs* o : obs) {
+    lidar.push_back(o->nl);
+    camera.push_back(o->nc);
+    weights.push_back(1.0 / (o->fa * o->fa));
+  }
+  const auto R = rotationAligning(lidar, camera, weights, -1.0);
+  return R ? *R : Eigen::Matrix3d::Identity();
 }
 
 // t (and s when asked and well determined) from s d_c - d_l = n_c . t, weighted by the offset
