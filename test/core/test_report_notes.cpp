@@ -89,6 +89,32 @@ TEST(ReportNotes, CompensatedPlaneScaleQuotesCompensatedFigures) {
   EXPECT_NE(solutionSummary(s).find("before the plane scale"), std::string::npos);
 }
 
+// A verdict that is not good leads with a declared size the data contradict.
+TEST(ReportNotes, DeclaredSizeDoubtNamesTheTargetFile) {
+  const CalibrationSolution none;
+  const std::string measured =
+      declaredSizeDoubt(viewsMeasuring(1.02, 1.02), rectangle(0.86, 0.86), none);
+  EXPECT_NE(measured.find("the LiDAR measures the board 1.02 x 1.02 m, the target declares 0.86 x "
+                          "0.86 m: check the target file"),
+            std::string::npos)
+      << measured;
+  EXPECT_EQ(declaredSizeDoubt(viewsMeasuring(1.01, 0.99), rectangle(1.0, 1.0), none), "");
+  // No LiDAR outline: the plane scale the solve estimated speaks, with its direction.
+  CalibrationSolution scaled;
+  scaled.success = true;
+  scaled.plane_scale = 1.181;
+  const std::string plane = declaredSizeDoubt({}, rectangle(0.86, 0.86), scaled);
+  EXPECT_NE(plane.find("scaled by 1.181, as if the board were 18.1 % larger than the target "
+                       "declares: check the target file"),
+            std::string::npos)
+      << plane;
+  scaled.plane_scale = 0.9;
+  EXPECT_NE(declaredSizeDoubt({}, rectangle(1.0, 1.0), scaled).find("10.0 % smaller"),
+            std::string::npos);
+  scaled.plane_scale = 1.01;
+  EXPECT_EQ(declaredSizeDoubt({}, rectangle(1.0, 1.0), scaled), "");
+}
+
 TEST(ReportNotes, SummaryShowsTheOneSigmaTheResultFileCarries) {
   // The verdict grows the solver's 1 sigma (residuals, left-out views, edge bias); the summary
   // printed beside the result file must quote the grown one, naming the solver's beside it.

@@ -135,6 +135,10 @@ PairCalibration calibratePair(const std::vector<View>& views, const std::vector<
   const MethodRun& run = out.shownRun();
   out.verdict = run.verdict.verdict;
   out.reason = run.verdict.reason;
+  if (out.verdict != Verdict::kGood) {
+    const std::string size = declaredSizeDoubt(out.used_views, target, run.solution);
+    if (!size.empty() && out.reason.find(size) == std::string::npos) out.reason += "; " + size;
+  }
   out.result = makeResultFile(run.solution, out.used_views, target, camera_frame, lidar_frame);
   out.result.verdict = verdictName(out.verdict);
   out.result.verdict_reason = out.reason;

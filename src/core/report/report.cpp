@@ -13,42 +13,63 @@ namespace {
 
 constexpr double kSizeNoteThreshold = 0.02;  // relative size difference worth reporting
 
-}  // namespace
+// The LiDAR-measured board size per side (median over views with a full outline). The detector
+// pairs its two measured sides with the declared width and height (measured_size_m.x() is the
+// side matched to the width), so a rectangular board is compared side by side.
+struct MeasuredSize {
+  size_t views = 0;
+  double width = 0, height = 0;
+  double width_off = 0, height_off = 0;  // relative to the declared size
+  bool off() const {
+    return std::abs(width_off) > kSizeNoteThreshold || std::abs(height_off) > kSizeNoteThreshold;
+  }
+  bool larger() const {
+    return (std::abs(width_off) > kSizeNoteThreshold ? width_off : height_off) > 0;
+  }
+};
 
-std::vector<std::string> consistencyNotes(const std::vector<View>& views, const Target& target,
-                                          const CalibrationSolution& solution) {
-  std::vector<std::string> notes;
-  // LiDAR-measured board size per side (median over views with a full outline). The detector
-  // pairs its two measured sides with the declared width and height (measured_size_m.x() is
-  // the side matched to the width), so a rectangular board is compared side by side.
+MeasuredSize lidarMeasuredSize(const std::vector<View>& views, const Target& target) {
+  MeasuredSize m;
   std::vector<double> widths, heights;
   for (const auto& v : views)
     if (v.lidar.allEdgesValid() && v.lidar.measured_size_m.minCoeff() > 0) {
       widths.push_back(v.lidar.measured_size_m.x());
       heights.push_back(v.lidar.measured_size_m.y());
     }
-  if (!widths.empty() && target.width > 0 && target.height > 0) {
-    const double w = medianOf(widths), h = medianOf(heights);
-    const double rw = w / target.width - 1.0, rh = h / target.height - 1.0;
-    const auto pct = [](double r) {
-      return std::string(r > 0 ? "+" : "") + formatFixed(r * 100, 1) + " %";
-    };
+  if (widths.empty() || !(target.width > 0) || !(target.height > 0)) return m;
+  m.views = widths.size();
+  m.width = medianOf(widths);
+  m.height = medianOf(heights);
+  m.width_off = m.width / target.width - 1.0;
+  m.height_off = m.height / target.height - 1.0;
+  return m;
+}
+
+std::string percent(double r) {
+  return std::string(r > 0 ? "+" : "") + formatFixed(r * 100, 1) + " %";
+}
+
+}  // namespace
+
+std::vector<std::string> consistencyNotes(const std::vector<View>& views, const Target& target,
+                                          const CalibrationSolution& solution) {
+  std::vector<std::string> notes;
+  const MeasuredSize m = lidarMeasuredSize(views, target);
+  if (m.off()) {
     std::vector<std::string> off;
-    if (std::abs(rw) > kSizeNoteThreshold) off.push_back("width " + pct(rw));
-    if (std::abs(rh) > kSizeNoteThreshold) off.push_back("height " + pct(rh));
-    if (!off.empty()) {
-      const bool larger = (std::abs(rw) > kSizeNoteThreshold ? rw : rh) > 0;
-      notes.push_back(
-          "board size inconsistency: the LiDAR measures " + formatFixed(w, 3) + " x " +
-          formatFixed(h, 3) + " m (median of " + std::to_string(widths.size()) +
-          " views), the target declares " + formatFixed(target.width, 3) + " x " +
-          formatFixed(target.height, 3) + " m (" + off.front() +
-          (off.size() > 1 ? ", " + off.back() : "") + "): " +
-          (larger ? "either the board is larger than declared or the LiDAR's edge returns bloom"
-                  : "either the board is smaller than declared or the LiDAR's edge returns are "
-                    "eroded") +
-          "; camera planes from the declared size are then biased in depth");
-    }
+    if (std::abs(m.width_off) > kSizeNoteThreshold) off.push_back("width " + percent(m.width_off));
+    if (std::abs(m.height_off) > kSizeNoteThreshold)
+      off.push_back("height " + percent(m.height_off));
+    notes.push_back(
+        "board size inconsistency: the LiDAR measures " + formatFixed(m.width, 3) + " x " +
+        formatFixed(m.height, 3) + " m (median of " + std::to_string(m.views) +
+        " views), the target declares " + formatFixed(target.width, 3) + " x " +
+        formatFixed(target.height, 3) + " m (" + off.front() +
+        (off.size() > 1 ? ", " + off.back() : "") + "): " +
+        (m.larger() ? "either the board is larger than declared or the LiDAR's edge returns bloom"
+                    : "either the board is smaller than declared or the LiDAR's edge returns are "
+                      "eroded") +
+        "; camera planes from the declared size are then biased in depth");
   }
   if (!solution.success) return notes;
   // Mean signed offset and RMS of the LiDAR board points from the camera planes, against the
@@ -92,6 +113,21 @@ std::vector<std::string> consistencyNotes(const std::vector<View>& views, const 
         "LiDAR disagree");
   }
   return notes;
+}
+
+std::string declaredSizeDoubt(const std::vector<View>& views, const Target& target,
+                              const CalibrationSolution& solution) {
+  const MeasuredSize m = lidarMeasuredSize(views, target);
+  if (m.off())
+    return "the LiDAR measures the board " + formatFixed(m.width, 2) + " x " +
+           formatFixed(m.height, 2) + " m, the target declares " + formatFixed(target.width, 2) +
+           " x " + formatFixed(target.height, 2) + " m: check the target file";
+  const double scale = solution.plane_scale;
+  if (solution.success && std::isfinite(scale) && std::abs(scale - 1.0) > kSizeNoteThreshold)
+    return "the camera planes fit the LiDAR only scaled by " + formatFixed(scale, 3) +
+           ", as if the board were " + formatFixed(std::abs(scale - 1.0) * 100, 1) + " % " +
+           (scale > 1 ? "larger" : "smaller") + " than the target declares: check the target file";
+  return "";
 }
 
 ResultFile makeResultFile(const CalibrationSolution& s, const std::vector<View>& views,
