@@ -181,7 +181,7 @@ SolverOptions solverOptions(const Args& args) {
     solver.loss = *loss;
   }
   if (args.loss_scale > 0) solver.loss_scale_m = args.loss_scale;
-  if (args.edge_shift >= 0) solver.edge_outward_shift_steps = args.edge_shift;
+  if (args.edge_shift) solver.edge_outward_shift_steps = *args.edge_shift;
   if (auto why = solver.validate(); !why.empty()) fail("solver options: " + why, kExitUsage);
   return solver;
 }

@@ -35,7 +35,8 @@ const char* const kUsage =
     "                      on both sides of it (default 2; 1: no check). Snapshot bags (every "
     "stream\n"
     "                      0.5 s or more between frames) are recognised and need no setting\n"
-    "  --sync-tolerance S  max image/cloud stamp difference of one view, s (default 0.05)\n"
+    "  --sync-tolerance S  max image/cloud stamp difference of one view, s, at most 1 (default "
+    "0.05)\n"
     "  --load-session F    solve a saved session (no bag needed); --save-session F keeps the "
     "views\n"
     "  --drop-views IDS    leave out these views (comma-separated ids, as the verdict names them "
@@ -47,9 +48,9 @@ const char* const kUsage =
     "errors\n"
     "  --check-truth R T   with --truth: exit non-zero if the reported result is off by more than "
     "R deg or T m\n"
-    "  --edge-shift STEPS  shift LiDAR edge points outward by STEPS horizontal steps (default 0: "
-    "beam\n"
-    "                      divergence cancels the extremes' inset)\n"
+    "  --edge-shift STEPS  shift LiDAR edge points outward by STEPS horizontal steps, -2 to 2 "
+    "(default 0:\n"
+    "                      beam divergence cancels the extremes' inset)\n"
     "  --no-second-chance  no second pass (default: when the first calibration is not failed, the "
     "bags\n"
     "                      are read again and frames whose board one sensor missed are searched "
@@ -75,11 +76,12 @@ void fail(const std::string& why, int code) {
 namespace {
 
 // Ranges of the numeric options: beyond them a value is a typo, not a setting.
-constexpr double kMaxStillFrames = 1000;           // frames (at 10 Hz, 100 s of holding still)
-constexpr double kMaxSyncToleranceS = 5.0;         // s; sensors are never further apart than this
-constexpr double kMaxLossScaleM = 10.0;            // m, larger than any board
-constexpr double kMaxEdgeShiftSteps = 100.0;       // horizontal LiDAR steps
-constexpr int kMaxViewId = 1000000;                // far more views than any session holds
+constexpr double kMaxStillFrames = 1000;    // frames (at 10 Hz, 100 s of holding still)
+constexpr double kMaxSyncToleranceS = 1.0;  // s; the session's limit (SessionOptions::validate)
+constexpr double kMaxLossScaleM = 10.0;     // m, larger than any board
+constexpr double kMaxEdgeShiftSteps =
+    2.0;                             // horizontal steps, either way (SolverOptions::validate)
+constexpr int kMaxViewId = 1000000;  // far more views than any session holds
 constexpr double kQuaternionNormTolerance = 0.01;  // |q| - 1, four typed decimals pass
 
 // A finite number, or a usage error naming the flag and the text.
@@ -193,7 +195,7 @@ Args parseArgs(int argc, char** argv) {
     else if (f == "--no-scene-prepass")
       a.scene_prepass = false;
     else if (f == "--edge-shift")
-      a.edge_shift = parseInRange(f, need(i, f), 0, kMaxEdgeShiftSteps, true);
+      a.edge_shift = parseInRange(f, need(i, f), -kMaxEdgeShiftSteps, kMaxEdgeShiftSteps, true);
     else if (f == "--config")
       a.config = need(i, f);
     else if (f == "--capture")

@@ -31,9 +31,9 @@ struct Args {
   bool scene_prepass = true;
   std::string config;  // multi-sensor rig (MSG-Cal): everything else comes from the rig file
   double check_rot_deg = 0, check_trans_m = 0;
-  double edge_shift = -1;         // horizontal steps; < 0: solver default
-  std::string capture = "still";  // rig: still | all
-  std::vector<int> drop_views;    // view ids left out before the final solve, ascending
+  std::optional<double> edge_shift;  // horizontal steps outward; none: the solver's default
+  std::string capture = "still";     // rig: still | all
+  std::vector<int> drop_views;       // view ids left out before the final solve, ascending
 };
 
 /// One-line failure "calibrate_bag: <why>" on stderr, then exit with `code`.
