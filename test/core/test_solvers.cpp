@@ -115,6 +115,33 @@ TEST(Solvers, PpcAndPbpcRecoverGroundTruth) {
   EXPECT_LE(pbpc_sum, ppc_sum);
 }
 
+// A camera rolled 90 degrees (portrait) names the board's edges one place round from the LiDAR.
+// PPC has no edge terms; its MLRE must still pair edges at its pose as the overlay does (it
+// paired them by name: 100+ px on right results, and the verdict failed them).
+TEST(Solvers, PpcFiguresPairEdgesAtItsPoseWhateverTheNames) {
+  const auto scene = makeScene(3);
+  std::vector<View> portrait = scene.views;
+  for (View& v : portrait) {
+    const auto lines = v.camera.edge_lines;
+    const auto valid = v.camera.edge_valid;
+    const auto corners = v.camera.corners_px;
+    for (int j = 0; j < kNumEdges; ++j) {
+      v.camera.edge_lines[j] = lines[(j + 1) % kNumEdges];
+      v.camera.edge_valid[j] = valid[(j + 1) % kNumEdges];
+      v.camera.corners_px[j] = corners[(j + 1) % kNumEdges];
+    }
+  }
+  const SolverOptions options;
+  const auto named = calibrate(scene.views, Method::kPpc, options);
+  const auto rolled = calibrate(portrait, Method::kPpc, options);
+  ASSERT_TRUE(named.success && rolled.success);
+  ASSERT_TRUE(named.mlre_px && rolled.mlre_px);
+  // The same planes give the same pose, and the same pairs the same MLRE (about 1 px here).
+  EXPECT_LT(rotationErrorDeg(named.camera_T_lidar, rolled.camera_T_lidar), 1e-6);
+  EXPECT_LT(*named.mlre_px, 2.0);
+  EXPECT_NEAR(*rolled.mlre_px, *named.mlre_px, 1e-6);
+}
+
 TEST(Solvers, PpcPlaneErrorModelBeatsPaperWeighting) {
   // The per-view camera plane error model against the paper's per-point 1/p_i weighting, summed
   // over 10 seeds: better rotation (the tilts are no longer under-weighted) and translation

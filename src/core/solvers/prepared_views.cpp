@@ -344,8 +344,15 @@ void fillResidualFigures(const std::vector<View>& views, const std::vector<Prepa
     }
     double view_sum = 0.0;
     int view_count = 0;
+    // PBPC solved with its pairs (re-paired until they are the final pose's); a method without
+    // edge terms is scored with the pairs at its pose, as the MLRE figures and the overlay pair
+    // them: the detectors' names differ when a sensor is rolled (a portrait camera).
+    std::array<int, kNumEdges> pairs = v.association;
+    if (method != Method::kPbpc && v.used)
+      pairs =
+          associateEdges(views[v.index].camera, views[v.index].lidar, T, kMinEdgePoints).lidar_edge;
     for (int j = 0; j < kNumEdges; ++j) {
-      const int k = v.association[j];
+      const int k = pairs[j];
       EdgeResidual& er = vr.edges[j];
       er.lidar_edge = k;
       if (!v.used || !v.image_edge_ok[j] || !v.lidar_edge_ok[k]) continue;
