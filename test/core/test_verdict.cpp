@@ -565,6 +565,22 @@ TEST(Verdict, UnknownUncertaintyIsRefused) {
 // four views cannot be cross-validated. Such a result is never good, and its 1 sigma, the noise
 // model's alone, mostly covers the error: measured 24 of 28 seeds within 3 sigma on the worst of
 // the 6 axes (a Gaussian would give 98 %), worst 6.7 sigma. This is why it stays doubtful.
+// PPC on four views: its covariance (robust to a view's shared plane error) needs more views
+// than the pose's 6 unknowns, and four cannot be cross-validated. The failure names the count,
+// not the geometry ("the views do not determine the calibration" said before, wrongly).
+TEST(Verdict, FourPpcViewsFailNamingTheCount) {
+  sim::SyntheticFeatureOptions o;
+  o.num_views = 4;
+  std::mt19937 rng(7);
+  const Eigen::Isometry3d truth = sim::randomCameraTLidar(rng);
+  const auto scene = sim::generateSyntheticViews(o, truth, rng);
+  ASSERT_TRUE(scene.ok()) << scene.error();
+  const PairCalibration r = run(scene->views, "ppc");
+  EXPECT_TRUE(r.failed());
+  EXPECT_NE(r.reason.find("4 views are too few"), std::string::npos) << r.reason;
+  EXPECT_EQ(r.reason.find("do not determine"), std::string::npos) << r.reason;
+}
+
 TEST(Verdict, FewFarViewsStayDoubtful) {
   int solved = 0, within3 = 0, good = 0;
   double worst = 0.0;

@@ -608,7 +608,15 @@ void judgeUncertainty(const CalibrationSolution& sol, const Target& target, cons
   // not zero (seen: 4 far views, a covariance that Ceres could not compute, none left out; or a
   // solve run without covariance). No measured variance is exactly zero.
   const bool unknown = !r.covariance.allFinite() || !(r.covariance.diagonal().minCoeff() > 0.0);
-  if (unknown)
+  // With fewer views than a cross-validation needs, the count is the cause, not the geometry:
+  // the covariance is robust to errors shared within a view, which takes more views than the
+  // pose's 6 unknowns.
+  if (unknown && sol.views_used < o.min_views_to_cross_validate)
+    f.failed.push_back("no uncertainty could be computed: " + std::to_string(sol.views_used) +
+                       " views are too few (the solver's covariance needs more views than the "
+                       "pose's 6 unknowns, a cross-validation at least " +
+                       std::to_string(o.min_views_to_cross_validate) + "); collect more views");
+  else if (unknown)
     f.failed.push_back(
         "no uncertainty could be computed (the solver's covariance failed and "
         "the views are too few to cross-validate): the views do not determine "
