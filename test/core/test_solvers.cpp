@@ -116,9 +116,10 @@ TEST(Solvers, PpcAndPbpcRecoverGroundTruth) {
 }
 
 // A camera rolled 90 degrees (portrait) names the board's edges one place round from the LiDAR.
-// PPC has no edge terms; its MLRE must still pair edges at its pose as the overlay does (it
-// paired them by name: 100+ px on right results, and the verdict failed them).
-TEST(Solvers, PpcFiguresPairEdgesAtItsPoseWhateverTheNames) {
+// PPC and MSG have no edge terms; their MLRE must still pair edges at their pose as the overlay
+// does (PPC paired them by name: 100+ px on right results, and the verdict failed them; MSG
+// weighted each edge's error by the other edge's point count).
+TEST(Solvers, PlaneMethodsPairEdgesAtTheirPoseWhateverTheNames) {
   const auto scene = makeScene(3);
   std::vector<View> portrait = scene.views;
   for (View& v : portrait) {
@@ -132,14 +133,19 @@ TEST(Solvers, PpcFiguresPairEdgesAtItsPoseWhateverTheNames) {
     }
   }
   const SolverOptions options;
-  const auto named = calibrate(scene.views, Method::kPpc, options);
-  const auto rolled = calibrate(portrait, Method::kPpc, options);
-  ASSERT_TRUE(named.success && rolled.success);
-  ASSERT_TRUE(named.mlre_px && rolled.mlre_px);
-  // The same planes give the same pose, and the same pairs the same MLRE (about 1 px here).
-  EXPECT_LT(rotationErrorDeg(named.camera_T_lidar, rolled.camera_T_lidar), 1e-6);
-  EXPECT_LT(*named.mlre_px, 2.0);
-  EXPECT_NEAR(*rolled.mlre_px, *named.mlre_px, 1e-6);
+  for (Method m : {Method::kPpc, Method::kMsgPair}) {  // neither has edge terms
+    const auto named = calibrate(scene.views, m, options);
+    const auto rolled = calibrate(portrait, m, options);
+    ASSERT_TRUE(named.success && rolled.success) << methodName(m);
+    ASSERT_TRUE(named.mlre_px && rolled.mlre_px) << methodName(m);
+    // The same planes give the same pose, and the same pairs the same MLRE (about 1 px here).
+    EXPECT_LT(rotationErrorDeg(named.camera_T_lidar, rolled.camera_T_lidar), 1e-6);
+    EXPECT_LT(*named.mlre_px, 2.0) << methodName(m);
+    EXPECT_NEAR(*rolled.mlre_px, *named.mlre_px, 1e-6) << methodName(m);
+    for (size_t i = 0; i < rolled.views.size(); ++i)
+      EXPECT_NEAR(rolled.views[i].mlre_px.value_or(-1), named.views[i].mlre_px.value_or(-1), 1e-6)
+          << methodName(m) << " view " << i;
+  }
 }
 
 TEST(Solvers, PpcPlaneErrorModelBeatsPaperWeighting) {

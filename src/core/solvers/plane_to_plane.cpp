@@ -3,6 +3,7 @@
 #include "cost_functions.h"
 #include "internal.h"
 
+#include <board_calib/core/common/edge_association.h>
 #include <board_calib/core/transform.h>
 
 #include <cmath>
@@ -348,13 +349,17 @@ void fillMsgPairFigures(const std::vector<View>& views, CalibrationSolution* sol
     plane_count += vr.plane.count;
     double view_sum = 0.0;
     int view_count = 0;
+    // Edges paired at the solved pose, as the MLRE and the overlay pair them (the detectors'
+    // names differ when a sensor is rolled).
+    const EdgeAssociation pairs = associateEdges(v.camera, v.lidar, T);
     for (int j = 0; j < kNumEdges; ++j) {
-      vr.edges[j].lidar_edge = j;
+      const int k = pairs.lidar_edge[j];
+      vr.edges[j].lidar_edge = k;
       // Point-to-back-projected-plane distances as a figure (MSG does not use the lines).
       const Eigen::Vector3d N = v.camera.K.transpose() * v.camera.edge_lines[j];
-      if (v.camera.edge_valid[j] && v.lidar.edge_valid[j] && N.allFinite() && N.norm() > 0.0) {
+      if (v.camera.edge_valid[j] && v.lidar.edge_valid[k] && N.allFinite() && N.norm() > 0.0) {
         std::vector<double> e;
-        for (const auto& q : v.lidar.edge_points[j]) {
+        for (const auto& q : v.lidar.edge_points[k]) {
           const double d = N.normalized().dot(T * q);
           if (std::isfinite(d)) e.push_back(d);
         }
@@ -364,11 +369,12 @@ void fillMsgPairFigures(const std::vector<View>& views, CalibrationSolution* sol
           line_count += static_cast<int>(e.size());
         }
       }
-      const auto e = edgeLineReprojectionErrorPx(v, j, T);
-      if (!e) continue;
+      if (!pairs.scored[j]) continue;
+      int count = 0;
+      const double e = edgeLineDistancePx(v.camera, j, v.lidar.edge_points[k], T, &count);
+      if (count == 0) continue;
       vr.edges[j].mlre_px = e;
-      const int count = static_cast<int>(v.lidar.edge_points[j].size());
-      view_sum += *e * count;
+      view_sum += e * count;
       view_count += count;
     }
     if (view_count > 0) vr.mlre_px = view_sum / view_count;
