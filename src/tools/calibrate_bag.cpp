@@ -126,19 +126,19 @@ std::string idRanges(std::vector<int> ids) {
 void dropViewsAndSolve(const Args& args, PairSession* session, const std::vector<Method>& methods,
                        const Target& target, const PairCalibrationOptions& run_options,
                        std::string* camera_frame, std::string* lidar_frame, PairCalibration* run) {
-  std::vector<int> kept;
-  for (const SessionView& v : session->views()) kept.push_back(v.view.id);
+  std::vector<int> ids;
+  for (const SessionView& v : session->views()) ids.push_back(v.view.id);
   for (const int id : args.drop_views)
-    if (std::find(kept.begin(), kept.end(), id) == kept.end())
+    if (std::find(ids.begin(), ids.end(), id) == ids.end())
       fail("--drop-views: no view " + std::to_string(id) +
-               " in the session (its views: " + idRanges(kept) + ")",
+               " in the session (its views: " + idRanges(ids) + ")",
            kExitUsage);
   for (const int id : args.drop_views)
     if (const Status st = session->dropView(id); !st) fail("--drop-views: " + st.reason);
   const std::string dropped = idRanges(args.drop_views);
   if (session->plainViews().empty())
     fail("--drop-views " + dropped + " leaves no view to solve", kExitUsage);
-  std::cout << "views " << dropped << " left out (--drop-views): " << kept.size() << " -> "
+  std::cout << "views " << dropped << " left out (--drop-views): " << ids.size() << " -> "
             << session->views().size() << " views, solved again\n";
   *run = solveSession(args, *session, methods, target, run_options, camera_frame, lidar_frame);
   run->result.notes.push_back("views " + dropped + " left out by the user (--drop-views)");

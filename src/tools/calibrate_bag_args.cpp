@@ -79,9 +79,9 @@ namespace {
 constexpr double kMaxStillFrames = 1000;    // frames (at 10 Hz, 100 s of holding still)
 constexpr double kMaxSyncToleranceS = 1.0;  // s; the session's limit (SessionOptions::validate)
 constexpr double kMaxLossScaleM = 10.0;     // m, larger than any board
-constexpr double kMaxEdgeShiftSteps =
-    2.0;                             // horizontal steps, either way (SolverOptions::validate)
-constexpr int kMaxViewId = 1000000;  // far more views than any session holds
+// Horizontal LiDAR steps, outward or inward: the solver's limit (SolverOptions::validate).
+constexpr double kMaxEdgeShiftSteps = 2.0;
+constexpr int kMaxViewId = 1000000;                // far more views than any session holds
 constexpr double kQuaternionNormTolerance = 0.01;  // |q| - 1, four typed decimals pass
 
 // A finite number, or a usage error naming the flag and the text.
@@ -127,6 +127,15 @@ Eigen::Isometry3d parseGuess(const double (&v)[7]) {
     fail(s.str(), kExitUsage);
   }
   return makeTransform(Eigen::Vector3d(v[0], v[1], v[2]), q);
+}
+
+// Two names of one file (relative, through links); a path that cannot be resolved is compared
+// as written rather than thrown on.
+bool samePath(const std::string& a, const std::string& b) {
+  std::error_code ea, eb;
+  const auto ca = std::filesystem::weakly_canonical(a, ea);
+  const auto cb = std::filesystem::weakly_canonical(b, eb);
+  return ea || eb ? a == b : ca == cb;
 }
 
 // --drop-views 3,7: whole non-negative ids, appended to `ids`.
@@ -230,8 +239,7 @@ Args parseArgs(int argc, char** argv) {
   if (a.target.empty() && a.load_session.empty()) fail("--target is required", kExitUsage);
   // The views a user drops stay in the loaded file: it is never overwritten with fewer.
   if (!a.drop_views.empty() && !a.load_session.empty() && !a.save_session.empty() &&
-      std::filesystem::weakly_canonical(a.load_session) ==
-          std::filesystem::weakly_canonical(a.save_session))
+      samePath(a.load_session, a.save_session))
     fail("--save-session with --drop-views would overwrite the loaded session '" + a.load_session +
              "' without the dropped views; save to another file",
          kExitUsage);

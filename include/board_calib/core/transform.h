@@ -36,7 +36,7 @@ Eigen::Vector3d logSO3(const Eigen::Matrix3d& rotation);
 /// The rotation R minimising sum_i w_i |to_i - R from_i|^2 (Kabsch; never a reflection); all
 /// weights 1 when `weights` is empty. Fails when the pairs do not fix a rotation: the second
 /// singular value of sum_i w_i from_i to_i^T is at most `min_relative_second` of the first (one
-/// direction only, or nothing).
+/// direction only, or nothing); a negative `min_relative_second` fails only on nothing.
 Expected<Eigen::Matrix3d> rotationAligning(const std::vector<Eigen::Vector3d>& from,
                                            const std::vector<Eigen::Vector3d>& to,
                                            const std::vector<double>& weights,

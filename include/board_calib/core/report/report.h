@@ -17,10 +17,10 @@ namespace board_calib {
 std::vector<std::string> consistencyNotes(const std::vector<View>& views, const Target& target,
                                           const CalibrationSolution& solution);
 
-/// One clause naming a declared board size the data contradict ("" when they agree within 10 %,
-/// more than LiDAR edge bloom gives):
-/// the LiDAR's measured size, else the plane scale the solve estimated. A verdict that is not
-/// good leads with it, since a wrong target file makes views disagree for no visible reason.
+/// One clause naming a declared board size the data contradict: the LiDAR's measured size, else
+/// the plane scale the solve estimated, off by more than 10 % (past what LiDAR edge bloom gives);
+/// "" otherwise. A verdict that is not good adds it to its reason, since a wrong target file
+/// makes views disagree for no visible reason.
 std::string declaredSizeDoubt(const std::vector<View>& views, const Target& target,
                               const CalibrationSolution& solution);
 
