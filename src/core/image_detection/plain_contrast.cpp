@@ -235,6 +235,7 @@ Eigen::Vector3d shiftLine(const Eigen::Vector3d& l, const Eigen::Vector2d& by) {
 }  // namespace
 
 bool sidesPartColours(const cv::Mat& contrast, const CameraModel& camera, CameraBoardFeatures* f) {
+  const double needed = kMinSideContrastShare * 2.0 * kContrastHalfSeparation;
   for (int j = 0; j < kNumEdges; ++j) {
     const Eigen::Vector2d a = f->corners_px[(j + 3) % 4], b = f->corners_px[j];
     const Eigen::Vector2d outward = f->edge_lines[j].head<2>();
@@ -251,7 +252,6 @@ bool sidesPartColours(const cv::Mat& contrast, const CameraModel& camera, Camera
       }
     const double in = inside.empty() ? 0.0 : medianOf(inside);
     const double out = outside.empty() ? 0.0 : medianOf(outside);
-    const double needed = kMinSideContrastShare * 2.0 * kContrastHalfSeparation;
     if (inside.empty() || outside.empty() || in - out >= needed) continue;
     f->found = false;
     f->reason = cv::format(
@@ -269,23 +269,23 @@ void detectPlainInColourWindow(const cv::Mat& bgr, const CameraModel& camera, co
   out->features.K = camera.K();
   out->features.image_width = bgr.cols;
   out->features.image_height = bgr.rows;
-  cv::Rect window = cv::boundingRect(scaledQuad(place, camera, kContrastRingOuter));
+  const cv::Rect ring = cv::boundingRect(scaledQuad(place, camera, kContrastRingOuter));
   // The board may exceed its place by the place's tolerance: so may its ring.
   const int grow = std::isfinite(place.tolerance_px)
                        ? static_cast<int>(std::ceil(
                              std::clamp(place.tolerance_px, 0.0, double(bgr.cols + bgr.rows))))
                        : 0;
-  window =
-      cv::Rect(window.x - grow, window.y - grow, window.width + 2 * grow, window.height + 2 * grow);
-  // On the downscaled images' pixel grid (12 px: whole downscaled pixels at factors 2, 3, 4 and
-  // 6, e.g. 4 and 3 at the default widths of a 1920 px frame): the window's pixels then average
-  // as the whole frame's do.
-  const int grid = kWindowGridPx;
-  const int x0 = (window.x / grid) * grid, y0 = (window.y / grid) * grid;
-  window = cv::Rect(x0, y0, window.x + window.width - x0, window.y + window.height - y0);
-  window = cv::Rect(window.x, window.y, (window.width + grid - 1) / grid * grid,
-                    (window.height + grid - 1) / grid * grid) &
-           cv::Rect(0, 0, bgr.cols, bgr.rows);
+  // Snapped outward to the downscaled images' pixel grid (12 px: whole downscaled pixels at
+  // factors 2, 3, 4 and 6, e.g. 4 and 3 at the default widths of a 1920 px frame), so the
+  // window's pixels average as the whole frame's do; then clipped to the image.
+  const auto snap = [](int v, bool up) {
+    const double cells = static_cast<double>(v) / kWindowGridPx;
+    return static_cast<int>(up ? std::ceil(cells) : std::floor(cells)) * kWindowGridPx;
+  };
+  const cv::Rect window =
+      cv::Rect(cv::Point(snap(ring.x - grow, false), snap(ring.y - grow, false)),
+               cv::Point(snap(ring.br().x + grow, true), snap(ring.br().y + grow, true))) &
+      cv::Rect(0, 0, bgr.cols, bgr.rows);
   const Expected<CameraModel> window_camera = windowCamera(camera, window);
   if (window.area() == 0 || !window_camera) {
     out->features.reason = "the place lies outside the image";
