@@ -140,6 +140,11 @@ constexpr double kMaxLensShiftOfFocal = 0.1;
 constexpr const char* kLensCause =
     ": the camera_info's distortion does not match the images (a raw image with a rectified "
     "camera_info, or none given)";
+// LiDAR edges alone cannot tell a lens from edge returns that lie off the board's edges: a
+// simulated LiDAR whose edge returns blend with the wall behind gave the same pattern (k1 -0.03
+// with the camera_info right), and real LiDARs sit close to the threshold.
+constexpr const char* kEdgeReturnsCause =
+    ", or the LiDAR's edge returns lie off the board's edges (blended with what is behind it)";
 
 // Per view, the sums a slope through the origin needs (y regressed on g).
 struct SlopeSums {
@@ -358,7 +363,7 @@ LensCheck checkLens(const CalibrationSolution& sol, const std::vector<View>& vie
   // length; edges that far off lie on other objects than the board (wrong views), not a lens.
   out.nameable = std::abs(lens->k) > o.lens_residual_sigmas * lens->k_stddev &&
                  lens->corner_px <= kMaxLensShiftOfFocal * lens->focal_px;
-  out.text = measured + kLensCause + "; corrected for it, the result moves " +
+  out.text = measured + kLensCause + kEdgeReturnsCause + "; corrected for it, the result moves " +
              formatFixed(out.shift.tail<3>().norm() * 1e3, 1) + " mm / " +
              formatFixed(out.shift.head<3>().norm() * kDegPerRad, 3) + " deg";
   return out;
@@ -592,7 +597,9 @@ void judgeUncertainty(const CalibrationSolution& sol, const Target& target, cons
   std::string lens_finding;
   if (!lens.text.empty()) {
     if (lens.nameable && movesBeyond(lens.shift, r.covariance))
-      lens_finding = lens.text + ": give the camera_info that matches the image topic";
+      lens_finding = lens.text +
+                     ": give the camera_info that matches the image topic; if it does, look "
+                     "at the LiDAR's returns at the board's edges";
     else
       r.details.push_back(lens.text + " (the 1 sigma includes it)");
     r.covariance += lens.covariance;
