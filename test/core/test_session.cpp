@@ -1,3 +1,4 @@
+#include <board_calib/core/features.h>
 #include <board_calib/core/session/session.h>
 #include <board_calib/core/transform.h>
 
@@ -8,6 +9,7 @@
 #include <cstdio>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <regex>
 #include <sstream>
 
@@ -345,4 +347,107 @@ TEST(Session, HostileSessionFilesAreRefused) {
   expectRefused(std::regex("camera_T_board_xyz_qxyzw: \\[([^,]+, ){3}[^\\]]*\\]"),
                 "camera_T_board_xyz_qxyzw: [0, 0, 2, 0, 0, 0, 0]", "quaternion");
   std::remove(path.c_str());
+}
+
+// A message from outside the process can carry anything. One with a non-finite stamp crashed the
+// stillness judgement (the nodelet manager with it); one stamped far in the future blocked every
+// later image; malformed features reached the views. Each must be refused with its reason, the
+// captured views kept and the capture go on: the session ends with the poses a clean one has.
+TEST(Session, HostileFeaturesAreRefusedAndCaptureGoesOn) {
+  const Target target = plainTarget();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  const double far_future = 4294967295.0;  // the largest ROS stamp
+  struct Hostile {
+    std::string name, kind;  // kind: the capture statistics' key that must count it
+    std::function<void(View&)> spoil;
+  };
+  const std::vector<Hostile> hostile = {
+      {"clean", "", [](View&) {}},
+      {"LiDAR normal NaN", "malformed message", [&](View& v) { v.lidar.plane.normal.x() = nan; }},
+      {"LiDAR point inf", "malformed message", [&](View& v) { v.lidar.board_points[3].y() = inf; }},
+      {"LiDAR point 1e30", "malformed message",
+       [&](View& v) { v.lidar.board_points[3].y() = 1e30; }},
+      {"LiDAR board without points", "malformed message",
+       [&](View& v) { v.lidar.board_points.clear(); }},
+      {"LiDAR stamp NaN", "malformed message", [&](View& v) { v.lidar.stamp = nan; }},
+      {"LiDAR stamp far ahead", "time went back", [&](View& v) { v.lidar.stamp = far_future; }},
+      {"camera stamp far ahead", "time went back", [&](View& v) { v.camera.stamp = far_future; }},
+      {"camera stamp NaN", "malformed message", [&](View& v) { v.camera.stamp = nan; }},
+      {"camera K zero", "malformed message", [&](View& v) { v.camera.K.setZero(); }},
+      {"camera K NaN", "malformed message", [&](View& v) { v.camera.K(0, 0) = nan; }},
+      {"camera pose NaN", "malformed message",
+       [&](View& v) { v.camera.camera_T_board.translation().x() = nan; }},
+      {"camera pose not a rotation", "malformed message",
+       [&](View& v) { v.camera.camera_T_board.linear() *= 2.0; }},
+      {"camera normal zero", "malformed message",
+       [&](View& v) { v.camera.plane.normal.setZero(); }},
+      {"camera image size zero", "malformed message", [&](View& v) { v.camera.image_width = 0; }},
+      {"camera edge line NaN", "malformed message",
+       [&](View& v) {
+         v.camera.edge_valid[1] = true;
+         v.camera.edge_lines[1] = Eigen::Vector3d(nan, 0, 0);
+       }},
+  };
+  for (const Hostile& h : hostile) {
+    PairSession s(target, SessionOptions{});
+    std::vector<SessionEvent> events;
+    double t = 0;
+    // Three held poses at 10 Hz; the second pose's 11th pair is the hostile one.
+    for (const double x : {0.0, 0.6, -0.6}) {
+      for (int k = 0; k < 20; ++k, t += 0.1) {
+        View v = makeView(boardPose(x, 3, 10, 0), t, target);
+        v.lidar.stamp = t;
+        if (x == 0.6 && k == 10) h.spoil(v);
+        events.push_back(s.addLidar(v.lidar));
+        events.push_back(s.addCamera(v.camera));
+      }
+    }
+    const CaptureStats& stats = s.captureStats();
+    EXPECT_EQ(s.views().size(), 3u) << h.name << ": " << stats.summary();
+    for (const auto& sv : s.views()) {
+      const View& v = sv.view;
+      EXPECT_TRUE(malformedFeatures(v.lidar).empty() && malformedFeatures(v.camera).empty() &&
+                  std::isfinite(v.lidar.stamp) && std::isfinite(v.camera.stamp) &&
+                  v.camera.stamp < far_future)
+          << h.name << ": view " << v.id;
+    }
+    if (h.kind.empty()) {
+      EXPECT_EQ(stats.skipped.count("malformed message") + stats.skipped.count("time went back"),
+                0u)
+          << stats.summary();
+      continue;
+    }
+    ASSERT_EQ(stats.skipped.count(h.kind), 1u) << h.name << ": " << stats.summary();
+    const std::string& why = stats.last_why.at(h.kind);
+    EXPECT_TRUE(std::any_of(events.begin(), events.end(),
+                            [&](const SessionEvent& e) {
+                              return e.kind == SessionEvent::Kind::kRejected && e.message == why;
+                            }) ||
+                h.kind == "time went back")
+        << h.name << ": the refusal was not returned: " << why;
+    EXPECT_NE(why.find(h.name.rfind("LiDAR", 0) == 0 ? "LiDAR" : "camera"), std::string::npos)
+        << h.name << ": " << why;
+  }
+}
+
+// A bag played again (rosbag play -l): every stream's time goes back. The buffers restart and
+// the poses of the second pass are captured as those of the first were.
+TEST(Session, ABagPlayedAgainKeepsItsViewsAndCapturesTheNextPass) {
+  const Target target = plainTarget();
+  PairSession s(target, SessionOptions{});
+  for (const auto& [x0, x1] : {std::pair{0.0, 0.6}, std::pair{-0.6, 1.2}}) {
+    double t = 100.0;  // each pass starts at the same stamps
+    for (const double x : {x0, x1})
+      for (int k = 0; k < 20; ++k, t += 0.1) {
+        View v = makeView(boardPose(x, 3, 10, 0), t, target);
+        v.lidar.stamp = t;
+        s.addLidar(v.lidar);
+        s.addCamera(v.camera);
+      }
+  }
+  EXPECT_EQ(s.views().size(), 4u) << s.captureStats().summary();
+  ASSERT_EQ(s.captureStats().skipped.count("time went back"), 1u) << s.captureStats().summary();
+  EXPECT_NE(s.captureStats().last_why.at("time went back").find("captured views kept"),
+            std::string::npos);
 }

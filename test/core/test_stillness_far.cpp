@@ -47,7 +47,10 @@ struct Streams {
     CameraBoardFeatures c;
     c.found = true;
     c.stamp = f.stamp;
-    c.K(0, 0) = s.cameras.front().intrinsics.fx;
+    const CameraIntrinsics& in = s.cameras.front().intrinsics;
+    c.K << in.fx, 0, in.cx, 0, in.fy, in.cy, 0, 0, 1;
+    c.image_width = in.width;
+    c.image_height = in.height;
     c.camera_T_board = sim::worldTCamera(s, 0).inverse() * f.world_T_board;
     c.plane.normal = c.camera_T_board.linear().col(2);
     camera.push_back(boardSampleOf(c, &s.scene.target));

@@ -61,6 +61,11 @@ struct CameraBoardFeatures {
   }
 };
 
+/// Why found features cannot be used: a non-finite or inconsistent value, as a corrupted or
+/// hostile message carries (the detectors never publish one). Empty when usable or not found.
+std::string malformedFeatures(const LidarBoardFeatures& f);
+std::string malformedFeatures(const CameraBoardFeatures& f);
+
 /// One board pose seen by one camera and one LiDAR.
 struct View {
   int id = 0;

@@ -138,7 +138,7 @@ void jackknife(const ScanLines& s, const Moments& all, const Eigen::Vector3d& no
 BoardSample boardSampleOf(const LidarBoardFeatures& f) {
   BoardSample s;
   s.stamp = f.stamp;
-  s.found = f.found && !f.board_points.empty() && f.plane.normal.allFinite();
+  s.found = f.found && malformedFeatures(f).empty();
   if (!s.found) return s;
   Moments all;
   for (const auto& p : f.board_points) all.add(p);
@@ -225,7 +225,7 @@ BoardSample boardSampleOf(const CameraBoardFeatures& f, const Target* target) {
   constexpr double kUnknownBoardSizeM = 1.0;
   BoardSample s;
   s.stamp = f.stamp;
-  s.found = f.found && f.plane.normal.allFinite() && f.camera_T_board.matrix().allFinite();
+  s.found = f.found && malformedFeatures(f).empty();
   if (!s.found) return s;
   s.centre = target ? f.camera_T_board * target->center() : f.camera_T_board.translation();
   s.normal = f.plane.normal.normalized();

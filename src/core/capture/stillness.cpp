@@ -261,6 +261,12 @@ bool streamStill(const StillnessStream& stream, bool is_fastest, double stamp,
 StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, double stamp,
                                   const StillnessOptions& o, bool ended) {
   StillnessJudgement j;
+  // No window around a moment that is not one (the frames' references would be unset).
+  if (!std::isfinite(stamp)) {
+    j.state = StillState::kNoBoard;
+    j.why = "the moment's stamp is not finite";
+    return j;
+  }
   // The fastest stream counts the frames; a stream with one frame so far has no rate yet.
   double fastest_interval = 0.0;
   bool all_sparse = true, rates_known = true;

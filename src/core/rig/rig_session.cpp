@@ -13,8 +13,6 @@ namespace board_calib {
 namespace multi_sensor {
 namespace {
 
-// A stamp this far behind the newest one means the source restarted (a bag looped).
-constexpr double kTimeJumpBackS = 2.0;
 constexpr size_t kMaxFeaturesPerStream = 100;
 // Stillness samples per stream: history_s of a 20 Hz LiDAR with room to spare.
 constexpr size_t kMaxSamplesPerStream = 400;
@@ -87,9 +85,11 @@ SessionEvent RigSession::addCamera(int sensor, const CameraBoardFeatures& f) {
     return event(SessionEvent::Kind::kRejected, "camera features given for sensor " +
                                                     std::to_string(sensor) +
                                                     ", which is not a camera of this rig");
-  BoardSample sample = boardSampleOf(f, target_ ? &*target_ : nullptr);
+  const std::string malformed = malformedFeatures(f);
+  BoardSample sample = boardSampleOf(f, target_ ? &*target_ : nullptr);  // not found if malformed
   sample.found = sample.found && summarize(f).has_value();
-  return add(sensor, f.stamp, sample, f.frame_id, f.reason, [&](Stream& st) {
+  const std::string reason = malformed.empty() ? f.reason : "malformed features: " + malformed;
+  return add(sensor, f.stamp, sample, f.frame_id, reason, [&](Stream& st) {
     if (st.cameras.empty() || f.stamp >= st.cameras.back().stamp) st.cameras.push_back(f);
   });
 }
@@ -100,9 +100,11 @@ SessionEvent RigSession::addLidar(int sensor, const LidarBoardFeatures& f) {
     return event(SessionEvent::Kind::kRejected, "LiDAR features given for sensor " +
                                                     std::to_string(sensor) +
                                                     ", which is not a LiDAR of this rig");
-  BoardSample sample = boardSampleOf(f);
+  const std::string malformed = malformedFeatures(f);
+  BoardSample sample = boardSampleOf(f);  // not found if malformed
   sample.found = sample.found && summarize(f).has_value();
-  return add(sensor, f.stamp, sample, f.frame_id, f.reason, [&](Stream& st) {
+  const std::string reason = malformed.empty() ? f.reason : "malformed features: " + malformed;
+  return add(sensor, f.stamp, sample, f.frame_id, reason, [&](Stream& st) {
     if (st.lidars.empty() || f.stamp >= st.lidars.back().stamp) st.lidars.push_back(f);
   });
 }
@@ -115,7 +117,7 @@ SessionEvent RigSession::add(int sensor, double stamp, const BoardSample& sample
   SessionEvent result =
       event(SessionEvent::Kind::kWaiting, "waiting for the board to be held still");
   RigSensorCounts& count = counts_[sensor];
-  if (count.messages > 0 && stamp < count.newest_stamp - kTimeJumpBackS) {
+  if (count.messages > 0 && stamp < count.newest_stamp - kStreamTimeJumpBackS) {
     // This sensor's time went back: the source restarted (a bag looped). Keep the poses, forget
     // the streams (their stamps no longer compare). Judged per sensor, so a sensor whose clock
     // is offset from the others' does not look like a restart.

@@ -100,22 +100,72 @@ constexpr double kPruneMarginS =
 }  // namespace
 
 SessionEvent PairSession::addLidar(const LidarBoardFeatures& f) {
+  SessionEvent refused;
+  const Admission a = admit(f.stamp, malformedFeatures(f), lidar_clock_, "LiDAR", &refused);
+  if (a == Admission::kDrop) return refused;
   lidar_.push_back(f);
-  lidar_samples_.push_back(boardSampleOf(f));
+  lidar_.back().found = f.found && a == Admission::kKeep;
+  lidar_samples_.push_back(boardSampleOf(f));  // not found if malformed
   lidar_clock_.add(f.stamp);
   prune();
   updateLastPair();
-  return decidePending(false);
+  const SessionEvent e = decidePending(false);
+  return a == Admission::kKeep || e.kind == SessionEvent::Kind::kAccepted ? e : refused;
 }
 
 SessionEvent PairSession::addCamera(const CameraBoardFeatures& f) {
+  SessionEvent refused;
+  const Admission a = admit(f.stamp, malformedFeatures(f), camera_clock_, "camera", &refused);
+  if (a == Admission::kDrop) return refused;
   camera_.push_back(f);
-  camera_samples_.push_back(boardSampleOf(f, &target_));
+  camera_.back().found = f.found && a == Admission::kKeep;
+  camera_samples_.push_back(boardSampleOf(f, &target_));  // not found if malformed
   camera_clock_.add(f.stamp);
   updateLastPair();
-  if (f.found) pending_.push_back(f);
+  if (camera_.back().found) pending_.push_back(f);
   prune();
-  return decidePending(false);
+  const SessionEvent e = decidePending(false);
+  return a == Admission::kKeep || e.kind == SessionEvent::Kind::kAccepted ? e : refused;
+}
+
+// A message from outside the process may carry anything: a stamp that is no time is dropped
+// (it cannot be placed among the others); a stream whose time went back restarted (a bag played
+// again, a clock reset, or a stamp far in the future before), so the buffered frames, which no
+// longer compare, are forgotten and the captured views kept; malformed features count as a
+// frame without the board.
+PairSession::Admission PairSession::admit(double stamp, const std::string& malformed,
+                                          const StreamClock& clock, const char* stream,
+                                          SessionEvent* refused) {
+  if (!std::isfinite(stamp)) {
+    *refused = skip("malformed message",
+                    std::string(stream) + " features with a non-finite stamp: message ignored");
+    return Admission::kDrop;
+  }
+  if (!clock.empty() && stamp < clock.newest() - kStreamTimeJumpBackS) {
+    skip("time went back", std::string(stream) + " stamps went back " +
+                               formatFixed(clock.newest() - stamp, 1) +
+                               " s (a bag played again, a clock reset): frames awaiting "
+                               "capture dropped, captured views kept");
+    forgetBuffers();
+  }
+  if (malformed.empty()) return Admission::kKeep;
+  *refused =
+      skip("malformed message", "malformed " + std::string(stream) +
+                                    " features (a corrupted or hostile message?): " + malformed +
+                                    "; taken as no board");
+  return Admission::kKeepAsNoBoard;
+}
+
+void PairSession::forgetBuffers() {
+  lidar_.clear();
+  camera_.clear();
+  lidar_samples_.clear();
+  camera_samples_.clear();
+  lidar_clock_.clear();
+  camera_clock_.clear();
+  pending_.clear();
+  last_pair_.reset();
+  hold_view_id_ = -1;
 }
 
 void PairSession::updateLastPair() {
@@ -355,16 +405,8 @@ Status PairSession::dropView(int view_id) {
 
 void PairSession::reset() {
   views_.clear();
-  lidar_.clear();
-  camera_.clear();
-  lidar_samples_.clear();
-  camera_samples_.clear();
-  lidar_clock_.clear();
-  camera_clock_.clear();
-  pending_.clear();
-  last_pair_.reset();
+  forgetBuffers();
   estimate_.reset();
-  hold_view_id_ = -1;
   stats_ = CaptureStats{};
   next_id_ = 0;
 }

@@ -102,6 +102,10 @@ struct StillnessOptions {
   std::string validate() const;
 };
 
+/// A stream whose stamps go back by more than this restarted (a bag played again, a clock
+/// reset, or a stamp far in the future before): its buffered frames no longer compare.
+constexpr double kStreamTimeJumpBackS = 2.0;
+
 /// Stamps of one stream, for its measured frame interval.
 class StreamClock {
  public:

@@ -122,6 +122,10 @@ class PairSession {
   SessionEvent addView(const View& view, const std::string& why, bool check_diversity);
 
  private:
+  enum class Admission { kKeep, kKeepAsNoBoard, kDrop };
+  Admission admit(double stamp, const std::string& malformed, const StreamClock& clock,
+                  const char* stream, SessionEvent* refused);
+  void forgetBuffers();
   SessionEvent decidePending(bool ended);
   SessionEvent decide(const CameraBoardFeatures& camera, bool ended, bool* decided);
   std::optional<LidarBoardFeatures> nearestLidar(double stamp, double* gap) const;
