@@ -1,8 +1,10 @@
 #!/usr/bin/python3
 """Checks every camera<->LiDAR pair of an MSG-Cal result file against simulate_bag's truth file.
 
-usage: check_rig_result.py RESULT.yaml TRUTH.yaml MAX_ROT_DEG MAX_TRANS_M
+usage: check_rig_result.py RESULT.yaml TRUTH.yaml MAX_ROT_DEG MAX_TRANS_M [MAX_SIGMAS]
 The truth pair is derived from the truth's sensor poses (independent of the tool's comparison).
+With MAX_SIGMAS, each pair's translation error on every axis must also lie within that many of
+the pair's own reported 1 sigma (an honest uncertainty, whatever the verdict).
 """
 import math
 import sys
@@ -26,9 +28,10 @@ def inv(t):
 
 
 def main():
-    if len(sys.argv) != 5:
+    if len(sys.argv) not in (5, 6):
         print(__doc__)
         return 2
+    max_sigmas = float(sys.argv[5]) if len(sys.argv) == 6 else None
     result = yaml.safe_load(open(sys.argv[1]))
     truth = yaml.safe_load(open(sys.argv[2]))
     max_rot, max_trans = float(sys.argv[3]), float(sys.argv[4])
@@ -49,8 +52,18 @@ def main():
         rot = math.degrees(math.acos(cos))
         trans = math.sqrt(sum((est[i][3] - gt[i][3]) ** 2 for i in range(3)))
         bad = rot > max_rot or trans > max_trans
+        sigmas = ""
+        if max_sigmas is not None:
+            sigma = (p.get("stddev") or {}).get("translation_m")
+            if not sigma or len(sigma) != 3 or min(sigma) <= 0:
+                sigmas, bad = ", no 1 sigma", True
+            else:
+                worst = max(abs(est[i][3] - gt[i][3]) / sigma[i] for i in range(3))
+                sigmas = f", {worst:.1f} sigma on its worst axis"
+                bad |= worst > max_sigmas
         failed |= bad
-        print(f"{p['camera_frame']} <- {p['lidar_frame']}: {rot:.3f} deg, {trans * 1e3:.1f} mm{'  FAIL' if bad else ''}")
+        print(f"{p['camera_frame']} <- {p['lidar_frame']}: {rot:.3f} deg, {trans * 1e3:.1f} mm{sigmas}"
+              f"{'  FAIL' if bad else ''}")
     return 1 if failed else 0
 
 
