@@ -258,6 +258,9 @@ bool streamStill(const StillnessStream& stream, bool is_fastest, double stamp,
 
 }  // namespace
 
+// Share of snapshot_interval_s a stream's interval must reach to count as sparse.
+constexpr double kSnapshotIntervalShare = 0.95;
+
 StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, double stamp,
                                   const StillnessOptions& o, bool ended) {
   StillnessJudgement j;
@@ -277,7 +280,8 @@ StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, d
       rates_known = false;
       continue;
     }
-    if (interval <= o.snapshot_interval_s) all_sparse = false;
+    // "0.5 s or more between frames": a 2 Hz stream's stamps jitter about its interval.
+    if (interval < kSnapshotIntervalShare * o.snapshot_interval_s) all_sparse = false;
     if (!streams[s].judged) continue;
     if (j.fastest_stream < 0 || interval < fastest_interval) {
       j.fastest_stream = static_cast<int>(s);
@@ -302,16 +306,21 @@ StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, d
     j.why = "too few frames to measure any stream's rate";
     return j;
   }
-  const double hi = stamp + o.window_s;
+  // The window holds the frames it asks for: a fastest stream too slow for min_frames in
+  // +-window_s (2-4 Hz with the defaults: never more than 2) widens it to min_frames intervals,
+  // so the board must stay still longer rather than never be captured.
+  StillnessOptions wide = o;
+  wide.window_s = std::max(o.window_s, 0.5 * o.min_frames * fastest_interval);
+  const double hi = stamp + wide.window_s;
   const StillnessStream& fast = streams[static_cast<size_t>(j.fastest_stream)];
   if (!ended && fast.clock->newest() < hi) return j;  // the window is not complete yet
 
   for (size_t s = 0; s < streams.size(); ++s)
     if (streams[s].judged && !streamStill(streams[s], static_cast<int>(s) == j.fastest_stream,
-                                          stamp, fastest_interval, o, &j))
+                                          stamp, fastest_interval, wide, &j))
       return j;
   j.state = StillState::kStill;
-  j.why = "board still for +-" + formatFixed(o.window_s, 2) + " s (" +
+  j.why = "board still for +-" + formatFixed(wide.window_s, 2) + " s (" +
           std::to_string(j.fastest_frames) + " " +
           streams[static_cast<size_t>(j.fastest_stream)].name + " frames)";
   return j;
