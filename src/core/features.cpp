@@ -13,7 +13,6 @@ namespace {
 constexpr double kUnitTolerance = 1e-3;
 // Farther than any LiDAR reaches or any board is held: a corrupted coordinate.
 constexpr double kMaxCoordinateM = 1e4;
-constexpr int kMaxImageSidePx = 1 << 16;
 
 bool unit(const Eigen::Vector3d& v) {
   return v.allFinite() && std::abs(v.norm() - 1.0) <= kUnitTolerance;
@@ -52,8 +51,8 @@ std::string malformedFeatures(const CameraBoardFeatures& f) {
   if (!K.allFinite() || !(K(0, 0) > 0.0) || !(K(1, 1) > 0.0) ||
       !K.row(2).isApprox(Eigen::RowVector3d(0.0, 0.0, 1.0), kUnitTolerance))
     return "camera matrix K not finite, focal lengths not positive or last row not 0 0 1";
-  if (f.image_width < 1 || f.image_height < 1 || f.image_width > kMaxImageSidePx ||
-      f.image_height > kMaxImageSidePx)
+  if (f.image_width < 1 || f.image_height < 1 || f.image_width > kMaxFeatureImageSidePx ||
+      f.image_height > kMaxFeatureImageSidePx)
     return "image size " + std::to_string(f.image_width) + "x" + std::to_string(f.image_height) +
            " out of range";
   const Eigen::Matrix3d R = f.camera_T_board.linear();

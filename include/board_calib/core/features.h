@@ -61,6 +61,9 @@ struct CameraBoardFeatures {
   }
 };
 
+/// Largest image side features may carry (the image conversions refuse larger ones).
+constexpr int kMaxFeatureImageSidePx = 1 << 16;
+
 /// Why found features cannot be used: a non-finite or inconsistent value, as a corrupted or
 /// hostile message carries (the detectors never publish one). Empty when usable or not found.
 std::string malformedFeatures(const LidarBoardFeatures& f);

@@ -25,7 +25,6 @@ void emitPoints(YAML::Emitter& out, const Points3& pts) {
 
 // Limits of a plausible feature file (hand-edited or corrupted files fail with the key).
 constexpr double kUnitNormalTolerance = 0.01;  ///< |n| - 1, loose enough for hand-rounded values
-constexpr int kMaxImageSidePx = 1 << 16;
 constexpr double kMinQuaternionNorm = 0.5;  ///< saved quaternions are unit; 0 is no rotation at all
 
 void requireFinite(const Eigen::VectorXd& v, const std::string& key) {
@@ -168,10 +167,10 @@ CameraBoardFeatures readCamera(const YAML::Node& n) {
     for (int c = 0; c < 3; ++c) f.K(r, c) = k[r * 3 + c];
   const Eigen::VectorXd size = readVec(n["image_size"], "camera.image_size", 2);
   for (int i = 0; i < 2; ++i)
-    if (!(size[i] >= 1 && size[i] <= kMaxImageSidePx) || size[i] != std::floor(size[i]))
+    if (!(size[i] >= 1 && size[i] <= kMaxFeatureImageSidePx) || size[i] != std::floor(size[i]))
       throw FeatureYamlError{"'camera.image_size' must be two whole numbers in 1.." +
-                             std::to_string(kMaxImageSidePx) + ", got [" + std::to_string(size[0]) +
-                             ", " + std::to_string(size[1]) + "]"};
+                             std::to_string(kMaxFeatureImageSidePx) + ", got [" +
+                             std::to_string(size[0]) + ", " + std::to_string(size[1]) + "]"};
   f.image_width = static_cast<int>(size[0]);
   f.image_height = static_cast<int>(size[1]);
   const Eigen::VectorXd pose =
