@@ -216,6 +216,29 @@ TEST(RigCalibration, FaultSweepNeverGivesASilentSuccess) {
   EXPECT_EQ(counts["swapped cameras"]["good"], 0) << "the known stereo extrinsic must catch it";
 }
 
+TEST(RigCalibration, ASensorInFewPosesDoesNotFailTheOtherPairsChecks) {
+  // The OS1 took part in 4 of 20 poses only (it stopped publishing). Leaving one of them out
+  // cut it off the graph, so that solve failed for every pair and the pairs that never involve
+  // the OS1 were called "the result hangs on single views".
+  Scene s = makeScene(7, 20);
+  const int os1 = 3;
+  for (size_t i = 4; i < s.scene.problem.poses.size(); ++i)
+    s.scene.problem.poses[i].lidars.erase(os1);
+  const RigCalibration run = calibrateRig(s.scene.problem, s.rig, s.target, fastOptions());
+  ASSERT_TRUE(run.solution.success) << run.reason;
+  for (const auto& p : run.pairs) {
+    const std::string name = p.camera_frame + " <- " + p.lidar_frame;
+    if (p.lidar == os1) {
+      EXPECT_NE(p.verdict.verdict, Verdict::kFailed) << name << ": " << p.verdict.reason;
+      continue;
+    }
+    EXPECT_EQ(p.verdict.cross_validation.failed_solves, 0) << name;
+    EXPECT_EQ(p.verdict.verdict, Verdict::kGood) << name << ": " << p.verdict.reason;
+    EXPECT_LT(translationErrorM(p.solution.camera_T_lidar, truthPair(s, p.camera, p.lidar)), 0.01)
+        << name;
+  }
+}
+
 TEST(RigCalibration, EmptyProblemAndBadOptionsFailWithAReason) {
   const Scene s = makeScene(5, 6);
   MsgProblem empty = s.scene.problem;

@@ -294,6 +294,43 @@ TEST_F(RigSessionTest, ASensorWithOffsetStampsIsNamedWithItsOffset) {
   EXPECT_NE(named[1].find("os1: no board features received"), std::string::npos) << named[1];
 }
 
+TEST_F(RigSessionTest, ASensorThatStopsCostsOnlyItsOwnPosesAndIsNamed) {
+  // The OS1 stops publishing after the first third of the holds (its driver died, its topic's
+  // recording ended). Its last candidates waited for it forever before, every later candidate
+  // behind them, until the others' frames had been pruned: the holds after the stop were lost
+  // for every sensor, and the verdict blamed the views.
+  const size_t stop_after = scene.problem.poses.size() / 3;
+  sim::RigScene before = scene, after = scene;
+  before.problem.poses.resize(stop_after);
+  after.problem.poses.erase(after.problem.poses.begin(),
+                            after.problem.poses.begin() + static_cast<long>(stop_after));
+  const int frames_per_pose = kHoldFrames + 3;
+  RigSession session = makeSession();
+  play(session, before, kHoldFrames, 3);
+  play(session, after, kHoldFrames, 3, 100.0 + kFramePeriodS * frames_per_pose * stop_after,
+       {0, 1, 2});
+  // Before the end of the bag: the holds after the stop are captured as they come.
+  EXPECT_GE(session.poses().size() + 2, scene.problem.poses.size())
+      << session.captureStats().summary();
+  session.flush();
+  ASSERT_EQ(session.poses().size(), scene.problem.poses.size()) << session.captureStats().summary();
+  const std::vector<int> per_sensor = session.posesPerSensor();
+  EXPECT_EQ(per_sensor[0], static_cast<int>(scene.problem.poses.size()));
+  EXPECT_EQ(per_sensor[2], static_cast<int>(scene.problem.poses.size()));
+  EXPECT_EQ(per_sensor[3], static_cast<int>(stop_after));
+  const auto problems = session.problems();
+  ASSERT_EQ(problems.size(), 1u);
+  EXPECT_NE(problems[0].find("os1: no message for the last"), std::string::npos) << problems[0];
+
+  // A sensor that starts late, or lags, is no silent one.
+  RigSession late = makeSession();
+  play(late, before, kHoldFrames, 3, 100.0, {0, 1, 2});
+  play(late, after, kHoldFrames, 3, 100.0 + kFramePeriodS * frames_per_pose * stop_after);
+  late.flush();
+  EXPECT_EQ(late.poses().size(), scene.problem.poses.size());
+  EXPECT_TRUE(late.problems().empty()) << late.problems().front();
+}
+
 // A rig recording as a person makes it: 1.5 s holds and 1 s moves at 0.4 m/s, every frame
 // emitted (the moving ones too), cameras at `camera_hz`, LiDARs at 10 Hz, each sensor with its
 // own stamp phase. The truth of every frame (still in which hold, or moving) is kept by stamp.

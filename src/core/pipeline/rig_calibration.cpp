@@ -123,7 +123,36 @@ Matrix6d scaleUncertainty(const DeclaredScaleCheck& c) {
   return per_sigma * per_sigma.transpose();
 }
 
+// The problem without the sensors in `drop`; `index` maps old sensor indices to new ones (-1:
+// dropped). The reference moves to `fallback_reference` when it is dropped.
+MsgProblem withoutSensors(const MsgProblem& problem, const std::set<int>& drop,
+                          int fallback_reference, std::vector<int>* index) {
+  MsgProblem out;
+  index->assign(problem.sensors.size(), -1);
+  for (size_t s = 0; s < problem.sensors.size(); ++s)
+    if (!drop.count(static_cast<int>(s))) {
+      (*index)[s] = static_cast<int>(out.sensors.size());
+      out.sensors.push_back(problem.sensors[s]);
+    }
+  const int ref =
+      drop.count(problem.reference_sensor) ? fallback_reference : problem.reference_sensor;
+  out.reference_sensor = (*index)[static_cast<size_t>(ref)];
+  for (const auto& p : problem.poses) {
+    BoardPoseObservation o;
+    o.id = p.id;
+    for (const auto& [k, f] : p.cameras)
+      if ((*index)[static_cast<size_t>(k)] >= 0) o.cameras[(*index)[static_cast<size_t>(k)]] = f;
+    for (const auto& [k, f] : p.lidars)
+      if ((*index)[static_cast<size_t>(k)] >= 0) o.lidars[(*index)[static_cast<size_t>(k)]] = f;
+    if (!o.cameras.empty() || !o.lidars.empty()) out.poses.push_back(std::move(o));
+  }
+  return out;
+}
+
 // The graph solved without some poses, once per set left out (pairs sharing poses share solves).
+// A fold can cut a third sensor off the graph (its few poses were the ones left out), which
+// says nothing about this pair: such a fold is solved again without the other sensors that
+// lost poses, so the pair's check is not failed by another sensor's thin data.
 class FoldSolver {
  public:
   FoldSolver(const MsgProblem& problem, const multi_sensor::MsgGraphOptions& options)
@@ -137,19 +166,37 @@ class FoldSolver {
     std::set<int> left;
     for (const auto& v : all)
       if (!kept.count(v.id)) left.insert(v.id);
+    MsgProblem fold = problem_;
+    fold.poses.erase(
+        std::remove_if(fold.poses.begin(), fold.poses.end(),
+                       [&](const BoardPoseObservation& p) { return left.count(p.id) > 0; }),
+        fold.poses.end());
     auto it = cache_.find(left);
-    if (it == cache_.end()) {
-      MsgProblem fold = problem_;
-      fold.poses.erase(
-          std::remove_if(fold.poses.begin(), fold.poses.end(),
-                         [&](const BoardPoseObservation& p) { return left.count(p.id) > 0; }),
-          fold.poses.end());
+    if (it == cache_.end())
       it = cache_.emplace(left, multi_sensor::solveMsgGraph(fold, options_)).first;
-    }
     CalibrationSolution s;
     s.method = Method::kMsgPair;
-    const auto T = it->second.success ? multi_sensor::sensorTSensor(it->second, camera, lidar)
-                                      : Expected<Eigen::Isometry3d>::failure(it->second.reason);
+    Expected<Eigen::Isometry3d> T = it->second.success
+                                        ? multi_sensor::sensorTSensor(it->second, camera, lidar)
+                                        : Expected<Eigen::Isometry3d>::failure(it->second.reason);
+    if (!T) {
+      std::set<int> thinned;  // other sensors in a left-out pose
+      for (const auto& p : problem_.poses)
+        if (left.count(p.id)) {
+          for (const auto& c : p.cameras) thinned.insert(c.first);
+          for (const auto& l : p.lidars) thinned.insert(l.first);
+        }
+      thinned.erase(camera);
+      thinned.erase(lidar);
+      if (!thinned.empty()) {
+        std::vector<int> index;
+        const MsgProblem reduced = withoutSensors(fold, thinned, lidar, &index);
+        const MsgSolution again = multi_sensor::solveMsgGraph(reduced, options_);
+        if (again.success)
+          T = multi_sensor::sensorTSensor(again, index[static_cast<size_t>(camera)],
+                                          index[static_cast<size_t>(lidar)]);
+      }
+    }
     s.success = static_cast<bool>(T);
     if (T)
       s.camera_T_lidar = *T;

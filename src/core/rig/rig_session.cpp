@@ -16,6 +16,7 @@ namespace {
 constexpr size_t kMaxFeaturesPerStream = 100;
 // Stillness samples per stream: history_s of a 20 Hz LiDAR with room to spare.
 constexpr size_t kMaxSamplesPerStream = 400;
+constexpr double kNever = -std::numeric_limits<double>::infinity();  // no stamp yet
 
 SessionEvent event(SessionEvent::Kind kind, std::string message, int id = -1) {
   SessionEvent e;
@@ -77,6 +78,7 @@ RigSession::RigSession(std::vector<std::string> names, std::vector<SensorSpec> s
     if (names_[i].empty()) names_[i] = sensors_[i].frame;
   streams_.resize(sensors_.size());
   counts_.resize(sensors_.size());
+  newest_when_heard_.assign(sensors_.size(), std::vector<double>(sensors_.size(), kNever));
 }
 
 SessionEvent RigSession::addCamera(int sensor, const CameraBoardFeatures& f) {
@@ -123,12 +125,15 @@ SessionEvent RigSession::add(int sensor, double stamp, const BoardSample& sample
     // is offset from the others' does not look like a restart.
     result = stronger(result, flush());
     for (auto& st : streams_) st = Stream{};
-    for (auto& c : counts_) c.newest_stamp = -std::numeric_limits<double>::infinity();
+    for (auto& c : counts_) c.newest_stamp = kNever;
+    for (auto& heard : newest_when_heard_) std::fill(heard.begin(), heard.end(), kNever);
     hold_pose_id_ = -1;
   }
   ++count.messages;
   count.board_now = sample.found;
   count.newest_stamp = std::max(count.newest_stamp, stamp);
+  for (size_t j = 0; j < counts_.size(); ++j)
+    newest_when_heard_[sensor][j] = counts_[j].newest_stamp;
   Stream& st = streams_[sensor];
   if (!st.samples.empty() && stamp < st.samples.back().stamp)
     return result;  // out of order: not judged
@@ -153,16 +158,26 @@ SessionEvent RigSession::add(int sensor, double stamp, const BoardSample& sample
   return result;
 }
 
+double RigSession::silentFor(size_t k) const {
+  double silent = 0.0;
+  for (size_t j = 0; j < counts_.size(); ++j)
+    if (j != k && std::isfinite(counts_[j].newest_stamp) && std::isfinite(newest_when_heard_[k][j]))
+      silent = std::max(silent, counts_[j].newest_stamp - newest_when_heard_[k][j]);
+  return silent;
+}
+
 bool RigSession::readyToJudge(const Candidate& c) const {
   // Every stream that can still contribute has passed the still window (and the stamp
-  // tolerance). A stream far from the moment (silent for a while, or an offset clock) cannot
-  // and is not waited for; the candidate's own stream moving on by history_s ends any wait.
+  // tolerance). A stream far from the moment (an offset clock) or one the others have gone on
+  // without for history_s (it stopped: a driver died, a topic's recording ended) cannot and is
+  // not waited for, even when it is the candidate's own; the candidate's own stream moving on
+  // by history_s ends any wait.
   const double reach = std::max(options_.still_window_s, options_.stamp_tolerance_s);
   if (counts_[c.sensor].newest_stamp > c.stamp + options_.history_s) return true;
   for (size_t k = 0; k < counts_.size(); ++k) {
     const double newest = counts_[k].newest_stamp;
     if (counts_[k].messages == 0 || !std::isfinite(newest) ||
-        std::abs(newest - c.stamp) > options_.history_s)
+        std::abs(newest - c.stamp) > options_.history_s || silentFor(k) > options_.history_s)
       continue;
     if (newest < c.stamp + reach) return false;
   }
@@ -435,7 +450,8 @@ void RigSession::reset() {
   candidates_.clear();
   hold_pose_id_ = -1;
   stats_ = CaptureStats{};
-  for (auto& c : counts_) c.newest_stamp = -std::numeric_limits<double>::infinity();
+  for (auto& c : counts_) c.newest_stamp = kNever;
+  for (auto& heard : newest_when_heard_) std::fill(heard.begin(), heard.end(), kNever);
   next_id_ = 0;
 }
 

@@ -42,12 +42,26 @@ std::string RigSession::whyNoPose(size_t k) const {
          " (stamp_tolerance_s " + formatFixed(options_.stamp_tolerance_s, 3) + " s)";
 }
 
+std::string RigSession::whySilent(size_t k) const {
+  // Silent for longer than the wait for a late stream and than a few of its own intervals: it
+  // stopped (a driver died, its topic's recording ended) while the others went on.
+  const double silent = silentFor(k);
+  if (counts_[k].messages == 0 ||
+      !(silent > std::max(options_.history_s, 3.0 * streams_[k].clock.typicalInterval())))
+    return "";
+  return names_[k] + ": no message for the last " + formatFixed(silent, 1) +
+         " s of the other sensors' stream (its driver, topic or recording stopped?): board "
+         "poses after that lack it";
+}
+
 std::vector<std::string> RigSession::problems() const {
   std::vector<std::string> out;
   const std::vector<int> in_poses = posesPerSensor();
-  for (size_t k = 0; k < sensors_.size(); ++k)
+  for (size_t k = 0; k < sensors_.size(); ++k) {
+    if (std::string why = whySilent(k); !why.empty()) out.push_back(std::move(why));
     if (in_poses[k] == 0)
       if (std::string why = whyNoPose(k); !why.empty()) out.push_back(std::move(why));
+  }
   return out;
 }
 

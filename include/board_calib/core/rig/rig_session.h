@@ -108,7 +108,8 @@ class RigSession {
   std::vector<RigSensorHealth> health() const;
   /// Specific hints about sensors that do not join the poses: never saw the board (with the last
   /// reason), or saw it often but never within stamp_tolerance_s of the others (stamps offset,
-  /// with the measured offset of its newest message). Empty when every sensor takes part.
+  /// with the measured offset of its newest message); and about sensors that stopped publishing
+  /// while the others went on. Empty when every sensor takes part throughout.
   std::vector<std::string> problems() const;
   void setOptions(const RigSessionOptions& options) { options_ = options; }
 
@@ -141,10 +142,14 @@ class RigSession {
   SessionEvent keepPose(BoardPoseObservation o, const std::string& why, bool snapshot);
   BoardPoseObservation observationAt(double stamp, std::string* seen_by) const;
   bool readyToJudge(const Candidate& c) const;
+  // How far the other streams' clocks went on since stream k last spoke (s; 0 when none did).
+  // Offset clocks cancel out, so a stream that stopped is told from one that lags.
+  double silentFor(size_t k) const;
   bool seenBefore(const BoardPoseObservation& o, int* pose_id) const;
   bool sameHold(const BoardPoseObservation& o) const;
   void prune();
   std::string whyNoPose(size_t sensor) const;  // empty unless a specific reason is known
+  std::string whySilent(size_t sensor) const;  // empty unless it stopped while others went on
   std::optional<Summary> summaryOf(int sensor, const BoardPoseObservation& o) const;
   static std::optional<Summary> summarize(const CameraBoardFeatures& f);  // nullopt unless found
   static std::optional<Summary> summarize(
@@ -156,6 +161,7 @@ class RigSession {
   std::optional<Target> target_;
   std::vector<Stream> streams_;
   std::vector<RigSensorCounts> counts_;
+  std::vector<std::vector<double>> newest_when_heard_;  // [k][j]: j's newest stamp when k spoke
   std::vector<RigSessionPose> poses_;
   std::deque<Candidate> candidates_;  // stamp order, awaiting their judgement
   int hold_pose_id_ = -1;             // pose taken in the current hold, -1 when none
