@@ -215,13 +215,23 @@ bool CalibratorNodelet::calibrate(Calibrate::Request& req, Calibrate::Response& 
                          PairCalibrationOptions{}, guess);
   });
   const PairCalibration run = solving.get();
+  std::string capture_cause;  // when the capture refused most candidates for one cause
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    capture_cause = session_->captureStats().whyFewViews();
+  }
   if (run.runs.empty()) {  // refused before any solve (options, guess, views)
     res.success = false;
-    res.message = "calibration failed: " + run.reason;
+    res.message =
+        "calibration failed: " + run.reason + (capture_cause.empty() ? "" : "; " + capture_cause);
     NODELET_WARN_STREAM("calibrator: " << res.message);
     return true;
   }
   publishRun(run, views, target, camera_frame, lidar_frame, &res);
+  if (run.failed() && !capture_cause.empty()) {
+    res.message += "capture: " + capture_cause + "\n";
+    NODELET_WARN_STREAM("calibrator: capture: " << capture_cause);
+  }
   return true;
 }
 

@@ -30,6 +30,13 @@ using namespace board_calib::calibrate_bag;
 
 namespace {
 
+// A failed run's reason with the capture's cause when that refused most candidates (a board
+// always moving leaves too few views; the views' reason alone hides why).
+std::string withCaptureCause(const std::string& reason, const CaptureStats& capture) {
+  const std::string cause = capture.whyFewViews();
+  return cause.empty() ? reason : reason + "; " + cause;
+}
+
 // Streams the bags through the pipeline; a failure ends the tool.
 void readBags(const Args& args, CalibrationPipeline* pipeline, std::string* camera_frame,
               std::string* lidar_frame) {
@@ -51,7 +58,8 @@ PairCalibration solveSession(const Args& args, const PairSession& session,
   if (lidar_frame->empty()) *lidar_frame = views.front().lidar.frame_id;
   PairCalibration run =
       calibratePair(views, methods, target, *camera_frame, *lidar_frame, run_options, args.guess);
-  if (run.runs.empty()) fail("calibration failed: " + run.reason);  // refused before any solve
+  if (run.runs.empty())  // refused before any solve
+    fail("calibration failed: " + withCaptureCause(run.reason, session.captureStats()));
   return run;
 }
 
@@ -338,7 +346,7 @@ int main(int argc, char** argv) {
     dropViewsAndSolve(args, kept, methods, *target, run_options, &camera_frame, &lidar_frame, &run);
     session = kept;
   }
-  if (run.runs.empty()) fail(run.reason);
+  if (run.runs.empty()) fail(withCaptureCause(run.reason, session->captureStats()));
   if (!args.save_session.empty()) {
     const Status st = session->save(args.save_session);
     if (!st) fail(st.reason);
@@ -355,7 +363,8 @@ int main(int argc, char** argv) {
 
   if (!args.report.empty())
     writeReport(args, run, *session, pipeline ? &*pipeline : nullptr, child);
-  if (run.failed()) fail("calibration failed: " + run.reason);
+  if (run.failed())
+    fail("calibration failed: " + withCaptureCause(run.reason, session->captureStats()));
   if (!args.quiet)
     std::cerr
         << "calibrate_bag: done in "

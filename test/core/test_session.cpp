@@ -189,6 +189,35 @@ TEST(Session, NoViewSaysWhichStepRefusedTheImagesAndWhatToChange) {
   EXPECT_NE(CaptureStats{}.whyNoViews().find("hold it still"), std::string::npos);
 }
 
+// A session that ends with too few views for a result says why in the failure's headline: the
+// capture's cause (here a board that only stopped once) rather than "only 1 usable view".
+TEST(Session, TooFewViewsNameTheCaptureCause) {
+  const Target target = plainTarget();
+  PairSession s(target, SessionOptions{});
+  std::vector<SessionEvent> events;
+  // Carried to and fro at 0.5 m/s for 10 s, held still once from 4 to 5.5 s.
+  feedStreams(
+      s, target, 10.0, 10.0, 10.0,
+      [](double t) {
+        const double moving = t < 4.0 ? t : (t < 5.5 ? 4.0 : t - 1.5);
+        return boardPose(0.5 * std::sin(moving), 3 + 0.1 * moving, 5.0 * std::cos(moving), 0);
+      },
+      &events);
+  s.finish();
+  ASSERT_EQ(s.views().size(), 1u) << s.captureStats().summary();
+  const std::string why = s.captureStats().whyFewViews();
+  EXPECT_NE(why.find("as board moving and kept 1"), std::string::npos) << why;
+  EXPECT_NE(why.find("hold the board still"), std::string::npos) << why;
+
+  // A board held still at every pose: its later frames are no cause to name.
+  PairSession held(target, SessionOptions{});
+  feedStreams(
+      held, target, 10.0, 10.0, 2.0, [](double) { return boardPose(0, 3, 0, 10); }, &events);
+  held.finish();
+  ASSERT_EQ(held.views().size(), 1u) << held.captureStats().summary();
+  EXPECT_EQ(held.captureStats().whyFewViews(), "") << held.captureStats().summary();
+}
+
 TEST(Session, SnapshotRecordingsMakeEveryPairACandidate) {
   const Target target = plainTarget();
   PairSession s(target, SessionOptions{});

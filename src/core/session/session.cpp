@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <set>
 #include <sstream>
 
 namespace board_calib {
@@ -55,17 +56,10 @@ std::string CaptureStats::summary() const {
   return s.str();
 }
 
-std::string CaptureStats::whyNoViews() const {
-  if (candidates == 0)
-    return "no board was found to capture: hold it still in front of the sensors";
-  std::string kind;
-  int most = 0;
-  for (const auto& [k, n] : skipped)
-    if (n > most) {
-      most = n;
-      kind = k;
-    }
-  // What to change, by the capture step that refused the most candidates (pair and rig words).
+namespace {
+
+// What to change, by the capture step that refused the most candidates (pair and rig words).
+std::string remedyFor(const std::string& kind) {
   static const std::map<std::string, std::string> kRemedy = {
       {"too few frames to judge stillness",
        "each pose must be held for the stillness window's frames on both sides of an image: hold "
@@ -79,13 +73,44 @@ std::string CaptureStats::whyNoViews() const {
       {"board lost around the image", "keep the board inside both sensors' views at each pose"},
       {"board lost around the moment", "keep the board inside the sensors' views at each pose"},
   };
+  const auto it = kRemedy.find(kind);
+  return it == kRemedy.end() ? "" : it->second;
+}
+
+// The skip kind that refused the most candidates; with `only_causes`, kinds that are no fault
+// of the recording (a hold's later frames, a full session) do not count.
+std::pair<std::string, int> mostSkipped(const CaptureStats& stats, bool only_causes) {
+  static const std::set<std::string> kNoFault = {"pose already taken", "too similar to a kept view",
+                                                 "session full", "time went back"};
+  std::pair<std::string, int> most{"", 0};
+  for (const auto& [kind, n] : stats.skipped)
+    if (n > most.second && !(only_causes && kNoFault.count(kind))) most = {kind, n};
+  return most;
+}
+
+}  // namespace
+
+std::string CaptureStats::whyNoViews() const {
+  if (candidates == 0)
+    return "no board was found to capture: hold it still in front of the sensors";
+  const auto [kind, most] = mostSkipped(*this, false);
   std::ostringstream s;
   s << "no view was captured: " << (kind.empty() ? std::string("none judged") : kind) << " ("
     << most << " of " << candidates << " candidates)";
-  if (const auto it = kRemedy.find(kind); it != kRemedy.end()) s << "; " << it->second;
+  if (const std::string remedy = remedyFor(kind); !remedy.empty()) s << "; " << remedy;
   if (const auto it = last_why.find(kind);
       it != last_why.end() && !it->second.empty() && it->second != kind)
     s << " (the latest: " << it->second << ")";
+  return s.str();
+}
+
+std::string CaptureStats::whyFewViews() const {
+  const auto [kind, most] = mostSkipped(*this, true);
+  if (kind.empty() || most <= captured || 2 * most <= candidates) return "";
+  std::ostringstream s;
+  s << "the capture refused " << most << " of " << candidates << " candidates as " << kind
+    << " and kept " << captured;
+  if (const std::string remedy = remedyFor(kind); !remedy.empty()) s << ": " << remedy;
   return s.str();
 }
 

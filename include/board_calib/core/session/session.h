@@ -74,6 +74,10 @@ struct CaptureStats {
   /// Why no view was captured, from the most frequent reason, and what to change (for a session
   /// that ends without views).
   std::string whyNoViews() const;
+  /// When the capture refused most candidates for one cause, more than it kept (a board always
+  /// moving, stamps apart): that cause and what to change; empty otherwise. For a result that
+  /// fails or doubts for too few views, so the cause is in the headline.
+  std::string whyFewViews() const;
 };
 
 class PairSession {
