@@ -41,6 +41,7 @@ std::optional<MethodRun> pbpcReferee(const std::vector<View>& views, const Targe
   if (!run.solution.success) return std::nullopt;
   SolverOptions fold_options = solver;
   fold_options.compute_covariance = false;
+  fold_options.declared_scale_without_covariance = true;  // the scale's spread over folds
   std::function<CalibrationSolution(const std::vector<View>&)> refit;
   if (cross_validate)
     refit = [&](const std::vector<View>& subset) {
@@ -114,6 +115,7 @@ PairCalibration calibratePair(const std::vector<View>& views, const std::vector<
 
   SolverOptions fold_options = options.solver;
   fold_options.compute_covariance = false;
+  fold_options.declared_scale_without_covariance = true;  // the scale's spread over folds
   std::vector<CalibrationSolution> solutions;
   std::vector<VerdictReport> verdicts;
   for (Method m : methods) {

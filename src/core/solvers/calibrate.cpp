@@ -186,8 +186,14 @@ void checkDeclaredScale(const std::vector<PreparedView>& prepared, const SolverO
   scaled.plane_model = ppc.plane_model;
   scaled.final_terms = buildClusters(prepared, true, false, true, options.pbpc_line_weight);
   CalibrationSolution scratch;
-  if (!solveTerms(scaled.final_terms, true, false, options, &scaled, &scratch, ppc.plane_model))
+  if (!solveTerms(scaled.final_terms, true, false, options, &scaled, &scratch, ppc.plane_model) ||
+      !std::isfinite(scaled.pose.s))
     return;
+  if (!options.compute_covariance) {  // a fold: the scale alone
+    sol->declared_scale.estimated = true;
+    sol->declared_scale.scale = scaled.pose.s;
+    return;
+  }
   Matrix6d covariance;
   double scale_variance = 0.0;
   if (!finalCovariance(scaled.final_terms, true, ppc.plane_model, options, scaled.pose, &covariance,
@@ -196,6 +202,7 @@ void checkDeclaredScale(const std::vector<PreparedView>& prepared, const SolverO
     return;
   DeclaredScaleCheck& check = sol->declared_scale;
   check.checked = true;
+  check.estimated = true;
   check.scale = scaled.pose.s;
   check.stddev = std::sqrt(scale_variance);
   check.shift = poseDelta(scaled.pose.isometry(), sol->camera_T_lidar);
@@ -254,7 +261,8 @@ CalibrationSolution calibrate(const std::vector<View>& views, Method method,
   }
   fillResidualFigures(views, prepared, method, &sol);
   finishSolution(run, options, &sol);
-  if (method == Method::kPpc && options.compute_covariance && options.check_declared_scale)
+  if (method == Method::kPpc && options.check_declared_scale &&
+      (options.compute_covariance || options.declared_scale_without_covariance))
     checkDeclaredScale(prepared, options, run, &sol);
   if (method == Method::kPbpc && options.compute_covariance && options.edge_bias_range_steps > 0.0)
     addEdgeBiasUncertainty(views, options, &sol);

@@ -405,11 +405,16 @@ DeclaredScaleCheck checkCameraScale(const std::vector<PlaneCorrespondence>& corr
                  camera_T_lidar.translation().z()};
   double s = 1.0;
   const PairOutcome scaled = solvePair(correspondences, points, distanceScales(points),
-                                       options.loss, options, q, t, true, &s);
-  if (!scaled.usable || !scaled.covariance_ok || !(scaled.scale_variance > 0.0) ||
-      !std::isfinite(s))
+                                       options.loss, options, q, t, options.compute_covariance, &s);
+  if (!scaled.usable || !std::isfinite(s)) return check;
+  if (!options.compute_covariance) {  // a fold: the scale alone
+    check.estimated = true;
+    check.scale = s;
     return check;
+  }
+  if (!scaled.covariance_ok || !(scaled.scale_variance > 0.0)) return check;
   check.checked = true;
+  check.estimated = true;
   check.scale = s;
   check.stddev = std::sqrt(scaled.scale_variance);
   check.shift = poseDelta(poseOf(q, t), camera_T_lidar);
@@ -467,7 +472,8 @@ CalibrationSolution calibrateMsgPair(const std::vector<View>& views, const Solve
   }
   sol.views_used = pair.correspondences_used;
   fillMsgPairFigures(views, &sol);
-  if (options.compute_covariance && options.check_declared_scale)
+  if (options.check_declared_scale &&
+      (options.compute_covariance || options.declared_scale_without_covariance))
     sol.declared_scale = checkCameraScale(correspondences, points, options, sol.camera_T_lidar);
   sol.success = true;
   return sol;

@@ -75,8 +75,8 @@ struct CaptureStats {
   /// that ends without views).
   std::string whyNoViews() const;
   /// When the capture refused most candidates for one cause, more than it kept (a board always
-  /// moving, stamps apart): that cause and what to change; empty otherwise. For a result that
-  /// fails or doubts for too few views, so the cause is in the headline.
+  /// moving, stamps apart): that cause and what to change; empty otherwise. Added to a failed
+  /// result's reason, so the cause is in the headline.
   std::string whyFewViews() const;
 };
 

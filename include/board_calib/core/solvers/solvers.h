@@ -95,6 +95,9 @@ struct SolverOptions {
   /// does) to measure whether the LiDAR agrees with the declared board size
   /// (CalibrationSolution::declared_scale); the verdict judges it. Needs compute_covariance.
   bool check_declared_scale = true;
+  /// With compute_covariance off, still solve that scale (without its 1 sigma): the
+  /// cross-validation's folds measure its spread (DeclaredScaleCheck::estimated).
+  bool declared_scale_without_covariance = false;
 
   /// MSG pairwise: 1-sigma of a plane normal (deg) and of a plane offset (m); the normal
   /// residual is whitened into metres-equivalent so one loss scale applies to both.
@@ -167,9 +170,10 @@ struct Observability {
 /// PPC: the camera planes' depth comes from the declared board size. The same views solved with
 /// one free scale s on the camera plane offsets (d -> s d) say what the LiDAR measures.
 struct DeclaredScaleCheck {
-  bool checked = false;
-  double scale = 1.0;   ///< LiDAR distance / camera distance of the boards
-  double stddev = 0.0;  ///< 1 sigma of scale (cluster-robust)
+  bool checked = false;    ///< scale, stddev and shift solved
+  bool estimated = false;  ///< the scale solved (checked, or a fold's scale alone)
+  double scale = 1.0;      ///< LiDAR distance / camera distance of the boards
+  double stddev = 0.0;     ///< 1 sigma of scale (cluster-robust)
   /// How far the result moves with the scale applied (poseDelta: rotation vector rad, m).
   Vector6d shift = Vector6d::Zero();
 };

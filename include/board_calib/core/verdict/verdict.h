@@ -81,6 +81,8 @@ struct CrossValidation {
   double heldout_plane_ratio = 0.0;       ///< left-out plane residual / noise model
   std::vector<std::optional<double>> view_heldout_mlre_px;  ///< per input view
   std::vector<double> view_heldout_plane_ratio;  ///< per input view (0 when not predicted)
+  /// Grouped-jackknife 1 sigma of the declared-size scale over the folds (0: not measured).
+  double declared_scale_stddev = 0.0;
 };
 
 struct VerdictReport {
