@@ -110,19 +110,6 @@ DeclaredScaleCheck declaredScaleOf(const std::vector<View>& views, const Eigen::
   return pair.success ? pair.declared_scale : DeclaredScaleCheck();
 }
 
-// The graph takes tag_size as exact, so its 1 sigma leaves out what the pair's planes know of
-// the depth scale: the result moves by shift / (s - 1) per unit of scale, and the scale is known
-// to its 1 sigma. Added, a tag_size off by less than the verdict names stays inside the 1 sigma
-// (seen: 0.3-1.25 % off, pairs "good" 1-6 mm off at 4-12 sigma of a 0.2-0.7 mm depth 1 sigma).
-// A scale too close to 1 to give the slope adds nothing: its move is below the solver's noise.
-Matrix6d scaleUncertainty(const DeclaredScaleCheck& c) {
-  const double off = c.scale - 1.0;
-  if (!c.checked || !c.shift.allFinite() || !(std::abs(off) > 0.1 * c.stddev))
-    return Matrix6d::Zero();
-  const Vector6d per_sigma = c.shift * (c.stddev / off);
-  return per_sigma * per_sigma.transpose();
-}
-
 // The problem without the sensors in `drop`; `index` maps old sensor indices to new ones (-1:
 // dropped). The reference moves to `fallback_reference` when it is dropped.
 MsgProblem withoutSensors(const MsgProblem& problem, const std::set<int>& drop,
@@ -323,7 +310,7 @@ RigCalibration calibrateRig(const MsgProblem& problem, const RigConfig& rig, con
                      est.has_covariance ? std::optional<Matrix6d>(est.covariance) : std::nullopt);
     p.solution.declared_scale = declaredScaleOf(p.views, est.camera_T_lidar);
     if (est.has_covariance) {
-      p.solution.covariance += scaleUncertainty(p.solution.declared_scale);
+      p.solution.covariance += declaredScaleUncertainty(p.solution.declared_scale);
       p.solution.stddev = stddevFromCovariance(p.solution.covariance);
     }
     std::function<CalibrationSolution(const std::vector<View>&)> refit;

@@ -206,6 +206,11 @@ void checkDeclaredScale(const std::vector<PreparedView>& prepared, const SolverO
   check.scale = scaled.pose.s;
   check.stddev = std::sqrt(scale_variance);
   check.shift = poseDelta(scaled.pose.isometry(), sol->camera_T_lidar);
+  // The solve took the declared size as exact; its 1 sigma gets the scale's.
+  if (sol->covariance.allFinite()) {
+    sol->covariance += declaredScaleUncertainty(check);
+    sol->stddev = stddevFromCovariance(sol->covariance);
+  }
 }
 
 // Defined after calibrate, which it calls.

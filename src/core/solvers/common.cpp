@@ -219,4 +219,12 @@ PoseStddev stddevFromCovariance(const Matrix6d& covariance) {
   return s;
 }
 
+Matrix6d declaredScaleUncertainty(const DeclaredScaleCheck& c) {
+  const double off = c.scale - 1.0;
+  if (!c.checked || !c.shift.allFinite() || !(std::abs(off) > 0.1 * c.stddev))
+    return Matrix6d::Zero();
+  const Vector6d per_sigma = c.shift * (c.stddev / off);
+  return per_sigma * per_sigma.transpose();
+}
+
 }  // namespace board_calib

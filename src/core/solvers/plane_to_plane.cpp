@@ -475,6 +475,11 @@ CalibrationSolution calibrateMsgPair(const std::vector<View>& views, const Solve
   if (options.check_declared_scale &&
       (options.compute_covariance || options.declared_scale_without_covariance))
     sol.declared_scale = checkCameraScale(correspondences, points, options, sol.camera_T_lidar);
+  // The solve took the declared size as exact; its 1 sigma gets the scale's.
+  if (sol.covariance.allFinite()) {
+    sol.covariance += declaredScaleUncertainty(sol.declared_scale);
+    sol.stddev = stddevFromCovariance(sol.covariance);
+  }
   sol.success = true;
   return sol;
 }

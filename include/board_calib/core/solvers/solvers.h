@@ -178,6 +178,12 @@ struct DeclaredScaleCheck {
   Vector6d shift = Vector6d::Zero();
 };
 
+/// What the depth scale's 1 sigma adds to a result that takes the declared board size as exact
+/// (PPC, MSG pairwise, the MSG graph): its move per unit of scale, shift / (s - 1), times the
+/// scale's 1 sigma. A size off by less than the verdict names then stays inside the 1 sigma.
+/// Zero unless checked, and when the scale is too close to 1 (within 0.1 sigma) to give the slope.
+Matrix6d declaredScaleUncertainty(const DeclaredScaleCheck& check);
+
 struct CalibrationSolution {
   bool success = false;
   std::string reason;  ///< why it failed, empty on success
