@@ -345,6 +345,34 @@ TEST(Verdict, PpcAndMsgNameADeclaredBoardSizeTheLidarDisputes) {
     }
 }
 
+// With every method (`all`), a depth scale PPC or MSG names holds for PBPC too: a focal length
+// off moves all three alike, so they agree, and PBPC (which absorbs a wrong board size but not a
+// wrong focal length) was chosen "good" 75 mm off (trust sweep 6, d21: focal length 2 % off).
+// The data cannot tell the two causes apart, so no method is good while one names the scale.
+TEST(Verdict, AScaleOneMethodNamesKeepsEveryMethodFromGood) {
+  sim::SyntheticFeatureOptions o;
+  o.declared_size_factor = 1.02;
+  std::mt19937 rng(31);
+  const Eigen::Isometry3d truth = sim::randomCameraTLidar(rng);
+  auto scene = sim::generateSyntheticViews(o, truth, rng);
+  ASSERT_TRUE(scene.ok()) << scene.error();
+  const PairCalibration r = run(scene->views, "all");
+  ASSERT_EQ(r.runs.size(), 3u) << r.reason;
+  bool named = false;
+  for (const auto& m : r.runs) named = named || !m.verdict.scale_finding.empty();
+  ASSERT_TRUE(named) << r.reason;
+  for (const auto& m : r.runs) {
+    EXPECT_NE(m.verdict.verdict, Verdict::kGood)
+        << methodName(m.solution.method) << ": " << m.verdict.reason;
+    if (m.verdict.scale_finding.empty() && m.verdict.verdict == Verdict::kDoubtful) {
+      EXPECT_NE(m.verdict.reason.find("a wrong focal length moves this result too"),
+                std::string::npos)
+          << m.verdict.reason;
+    }
+  }
+  EXPECT_NE(r.verdict, Verdict::kGood) << r.reason;
+}
+
 // What the image lines become when the images still hold a radial distortion k1 that the
 // camera_info does not undo: each side sampled, distorted, and fitted with a straight line; the
 // camera plane from PnP on the corners they meet at.

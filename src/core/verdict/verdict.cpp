@@ -648,6 +648,7 @@ void judgeUncertainty(const CalibrationSolution& sol, const Target& target, cons
                          ": loosely determined; add views with other tilts and distances");
   // A wrong size or lens model is the cause the user can fix: it heads a failure it contributes
   // to.
+  r.scale_finding = size_finding;
   for (const std::string* finding : {&size_finding, &lens_finding}) {
     if (finding->empty()) continue;
     if (f.failed.empty())
@@ -717,6 +718,25 @@ VerdictReport judgeSolution(
 
 void judgeMethodAgreement(const std::vector<CalibrationSolution>& solutions,
                           std::vector<VerdictReport>* verdicts, const VerdictOptions& o) {
+  // A depth scale another method names holds for this one too: PBPC absorbs a wrong board size
+  // but not a wrong focal length, which moves every method alike, so they agree with each other
+  // (a 2 % focal length: PPC and MSG doubtful naming it, PBPC "good" 75 mm off, chosen).
+  for (size_t a = 0; a < solutions.size(); ++a) {
+    auto& va = (*verdicts)[a];
+    if (va.verdict != Verdict::kGood || !va.scale_finding.empty()) continue;
+    for (size_t b = 0; b < solutions.size(); ++b) {
+      const auto& vb = (*verdicts)[b];
+      if (a == b || vb.scale_finding.empty()) continue;
+      const std::string text = std::string(methodName(solutions[b].method)) + " finds " +
+                               vb.scale_finding +
+                               "; a wrong focal length moves this result too, a wrong board size "
+                               "does not: measure the board";
+      va.details.push_back(text);
+      va.verdict = Verdict::kDoubtful;
+      va.reason = text;
+      break;
+    }
+  }
   for (size_t a = 0; a < solutions.size(); ++a) {
     auto& va = (*verdicts)[a];
     if (va.verdict == Verdict::kFailed) continue;

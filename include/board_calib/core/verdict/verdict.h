@@ -96,6 +96,9 @@ struct VerdictReport {
   Matrix6d covariance = Matrix6d::Zero();  ///< reported: the model's, inflated (see the header)
   PoseStddev stddev;
   double stddev_inflation = 1.0;  ///< factor on the model's 1 sigma
+  /// A named depth scale the LiDAR disputes (a declared size or a focal length off), in words;
+  /// empty when none. The other methods of a run are judged with it (judgeMethodAgreement).
+  std::string scale_finding;
 };
 
 /// Plane residual RMS of every view against its noise model (1 = as expected). `views` are the
