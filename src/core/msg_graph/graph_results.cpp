@@ -71,13 +71,15 @@ bool fillSensors(const MsgProblem& problem, const MsgGraphOptions& options, Grap
     e.pixel_sigma_px = sigmas[s].pixel_px;
     e.edge_sigma_m = sigmas[s].edge_m;
     if (e.observations < options.min_shared_views) {
-      sol->reason = "sensor '" + e.frame + "' keeps only " + std::to_string(e.observations) +
-                    " board pose(s) shared with another sensor after outlier rejection (< " +
-                    std::to_string(options.min_shared_views) + ")";
-      return false;
+      const std::string why = "keeps only " + std::to_string(e.observations) +
+                              " board pose(s) shared with another sensor after outlier "
+                              "rejection (< " +
+                              std::to_string(options.min_shared_views) + ")";
+      if (sol->reason.empty()) sol->reason = "sensor '" + e.frame + "' " + why;
+      sol->unplaced.push_back({s, why});
     }
   }
-  return true;
+  return sol->unplaced.empty();
 }
 
 // Covariance of every sensor pose (tangent space: left rotation perturbation, translation),

@@ -267,8 +267,18 @@ bool spanningTreeInit(const MsgProblem& problem, const MsgGraphOptions& options,
     }
   }
   std::vector<std::string> unreachable;
-  for (int s = 0; s < n; ++s)
-    if (parent[s] == -2) unreachable.push_back(problem.sensors[s].frame);
+  for (int s = 0; s < n; ++s) {
+    if (parent[s] != -2) continue;
+    unreachable.push_back(problem.sensors[s].frame);
+    std::string own;  // why its links to the placed sensors failed
+    for (const auto& link : sol->links)
+      if ((link.a == s || link.b == s) && parent[link.a == s ? link.b : link.a] != -2)
+        own += (own.empty() ? "" : "; ") + problem.sensors[link.a].frame + "<->" +
+               problem.sensors[link.b].frame + ": " + link.reason;
+    sol->unplaced.push_back({s, "cannot be reached from the reference '" +
+                                    problem.sensors[ref].frame + "'" +
+                                    (own.empty() ? "" : " (" + own + ")")});
+  }
   if (!unreachable.empty()) {
     std::string list;
     for (const auto& u : unreachable) list += (list.empty() ? "" : ", ") + u;

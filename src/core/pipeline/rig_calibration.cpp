@@ -136,6 +136,39 @@ MsgProblem withoutSensors(const MsgProblem& problem, const std::set<int>& drop,
   return out;
 }
 
+// The graph solved; sensors it cannot place (cut off from the reference, too few poses) are
+// named in `not_calibrated` and the rest solved without them, so a LiDAR that rarely saw the
+// board does not cost the other pairs their results. `problem` becomes the solved one.
+MsgSolution solveWithoutUnplaced(MsgProblem* problem, const multi_sensor::MsgGraphOptions& options,
+                                 std::vector<std::string>* not_calibrated) {
+  MsgSolution sol = multi_sensor::solveMsgGraph(*problem, options);
+  while (!sol.success && !sol.unplaced.empty()) {
+    std::set<int> cut;
+    for (const auto& u : sol.unplaced) cut.insert(u.sensor);
+    int cameras = 0, first_lidar = -1;
+    for (size_t s = 0; s < problem->sensors.size(); ++s) {
+      if (cut.count(static_cast<int>(s))) continue;
+      if (problem->sensors[s].kind == multi_sensor::SensorKind::kCamera)
+        ++cameras;
+      else if (first_lidar < 0)
+        first_lidar = static_cast<int>(s);
+    }
+    if (cameras == 0 || first_lidar < 0) break;  // no camera <- LiDAR pair would be left
+    for (const auto& u : sol.unplaced)
+      not_calibrated->push_back(problem->sensors[static_cast<size_t>(u.sensor)].frame + ": " +
+                                u.reason);
+    std::vector<int> index;
+    *problem = withoutSensors(*problem, cut, first_lidar, &index);
+    problem->poses.erase(std::remove_if(problem->poses.begin(), problem->poses.end(),
+                                        [](const BoardPoseObservation& p) {
+                                          return p.cameras.size() + p.lidars.size() < 2;
+                                        }),
+                         problem->poses.end());
+    sol = multi_sensor::solveMsgGraph(*problem, options);
+  }
+  return sol;
+}
+
 // The graph solved without some poses, once per set left out (pairs sharing poses share solves).
 // A fold can cut a third sensor off the graph (its few poses were the ones left out), which
 // says nothing about this pair: such a fold is solved again without the other sensors that
@@ -198,6 +231,12 @@ class FoldSolver {
   std::map<std::set<int>, MsgSolution> cache_;
 };
 
+int sensorNamed(const MsgSolution& sol, const std::string& name) {
+  for (size_t s = 0; s < sol.sensors.size(); ++s)
+    if (sol.sensors[s].frame == name) return static_cast<int>(s);
+  return -1;
+}
+
 // Loop closure of the pairwise estimates and the known extrinsics, against the graph's own
 // uncertainty. Returns the worst verdict of these checks; findings go to `findings`.
 Verdict judgeRigChecks(const MsgSolution& sol, const RigConfig& rig,
@@ -220,10 +259,9 @@ Verdict judgeRigChecks(const MsgSolution& sol, const RigConfig& rig,
                         " mm): a sensor's views disagree with the others'");
   }
   for (const auto& known : rig.known_extrinsics) {
-    const int a = rig.sensorIndex(known.a), b = rig.sensorIndex(known.b);
-    if (a < 0 || b < 0 || a >= static_cast<int>(sol.sensors.size()) ||
-        b >= static_cast<int>(sol.sensors.size()))
-      continue;
+    // By name: a sensor left out of the graph shifts the solution's indices.
+    const int a = sensorNamed(sol, known.a), b = sensorNamed(sol, known.b);
+    if (a < 0 || b < 0) continue;
     const auto consistency = multi_sensor::stereoConsistency(sol, a, b, known.a_T_b);
     if (!consistency) continue;
     const auto cov = multi_sensor::relativeCovariance(sol, a, b);
@@ -259,6 +297,7 @@ void addVerdicts(RigCalibration* run) {
   if (!run->pairs.empty() && !r.pairs.empty()) r.stddev = r.pairs.front().stddev;
   for (const auto& text : run->left_out) r.notes.push_back(text);
   for (const auto& text : run->rig_findings) r.notes.push_back(text);
+  for (const auto& text : run->not_calibrated) r.notes.push_back("not calibrated: " + text);
 }
 
 }  // namespace
@@ -290,8 +329,12 @@ RigCalibration calibrateRig(const MsgProblem& problem, const RigConfig& rig, con
   if (problem.poses.empty())
     return fail("no board poses: hold the board still where at least two sensors see it");
   run.problem = withoutInconsistent(problem, target, options.consistency, &run.left_out);
-  run.solution = multi_sensor::solveMsgGraph(run.problem, options.graph);
-  if (!run.solution.success) return fail("MSG graph failed: " + run.solution.reason);
+  run.solution = solveWithoutUnplaced(&run.problem, options.graph, &run.not_calibrated);
+  if (!run.solution.success) {
+    std::string cut;
+    for (const auto& n : run.not_calibrated) cut += "; without " + n;
+    return fail("MSG graph failed: " + run.solution.reason + cut);
+  }
   run.result = multi_sensor::msgResultFile(run.problem, run.solution);
 
   FoldSolver folds(run.problem, options.graph);
@@ -341,6 +384,14 @@ RigCalibration calibrateRig(const MsgProblem& problem, const RigConfig& rig, con
     run.verdict = rig_checks;
     run.reason = run.rig_findings.front();
   }
+  if (!run.not_calibrated.empty()) {
+    std::string names;
+    for (const auto& n : run.not_calibrated) names += (names.empty() ? "" : "; ") + n;
+    run.verdict = Verdict::kFailed;
+    run.reason = "not every sensor could be calibrated: " + names + ". The other sensors were " +
+                 (run.not_calibrated.size() == 1 ? "solved without it" : "solved without them") +
+                 "; their pairs are for inspection";
+  }
   run.views_to_check.assign(to_check.begin(), to_check.end());
   addVerdicts(&run);
   return run;
@@ -361,6 +412,7 @@ std::string rigVerdictSummary(const RigCalibration& run) {
     for (const auto& d : p.verdict.details) s << "    - " << d << "\n";
   }
   for (const auto& f : run.rig_findings) s << "  rig: " << f << "\n";
+  for (const auto& f : run.not_calibrated) s << "  not calibrated: " << f << "\n";
   for (const auto& f : run.left_out) s << "  " << f << "\n";
   if (!run.views_to_check.empty()) {
     s << "  look at board poses:";
@@ -374,6 +426,12 @@ std::string rigVerdictSummary(const RigCalibration& run) {
            "again\n";
       break;
     case Verdict::kFailed:
+      if (!run.not_calibrated.empty()) {
+        s << "  next: capture poses where the sensors not calibrated see the board together with "
+             "another sensor (the capture tells how often each found it), or take them out of "
+             "the rig file to calibrate the others\n";
+        break;
+      }
       s << "  next: do not use this result; fix the cause above (poses, board, sync, sensors) and "
            "collect again\n";
       break;

@@ -183,9 +183,18 @@ struct PairEstimate {
   bool has_covariance = false;
 };
 
+/// A sensor the graph could not place: cut off from the reference, or left with too few poses.
+struct UnplacedSensor {
+  int sensor = 0;
+  std::string reason;  ///< its own links' or poses' shortfall
+};
+
 struct MsgSolution {
   bool success = false;
   std::string reason;
+  /// When the solve failed for want of some sensors' data: those sensors (the others may be
+  /// solvable without them).
+  std::vector<UnplacedSensor> unplaced;
   int reference_sensor = 0;
   std::vector<SensorEstimate> sensors;
   /// Joint covariance of every sensor pose (6n x 6n, sensor s at rows/columns 6s..6s+5, header

@@ -61,6 +61,9 @@ struct RigCalibration {
   std::vector<RigPairRun> pairs;          ///< solution.pairs' order
   std::vector<std::string> left_out;      ///< observations removed before solving, with the reason
   std::vector<std::string> rig_findings;  ///< loop and known-extrinsic checks, in words
+  /// Sensors the graph could not place ("frame: why"); `problem` and `solution` are then the rig
+  /// without them, and the run is failed (the rig as configured is not calibrated).
+  std::vector<std::string> not_calibrated;
   Verdict verdict = Verdict::kFailed;     ///< overall: the worst pair, or the rig's own checks
   std::string reason;                     ///< one line
   std::vector<int> views_to_check;        ///< pose ids
