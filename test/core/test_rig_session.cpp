@@ -331,6 +331,38 @@ TEST_F(RigSessionTest, ASensorThatStopsCostsOnlyItsOwnPosesAndIsNamed) {
   EXPECT_TRUE(late.problems().empty()) << late.problems().front();
 }
 
+TEST_F(RigSessionTest, ASensorThatLosesTheBoardAroundTheMomentIsLeftOutOfThatPoseOnly) {
+  // Short holds (3 frames, the board out of every view in between; the middle frame is the
+  // only moment with frames before and after it), and the OS1 sees the board in that frame only
+  // (it is at the edge of its view). Its loss refused the whole moment, so every pose was lost
+  // for every sensor.
+  RigSession session = makeSession();
+  double t = 100.0;
+  const std::vector<double> offset = {0.0, 0.0, 0.0, 0.013};
+  const int os1 = 3;
+  auto feed = [&](int k, double stamp, bool found, const auto& pose) {
+    if (scene.problem.sensors[static_cast<size_t>(k)].kind == SensorKind::kCamera) {
+      CameraBoardFeatures f = found ? pose.cameras.at(k) : CameraBoardFeatures();
+      f.stamp = stamp;
+      session.addCamera(k, f);
+    } else {
+      LidarBoardFeatures f = found ? pose.lidars.at(k) : LidarBoardFeatures();
+      f.stamp = stamp;
+      session.addLidar(k, f);
+    }
+  };
+  for (const auto& pose : scene.problem.poses)
+    for (int i = 0; i < 8; ++i, t += kFramePeriodS)  // 3 frames held, 5 without the board
+      for (int k = 0; k < 4; ++k) feed(k, t + offset[k], i < 3 && (k != os1 || i == 1), pose);
+  session.flush();
+  EXPECT_EQ(session.poses().size(), scene.problem.poses.size()) << session.captureStats().summary();
+  for (const auto& p : session.poses()) {
+    EXPECT_EQ(p.observation.cameras.size(), 2u) << p.why;
+    EXPECT_EQ(p.observation.lidars.count(os1), 0u) << p.why;
+    EXPECT_NE(p.why.find("left out: os1 lost the board"), std::string::npos) << p.why;
+  }
+}
+
 // A rig recording as a person makes it: 1.5 s holds and 1 s moves at 0.4 m/s, every frame
 // emitted (the moving ones too), cameras at `camera_hz`, LiDARs at 10 Hz, each sensor with its
 // own stamp phase. The truth of every frame (still in which hold, or moving) is kept by stamp.

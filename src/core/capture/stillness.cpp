@@ -317,8 +317,10 @@ StillnessJudgement judgeStillness(const std::vector<StillnessStream>& streams, d
 
   for (size_t s = 0; s < streams.size(); ++s)
     if (streams[s].judged && !streamStill(streams[s], static_cast<int>(s) == j.fastest_stream,
-                                          stamp, fastest_interval, wide, &j))
+                                          stamp, fastest_interval, wide, &j)) {
+      if (j.state == StillState::kNoBoard) j.lost_stream = static_cast<int>(s);
       return j;
+    }
   j.state = StillState::kStill;
   j.why = "board still for +-" + formatFixed(wide.window_s, 2) + " s (" +
           std::to_string(j.fastest_frames) + " " +

@@ -215,7 +215,21 @@ SessionEvent RigSession::decide(const Candidate& c) {
         nearest = &x;
     streams.push_back({&st.samples, &st.clock, names_[k], nearest && nearest->found});
   }
-  const StillnessJudgement judged = judgeStillness(streams, c.stamp, options_.stillness(), true);
+  // A sensor that lost the board around the moment (the board at the edge of its view) is left
+  // out of this pose; the others may still hold it still.
+  std::set<int> lost;
+  std::string lost_why;
+  StillnessJudgement judged = judgeStillness(streams, c.stamp, options_.stillness(), true);
+  while (judged.state == StillState::kNoBoard && judged.lost_stream >= 0) {
+    int judged_left = 0;
+    for (size_t k = 0; k < streams.size(); ++k)
+      judged_left += streams[k].judged && static_cast<int>(k) != judged.lost_stream ? 1 : 0;
+    if (judged_left < options_.min_sensors) break;
+    streams[static_cast<size_t>(judged.lost_stream)].judged = false;
+    lost.insert(judged.lost_stream);
+    lost_why += "; left out: " + judged.why;
+    judged = judgeStillness(streams, c.stamp, options_.stillness(), true);
+  }
   ++stats_.candidates;
   stats_.last_stillness = judged.why;
   if (judged.state == StillState::kMoving || judged.state == StillState::kNoBoard)
@@ -226,7 +240,7 @@ SessionEvent RigSession::decide(const Candidate& c) {
     return skip("too few frames to judge stillness", judged.why);
 
   std::string seen_by;
-  BoardPoseObservation o = observationAt(c.stamp, &seen_by);
+  BoardPoseObservation o = observationAt(c.stamp, lost, &seen_by);
   const int sensors_seen = static_cast<int>(o.cameras.size() + o.lidars.size());
   if (sensors_seen < options_.min_sensors)
     return skip("seen by too few sensors",
@@ -235,13 +249,15 @@ SessionEvent RigSession::decide(const Candidate& c) {
                     (seen_by.empty() ? "none" : seen_by) + "); a pose needs " +
                     std::to_string(options_.min_sensors) +
                     " (check the other detectors and stamp_tolerance)");
-  return keepPose(std::move(o), "auto: " + judged.why + "; seen by " + seen_by,
+  return keepPose(std::move(o), "auto: " + judged.why + "; seen by " + seen_by + lost_why,
                   judged.state == StillState::kSnapshot);
 }
 
-BoardPoseObservation RigSession::observationAt(double stamp, std::string* seen_by) const {
+BoardPoseObservation RigSession::observationAt(double stamp, const std::set<int>& left_out,
+                                               std::string* seen_by) const {
   BoardPoseObservation o;
   for (size_t k = 0; k < sensors_.size(); ++k) {
+    if (left_out.count(static_cast<int>(k))) continue;
     const Stream& st = streams_[k];
     const int key = static_cast<int>(k);
     bool has = false;
@@ -407,7 +423,7 @@ SessionEvent RigSession::captureNow() {
     return event(SessionEvent::Kind::kRejected,
                  "no sensor has seen the board recently: nothing to capture");
   std::string seen_by;
-  BoardPoseObservation o = observationAt(stamp, &seen_by);
+  BoardPoseObservation o = observationAt(stamp, {}, &seen_by);
   const int sensors_seen = static_cast<int>(o.cameras.size() + o.lidars.size());
   if (sensors_seen < options_.min_sensors)
     return event(SessionEvent::Kind::kRejected,

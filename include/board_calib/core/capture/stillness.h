@@ -136,6 +136,7 @@ struct StillnessJudgement {
   std::string why;  ///< in words, with the figures
   int fastest_stream = -1;
   int fastest_frames = 0;  ///< frames of the fastest stream inside the window
+  int lost_stream = -1;    ///< kNoBoard: the stream that lost the board
 };
 
 /// One stream as the judge sees it: its samples (sorted by stamp) and its clock.

@@ -23,6 +23,7 @@
 #include <functional>
 #include <limits>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -140,7 +141,8 @@ class RigSession {
   SessionEvent decide(const Candidate& c);
   SessionEvent skip(const std::string& kind, const std::string& why);
   SessionEvent keepPose(BoardPoseObservation o, const std::string& why, bool snapshot);
-  BoardPoseObservation observationAt(double stamp, std::string* seen_by) const;
+  BoardPoseObservation observationAt(double stamp, const std::set<int>& left_out,
+                                     std::string* seen_by) const;
   bool readyToJudge(const Candidate& c) const;
   // How far the other streams' clocks went on since stream k last spoke (s; 0 when none did).
   // Offset clocks cancel out, so a stream that stopped is told from one that lags.
