@@ -320,6 +320,12 @@ TEST(SimScenario, BadFilesGiveReasonsNamingTheKey) {
       {"target: ../targets/plain_1016.yaml\n" + good_camera +
            "scene: {board_marks: [{min: [0, 0]}]}\n",
        "scene.board_marks[0].max"},
+      // A barrel polynomial that peaks at a normalised radius of 1.06 while the corners of this
+      // wide image need 1.62 (sweep 6's l08): rendered as a fan of rays before, silently.
+      {"target: ../targets/plain_1016.yaml\ncameras: [{name: c, width: 1920, height: 1200, fx: "
+       "700, "
+       "fy: 700, cx: 960, cy: 600, distortion_model: plumb_bob, D: [-0.25, 0.07, 0, 0, -0.01]}]\n",
+       "no inverse at image pixel (0, 0)"},
   };
   for (const auto& c : cases) {
     auto s = parseScenario(c.yaml, base);

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // Scenario files: strict YAML reading (errors name the key), validation, seeded clutter.
+#include <board_calib/core/common/format.h>
 #include <board_calib/core/sim/scenario.h>
 
 #include <board_calib/core/transform.h>
@@ -136,6 +137,24 @@ RenderOptions readRender(const YAML::Node& parent, const std::string& where) {
   return r;
 }
 
+// The simulator renders by inverting the lens model at every pixel: a distortion that folds back
+// before the image's border (a radial polynomial peaking inside it) has no inverse there, and the
+// image would be a meaningless fan of rays. Checked on the border, where the fold shows first.
+std::string lensFoldsInsideTheImage(const CameraModel& model, int width, int height) {
+  const double w = width - 1.0, h = height - 1.0;
+  for (const Eigen::Vector2d raw :
+       {Eigen::Vector2d(0, 0), Eigen::Vector2d(w, 0), Eigen::Vector2d(0, h), Eigen::Vector2d(w, h),
+        Eigen::Vector2d(w / 2, 0), Eigen::Vector2d(w / 2, h), Eigen::Vector2d(0, h / 2),
+        Eigen::Vector2d(w, h / 2)}) {
+    const Eigen::Vector2d back = model.distortPixel(model.undistortPixel(raw));
+    if (!back.allFinite() || (back - raw).norm() > 0.5)
+      return "its distortion has no inverse at image pixel (" + formatFixed(raw.x(), 0) + ", " +
+             formatFixed(raw.y(), 0) +
+             ") (the lens model folds back inside the image): check fx, fy and D together";
+  }
+  return {};
+}
+
 CameraSensor readCamera(const YAML::Node& node, const std::string& where) {
   rejectUnknownKeys(node,
                     {"name", "frame_id", "width", "height", "fx", "fy", "cx", "cy",
@@ -160,6 +179,9 @@ CameraSensor readCamera(const YAML::Node& node, const std::string& where) {
   if (node["D"]) in.coeffs = readNumbers(node, "D", where);
   const auto check = CameraModel::create(in);
   if (!check) throw ScenarioError{"'" + where + "': " + check.error()};
+  if (const std::string folds = lensFoldsInsideTheImage(*check, in.width, in.height);
+      !folds.empty())
+    throw ScenarioError{"'" + where + "': " + folds};
   readOptional(node, "rate_hz", where, "number", &c.rate_hz);
   readOptional(node, "stamp_offset_s", where, "number", &c.stamp_offset_s);
   c.rig_T_sensor = readPose(node, where, true);
