@@ -137,7 +137,7 @@ PairCalibration calibratePair(const std::vector<View>& views, const std::vector<
   const MethodRun& run = out.shownRun();
   out.verdict = run.verdict.verdict;
   out.reason = run.verdict.reason;
-  if (out.verdict != Verdict::kGood) {
+  if (out.verdict != Verdict::kGood && run.verdict.scale_finding.empty()) {
     const std::string size = declaredSizeDoubt(out.used_views, target, run.solution);
     if (!size.empty() && out.reason.find(size) == std::string::npos) out.reason += "; " + size;
   }

@@ -107,10 +107,22 @@ bool runPbpc(const std::vector<View>& views, std::vector<PreparedView>* prepared
 
 // Covariance, observability and the plane-scale note of a solved run.
 void finishSolution(const Run& run, const SolverOptions& options, CalibrationSolution* sol) {
+  // PBPC solves the camera planes' depth scale itself (its edges fix the scale-free pose): the
+  // declared size's check is that scale, and correcting the size does not move the result.
+  if (run.use_scale && std::isfinite(run.pose.s)) {
+    sol->declared_scale.estimated = true;
+    sol->declared_scale.scale = run.pose.s;
+  }
   if (options.compute_covariance) {
-    const bool cov_ok = finalCovariance(run.final_terms, run.use_scale, run.plane_model, options,
-                                        run.pose, &sol->covariance);
+    double scale_variance = 0.0;
+    const bool cov_ok =
+        finalCovariance(run.final_terms, run.use_scale, run.plane_model, options, run.pose,
+                        &sol->covariance, run.use_scale ? &scale_variance : nullptr);
     if (!cov_ok) sol->covariance.setConstant(std::numeric_limits<double>::infinity());
+    if (cov_ok && run.use_scale && scale_variance > 0.0 && std::isfinite(run.pose.s)) {
+      sol->declared_scale.checked = true;
+      sol->declared_scale.stddev = std::sqrt(scale_variance);
+    }
     sol->stddev = stddevFromCovariance(sol->covariance);
     sol->observability = solvers_detail::analyseObservability(
         sol->covariance, cov_ok, options.observability_max_stddev, "camera");

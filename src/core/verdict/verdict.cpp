@@ -93,6 +93,7 @@ namespace {
 struct Findings {
   VerdictReport* report;
   std::vector<std::string> failed, doubtful;
+  bool views_disagree = false;  ///< the consistency step failed or left views out
   void name(int id) {
     auto& ids = report->views_to_check;
     if (std::find(ids.begin(), ids.end(), id) == ids.end()) ids.push_back(id);
@@ -113,6 +114,7 @@ void judgeConsistency(const ConsistencyReport& consistency, const VerdictOptions
   }
   if (!consistency.ok) f.failed.push_back(consistency.reason);
   const double bad_fraction = usable ? static_cast<double>(inconsistent) / usable : 0.0;
+  f.views_disagree = !consistency.ok || bad_fraction > o.doubtful_inconsistent_fraction;
   if (bad_fraction >= o.failed_inconsistent_fraction)
     f.failed.push_back(std::to_string(inconsistent) + " of " + std::to_string(usable) +
                        " views disagree with the others: no single calibration explains them");
@@ -579,11 +581,16 @@ Matrix6d judgeDeclaredScale(const CalibrationSolution& sol, const Target& target
       "the LiDAR sees the boards at " + formatFixed(c.scale, 3) + " +- " + formatFixed(stddev, 4) +
       " of the distance the declared size gives: the target's " + size + " is declared " +
       formatFixed(std::abs(percent), 1) + " % too " + (percent > 0 ? "large" : "small") +
-      ", or the camera's focal length or the LiDAR's range offset is off; corrected, the " +
-      "result moves " + formatFixed(c.shift.tail<3>().norm() * 1e3, 1) + " mm / " +
-      formatFixed(c.shift.head<3>().norm() * kDegPerRad, 3) + " deg";
-  if (off > o.declared_size_tolerance && moves) {
+      ", or the camera's focal length or the LiDAR's range offset is off" +
+      (c.shift.isZero()
+           ? std::string("; the result (solved with the scale) does not move with it")
+           : "; corrected, the result moves " + formatFixed(c.shift.tail<3>().norm() * 1e3, 1) +
+                 " mm / " + formatFixed(c.shift.head<3>().norm() * kDegPerRad, 3) + " deg");
+  // The consistency step places the camera's boards with the declared size: a wrong one makes
+  // near and far views disagree even when the result (PBPC's edges) barely moves with it.
+  if (off > o.declared_size_tolerance && (moves || f.views_disagree)) {
     *finding = text + ": measure the board and fix the target file, or recalibrate the camera";
+    if (!moves) *finding += " (the views disagree because of it)";
   } else {
     f.report->details.push_back(text + " (the 1 sigma includes it)");
   }
