@@ -40,6 +40,21 @@ std::string malformedFeatures(const LidarBoardFeatures& f) {
     if (f.edge_valid[j] && (!inReach(f.edge_line_point[j]) || !unit(f.edge_line_direction[j])))
       return "a valid edge line with a non-finite point or a direction not of unit length";
   }
+  // The stillness judge takes the board's centre from the corners of four valid edges: each must
+  // lie on both its lines (corner j joins edge j and edge j + 1), to within 1 % of its range.
+  if (f.allEdgesValid())
+    for (int j = 0; j < kNumEdges; ++j) {
+      const Eigen::Vector3d& c = f.corners[j];
+      if (!inReach(c)) return "a corner between two valid edges is not finite or out of reach";
+      for (int k : {j, (j + 1) % kNumEdges}) {
+        const Eigen::Vector3d off = c - f.edge_line_point[k];
+        const double distance =
+            (off - off.dot(f.edge_line_direction[k]) * f.edge_line_direction[k]).norm();
+        if (distance > 0.01 * c.norm() + 0.01)
+          return "corner " + std::to_string(j) + " lies " + std::to_string(distance) +
+                 " m off its edge line " + std::to_string(k);
+      }
+    }
   if (!f.measured_size_m.allFinite() || f.measured_size_m.minCoeff() < 0.0)
     return "measured board size not finite";
   return {};

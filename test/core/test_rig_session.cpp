@@ -31,6 +31,12 @@ CameraBoardFeatures moved(CameraBoardFeatures f, const Eigen::Vector3d& shift) {
 }
 LidarBoardFeatures moved(LidarBoardFeatures f, const Eigen::Vector3d& shift) {
   for (auto& p : f.board_points) p += shift;
+  for (auto& edge : f.edge_points)
+    for (auto& p : edge) p += shift;
+  for (int j = 0; j < kNumEdges; ++j) {
+    f.edge_line_point[j] += shift;
+    f.corners[j] += shift;
+  }
   f.plane.offset += f.plane.normal.dot(shift);
   return f;
 }

@@ -400,6 +400,20 @@ TEST(Session, HostileFeaturesAreRefusedAndCaptureGoesOn) {
       {"LiDAR board without points", "malformed message",
        [&](View& v) { v.lidar.board_points.clear(); }},
       {"LiDAR stamp NaN", "malformed message", [&](View& v) { v.lidar.stamp = nan; }},
+      // The stillness judge takes the centre from the corners: one off its edge lines (or left
+      // unset by a producer) would hide the board's motion.
+      {"LiDAR corner off its edge lines", "malformed message",
+       [&](View& v) {
+         auto& f = v.lidar;  // four edges through four board points, then a corner moved off
+         for (int j = 0; j < kNumEdges; ++j) f.corners[j] = f.board_points[static_cast<size_t>(j)];
+         for (int j = 0; j < kNumEdges; ++j) {
+           const Eigen::Vector3d& from = f.corners[(j + kNumEdges - 1) % kNumEdges];
+           f.edge_line_point[j] = from;
+           f.edge_line_direction[j] = (f.corners[j] - from).normalized();
+           f.edge_valid[j] = true;
+         }
+         f.corners[2] += 0.5 * f.plane.normal;
+       }},
       {"LiDAR stamp far ahead", "time went back", [&](View& v) { v.lidar.stamp = far_future; }},
       {"camera stamp far ahead", "time went back", [&](View& v) { v.camera.stamp = far_future; }},
       {"camera stamp NaN", "malformed message", [&](View& v) { v.camera.stamp = nan; }},

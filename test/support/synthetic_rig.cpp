@@ -167,6 +167,19 @@ void fitPlaneAndEdges(const Points3& hits, LidarBoardFeatures* out) {
     f.edge_line_direction[e] = le.eigenvectors().col(2);
     f.edge_valid[e] = true;
   }
+  // Corner j joins edge j and edge j + 1 (as the detector gives them): the middle of the two
+  // lines' common perpendicular.
+  if (!f.allEdgesValid()) return;
+  for (int j = 0; j < kNumEdges; ++j) {
+    const int k = (j + 1) % kNumEdges;
+    const Eigen::Vector3d &p = f.edge_line_point[j], &q = f.edge_line_point[k];
+    const Eigen::Vector3d &u = f.edge_line_direction[j], &v = f.edge_line_direction[k];
+    const Eigen::Vector3d w = p - q;
+    const double b = u.dot(v), d = u.dot(w), e = v.dot(w), den = 1.0 - b * b;
+    const double sj = den > 1e-9 ? (b * e - d) / den : 0.0;
+    const double sk = den > 1e-9 ? (e - b * d) / den : 0.0;
+    f.corners[j] = 0.5 * ((p + sj * u) + (q + sk * v));
+  }
 }
 
 // LiDAR observation by ray casting; nullopt when too few rings / points hit the board.

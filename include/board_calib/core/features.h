@@ -10,6 +10,13 @@
 
 namespace board_calib {
 
+template <typename V>
+std::array<V, kNumEdges> zeroEdges() {
+  std::array<V, kNumEdges> a;
+  a.fill(V::Zero());
+  return a;
+}
+
 struct LidarBoardFeatures {
   std::string frame_id;
   double stamp = 0.0;  ///< s
@@ -20,10 +27,12 @@ struct LidarBoardFeatures {
   Points3 board_points;                        ///< inliers on the board, LiDAR frame, m
   std::array<Points3, kNumEdges> edge_points;  ///< per-scan-line extremes assigned to each edge
   std::array<bool, kNumEdges> edge_valid{};    ///< enough edge points and a consistent line fit
-  std::array<Eigen::Vector3d, kNumEdges> edge_line_point;      ///< a point on each fitted edge line
-  std::array<Eigen::Vector3d, kNumEdges> edge_line_direction;  ///< unit direction of each edge line
-  std::array<Eigen::Vector3d, kNumEdges>
-      corners;  ///< edge-line intersections (valid if both edges are)
+  // Eigen leaves fixed-size members uninitialised: a producer that skips them must not hand on
+  // whatever the memory held (the stillness judge reads the corners).
+  std::array<Eigen::Vector3d, kNumEdges> edge_line_point = zeroEdges<Eigen::Vector3d>();
+  std::array<Eigen::Vector3d, kNumEdges> edge_line_direction = zeroEdges<Eigen::Vector3d>();
+  /// Edge-line intersections (valid if both edges are).
+  std::array<Eigen::Vector3d, kNumEdges> corners = zeroEdges<Eigen::Vector3d>();
   Eigen::Vector2d measured_size_m = Eigen::Vector2d::Zero();  ///< side lengths from the corners
 
   bool allEdgesValid() const {
@@ -50,9 +59,10 @@ struct CameraBoardFeatures {
   Plane plane;  ///< camera frame
   /// Lines a*u + b*v + c = 0 in undistorted pixels, a^2 + b^2 = 1, (a, b) the outward normal
   /// (the board interior gives < 0).
-  std::array<Eigen::Vector3d, kNumEdges> edge_lines;
+  std::array<Eigen::Vector3d, kNumEdges> edge_lines = zeroEdges<Eigen::Vector3d>();
   std::array<bool, kNumEdges> edge_valid{};
-  std::array<Eigen::Vector2d, kNumEdges> corners_px;  ///< undistorted px, may lie outside the image
+  /// Undistorted px, may lie outside the image.
+  std::array<Eigen::Vector2d, kNumEdges> corners_px = zeroEdges<Eigen::Vector2d>();
   std::vector<PatternObservation> pattern;
   double reprojection_rms_px = 0.0;
 
