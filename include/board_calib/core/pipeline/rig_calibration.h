@@ -64,10 +64,10 @@ struct RigCalibration {
   /// Sensors the graph could not place ("frame: why"); `problem` and `solution` are then the rig
   /// without them, and the run is failed (the rig as configured is not calibrated).
   std::vector<std::string> not_calibrated;
-  Verdict verdict = Verdict::kFailed;     ///< overall: the worst pair, or the rig's own checks
-  std::string reason;                     ///< one line
-  std::vector<int> views_to_check;        ///< pose ids
-  ResultFile result;                      ///< msgResultFile + verdicts (overall and per pair)
+  Verdict verdict = Verdict::kFailed;  ///< overall: the worst pair, or the rig's own checks
+  std::string reason;                  ///< one line
+  std::vector<int> views_to_check;     ///< pose ids
+  ResultFile result;                   ///< msgResultFile + verdicts (overall and per pair)
 
   bool failed() const { return verdict == Verdict::kFailed; }
 };
