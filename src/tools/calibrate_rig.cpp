@@ -152,7 +152,12 @@ Status writeReport(const RigArgs& args, const RigConfig& rig, const RigPipeline&
     inputs.extra_result_text = printed.substr(summary.size());  // verdict, vs truth
   inputs.verdict_text = rigVerdictSummary(run);
   inputs.failed = run.failed();
-  inputs.camera_frames = pipeline.overlayFrames();
+  // The pipeline's cameras in the rig's order; the solved problem may have left a sensor out.
+  for (RigCameraFrames frames : pipeline.overlayFrames()) {
+    if (frames.sensor < 0 || frames.sensor >= static_cast<int>(run.solved_index.size())) continue;
+    frames.sensor = run.solved_index[static_cast<size_t>(frames.sensor)];
+    if (frames.sensor >= 0) inputs.camera_frames.push_back(std::move(frames));
+  }
   return writeRigReport(args.report, rig, run.problem, run.solution, run.result, inputs);
 }
 

@@ -140,7 +140,10 @@ MsgProblem withoutSensors(const MsgProblem& problem, const std::set<int>& drop,
 // named in `not_calibrated` and the rest solved without them, so a LiDAR that rarely saw the
 // board does not cost the other pairs their results. `problem` becomes the solved one.
 MsgSolution solveWithoutUnplaced(MsgProblem* problem, const multi_sensor::MsgGraphOptions& options,
-                                 std::vector<std::string>* not_calibrated) {
+                                 std::vector<std::string>* not_calibrated,
+                                 std::vector<int>* solved_index) {
+  solved_index->resize(problem->sensors.size());
+  for (size_t s = 0; s < solved_index->size(); ++s) (*solved_index)[s] = static_cast<int>(s);
   MsgSolution sol = multi_sensor::solveMsgGraph(*problem, options);
   while (!sol.success && !sol.unplaced.empty()) {
     std::set<int> cut;
@@ -159,6 +162,8 @@ MsgSolution solveWithoutUnplaced(MsgProblem* problem, const multi_sensor::MsgGra
                                 u.reason);
     std::vector<int> index;
     *problem = withoutSensors(*problem, cut, first_lidar, &index);
+    for (int& k : *solved_index)
+      if (k >= 0) k = index[static_cast<size_t>(k)];
     problem->poses.erase(std::remove_if(problem->poses.begin(), problem->poses.end(),
                                         [](const BoardPoseObservation& p) {
                                           return p.cameras.size() + p.lidars.size() < 2;
@@ -231,17 +236,11 @@ class FoldSolver {
   std::map<std::set<int>, MsgSolution> cache_;
 };
 
-int sensorNamed(const MsgSolution& sol, const std::string& name) {
-  for (size_t s = 0; s < sol.sensors.size(); ++s)
-    if (sol.sensors[s].frame == name) return static_cast<int>(s);
-  return -1;
-}
-
 // Loop closure of the pairwise estimates and the known extrinsics, against the graph's own
 // uncertainty. Returns the worst verdict of these checks; findings go to `findings`.
 Verdict judgeRigChecks(const MsgSolution& sol, const RigConfig& rig,
-                       const std::vector<RigPairRun>& pairs, const RigCalibrationOptions& o,
-                       std::vector<std::string>* findings) {
+                       const std::vector<int>& solved_index, const std::vector<RigPairRun>& pairs,
+                       const RigCalibrationOptions& o, std::vector<std::string>* findings) {
   Verdict worst = Verdict::kGood;
   double sigma_rot = 0.0, sigma_trans = 0.0;
   for (const auto& p : pairs) {
@@ -259,9 +258,16 @@ Verdict judgeRigChecks(const MsgSolution& sol, const RigConfig& rig,
                         " mm): a sensor's views disagree with the others'");
   }
   for (const auto& known : rig.known_extrinsics) {
-    // By name: a sensor left out of the graph shifts the solution's indices.
-    const int a = sensorNamed(sol, known.a), b = sensorNamed(sol, known.b);
-    if (a < 0 || b < 0) continue;
+    // The rig's order is the given problem's; a sensor left out shifts the solution's indices.
+    auto solved = [&](int k) {
+      return k >= 0 && k < static_cast<int>(solved_index.size())
+                 ? solved_index[static_cast<size_t>(k)]
+                 : -1;
+    };
+    const int a = solved(rig.sensorIndex(known.a)), b = solved(rig.sensorIndex(known.b));
+    if (a < 0 || b < 0 || a >= static_cast<int>(sol.sensors.size()) ||
+        b >= static_cast<int>(sol.sensors.size()))
+      continue;
     const auto consistency = multi_sensor::stereoConsistency(sol, a, b, known.a_T_b);
     if (!consistency) continue;
     const auto cov = multi_sensor::relativeCovariance(sol, a, b);
@@ -329,7 +335,8 @@ RigCalibration calibrateRig(const MsgProblem& problem, const RigConfig& rig, con
   if (problem.poses.empty())
     return fail("no board poses: hold the board still where at least two sensors see it");
   run.problem = withoutInconsistent(problem, target, options.consistency, &run.left_out);
-  run.solution = solveWithoutUnplaced(&run.problem, options.graph, &run.not_calibrated);
+  run.solution =
+      solveWithoutUnplaced(&run.problem, options.graph, &run.not_calibrated, &run.solved_index);
   if (!run.solution.success) {
     std::string cut;
     for (const auto& n : run.not_calibrated) cut += "; without " + n;
@@ -375,7 +382,7 @@ RigCalibration calibrateRig(const MsgProblem& problem, const RigConfig& rig, con
   for (const auto& p : run.pairs)
     if (!worst || rank(p.verdict.verdict) > rank(worst->verdict.verdict)) worst = &p;
   const Verdict rig_checks =
-      judgeRigChecks(run.solution, rig, run.pairs, options, &run.rig_findings);
+      judgeRigChecks(run.solution, rig, run.solved_index, run.pairs, options, &run.rig_findings);
   run.verdict = worst ? worst->verdict.verdict : Verdict::kFailed;
   run.reason =
       worst ? worst->camera_frame + " <- " + worst->lidar_frame + ": " + worst->verdict.reason

@@ -64,6 +64,9 @@ struct RigCalibration {
   /// Sensors the graph could not place ("frame: why"); `problem` and `solution` are then the rig
   /// without them, and the run is failed (the rig as configured is not calibrated).
   std::vector<std::string> not_calibrated;
+  /// The given problem's sensor index -> the index in `problem` and `solution` (-1: not
+  /// calibrated); the identity unless a sensor was left out.
+  std::vector<int> solved_index;
   Verdict verdict = Verdict::kFailed;  ///< overall: the worst pair, or the rig's own checks
   std::string reason;                  ///< one line
   std::vector<int> views_to_check;     ///< pose ids
