@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 
 namespace board_calib {
 namespace multi_sensor {
@@ -267,17 +268,44 @@ bool spanningTreeInit(const MsgProblem& problem, const MsgGraphOptions& options,
     }
   }
   std::vector<std::string> unreachable;
-  for (int s = 0; s < n; ++s) {
-    if (parent[s] != -2) continue;
-    unreachable.push_back(problem.sensors[s].frame);
-    std::string own;  // why its links to the placed sensors failed
+  for (int s = 0; s < n; ++s)
+    if (parent[s] == -2) unreachable.push_back(problem.sensors[s].frame);
+  // The sensors to leave out: those outside the largest connected part of the graph (the
+  // reference's on a tie). A reference that saw the board too rarely is itself the one cut off;
+  // the others, linked among themselves, are not to blame.
+  if (!unreachable.empty()) {
+    std::vector<int> part(n);
+    for (int s = 0; s < n; ++s) part[s] = s;
+    const std::function<int(int)> root = [&](int s) {
+      return part[s] == s ? s : part[s] = root(part[s]);
+    };
     for (const auto& link : sol->links)
-      if ((link.a == s || link.b == s) && parent[link.a == s ? link.b : link.a] != -2)
-        own += (own.empty() ? "" : "; ") + problem.sensors[link.a].frame + "<->" +
-               problem.sensors[link.b].frame + ": " + link.reason;
-    sol->unplaced.push_back({s, "cannot be reached from the reference '" +
-                                    problem.sensors[ref].frame + "'" +
-                                    (own.empty() ? "" : " (" + own + ")")});
+      if (link.success) part[root(link.a)] = root(link.b);
+    std::vector<int> size(n, 0);
+    for (int s = 0; s < n; ++s) ++size[root(s)];
+    int keep = root(ref);
+    for (int s = 0; s < n; ++s)
+      if (size[root(s)] > size[keep]) keep = root(s);
+    for (int s = 0; s < n; ++s) {
+      if (root(s) == keep) continue;
+      std::string own;  // why its links to the kept part failed
+      for (const auto& link : sol->links)
+        if ((link.a == s || link.b == s) && root(link.a == s ? link.b : link.a) == keep)
+          own += (own.empty() ? "" : "; ") + problem.sensors[link.a].frame + "<->" +
+                 problem.sensors[link.b].frame + ": " + link.reason;
+      const std::string why = own.empty() ? "" : " (" + own + ")";
+      std::string text;
+      if (keep == root(ref))
+        text = "cannot be reached from the reference '" + problem.sensors[ref].frame + "'" + why;
+      else if (s == ref)
+        text = "the reference shares too few board poses with the others" + why;
+      else if (root(s) == root(ref))
+        text = "linked only to the reference '" + problem.sensors[ref].frame +
+               "', which the others do not reach" + why;
+      else
+        text = "cannot be reached from the other sensors" + why;
+      sol->unplaced.push_back({s, text});
+    }
   }
   if (!unreachable.empty()) {
     std::string list;

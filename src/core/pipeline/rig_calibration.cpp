@@ -398,6 +398,9 @@ RigCalibration calibrateRig(const MsgProblem& problem, const RigConfig& rig, con
     run.reason = "not every sensor could be calibrated: " + names + ". The other sensors were " +
                  (run.not_calibrated.size() == 1 ? "solved without it" : "solved without them") +
                  "; their pairs are for inspection";
+    const std::string& reference = run.solution.sensors[run.solution.reference_sensor].frame;
+    if (reference != problem.sensors[static_cast<size_t>(problem.reference_sensor)].frame)
+      run.reason += " (relative to '" + reference + "', the reference being left out)";
   }
   run.views_to_check.assign(to_check.begin(), to_check.end());
   addVerdicts(&run);
