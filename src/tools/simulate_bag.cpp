@@ -149,9 +149,24 @@ board_calib::Status writeBag(const SimArgs& args, const board_calib::sim::Scenar
 
 }  // namespace
 
+int simulate(const SimArgs& args);
+
 int main(int argc, char** argv) {
   SimArgs args;
   if (const int code = parseArgs(argc, argv, &args); code >= 0) return code;
+  // A scenario within every bound can still ask for more than the machine holds.
+  try {
+    return simulate(args);
+  } catch (const std::bad_alloc&) {
+    return fail(
+        "out of memory: the scenario asks for more frames, points or pixels than this "
+        "machine holds (fewer poses, shorter holds, lower rates or smaller images)");
+  } catch (const std::exception& e) {
+    return fail(std::string("simulation failed: ") + e.what());
+  }
+}
+
+int simulate(const SimArgs& args) {
   const std::string& scenario_path = args.scenario_path;
   const std::string& out_path = args.out_path;
   auto scenario = board_calib::sim::loadScenario(scenario_path);

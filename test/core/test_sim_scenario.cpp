@@ -296,7 +296,7 @@ TEST(SimScenario, BadFilesGiveReasonsNamingTheKey) {
     std::string yaml;
     std::string expect;
   };
-  const std::vector<Case> cases = {
+  std::vector<Case> cases = {
       {"target: ../targets/plain_1016.yaml\n" + good_camera + "colour: red\n", "colour"},
       {good_camera, "target"},
       {"target: nope.yaml\n" + good_camera, "nope.yaml"},
@@ -327,6 +327,23 @@ TEST(SimScenario, BadFilesGiveReasonsNamingTheKey) {
        "fy: 700, cx: 960, cy: 600, distortion_model: plumb_bob, D: [-0.25, 0.07, 0, 0, -0.01]}]\n",
        "no inverse at image pixel (0, 0)"},
   };
+  // Absurd values (trust sweep 7): a NaN pose was reported as "too few LiDAR rings on the
+  // board"; a 200000 px wide camera, 1e9 poses or holds of 1e6 s ended in std::bad_alloc.
+  const std::vector<Case> absurd = {
+      {"target: ../targets/plain_1016.yaml\nlidars: [{name: l, preset: VLP-16, pose: "
+       "{translation: [.nan, 0, 0]}}]\n",
+       "lidars[0].pose.translation' must be a list of finite numbers"},
+      {"target: ../targets/plain_1016.yaml\ncameras: [{name: c, width: 200000, height: 200000, "
+       "fx: 500, fy: 500, cx: 1, cy: 1}]\n",
+       "beyond 250 megapixels"},
+      {"target: ../targets/plain_1016.yaml\n" + good_camera + "motion: {poses: 1000000000}\n",
+       "poses must be <= 10000"},
+      {"target: ../targets/plain_1016.yaml\n" + good_camera + "motion: {hold_s: 1e6}\n",
+       "hold_s must be in (0, 3600]"},
+      {"target: ../targets/plain_1016.yaml\n" + good_camera + "motion: {hold_s: .inf}\n",
+       "must be a finite number"},
+  };
+  cases.insert(cases.end(), absurd.begin(), absurd.end());
   for (const auto& c : cases) {
     auto s = parseScenario(c.yaml, base);
     ASSERT_FALSE(s.ok()) << c.yaml;

@@ -14,6 +14,7 @@
 #include <random>
 #include <set>
 #include <sstream>
+#include <type_traits>
 
 namespace board_calib {
 namespace sim {
@@ -46,12 +47,18 @@ T readValue(const YAML::Node& node, const std::string& key, const std::string& w
   if (!value) throw ScenarioError{"missing key '" + where + "." + key + "'"};
   if (!value.IsScalar())
     throw ScenarioError{"key '" + where + "." + key + "' must be a " + type_name};
+  T out;
   try {
-    return value.as<T>();
+    out = value.as<T>();
   } catch (const YAML::Exception&) {
     throw ScenarioError{"key '" + where + "." + key + "' must be a " + type_name + ", got '" +
                         value.Scalar() + "'"};
   }
+  if constexpr (std::is_floating_point_v<T>)
+    if (!std::isfinite(out))
+      throw ScenarioError{"key '" + where + "." + key + "' must be a finite number, got '" +
+                          value.Scalar() + "'"};
+  return out;
 }
 
 template <typename T>
@@ -72,6 +79,8 @@ std::vector<double> readNumbers(const YAML::Node& node, const std::string& key,
     } catch (const YAML::Exception&) {
       throw ScenarioError{"key '" + where + "." + key + "' must be a list of numbers"};
     }
+    if (!std::isfinite(out.back()))
+      throw ScenarioError{"key '" + where + "." + key + "' must be a list of finite numbers"};
   }
   return out;
 }
@@ -368,6 +377,11 @@ std::string joinPath(const std::string& base_dir, const std::string& path) {
 
 }  // namespace
 
+constexpr int kMaxPoses = 10000;
+constexpr double kMaxPhaseS = 3600.0;
+constexpr double kMaxRateHz = 1000.0;
+constexpr double kMaxImagePixels = 250e6;
+
 std::string MotionSpec::validate() const {
   if (poses < 1) return "poses must be >= 1";
   if (!(min_distance_m > 0) || !(max_distance_m >= min_distance_m))
@@ -380,8 +394,10 @@ std::string MotionSpec::validate() const {
   if (!(max_tilt_deg >= 0) || max_tilt_deg > 60) return "max_tilt_deg must be in [0, 60]";
   if (!(min_edge_slope_deg >= 0) || min_edge_slope_deg > 45)
     return "min_edge_slope_deg must be in [0, 45]";
-  if (!(hold_s > 0)) return "hold_s must be > 0";
-  if (!(move_s >= 0)) return "move_s must be >= 0";
+  // Bounds on what a session is: beyond them the recording would not fit in memory or on disk.
+  if (poses > kMaxPoses) return "poses must be <= " + std::to_string(kMaxPoses);
+  if (!(hold_s > 0) || hold_s > kMaxPhaseS) return "hold_s must be in (0, 3600] s";
+  if (!(move_s >= 0) || move_s > kMaxPhaseS) return "move_s must be in [0, 3600] s";
   if (still_frames_per_hold < 0) return "still_frames_per_hold must be >= 0 (0 = all)";
   if (frames_per_move < -1) return "frames_per_move must be >= -1 (-1 = all)";
   if (!(image_margin_px >= 0)) return "image_margin_px must be >= 0";
@@ -398,7 +414,11 @@ std::string Scenario::validate() const {
   for (const auto& c : cameras) {
     if (!names.insert(c.name).second) return "sensor name '" + c.name + "' used twice";
     if (!frames.insert(c.frame_id).second) return "frame_id '" + c.frame_id + "' used twice";
-    if (!(c.rate_hz > 0)) return "camera '" + c.name + "': rate_hz must be > 0";
+    if (!(c.rate_hz > 0) || c.rate_hz > kMaxRateHz)
+      return "camera '" + c.name + "': rate_hz must be in (0, 1000]";
+    if (static_cast<double>(c.intrinsics.width) * c.intrinsics.height > kMaxImagePixels)
+      return "camera '" + c.name + "': " + std::to_string(c.intrinsics.width) + " x " +
+             std::to_string(c.intrinsics.height) + " px is beyond 250 megapixels";
     const std::string why = c.render.validate();
     if (!why.empty()) return "camera '" + c.name + "': " + why;
   }
@@ -407,6 +427,7 @@ std::string Scenario::validate() const {
     if (!frames.insert(l.frame_id).second) return "frame_id '" + l.frame_id + "' used twice";
     const std::string why = l.spec.validate();
     if (!why.empty()) return why;
+    if (l.spec.rate_hz > kMaxRateHz) return "LiDAR '" + l.name + "': rate_hz must be <= 1000";
   }
   return {};
 }
