@@ -367,6 +367,13 @@ TEST_F(RigSessionTest, ASensorThatLosesTheBoardAroundTheMomentIsLeftOutOfThatPos
     EXPECT_EQ(p.observation.lidars.count(os1), 0u) << p.why;
     EXPECT_NE(p.why.find("left out: os1 lost the board"), std::string::npos) << p.why;
   }
+  // Its warning names that, not a stamp offset (trust sweep 7: "its stamps may be offset").
+  const auto problems = session.problems();
+  ASSERT_EQ(problems.size(), 1u);
+  EXPECT_NE(problems[0].find("os1: saw the board in 25 of 200 frames but lost it around every "
+                             "still moment"),
+            std::string::npos)
+      << problems[0];
 }
 
 // A rig recording as a person makes it: 1.5 s holds and 1 s moves at 0.4 m/s, every frame

@@ -249,8 +249,12 @@ SessionEvent RigSession::decide(const Candidate& c) {
                     (seen_by.empty() ? "none" : seen_by) + "); a pose needs " +
                     std::to_string(options_.min_sensors) +
                     " (check the other detectors and stamp_tolerance)");
-  return keepPose(std::move(o), "auto: " + judged.why + "; seen by " + seen_by + lost_why,
-                  judged.state == StillState::kSnapshot);
+  SessionEvent kept =
+      keepPose(std::move(o), "auto: " + judged.why + "; seen by " + seen_by + lost_why,
+               judged.state == StillState::kSnapshot);
+  if (kept.kind == SessionEvent::Kind::kAccepted)
+    for (int k : lost) ++counts_[static_cast<size_t>(k)].lost_at_capture;
+  return kept;
 }
 
 BoardPoseObservation RigSession::observationAt(double stamp, const std::set<int>& left_out,

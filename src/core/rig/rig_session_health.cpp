@@ -28,6 +28,11 @@ std::string RigSession::whyNoPose(size_t k) const {
     return names_[k] + ": never saw the board in " + std::to_string(c.messages) + " messages" +
            (c.last_reason.empty() ? "" : " (last: " + c.last_reason + ")");
   if (c.found < kFoundButUnused || poses_.empty()) return "";
+  if (c.lost_at_capture > 0)
+    return names_[k] + ": saw the board in " + std::to_string(c.found) + " of " +
+           std::to_string(c.messages) + " frames but lost it around every still moment (left " +
+           "out of " + std::to_string(c.lost_at_capture) +
+           " captured pose(s) for it): is the board at the edge of its view?";
   // Offset of its newest stamp to the newest stamp of any other sensor.
   double other = -std::numeric_limits<double>::infinity();
   for (size_t j = 0; j < counts_.size(); ++j)

@@ -62,6 +62,7 @@ struct RigSensorCounts {
   double newest_stamp =
       -std::numeric_limits<double>::infinity();  ///< s, newest message (since a restart)
   bool board_now = false;                        ///< the newest message saw the board
+  int lost_at_capture = 0;  ///< poses captured without it: it lost the board around the moment
 };
 
 /// One sensor's part in the session, for diagnostics and the panel.
