@@ -218,6 +218,28 @@ TEST(Session, TooFewViewsNameTheCaptureCause) {
   EXPECT_EQ(held.captureStats().whyFewViews(), "") << held.captureStats().summary();
 }
 
+TEST(Session, ABoardOfAnotherSizeIsOneCauseWhateverTheSizesMeasured) {
+  // Declared 20 % too large: the LiDAR measures every board about 0.83 of it, a little
+  // differently each time. Counted per text, each size was its own cause, one view each, and
+  // the headline named whichever else refused more (trust sweep 7: "too few frames ... hold each
+  // pose longer").
+  const Target target = plainTarget();
+  PairSession s(target, SessionOptions{});
+  SessionEvent e;
+  for (int k = 0; k < 6; ++k)
+    feed(s,
+         makeView(boardPose(0.3 * k - 0.8, 2.5 + 0.3 * k, 20.0 * (k % 3) - 20, 15.0 * (k % 2)),
+                  2.0 * k, target, 0.83 + 0.002 * k),
+         &e);
+  s.finish();
+  EXPECT_TRUE(s.views().empty());
+  const std::string why = s.captureStats().whyNoViews();
+  EXPECT_NE(why.find("LiDAR board of another size than the target (6 of 6 candidates)"),
+            std::string::npos)
+      << why;
+  EXPECT_NE(why.find("measure the board and fix the target file"), std::string::npos) << why;
+}
+
 TEST(Session, SnapshotRecordingsMakeEveryPairACandidate) {
   const Target target = plainTarget();
   PairSession s(target, SessionOptions{});

@@ -58,9 +58,16 @@ std::string CaptureStats::summary() const {
 
 namespace {
 
+// The kind of a view refused for the LiDAR board's size: one kind whatever the sizes measured,
+// so that it counts as one cause.
+constexpr const char* kOtherSize = "LiDAR board of another size than the target";
+
 // What to change, by the capture step that refused the most candidates (pair and rig words).
 std::string remedyFor(const std::string& kind) {
   static const std::map<std::string, std::string> kRemedy = {
+      {kOtherSize,
+       "measure the board and fix the target file (the LiDAR measured every such board alike), "
+       "or, when the board is right, look for another flat object the LiDAR took for it"},
       {"too few frames to judge stillness",
        "each pose must be held for the stillness window's frames on both sides of an image: hold "
        "each pose longer, or lower the still-frames setting (1: no stillness check)"},
@@ -356,8 +363,8 @@ SessionEvent PairSession::gate(const View& v, bool /*forced*/) const {
   if (!v.lidar.found) return reject("LiDAR: no board (" + v.lidar.reason + ")");
   if (!v.camera.found) return reject("camera: no board (" + v.camera.reason + ")");
   if (static_cast<int>(v.lidar.board_points.size()) < options_.min_board_points)
-    return reject("LiDAR: only " + std::to_string(v.lidar.board_points.size()) +
-                  " board points (need " + std::to_string(options_.min_board_points) + ")");
+    return reject("LiDAR: too few board points (" + std::to_string(v.lidar.board_points.size()) +
+                  ", need " + std::to_string(options_.min_board_points) + ")");
   if (!v.lidar.plane.normal.allFinite() || !v.camera.plane.normal.allFinite() ||
       !std::isfinite(v.lidar.plane.offset) || !std::isfinite(v.camera.plane.offset))
     return reject("non-finite board plane");
@@ -368,9 +375,10 @@ SessionEvent PairSession::gate(const View& v, bool /*forced*/) const {
     const Eigen::Vector2d mismatch =
         (v.lidar.measured_size_m.cwiseQuotient(declared).array() - 1.0).abs();
     if (mismatch.maxCoeff() > options_.max_size_mismatch)
-      return reject("LiDAR board measures " + formatFixed(v.lidar.measured_size_m.x()) + " x " +
+      return reject(std::string(kOtherSize) + " (it measures " +
+                    formatFixed(v.lidar.measured_size_m.x()) + " x " +
                     formatFixed(v.lidar.measured_size_m.y()) + " m, the target is " +
-                    formatFixed(target_.width) + " x " + formatFixed(target_.height) + " m");
+                    formatFixed(target_.width) + " x " + formatFixed(target_.height) + " m)");
   }
   if (estimate_) {
     const Plane lidar_in_camera = v.lidar.plane.transformed(*estimate_);
