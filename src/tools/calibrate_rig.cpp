@@ -102,13 +102,17 @@ Status readRig(const RigArgs& args, const BagTopics& topics, RigPipeline* pipeli
                 << (camera ? " images\n" : " clouds\n");
       for (const auto& [why, n] : stats[k].failures) std::cerr << "  " << n << " x " << why << "\n";
     }
+    // One sensor without the board does not stop the others: the calibration names it as not
+    // calibrated and solves the rest.
+    if (args.quiet) continue;
     if (camera && stats[k].frames == 0)
-      return Status::failure("no image of camera '" + stats[k].name +
-                             "' could be used (no valid camera_info on '" +
-                             rig.cameras[k].camera_info_topic + "'?)");
-    if (stats[k].found == 0)
-      return Status::failure("the board was never found by " +
-                             std::string(camera ? "camera '" : "LiDAR '") + stats[k].name + "'");
+      std::cerr << "calibrate_bag: warning: no image of camera '" << stats[k].name
+                << "' could be used (no valid camera_info on '" << rig.cameras[k].camera_info_topic
+                << "'?): it cannot be calibrated\n";
+    else if (stats[k].found == 0)
+      std::cerr << "calibrate_bag: warning: the board was never found by "
+                << (camera ? "camera '" : "LiDAR '") << stats[k].name
+                << "': it cannot be calibrated\n";
   }
   return Status::success();
 }
