@@ -218,6 +218,19 @@ TEST(Session, TooFewViewsNameTheCaptureCause) {
   EXPECT_EQ(held.captureStats().whyFewViews(), "") << held.captureStats().summary();
 }
 
+// Six still board poses 2 s apart, one frame each (a snapshot recording), the LiDAR measuring the
+// board `lidar_size_scale(k)` of its size at pose k.
+void feedSnapshots(PairSession& s, const Target& target,
+                   const std::function<double(int)>& lidar_size_scale) {
+  SessionEvent e;
+  for (int k = 0; k < 6; ++k)
+    feed(s,
+         makeView(boardPose(0.3 * k - 0.8, 2.5 + 0.3 * k, 20.0 * (k % 3) - 20, 15.0 * (k % 2)),
+                  2.0 * k, target, lidar_size_scale(k)),
+         &e);
+  s.finish();
+}
+
 TEST(Session, ABoardOfAnotherSizeIsOneCauseWhateverTheSizesMeasured) {
   // Declared 20 % too large: the LiDAR measures every board about 0.83 of it, a little
   // differently each time. Counted per text, each size was its own cause, one view each, and
@@ -225,13 +238,7 @@ TEST(Session, ABoardOfAnotherSizeIsOneCauseWhateverTheSizesMeasured) {
   // pose longer").
   const Target target = plainTarget();
   PairSession s(target, SessionOptions{});
-  SessionEvent e;
-  for (int k = 0; k < 6; ++k)
-    feed(s,
-         makeView(boardPose(0.3 * k - 0.8, 2.5 + 0.3 * k, 20.0 * (k % 3) - 20, 15.0 * (k % 2)),
-                  2.0 * k, target, 0.83 + 0.002 * k),
-         &e);
-  s.finish();
+  feedSnapshots(s, target, [](int k) { return 0.83 + 0.002 * k; });
   EXPECT_TRUE(s.views().empty());
   const std::string why = s.captureStats().whyNoViews();
   EXPECT_NE(why.find("LiDAR board of another size than the target (6 of 6 candidates)"),
@@ -243,13 +250,7 @@ TEST(Session, ABoardOfAnotherSizeIsOneCauseWhateverTheSizesMeasured) {
 TEST(Session, SnapshotRecordingsMakeEveryPairACandidate) {
   const Target target = plainTarget();
   PairSession s(target, SessionOptions{});
-  SessionEvent e;
-  for (int k = 0; k < 6; ++k)
-    feed(s,
-         makeView(boardPose(0.3 * k - 0.8, 2.5 + 0.3 * k, 20.0 * (k % 3) - 20, 15.0 * (k % 2)),
-                  2.0 * k, target),
-         &e);
-  s.finish();
+  feedSnapshots(s, target, [](int) { return 1.0; });
   EXPECT_EQ(s.views().size(), 6u) << s.captureStats().summary();
   EXPECT_NE(s.captureStats().last_stillness.find("snapshot"), std::string::npos)
       << s.captureStats().last_stillness;
