@@ -108,6 +108,17 @@ TEST(RigConfig, ErrorsNameTheKey) {
   EXPECT_NE(
       errorOf(variant("stamp_tolerance_s: 0.02", "stamp_tolerance_s: 0")).find("stamp_tolerance_s"),
       std::string::npos);
+  // Absurd values (trust sweep 7: a tolerance of 1e9 s, a pixel sigma of 1e9, a stereo pair
+  // 1000 km apart were accepted).
+  EXPECT_NE(errorOf(variant("stamp_tolerance_s: 0.02", "stamp_tolerance_s: 1e9"))
+                .find("rig.stamp_tolerance_s: must be in (0, 1] s"),
+            std::string::npos);
+  EXPECT_NE(errorOf(variant("pixel_sigma_px: 0.3", "pixel_sigma_px: 1e9"))
+                .find("cameras[0].noise.pixel_sigma_px: must be <= 100 px"),
+            std::string::npos);
+  EXPECT_NE(errorOf(variant("translation: [0.12, 0, 0]", "translation: [1e6, 0, 0]"))
+                .find("known_extrinsics[0].a_T_b.translation: 1000000.0 m"),
+            std::string::npos);
   EXPECT_NE(errorOf(variant("stamp_tolerance_s: 0.02", "stamp_tolerance_s: soon"))
                 .find("rig.stamp_tolerance_s"),
             std::string::npos);

@@ -1,3 +1,4 @@
+#include <board_calib/core/common/format.h>
 #include <board_calib/core/file_io.h>
 #include <board_calib/core/rig/rig_config.h>
 
@@ -63,11 +64,21 @@ void checkKeys(const YAML::Node& node, const std::set<std::string>& allowed,
 }
 
 // Noise sigmas must be >= 0 (0 = graph default); negative values are a typo, not a default.
-double noiseValue(const YAML::Node& noise, const std::string& key, const std::string& where) {
+// Beyond `max` a sigma says the sensor measures nothing (the graph would quietly ignore it).
+double noiseValue(const YAML::Node& noise, const std::string& key, const std::string& where,
+                  double max, const char* unit) {
   const double x = optionalNumber(noise, key, where, 0.0);
   if (x < 0.0) bad(where + "." + key + ": must be >= 0");
+  if (x > max)
+    bad(where + "." + key + ": must be <= " + formatFixed(max, 0) + " " + unit +
+        " (a sigma this large says the sensor measures nothing)");
   return x;
 }
+
+constexpr double kMaxPixelSigmaPx = 100.0;
+constexpr double kMaxNormalSigmaDeg = 45.0;
+constexpr double kMaxLengthSigmaM = 1.0;
+constexpr double kMaxKnownTranslationM = 100.0;  // between two sensors of one rig
 
 // A sensor's optional `noise` map, checked against its keys (a null node when absent).
 YAML::Node noiseNode(const YAML::Node& sensor, const std::set<std::string>& keys,
@@ -89,9 +100,9 @@ RigCamera parseCamera(const YAML::Node& c, const std::string& where) {
   if (const YAML::Node n =
           noiseNode(c, {"pixel_sigma_px", "normal_sigma_deg", "offset_sigma_m"}, where)) {
     const std::string nw = where + ".noise";
-    cam.pixel_sigma_px = noiseValue(n, "pixel_sigma_px", nw);
-    cam.normal_sigma_deg = noiseValue(n, "normal_sigma_deg", nw);
-    cam.offset_sigma_m = noiseValue(n, "offset_sigma_m", nw);
+    cam.pixel_sigma_px = noiseValue(n, "pixel_sigma_px", nw, kMaxPixelSigmaPx, "px");
+    cam.normal_sigma_deg = noiseValue(n, "normal_sigma_deg", nw, kMaxNormalSigmaDeg, "deg");
+    cam.offset_sigma_m = noiseValue(n, "offset_sigma_m", nw, kMaxLengthSigmaM, "m");
   }
   return cam;
 }
@@ -105,9 +116,9 @@ RigLidar parseLidar(const YAML::Node& l, const std::string& where) {
   if (const YAML::Node n =
           noiseNode(l, {"normal_sigma_deg", "offset_sigma_m", "edge_sigma_m"}, where)) {
     const std::string nw = where + ".noise";
-    lid.normal_sigma_deg = noiseValue(n, "normal_sigma_deg", nw);
-    lid.offset_sigma_m = noiseValue(n, "offset_sigma_m", nw);
-    lid.edge_sigma_m = noiseValue(n, "edge_sigma_m", nw);
+    lid.normal_sigma_deg = noiseValue(n, "normal_sigma_deg", nw, kMaxNormalSigmaDeg, "deg");
+    lid.offset_sigma_m = noiseValue(n, "offset_sigma_m", nw, kMaxLengthSigmaM, "m");
+    lid.edge_sigma_m = noiseValue(n, "edge_sigma_m", nw, kMaxLengthSigmaM, "m");
   }
   return lid;
 }
@@ -129,6 +140,9 @@ KnownExtrinsic parseKnownExtrinsic(const YAML::Node& k, const std::string& where
   quat.normalize();
   e.a_T_b.linear() = quat.toRotationMatrix();
   e.a_T_b.translation() = Eigen::Vector3d(tr[0], tr[1], tr[2]);
+  if (e.a_T_b.translation().norm() > kMaxKnownTranslationM)
+    bad(where + ".a_T_b.translation: " + formatFixed(e.a_T_b.translation().norm(), 1) +
+        " m between two sensors of one rig (more than 100 m: a unit or sign error?)");
   return e;
 }
 
@@ -184,7 +198,9 @@ std::string RigConfig::validate() const {
   if (target_path.empty()) return "rig: 'target' is empty";
   if (cameras.size() + lidars.size() < 2)
     return "rig: needs at least two sensors in 'cameras' and 'lidars'";
-  if (!(stamp_tolerance_s > 0.0)) return "rig.stamp_tolerance_s: must be > 0";
+  // Frames further apart than a second belong to different holds of the board.
+  if (!(stamp_tolerance_s > 0.0) || stamp_tolerance_s > 1.0)
+    return "rig.stamp_tolerance_s: must be in (0, 1] s";
   std::set<std::string> names, topics;
   auto addName = [&](const std::string& n) { return names.insert(n).second; };
   auto addTopic = [&](const std::string& t) { return topics.insert(t).second; };
