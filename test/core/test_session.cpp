@@ -107,6 +107,43 @@ TEST(Session, AcceptsOnlyAfterTheBoardIsStill) {
   EXPECT_GE(s.captureStats().skipped.at("pose already taken"), 1) << s.captureStats().summary();
 }
 
+// A LiDAR whose detector takes another object for the board every other cloud (a board at the
+// edge of its view, a flat look-alike): the refusals name that, not a moving board; a board
+// carried at a walking pace stays "board moving".
+TEST(Session, ABoardThatJumpsMetresBetweenCloudsIsDifferentObjectsNotMotion) {
+  const Target target = plainTarget();
+  PairSession s(target, SessionOptions{});
+  double lidar_t = 0.0, camera_t = 0.004;
+  for (int k = 0; k < 30; ++k, lidar_t += 0.1, camera_t += 0.1) {
+    const Eigen::Isometry3d held = boardPose(0, 3, 0, 10);
+    s.addCamera(makeView(held, camera_t, target).camera);
+    // 4.3 m away every other cloud: 43 m/s at 10 Hz.
+    View v = makeView(k % 2 ? boardPose(1.5, 7, 30, 0) : held, lidar_t, target);
+    v.lidar.stamp = lidar_t;
+    s.addLidar(v.lidar);
+  }
+  s.finish();
+  ASSERT_TRUE(s.views().empty()) << s.captureStats().summary();
+  const std::string why = s.captureStats().whyNoViews();
+  EXPECT_NE(why.find("different objects taken for the board"), std::string::npos) << why;
+  EXPECT_NE(why.find("faster than a hand-held board"), std::string::npos) << why;
+  EXPECT_NE(why.find("keep the board well inside its view"), std::string::npos) << why;
+  EXPECT_EQ(s.captureStats().skipped.count("board moving"), 0u) << s.captureStats().summary();
+
+  // Carried at 1.5 m/s (a walk) without a stop: moving, never "different objects".
+  PairSession walked(target, SessionOptions{});
+  std::vector<SessionEvent> events;
+  feedStreams(
+      walked, target, 10.0, 10.0, 3.0, [](double t) { return boardPose(1.5 * t - 2, 4, 0, 10); },
+      &events);
+  walked.finish();
+  EXPECT_TRUE(walked.views().empty()) << walked.captureStats().summary();
+  EXPECT_GE(walked.captureStats().skipped.count("board moving"), 1u)
+      << walked.captureStats().summary();
+  EXPECT_EQ(walked.captureStats().skipped.count(kDifferentObjects), 0u)
+      << walked.captureStats().summary();
+}
+
 TEST(Session, SlowCameraIsJudgedByTheLidarAroundEachImage) {
   const Target target = plainTarget();
   PairSession s(target, SessionOptions{});

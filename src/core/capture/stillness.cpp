@@ -10,6 +10,9 @@ namespace board_calib {
 namespace {
 
 constexpr size_t kClockFrames = 32;  // recent stamps kept for the median interval
+// m/s: a board carried, turned or waved by hand moves slower (a brisk walk is 2 m/s). Two
+// frames of one stream further apart than this speed allows saw two different objects.
+constexpr double kHandHeldSpeedMps = 5.0;
 
 }  // namespace
 
@@ -63,6 +66,7 @@ namespace {
 // normal, and in turn.
 struct Motion {
   bool moving = false;
+  bool jump = false;  // faster than a hand-held board: not one object
   std::string why;
 };
 
@@ -119,6 +123,14 @@ Motion motionOf(const SeenFrame& f, const BoardSample& ref, const StillnessOptio
   Motion m;
   m.moving = in_plane > in_tol || along > along_tol || turn_deg > turn_tol_deg;
   const auto cm = [](double v) { return formatFixed(v * 100, 1); };
+  const double dt = std::abs(x.stamp - ref.stamp), jump = d.norm() - std::max(in_tol, along_tol);
+  if (m.moving && dt > 0.0 && jump > kHandHeldSpeedMps * dt) {
+    m.jump = true;
+    m.why = formatFixed(d.norm(), 2) + " m between frames " + formatFixed(dt, 2) +
+            " s apart, faster than a hand-held board moves (" + formatFixed(kHandHeldSpeedMps, 0) +
+            " m/s)";
+    return m;
+  }
   m.why = cm(in_plane) + " cm in its plane (allowed " + cm(in_tol) + ", 1 sigma " + cm(sx) + "/" +
           cm(sr) + what + "), " + cm(along) + " cm along its normal (allowed " + cm(along_tol) +
           "), turn " + formatFixed(turn_deg, 1) + " deg (allowed " + formatFixed(turn_tol_deg, 1) +
@@ -213,6 +225,12 @@ bool streamStill(const StillnessStream& stream, bool is_fastest, double stamp,
              formatFixed(o.window_s, 2) + " s of the image";
     return false;
   };
+  const auto refuseJump = [&](const std::string& what) {
+    j->state = StillState::kMoving;
+    j->different_objects = true;
+    j->why = stream.name + " took different objects for the board: its board jumped " + what;
+    return false;
+  };
   std::vector<SeenFrame> seen;
   for (const auto& x : samples) {
     if (x.stamp < lo || x.stamp > hi) continue;
@@ -226,6 +244,7 @@ bool streamStill(const StillnessStream& stream, bool is_fastest, double stamp,
     if (x.stamp < stamp) ++before;
     if (x.stamp > stamp) ++after;
     const Motion m = motionOf(seen.back(), *ref, o);
+    if (m.jump) return refuseJump(m.why);
     if (m.moving) return refuseMoving("it move " + m.why);
   }
   if (o.fit_drift && ref) {  // no reference: no frame saw the board, nothing to fit

@@ -77,6 +77,10 @@ std::string remedyFor(const std::string& kind) {
       {"seen by too few sensors",
        "a pose needs two or more sensors to see the board within the stamp tolerance"},
       {"board moving", "hold the board still at each pose"},
+      {kDifferentObjects,
+       "a sensor found the board at places too far apart for one hand-held board: keep the "
+       "board well inside its view and away from flat objects of its size, and check that the "
+       "sensor looks at the board (not at the ground or a wall)"},
       {"board lost around the image", "keep the board inside both sensors' views at each pose"},
       {"board lost around the moment", "keep the board inside the sensors' views at each pose"},
   };
@@ -293,7 +297,8 @@ SessionEvent PairSession::decide(const CameraBoardFeatures& camera, bool ended, 
                     "): check sync_tolerance");
   if (judged.state == StillState::kMoving || judged.state == StillState::kNoBoard)
     hold_view_id_ = -1;
-  if (judged.state == StillState::kMoving) return skip("board moving", judged.why);
+  if (judged.state == StillState::kMoving)
+    return skip(judged.different_objects ? kDifferentObjects : "board moving", judged.why);
   if (judged.state == StillState::kNoBoard) return skip("board lost around the image", judged.why);
   if (judged.state == StillState::kTooFewFrames)
     return skip("too few frames to judge stillness", judged.why);

@@ -131,12 +131,18 @@ enum class StillState {
 };
 const char* stillStateName(StillState state);
 
+/// The capture's skip kind for a judgement with `different_objects` (pair and rig sessions).
+inline constexpr char kDifferentObjects[] = "different objects taken for the board";
+
 struct StillnessJudgement {
   StillState state = StillState::kPending;
   std::string why;  ///< in words, with the figures
   int fastest_stream = -1;
   int fastest_frames = 0;  ///< frames of the fastest stream inside the window
   int lost_stream = -1;    ///< kNoBoard: the stream that lost the board
+  /// kMoving: one stream's board jumped faster than a hand-held board moves (its detector took
+  /// different objects for the board, e.g. at the edge of its view or on a flat look-alike)
+  bool different_objects = false;
 };
 
 /// One stream as the judge sees it: its samples (sorted by stamp) and its clock.
