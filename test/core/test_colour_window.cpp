@@ -2,7 +2,7 @@
 // whole-frame pixels (corners, lines, pose) through a distorting lens, and a colour board's every
 // side must part its colour from its surroundings'. Synthetic frames rendered at 2x through the
 // distortion and area-averaged, so the truth is the board's corners projected.
-#include "../../src/core/image_detection/detection_internal.h"
+#include "../../src/core/image_detection/plain_internal.h"
 
 #include <board_calib/core/transform.h>
 #include "sim_test_helpers.h"
@@ -209,6 +209,68 @@ TEST(ColourWindow, EverySideMustPartTheBoardsColourFromItsSurroundings) {
   cv::Mat inverted = 255 - contrast;
   f = quadFeatures(board_quad);
   EXPECT_FALSE(sidesPartColours(inverted, camera, &f));
+}
+
+
+// A cardboard board held as a diamond by a person 0.5 m across the shoulders (the street
+// board, 0.89 x 1.20 m, at 7 m): in the frame's colour parts the board and the person's dark
+// blue clothes depart from the grey street as one part, too concave to be a board. The openings
+// up to half the board's inradius leave the shoulders on it; the holder's opening, sized from
+// the declared board, cuts them off, and the board's part is among the places tried.
+TEST(ColourWindow, ThePersonHoldingTheBoardIsCutOffItsColourPart) {
+  const CameraModel camera = sim::makeCamera(1280, 960, 1000, DistortionModel::kNone, {});
+  Target target;
+  target.type = TargetType::kPlain;
+  target.width = 0.89;
+  target.height = 1.2;
+  const double z = 7.0;
+  const Eigen::Vector3d centre(0.3, -0.2, z);
+  const Eigen::Isometry3d camera_T_board =
+      makeTransform(fromRollPitchYaw({0.0, 0.0, M_PI / 4}),
+                    centre - fromRollPitchYaw({0.0, 0.0, M_PI / 4}) * target.center());
+  std::array<Eigen::Vector2d, kNumEdges> truth;
+  const auto corners = target.outerCorners();
+  for (int k = 0; k < kNumEdges; ++k)
+    ASSERT_TRUE(camera.projectUndistorted(camera_T_board * corners[k], &truth[k]));
+  Eigen::Vector2d centre_px;
+  ASSERT_TRUE(camera.projectUndistorted(centre, &centre_px));
+  std::mt19937 rng(5);
+  cv::Mat image(960, 1280, CV_8UC3, cv::Scalar(120, 121, 122));
+  // Grey clutter without corners (a single frame cannot tell a lone grey rectangle of the
+  // board's shape from a plain board).
+  std::uniform_int_distribution<int> x(0, 1280), y(0, 960), r(15, 90), g(70, 180);
+  for (int k = 0; k < 30; ++k) {
+    const int level = g(rng);
+    cv::circle(image, cv::Point(x(rng), y(rng)), r(rng), cv::Scalar(level, level, level),
+               cv::FILLED, cv::LINE_AA);
+  }
+  // The person stands 0.2 m behind the board, from its centre down to the image's bottom.
+  const double shoulders_px = 0.5 * 1000 / (z + 0.2);
+  cv::rectangle(image,
+                cv::Rect(static_cast<int>(centre_px.x() - shoulders_px / 2),
+                         static_cast<int>(centre_px.y()), static_cast<int>(shoulders_px), 960),
+                cv::Scalar(90, 40, 30), cv::FILLED);
+  std::vector<cv::Point> poly;
+  for (const auto& c : truth)
+    poly.emplace_back(static_cast<int>(std::lround(c.x())), static_cast<int>(std::lround(c.y())));
+  cv::fillConvexPoly(image, poly, cv::Scalar(60, 110, 170), cv::LINE_AA);
+  addNoise(2.0, &image);
+
+  EXPECT_GT(image_detection::holderOpeningFraction(target), 0.5);
+  const auto places =
+      image_detection::colourPartBoards(image, camera, target, ImageBoardDetectorOptions{});
+  double best = 1e9;
+  for (const ExpectedBoard& p : places)
+    best = std::min(best, image_detection::worstCornerOffset(truth, p.corners_px) /
+                              std::max(1.0, p.tolerance_px));
+  // Within the place's own tolerance (a quarter of its side): the window search starts there.
+  EXPECT_LE(best, 1.0) << places.size() << " places";
+  // And the detector finds the board there, to a pixel.
+  auto det = ImageBoardDetector::create(target, ImageBoardDetectorOptions{});
+  ASSERT_TRUE(det.ok()) << det.error();
+  const ImageDetection d = det->detect(image, camera);
+  ASSERT_TRUE(d.features.found) << d.features.reason;
+  EXPECT_LT(image_detection::worstCornerOffset(d.features.corners_px, truth), 1.0);
 }
 
 }  // namespace

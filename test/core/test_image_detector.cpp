@@ -401,9 +401,10 @@ TEST(ImageDetectorSim, PlainBoardOfTheRoomsGreyFoundByItsColour) {
   }
   std::printf("tinted board: found %d of %d in colour, %d without it; %d wrong\n", found_colour,
               kFrames, found_grey, wrong);
-  // Measured 23 of 24 in colour, 1 without (the search is deterministic for a seed; one frame of
-  // slack for another platform's floating point).
-  EXPECT_GE(found_colour, 22);
+  // Measured 24 of 24 in colour since the colour parts are also opened at a holder's width (23
+  // before), 1 without (the search is deterministic for a seed; one frame of slack for another
+  // platform's floating point).
+  EXPECT_GE(found_colour, 23);
   EXPECT_EQ(wrong, 0);
 }
 

@@ -239,10 +239,13 @@ TEST(ImageDetectorFarSim, StreetFramesAddNoWrongBoard) {
   EXPECT_LE(prepass.wrong, 2);
   EXPECT_LT(prepass.worst_line_px, 1.5);
   EXPECT_EQ(alone.wrong, 0);
-  EXPECT_GE(alone.found, 16);
+  // Measured 24 of 24 alone and tracked (0 wrong), 22 true with the pre-pass, since the colour
+  // parts are opened at a holder's width: the board's part no longer holds the person under it
+  // (17, 16 and 18 before). One frame of slack each.
+  EXPECT_GE(alone.found, 23);
   EXPECT_LE(tracked.wrong, 2);
-  EXPECT_GE(tracked.found - tracked.wrong, 12);
-  EXPECT_GE(prepass.found - prepass.wrong, 13);
+  EXPECT_GE(tracked.found - tracked.wrong, 23);
+  EXPECT_GE(prepass.found - prepass.wrong, 21);
   // The true boards' lines: sub-pixel to ~1 px at 120-350 px in the street (measured 1.08 px;
   // the kWrongBoardPx bound separates them from other objects).
   EXPECT_LT(tracked.worst_line_px, 1.5);

@@ -208,9 +208,11 @@ struct Foreground {
   double scale = 1.0;  ///< background px per image px
 };
 Foreground foregroundMask(const cv::Mat& bgr, const cv::Mat& background);
-/// Board-sized, nearly convex parts of the foreground (openings cut the holder off) as expected
+/// Board-sized, nearly convex parts of the foreground (openings cut the holder off, up to a
+/// person's width for `target`'s size) as expected
 /// boards (ExpectedBoard::inside) that a board may exceed by a quarter of its size. Largest first.
 std::vector<ExpectedBoard> foregroundBoards(const Foreground& foreground, const CameraModel& camera,
+                                            const Target& target,
                                             const ImageBoardDetectorOptions& options);
 /// Where a bgr frame's colour (its two Lab chroma channels, downscaled to width_px) departs from
 /// the frame's median colour by more than 4 times the median departure: a board of another colour
@@ -220,6 +222,7 @@ Foreground chromaDeparture(const cv::Mat& bgr, int width_px);
 /// boards (ExpectedBoard::inside), largest first, parts cut by the image border last: a board of
 /// the scene's grey but another colour.
 std::vector<ExpectedBoard> colourPartBoards(const cv::Mat& bgr, const CameraModel& camera,
+                                            const Target& target,
                                             const ImageBoardDetectorOptions& options);
 /// A plain board searched in `place`'s colour contrast, only in the part of the frame around it
 /// (the ring the contrast is measured against, 2 board sizes about its centre, grown by the

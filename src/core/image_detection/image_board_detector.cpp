@@ -205,12 +205,12 @@ void ImageBoardDetector::Impl::searchInColour(const cv::Mat& image, const cv::Ma
     places.push_back(*expected);
   } else if (excluded && !excluded->background.empty()) {
     foreground = image_detection::foregroundMask(image, excluded->background);
-    places = image_detection::foregroundBoards(foreground, camera, options);
+    places = image_detection::foregroundBoards(foreground, camera, target, options);
   }
   if (!expected && !foreground.mask.empty() && places.empty())
     out->features.reason += "; no board-sized part of the frame departs from the scene";
   const bool colour_parts = !expected && places.empty();
-  if (colour_parts) places = image_detection::colourPartBoards(image, camera, options);
+  if (colour_parts) places = image_detection::colourPartBoards(image, camera, target, options);
   for (const ExpectedBoard& place : places) {
     ImageDetection colour;
     if (colour_parts) {

@@ -117,8 +117,8 @@ cv::Mat departureMask(const cv::Mat& departure) {
 // downscaled pixel of one already kept is that one. `by_colour` (a single frame's colour parts,
 // not what moved): parts cut by the image border come last.
 std::vector<ExpectedBoard> boardPlaces(const Foreground& parts_of, const CameraModel& camera,
-                                       const ImageBoardDetectorOptions& o, bool by_colour,
-                                       size_t max_places) {
+                                       const Target& target, const ImageBoardDetectorOptions& o,
+                                       bool by_colour, size_t max_places) {
   if (parts_of.mask.empty()) return {};
   const cv::Mat& mask = parts_of.mask;
   const double scale = parts_of.scale;
@@ -128,7 +128,7 @@ std::vector<ExpectedBoard> boardPlaces(const Foreground& parts_of, const CameraM
   std::vector<std::pair<double, ExpectedBoard>> found;
   for (const auto& contour : contours) {
     if (cv::contourArea(contour) < min_area) continue;
-    auto parts = openedParts(contour, mask.size(), min_area);
+    auto parts = openedParts(contour, mask.size(), min_area, holderOpeningFraction(target));
     parts.push_back(contour);
     for (const auto& part : parts) {
       std::vector<cv::Point> hull;
@@ -378,8 +378,9 @@ Foreground foregroundMask(const cv::Mat& bgr, const cv::Mat& background) {
 }
 
 std::vector<ExpectedBoard> foregroundBoards(const Foreground& foreground, const CameraModel& camera,
+                                            const Target& target,
                                             const ImageBoardDetectorOptions& o) {
-  return boardPlaces(foreground, camera, o, false, kMaxForegroundBoards);
+  return boardPlaces(foreground, camera, target, o, false, kMaxForegroundBoards);
 }
 
 Foreground chromaDeparture(const cv::Mat& bgr, int width_px) {
@@ -404,8 +405,9 @@ Foreground chromaDeparture(const cv::Mat& bgr, int width_px) {
 }
 
 std::vector<ExpectedBoard> colourPartBoards(const cv::Mat& bgr, const CameraModel& camera,
+                                            const Target& target,
                                             const ImageBoardDetectorOptions& o) {
-  return boardPlaces(chromaDeparture(bgr, o.segmentation_width_px), camera, o, true,
+  return boardPlaces(chromaDeparture(bgr, o.segmentation_width_px), camera, target, o, true,
                      kMaxColourPartBoards);
 }
 

@@ -42,9 +42,14 @@ Segmentation segmentBoard(const cv::Mat& small, const ImageBoardDetectorOptions&
                           double min_area = 0);
 
 /// The parts of a region (a contour in an image of `size`) left by openings at fractions of its
-/// inradius: a board with a thinner neighbour attached (a ceiling band, the holder's legs).
+/// inradius: a board with a thinner neighbour attached (a ceiling band, the holder's legs), and
+/// with `holder_fraction` (holderOpeningFraction) the person holding it.
 std::vector<std::vector<cv::Point>> openedParts(const std::vector<cv::Point>& contour,
-                                                cv::Size size, double min_area);
+                                                cv::Size size, double min_area,
+                                                double holder_fraction = 0.0);
+/// The opening, as a fraction of a board's inradius, that cuts the person holding `target` off
+/// a part holding both (in [0.5, 0.9]; 0 for a board without a size).
+double holderOpeningFraction(const Target& target);
 
 /// Second chance: openings of the rejected regions replace the candidates.
 void proposeOpenedRegions(cv::Size size, const ImageBoardDetectorOptions& o, Segmentation* seg);

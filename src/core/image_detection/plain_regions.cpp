@@ -20,6 +20,13 @@ constexpr int kFlatOpeningPx = 11;        // downscaled px, opening of the flat-
 // Openings of a rejected region, fractions of its inradius (a board touching the ceiling band
 // merges with it; the band is thinner than the board).
 constexpr double kOpeningInradiusFractions[] = {0.33, 0.5};
+// The person holding a board is as wide as their shoulders: an opening cuts them off only with a
+// radius beyond their half width (a part of one colour or a moving part holds board and person;
+// the simulator's person is 0.22 m). The margin keeps the cut clear of the shoulders' width.
+constexpr double kHolderHalfWidthM = 0.25;
+constexpr double kHolderMargin = 1.25;
+// At its inradius an opening leaves nothing of a board but its centre.
+constexpr double kMaxOpeningFraction = 0.9;
 
 // Scores one proposed region: a board is large, convex and uniform, and differs from its
 // surroundings. Returns false (with the rejection) when it is not board-like.
@@ -140,7 +147,7 @@ void distanceToZero(const cv::Mat& src, cv::Mat* dist) {
 // Works on the region's bounding box plus a 1 px frame of background: an opening stays inside
 // the region, and the image border still bounds the box where the region touches it.
 std::vector<std::vector<cv::Point>> openRegion(const std::vector<cv::Point>& contour, cv::Size size,
-                                               double min_area) {
+                                               double min_area, double extra_fraction = 0.0) {
   std::vector<std::vector<cv::Point>> parts;
   const cv::Rect box =
       (cv::boundingRect(contour) + cv::Size(2, 2) - cv::Point(1, 1)) & cv::Rect(cv::Point(), size);
@@ -151,7 +158,10 @@ std::vector<std::vector<cv::Point>> openRegion(const std::vector<cv::Point>& con
   distanceToZero(mask, &inside);
   double inradius = 0;
   cv::minMaxLoc(inside, nullptr, &inradius);
-  for (const double fraction : kOpeningInradiusFractions) {
+  std::vector<double> fractions(std::begin(kOpeningInradiusFractions),
+                                std::end(kOpeningInradiusFractions));
+  if (extra_fraction > fractions.back()) fractions.push_back(extra_fraction);
+  for (const double fraction : fractions) {
     const double radius = fraction * inradius;
     if (radius < 1) continue;
     const cv::Mat core = inside > radius;  // erosion
@@ -176,8 +186,16 @@ std::vector<std::vector<cv::Point>> openRegion(const std::vector<cv::Point>& con
 }  // namespace
 
 std::vector<std::vector<cv::Point>> openedParts(const std::vector<cv::Point>& contour,
-                                                cv::Size size, double min_area) {
-  return openRegion(contour, size, min_area);
+                                                cv::Size size, double min_area,
+                                                double holder_fraction) {
+  return openRegion(contour, size, min_area, holder_fraction);
+}
+
+double holderOpeningFraction(const Target& target) {
+  const double inradius_m = 0.5 * std::min(target.width, target.height);
+  if (!(inradius_m > 0)) return 0.0;
+  return std::clamp(kHolderMargin * kHolderHalfWidthM / inradius_m, kOpeningInradiusFractions[1],
+                    kMaxOpeningFraction);
 }
 
 void Segmentation::add(const std::vector<cv::Point>& contour, const ImageBoardDetectorOptions& o,
