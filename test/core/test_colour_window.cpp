@@ -211,7 +211,6 @@ TEST(ColourWindow, EverySideMustPartTheBoardsColourFromItsSurroundings) {
   EXPECT_FALSE(sidesPartColours(inverted, camera, &f));
 }
 
-
 // A cardboard board held as a diamond by a person 0.5 m across the shoulders (the street
 // board, 0.89 x 1.20 m, at 7 m): in the frame's colour parts the board and the person's dark
 // blue clothes depart from the grey street as one part, too concave to be a board. The openings
