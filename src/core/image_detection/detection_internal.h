@@ -209,8 +209,8 @@ struct Foreground {
 };
 Foreground foregroundMask(const cv::Mat& bgr, const cv::Mat& background);
 /// Board-sized, nearly convex parts of the foreground (openings cut the holder off, up to a
-/// person's width for `target`'s size) as expected
-/// boards (ExpectedBoard::inside) that a board may exceed by a quarter of its size. Largest first.
+/// person's width for `target`'s size) as expected boards (ExpectedBoard::inside) that a board
+/// may exceed by a quarter of its size. Largest first.
 std::vector<ExpectedBoard> foregroundBoards(const Foreground& foreground, const CameraModel& camera,
                                             const Target& target,
                                             const ImageBoardDetectorOptions& options);
