@@ -125,10 +125,11 @@ std::vector<ExpectedBoard> boardPlaces(const Foreground& parts_of, const CameraM
   std::vector<std::vector<cv::Point>> contours;
   cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
   const double min_side = o.min_board_size_px * scale, min_area = min_side * min_side;
+  const double holder_fraction = holderOpeningFraction(target);
   std::vector<std::pair<double, ExpectedBoard>> found;
   for (const auto& contour : contours) {
     if (cv::contourArea(contour) < min_area) continue;
-    auto parts = openedParts(contour, mask.size(), min_area, holderOpeningFraction(target));
+    auto parts = openedParts(contour, mask.size(), min_area, holder_fraction);
     parts.push_back(contour);
     for (const auto& part : parts) {
       std::vector<cv::Point> hull;

@@ -142,7 +142,8 @@ KnownExtrinsic parseKnownExtrinsic(const YAML::Node& k, const std::string& where
   e.a_T_b.translation() = Eigen::Vector3d(tr[0], tr[1], tr[2]);
   if (e.a_T_b.translation().norm() > kMaxKnownTranslationM)
     bad(where + ".a_T_b.translation: " + formatFixed(e.a_T_b.translation().norm(), 1) +
-        " m between two sensors of one rig (more than 100 m: a unit or sign error?)");
+        " m between two sensors of one rig (more than " + formatFixed(kMaxKnownTranslationM, 0) +
+        " m: a unit or sign error?)");
   return e;
 }
 

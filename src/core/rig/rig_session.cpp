@@ -234,8 +234,7 @@ SessionEvent RigSession::decide(const Candidate& c) {
   stats_.last_stillness = judged.why;
   if (judged.state == StillState::kMoving || judged.state == StillState::kNoBoard)
     hold_pose_id_ = -1;
-  if (judged.state == StillState::kMoving)
-    return skip(judged.different_objects ? kDifferentObjects : "board moving", judged.why);
+  if (judged.state == StillState::kMoving) return skip(movingKind(judged), judged.why);
   if (judged.state == StillState::kNoBoard) return skip("board lost around the moment", judged.why);
   if (judged.state == StillState::kTooFewFrames || judged.state == StillState::kPending)
     return skip("too few frames to judge stillness", judged.why);

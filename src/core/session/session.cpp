@@ -297,8 +297,7 @@ SessionEvent PairSession::decide(const CameraBoardFeatures& camera, bool ended, 
                     "): check sync_tolerance");
   if (judged.state == StillState::kMoving || judged.state == StillState::kNoBoard)
     hold_view_id_ = -1;
-  if (judged.state == StillState::kMoving)
-    return skip(judged.different_objects ? kDifferentObjects : "board moving", judged.why);
+  if (judged.state == StillState::kMoving) return skip(movingKind(judged), judged.why);
   if (judged.state == StillState::kNoBoard) return skip("board lost around the image", judged.why);
   if (judged.state == StillState::kTooFewFrames)
     return skip("too few frames to judge stillness", judged.why);

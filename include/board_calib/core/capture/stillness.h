@@ -145,6 +145,11 @@ struct StillnessJudgement {
   bool different_objects = false;
 };
 
+/// The capture's skip kind for a kMoving judgement: a moving board, or different objects.
+inline const char* movingKind(const StillnessJudgement& j) {
+  return j.different_objects ? kDifferentObjects : "board moving";
+}
+
 /// One stream as the judge sees it: its samples (sorted by stamp) and its clock.
 struct StillnessStream {
   const std::deque<BoardSample>* samples = nullptr;
