@@ -26,6 +26,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -169,16 +170,31 @@ FarResult runScenario(unsigned seed, int poses, bool street,
       std::printf(" (%s)\n", d.features.reason.c_str());
     if (debug_dir)
       cv::imwrite(std::string(debug_dir) + "/far_" + (street ? "street_" : "plain_") +
+                      (prepass   ? "prepass_"
+                       : tracked ? "tracked_"
+                                 : "") +
                       std::to_string(seed) + "_" + std::to_string(f.pose) + ".png",
                   drawImageDetection(image, camera, d));
   }
   return out;
 }
 
+// The seeds the found/wrong counts are asserted for; BOARD_CALIB_FAR_SEEDS="40,41" runs others by
+// hand (a development aid: the assertions then do not apply).
+std::vector<unsigned> defaultSeeds() {
+  std::vector<unsigned> seeds = {14u, 15u, 16u};
+  if (const char* other = std::getenv("BOARD_CALIB_FAR_SEEDS")) {
+    seeds.clear();
+    std::stringstream list(other);
+    for (std::string item; std::getline(list, item, ',');) seeds.push_back(std::stoul(item));
+  }
+  return seeds;
+}
+
 FarResult runSeeds(bool street, const ImageBoardDetectorOptions& options = {}, bool tracked = false,
-                   bool prepass = false) {
+                   bool prepass = false, const std::vector<unsigned>& seeds = defaultSeeds()) {
   FarResult all;
-  for (unsigned seed : {14u, 15u, 16u}) {
+  for (unsigned seed : seeds) {
     const FarResult r = runScenario(seed, 8, street, options, tracked, prepass);
     all.poses += r.poses;
     all.found += r.found;
@@ -236,19 +252,37 @@ TEST(ImageDetectorFarSim, StreetFramesAddNoWrongBoard) {
   ASSERT_EQ(alone.poses, 24);
   ASSERT_EQ(tracked.poses, 24);
   ASSERT_EQ(prepass.poses, 24);
-  EXPECT_LE(prepass.wrong, 2);
+  EXPECT_LE(prepass.wrong, 1);
   EXPECT_LT(prepass.worst_line_px, 1.5);
   EXPECT_EQ(alone.wrong, 0);
-  // Measured 24 of 24 alone and tracked (0 wrong), 22 true with the pre-pass, since the colour
-  // parts are opened at a holder's width: the board's part no longer holds the person under it
-  // (17, 16 and 18 before). One frame of slack each.
+  // Measured 24 of 24 alone and tracked (0 wrong), since the colour parts are opened at a
+  // holder's width: the board's part no longer holds the person under it (17, 16 before). With the
+  // pre-pass 23 true, 1 wrong (a side 6 px off), since a board of lines alone is challenged in
+  // colour (22 and 2 before: the holder's torso). One frame of slack each.
   EXPECT_GE(alone.found, 23);
   EXPECT_LE(tracked.wrong, 2);
   EXPECT_GE(tracked.found - tracked.wrong, 23);
-  EXPECT_GE(prepass.found - prepass.wrong, 21);
+  EXPECT_GE(prepass.found - prepass.wrong, 22);
   // The true boards' lines: sub-pixel to ~1 px at 120-350 px in the street (measured 1.08 px;
   // the kWrongBoardPx bound separates them from other objects).
   EXPECT_LT(tracked.worst_line_px, 1.5);
+}
+
+// Seeds 40-42 and 44 (docs/BENCHMARKS.md, "Session 21"): in 4 of their 24 single frames the back
+// facade's outline (building corners, roof line, ground line) fitted the declared board at ~2.4 m
+// and, with more edge support than the board in front of it, was taken for it; with the pre-pass
+// the holder's torso was twice (seeds 40 and 44). Now the colour search challenges a board of
+// straight lines alone: 0 wrong in both, 23 and 24 of 24 true boards measured (one of slack).
+TEST(ImageDetectorFarSim, TheFacadeOrTorsoIsNotTakenForTheBoardInFrontOfIt) {
+  const FarResult alone = runSeeds(true, {}, false, false, {40u, 41u, 42u});
+  ASSERT_EQ(alone.poses, 24);
+  EXPECT_EQ(alone.wrong, 0);
+  EXPECT_GE(alone.found, 22);
+  const FarResult prepass = runSeeds(true, {}, true, true, {40u, 44u});
+  ASSERT_EQ(prepass.poses, 16);
+  EXPECT_EQ(prepass.wrong, 0);
+  EXPECT_GE(prepass.found, 15);
+  EXPECT_LT(alone.worst_line_px, 1.5);
 }
 
 // The street session (docs/BENCHMARKS.md, "Session 5: image session memory"): what must hold is

@@ -450,7 +450,10 @@ cv::Mat drawImageDetection(const cv::Mat& image, const CameraModel& camera,
   drawEdges(&out, camera, det, thick);
   drawPatternAndAxes(&out, camera, det, thick);
   const std::string status =
-      f.found ? "found, rms " + cv::format("%.2f px", f.reprojection_rms_px) : f.reason;
+      f.found
+          ? "found" + (det.details.board_source.empty() ? "" : " by " + det.details.board_source) +
+                cv::format(", rms %.2f px", f.reprojection_rms_px)
+          : f.reason;
   cv::putText(out, status, cv::Point(10, 30 * thick), cv::FONT_HERSHEY_SIMPLEX, 0.7 * thick,
               f.found ? cv::Scalar(0, 255, 0) : cv::Scalar(0, 0, 255), thick);
   return out;

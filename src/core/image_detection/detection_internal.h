@@ -150,6 +150,11 @@ bool sameLine(const std::array<Eigen::Vector2d, 2>& x, const std::array<Eigen::V
 /// Mean side length of a quadrilateral (px; corners in cyclic order).
 double meanSidePx(const std::array<Eigen::Vector2d, kNumEdges>& corners);
 
+/// Share of the quadrilateral `inner`'s area that lies inside `outer` (both convex, corners in
+/// cyclic order; 0 for a degenerate inner).
+double shareInside(const std::array<Eigen::Vector2d, kNumEdges>& inner,
+                   const std::array<Eigen::Vector2d, kNumEdges>& outer);
+
 /// Largest distance from a corner to its nearest reference corner (undistorted px).
 double worstCornerOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners,
                          const std::array<Eigen::Vector2d, kNumEdges>& reference);

@@ -19,6 +19,25 @@ namespace {
 constexpr double kAprilTagPixelOffset = 0.5;
 constexpr int kMaxHammingSupported =
     2;  // tag36h11 with 3 bits corrected needs a huge table and gives false ids
+// A colour board with most of its area inside a grey line quadrilateral is in front of it; one
+// whose corners all lie within this share of the quadrilateral's side is the same board.
+constexpr double kHeldInFrontShare = 0.5;
+constexpr double kSameBoardFraction = 0.05;
+
+// Whether a board inside `place` could replace the grey board `found` (searchInColour), judged
+// before the costly search: not when the place is the grey board itself (each mostly inside the
+// other), nor when it lies apart from it and its outline, grown by its tolerance, is shorter
+// than the grey board's edge support (a board inside it cannot have more).
+bool canChallenge(const ExpectedBoard& place, const ImageDetection& found) {
+  const auto& board = found.features.corners_px;
+  const double place_in_board = image_detection::shareInside(place.corners_px, board);
+  if (place_in_board >= kHeldInFrontShare &&
+      image_detection::shareInside(board, place.corners_px) >= kHeldInFrontShare)
+    return false;
+  const double bound =
+      kNumEdges * (image_detection::meanSidePx(place.corners_px) + 2.0 * place.tolerance_px);
+  return place_in_board > 0.0 || bound > found.details.board_support_px;
+}
 }  // namespace
 
 std::string ImageBoardDetectorOptions::validate() const {
@@ -194,6 +213,11 @@ ImageDetection ImageBoardDetector::detectNear(const cv::Mat& image, const Camera
 // where the frame departs from the session's background, or (a single frame, or a session whose
 // frame does not depart from its background) in the frame's parts of another colour than most of
 // it. The place is what tells board from surroundings.
+// When the grey search did find a board but from straight lines alone, nothing vouched for its
+// interior: a facade's outline fits a board of the declared shape too, and a holder's torso does
+// at a steep turn. A board found in colour replaces it when it lies mostly inside it and fits the
+// declared board better (held in front of it; a printed mark fits worse than the board it is on),
+// or when it has more edge support weighed by its facing (the grey search's own ranking).
 void ImageBoardDetector::Impl::searchInColour(const cv::Mat& image, const cv::Mat& gray,
                                               const CameraModel& camera,
                                               const ExpectedBoard* expected,
@@ -207,11 +231,13 @@ void ImageBoardDetector::Impl::searchInColour(const cv::Mat& image, const cv::Ma
     foreground = image_detection::foregroundMask(image, excluded->background);
     places = image_detection::foregroundBoards(foreground, camera, target, options);
   }
-  if (!expected && !foreground.mask.empty() && places.empty())
+  const bool challenge = out->features.found;
+  if (!challenge && !expected && !foreground.mask.empty() && places.empty())
     out->features.reason += "; no board-sized part of the frame departs from the scene";
   const bool colour_parts = !expected && places.empty();
   if (colour_parts) places = image_detection::colourPartBoards(image, camera, target, options);
   for (const ExpectedBoard& place : places) {
+    if (challenge && !canChallenge(place, *out)) continue;
     ImageDetection colour;
     if (colour_parts) {
       // A colour part is searched in the window its contrast is measured in, not the frame.
@@ -230,10 +256,33 @@ void ImageBoardDetector::Impl::searchInColour(const cv::Mat& image, const cv::Ma
     if (colour.features.found && colour_parts)
       image_detection::sidesEndInGray(gray, camera, options, out->details.noise_sigma,
                                       &colour.features);
+    if (colour.features.found)
+      colour.details.board_source = std::string(colour_parts ? "colour part"
+                                                : expected   ? "colour contrast"
+                                                             : "foreground") +
+                                    ", " + colour.details.board_source;
+    if (colour.features.found && challenge) {
+      const auto& held = colour.features.corners_px;
+      const auto& outline = out->features.corners_px;
+      // Relative to its size, as the board test judges the fit: a flexed board misfits in
+      // proportion to its size, a mark or a facade outline by its own shape.
+      const auto misfit = [](const ImageDetection& d) {
+        return d.features.reprojection_rms_px / image_detection::meanSidePx(d.features.corners_px);
+      };
+      const bool in_front = image_detection::shareInside(held, outline) >= kHeldInFrontShare &&
+                            misfit(colour) < misfit(*out);
+      const bool better = colour.details.board_support_px > out->details.board_support_px;
+      if ((!in_front && !better) || image_detection::worstCornerOffset(held, outline) <
+                                        kSameBoardFraction * image_detection::meanSidePx(outline))
+        continue;  // a lesser board elsewhere, or the grey board itself
+      colour.details.board_source += std::string(in_front ? " (held in front of" : " (over") +
+                                     " a " + out->details.board_source + " quadrilateral)";
+    }
     if (colour.features.found) {
       *out = std::move(colour);
       return;
     }
+    if (challenge) continue;
     out->features.reason +=
         expected ? "; in its colour contrast: " + colour.features.reason
         : colour_parts
@@ -269,7 +318,7 @@ ImageDetection ImageBoardDetector::run(const cv::Mat& image, const CameraModel& 
         case TargetType::kPlain:
           image_detection::detectPlain(gray, camera, impl_->target, impl_->options, &out, expected,
                                        excluded);
-          if (!f.found && image.channels() == 3)
+          if (image.channels() == 3 && (!f.found || out.details.board_source != "region"))
             impl_->searchInColour(image, gray, camera, expected, excluded, &out);
           break;
         case TargetType::kCheckerboard:

@@ -71,6 +71,8 @@ struct HypothesisSearch {
         best_score = score;
         best_min_coverage = support.min_coverage;
         best_found = std::move(attempt);
+        best_found.details.board_source = h.source;
+        best_found.details.board_support_px = score;
       }
       return;
     }

@@ -2,9 +2,12 @@
 // scene of ImageBoardTracker, the expected board of a second chance).
 #include "detection_internal.h"
 
+#include <opencv2/imgproc.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <vector>
 
 namespace board_calib {
 namespace image_detection {
@@ -24,6 +27,18 @@ double worstCornerOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners,
     worst = std::max(worst, nearest);
   }
   return worst;
+}
+
+double shareInside(const std::array<Eigen::Vector2d, kNumEdges>& inner,
+                   const std::array<Eigen::Vector2d, kNumEdges>& outer) {
+  std::vector<cv::Point2f> a, b, overlap;
+  for (int k = 0; k < kNumEdges; ++k) {
+    a.emplace_back(static_cast<float>(inner[k].x()), static_cast<float>(inner[k].y()));
+    b.emplace_back(static_cast<float>(outer[k].x()), static_cast<float>(outer[k].y()));
+  }
+  const double area = std::abs(cv::contourArea(a));
+  if (!(area > 0) || !cv::isContourConvex(a) || !cv::isContourConvex(b)) return 0.0;
+  return cv::intersectConvexConvex(a, b, overlap, true) / area;
 }
 
 double expectedOffset(const std::array<Eigen::Vector2d, kNumEdges>& corners,

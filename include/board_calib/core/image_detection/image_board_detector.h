@@ -136,6 +136,12 @@ struct ImageDetectionDetails {
       lines_px;  ///< plain: merged straight lines of the line stage (support ends, undistorted px)
   std::vector<std::array<Eigen::Vector2d, 2>> segments_raw;  ///< plain: line segments (LSD), raw px
   double noise_sigma = 0.0;  ///< plain: image noise estimate, grey levels
+  /// plain: the kind of hypothesis the board came from ("region", "lines", "weak lines",
+  /// "traced side", "projected board"; "colour part" and the like for the colour search)
+  std::string board_source;
+  /// plain: the board's edge support (px of its sides that show their edge), weighed by the
+  /// cosine of its turn from the line of sight; what ranks two boards found in one image
+  double board_support_px = 0.0;
   int line_segments = 0, straight_lines = 0,
       line_quads = 0;        ///< plain: LSD segments, merged lines, quadrilaterals
   std::vector<int> tag_ids;  ///< AprilTag: detected ids on the grid
