@@ -97,6 +97,7 @@ constexpr double kRs16PickedCorners[8][4][2] = {{{998, 270}, {1473, 422}, {1362,
 // Picked by eye (~20 px) through the wide-angle undistortion (up to ~1.5x at the board): the
 // second-chance search accepts only a board whose corners all lie this close.
 constexpr double kRs16PickTolerancePx = 45.0;
+constexpr uint64_t kBlankNoiseSeed = 14;  // any fixed value: the blanked frames are then fixed too
 
 // rs16: reference = the detector's lines found inside the picked corners (detectNear, the same
 // sub-pixel edges as the whole-image search), segments = extent of its edge pixels.
@@ -377,7 +378,10 @@ void blankBoard(Frame* f, std::mt19937& rng) {
   cv::inpaint(small, small_mask, filled, 5, cv::INPAINT_TELEA);
   cv::resize(filled, big, f->image.size(), 0, 0, cv::INTER_CUBIC);
   cv::Mat noise(big.size(), CV_8UC3);
-  cv::randn(noise, cv::Scalar::all(0), cv::Scalar::all(2));
+  // Its own generator: a blanked frame must not depend on what else in the process drew from
+  // OpenCV's global one (figures unchanged: 211/252, 818/844 edges).
+  cv::RNG noise_rng(kBlankNoiseSeed);
+  noise_rng.fill(noise, cv::RNG::NORMAL, cv::Scalar::all(0), cv::Scalar::all(2));
   cv::Mat noisy;
   cv::add(big, noise, noisy, cv::noArray(), CV_8UC3);
   (void)rng;
