@@ -268,16 +268,18 @@ TEST(ImageDetectorFarSim, StreetFramesAddNoWrongBoard) {
   EXPECT_LT(tracked.worst_line_px, 1.5);
 }
 
-// Seeds 40-42 and 44 (docs/BENCHMARKS.md, "Session 21"): in 4 of their 24 single frames the back
-// facade's outline (building corners, roof line, ground line) fitted the declared board at ~2.4 m
-// and, with more edge support than the board in front of it, was taken for it; with the pre-pass
-// the holder's torso was twice (seeds 40 and 44). Now the colour search challenges a board of
-// straight lines alone: 0 wrong in both, 23 and 24 of 24 true boards measured (one of slack).
+// Seeds the other tests never used (docs/BENCHMARKS.md, "Session 21"). Single frames of seeds
+// 40-42: in 4 of 24 the back facade's outline (building corners, roof line, ground line) fitted
+// the declared board at ~2.4 m and, with more edge support than the board in front of it, was
+// taken for it; seeds 46 and 50: the holder's dark torso, a uniform region, fitted a board
+// turned ~65 deg (1 frame each); with the pre-pass, seeds 40 and 44: the torso as straight lines
+// (1 each). Now a board of lines alone, or a region turned past 45 deg, is challenged in colour:
+// 0 wrong everywhere; 38 of 40 and 16 of 16 true boards measured (one of slack each).
 TEST(ImageDetectorFarSim, TheFacadeOrTorsoIsNotTakenForTheBoardInFrontOfIt) {
-  const FarResult alone = runSeeds(true, {}, false, false, {40u, 41u, 42u});
-  ASSERT_EQ(alone.poses, 24);
+  const FarResult alone = runSeeds(true, {}, false, false, {40u, 41u, 42u, 46u, 50u});
+  ASSERT_EQ(alone.poses, 40);
   EXPECT_EQ(alone.wrong, 0);
-  EXPECT_GE(alone.found, 22);
+  EXPECT_GE(alone.found, 37);
   const FarResult prepass = runSeeds(true, {}, true, true, {40u, 44u});
   ASSERT_EQ(prepass.poses, 16);
   EXPECT_EQ(prepass.wrong, 0);

@@ -23,6 +23,7 @@ constexpr int kMaxHammingSupported =
 // whose corners all lie within this share of the quadrilateral's side is the same board.
 constexpr double kHeldInFrontShare = 0.5;
 constexpr double kSameBoardFraction = 0.05;
+constexpr double kSteepTurnFacing = 0.7071;  // cos 45 deg
 
 // Whether a board inside `place` could replace the grey board `found` (searchInColour), judged
 // before the costly search: not when the place is the grey board itself (each mostly inside the
@@ -37,6 +38,17 @@ bool canChallenge(const ExpectedBoard& place, const ImageDetection& found) {
   const double bound =
       kNumEdges * (image_detection::meanSidePx(place.corners_px) + 2.0 * place.tolerance_px);
   return place_in_board > 0.0 || bound > found.details.board_support_px;
+}
+
+// Whether a grey board is searched for in colour too (searchInColour's challenge): a board of
+// straight lines alone always (nothing vouched for its interior); a region only when turned past
+// kSteepTurnFacing, where a board facing the camera with far less edge support outranks it (the
+// holder's torso fits a board turned ~65 deg). A cost gate: the colour search takes 5-30 ms.
+bool worthChallenging(const ImageDetection& grey) {
+  if (grey.details.board_source != "region") return true;
+  const Eigen::Isometry3d& pose = grey.features.camera_T_board;
+  const double facing = std::abs(pose.linear().col(2).dot(pose.translation().normalized()));
+  return !(facing >= kSteepTurnFacing);
 }
 }  // namespace
 
@@ -318,7 +330,7 @@ ImageDetection ImageBoardDetector::run(const cv::Mat& image, const CameraModel& 
         case TargetType::kPlain:
           image_detection::detectPlain(gray, camera, impl_->target, impl_->options, &out, expected,
                                        excluded);
-          if (image.channels() == 3 && (!f.found || out.details.board_source != "region"))
+          if (image.channels() == 3 && (!f.found || worthChallenging(out)))
             impl_->searchInColour(image, gray, camera, expected, excluded, &out);
           break;
         case TargetType::kCheckerboard:
