@@ -43,7 +43,7 @@ bool canChallenge(const ExpectedBoard& place, const ImageDetection& found) {
 // Whether a grey board is searched for in colour too (searchInColour's challenge): a board of
 // straight lines alone always (nothing vouched for its interior); a region only when turned past
 // kSteepTurnFacing, where a board facing the camera with far less edge support outranks it (the
-// holder's torso fits a board turned ~65 deg). A cost gate: the colour search takes 5-30 ms.
+// holder's torso fits a board turned ~65 deg). A cost gate: the colour search takes 5-90 ms.
 bool worthChallenging(const ImageDetection& grey) {
   if (grey.details.board_source != "region") return true;
   const Eigen::Isometry3d& pose = grey.features.camera_T_board;
