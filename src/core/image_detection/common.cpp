@@ -151,6 +151,12 @@ Plane planeFromPose(const Eigen::Isometry3d& camera_T_board) {
   return plane;
 }
 
+double facingCosine(const Eigen::Isometry3d& camera_T_board) {
+  const double facing =
+      std::abs(camera_T_board.linear().col(2).dot(camera_T_board.translation().normalized()));
+  return std::isfinite(facing) ? facing : 0.0;
+}
+
 std::vector<int> nameEdges(const std::vector<double>& angles, const std::vector<double>& weights,
                            bool cyclic) {
   const int n = static_cast<int>(angles.size());

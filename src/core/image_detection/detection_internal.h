@@ -56,6 +56,13 @@ PoseFit fitPose(const Points3& board_points, const Points2& pixels, const Eigen:
 /// Board plane in the camera frame from the pose: normal = board +z (away from the camera).
 Plane planeFromPose(const Eigen::Isometry3d& camera_T_board);
 
+/// Cosine of the board's turn from the line of sight to its origin (1 facing the camera, 0
+/// edge-on); 0 for a degenerate pose.
+double facingCosine(const Eigen::Isometry3d& camera_T_board);
+
+/// ImageDetectionDetails::board_source of a board outlined as a uniform region.
+constexpr const char kRegionSource[] = "region";
+
 /// Names edges by their outward normal angle (atan2(b, a), image v down). `angles` are in
 /// clockwise image order when `cyclic` (then a cyclic shift is chosen); otherwise each edge gets
 /// the nearest name and ties keep the edge with the larger weight. Returns the name per input, -1

@@ -45,10 +45,8 @@ bool canChallenge(const ExpectedBoard& place, const ImageDetection& found) {
 // kSteepTurnFacing, where a board facing the camera with far less edge support outranks it (the
 // holder's torso fits a board turned ~65 deg). A cost gate: the colour search takes 5-90 ms.
 bool worthChallenging(const ImageDetection& grey) {
-  if (grey.details.board_source != "region") return true;
-  const Eigen::Isometry3d& pose = grey.features.camera_T_board;
-  const double facing = std::abs(pose.linear().col(2).dot(pose.translation().normalized()));
-  return !(facing >= kSteepTurnFacing);
+  return grey.details.board_source != image_detection::kRegionSource ||
+         image_detection::facingCosine(grey.features.camera_T_board) < kSteepTurnFacing;
 }
 }  // namespace
 

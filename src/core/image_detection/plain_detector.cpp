@@ -64,9 +64,7 @@ struct HypothesisSearch {
       // Of two boards, a steeply turned one is the likelier other rectangle (a door or the
       // holder's legs seen edge-on fit a board only near the largest turn): support is weighed
       // by the cosine of the turn from the line of sight.
-      const Eigen::Vector3d centre = af.camera_T_board.translation();
-      const double facing = std::abs(af.camera_T_board.linear().col(2).dot(centre.normalized()));
-      const double score = support.score * (std::isfinite(facing) ? facing : 0.0);
+      const double score = support.score * facingCosine(af.camera_T_board);
       if (score > best_score) {
         best_score = score;
         best_min_coverage = support.min_coverage;

@@ -337,7 +337,7 @@ std::vector<CoarseEdge> coarseEdges(const std::vector<cv::Point>& hull, double s
 Hypothesis fromRegion(const RegionCandidate& board, double sx, cv::Size small_size,
                       const CameraModel& camera, const ImageBoardDetectorOptions& o) {
   Hypothesis h;
-  h.source = "region";
+  h.source = kRegionSource;
   for (const auto& p : board.contour)
     h.outline_raw.emplace_back((p.x + 0.5) * sx - 0.5, (p.y + 0.5) * sx - 0.5);
   Eigen::Vector2d centroid;

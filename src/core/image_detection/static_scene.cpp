@@ -35,11 +35,11 @@ double shareInside(const std::array<Eigen::Vector2d, kNumEdges>& inner,
   for (int k = 0; k < kNumEdges; ++k) {
     a.emplace_back(static_cast<float>(inner[k].x()), static_cast<float>(inner[k].y()));
     b.emplace_back(static_cast<float>(outer[k].x()), static_cast<float>(outer[k].y()));
-  }
-  for (int k = 0; k < kNumEdges; ++k)
+    // As floats: a corner beyond float range would be infinite for OpenCV.
     if (!std::isfinite(a[k].x) || !std::isfinite(a[k].y) || !std::isfinite(b[k].x) ||
         !std::isfinite(b[k].y))
       return 0.0;
+  }
   const double area = std::abs(cv::contourArea(a));
   if (!(area > 0) || !cv::isContourConvex(a) || !cv::isContourConvex(b)) return 0.0;
   return cv::intersectConvexConvex(a, b, overlap, true) / area;
