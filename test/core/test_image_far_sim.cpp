@@ -20,6 +20,7 @@
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -86,9 +87,11 @@ constexpr double kWrongBoardPx = 3.0;
 // size in px, the outcome and the reason (the diagnosis table).
 // With `tracked`, the frames go through an ImageBoardTracker in time order (session memory of
 // static rectangles); with `prepass` too, the tracker knows the static scene learnt first over
-// the same frames (ScenePrepass, as calibrate_bag). `options` are the detector's.
+// the same frames (ScenePrepass, as calibrate_bag); with `mono`, the frames in grey as a mono
+// camera gives them. `options` are the detector's.
 FarResult runScenario(unsigned seed, int poses, bool street,
-                      const ImageBoardDetectorOptions& options, bool tracked, bool prepass) {
+                      const ImageBoardDetectorOptions& options, bool tracked, bool prepass,
+                      bool mono) {
   auto loaded = sim::loadScenario(std::string(BOARD_CALIB_SOURCE_DIR) +
                                   "/config/scenarios/plain_vlp16_outdoor_far.yaml");
   EXPECT_TRUE(loaded.ok()) << loaded.error();
@@ -115,6 +118,14 @@ FarResult runScenario(unsigned seed, int poses, bool street,
     *last = f.pose;
     return true;
   };
+  // A mono camera's frames (BOARD_CALIB_FAR_MONO set: every run's, a development aid).
+  mono = mono || std::getenv("BOARD_CALIB_FAR_MONO");
+  const auto render = [&](const sim::Frame& f, size_t i) {
+    cv::Mat image = gen->image(f, i);
+    if (mono && image.channels() == 3)
+      cv::cvtColor(image, image, cv::COLOR_BGR2GRAY);
+    return image;
+  };
   FarResult out;
   int last_pose = -1;
   if (prepass && timeline.ok()) {
@@ -122,7 +133,7 @@ FarResult runScenario(unsigned seed, int poses, bool street,
     EXPECT_TRUE(survey.ok()) << survey.error();
     for (size_t i = 0; i < timeline->frames.size(); ++i)
       if (isPoseFrame(timeline->frames[i], &last_pose))
-        survey->add(gen->image(timeline->frames[i], i), s.cameras.front().intrinsics,
+        survey->add(render(timeline->frames[i], i), s.cameras.front().intrinsics,
                     timeline->frames[i].stamp);
     tracker->setKnownScene(survey->scene());
     last_pose = -1;
@@ -139,7 +150,7 @@ FarResult runScenario(unsigned seed, int poses, bool street,
       lo = lo.cwiseMin(truth[j]);
       hi = hi.cwiseMax(truth[j]);
     }
-    const cv::Mat image = gen->image(f, i);
+    const cv::Mat image = render(f, i);
     const auto start = std::chrono::steady_clock::now();
     const ImageDetection d =
         tracked ? tracker->detect(image, camera, f.stamp) : det->detect(image, camera);
@@ -192,10 +203,11 @@ std::vector<unsigned> defaultSeeds() {
 }
 
 FarResult runSeeds(bool street, const ImageBoardDetectorOptions& options = {}, bool tracked = false,
-                   bool prepass = false, const std::vector<unsigned>& seeds = defaultSeeds()) {
+                   bool prepass = false, const std::vector<unsigned>& seeds = defaultSeeds(),
+                   bool mono = false) {
   FarResult all;
   for (unsigned seed : seeds) {
-    const FarResult r = runScenario(seed, 8, street, options, tracked, prepass);
+    const FarResult r = runScenario(seed, 8, street, options, tracked, prepass, mono);
     all.poses += r.poses;
     all.found += r.found;
     all.wrong += r.wrong;
@@ -204,9 +216,9 @@ FarResult runSeeds(bool street, const ImageBoardDetectorOptions& options = {}, b
     all.stages += r.stages;
   }
   std::printf(
-      "[far] %s%s: found %d/%d, wrong %d, lines within %.2f px of the truth; %.0f ms median, "
+      "[far] %s%s%s: found %d/%d, wrong %d, lines within %.2f px of the truth; %.0f ms median, "
       "%.0f ms p95 per frame\n",
-      street ? "street" : "plain",
+      street ? "street" : "plain", mono ? " mono" : "",
       prepass   ? " (pre-pass + tracker)"
       : tracked ? " (tracker)"
                 : "",
@@ -285,6 +297,22 @@ TEST(ImageDetectorFarSim, TheFacadeOrTorsoIsNotTakenForTheBoardInFrontOfIt) {
   EXPECT_EQ(prepass.wrong, 0);
   EXPECT_GE(prepass.found, 15);
   EXPECT_LT(alone.worst_line_px, 1.5);
+}
+
+// The same street through a mono camera (docs/BENCHMARKS.md, "Session 22"): the cardboard is the
+// facade's grey, so its sides against the facade vanish and no true board is found; what is
+// asserted is how rarely another object passes for it. Every frame of seeds 40-63 (192): with a
+// corner fit of 3 % of the side, 26 single frames were wrong (all that were found) and 12 with the
+// pre-pass; at 1 % (true boards fit to <= 0.54 % here, <= 0.73 % on the augmented real frames),
+// 4 and 3: facade outlines fitting to 0.64-0.92 % and a door. On the seeds below, single frames
+// 9 wrong before, 2 now (one of slack); with the pre-pass 2 before, 1 now.
+TEST(ImageDetectorFarSim, AMonoCameraRarelyTakesAnotherObjectForTheBoard) {
+  const FarResult alone = runSeeds(true, {}, false, false, {40u, 41u, 42u, 46u, 50u}, true);
+  ASSERT_EQ(alone.poses, 40);
+  EXPECT_LE(alone.wrong, 3);
+  const FarResult prepass = runSeeds(true, {}, true, true, {40u, 44u}, true);
+  ASSERT_EQ(prepass.poses, 16);
+  EXPECT_LE(prepass.wrong, 1);
 }
 
 // The street session (docs/BENCHMARKS.md, "Session 5: image session memory"): what must hold is

@@ -89,7 +89,7 @@ struct ImageBoardDetectorOptions {
   double max_plain_corner_rms_px = 10.0;  ///< px, plain board: corners are extrapolated (often far
                                           ///< outside the image) and the board flexes
   double max_plain_corner_rms_fraction =
-      0.03;  ///< plain board: corner PnP RMS above this fraction of the mean side length is
+      0.01;  ///< plain board: corner PnP RMS above this fraction of the mean side length is
              ///< rejected (a quadrilateral that is no board of the declared width and height)
   double pixel_sigma_px = 0.2;  ///< px, assumed corner noise floor for the pose covariance
 
