@@ -122,8 +122,7 @@ FarResult runScenario(unsigned seed, int poses, bool street,
   mono = mono || std::getenv("BOARD_CALIB_FAR_MONO");
   const auto render = [&](const sim::Frame& f, size_t i) {
     cv::Mat image = gen->image(f, i);
-    if (mono && image.channels() == 3)
-      cv::cvtColor(image, image, cv::COLOR_BGR2GRAY);
+    if (mono && image.channels() == 3) cv::cvtColor(image, image, cv::COLOR_BGR2GRAY);
     return image;
   };
   FarResult out;
