@@ -325,49 +325,72 @@ TEST(ImageDetectorFarSim, AMonoCameraRarelyTakesAnotherObjectForTheBoard) {
 // covariance, too few views to cross-validate), then failed with its reason; since session 7's
 // segment detector (one wrong image board fewer, 4 views) it is doubtful, 0.79 deg / 80 mm off
 // with a 1 sigma of 0.26 deg / 38 mm: within the bound below, near it in rotation.
-TEST(ImageDetectorFarSim, StreetSessionNeverReportsAWrongCalibration) {
+// One street session of `seed` (through a mono camera with `mono`): printed, and when not failed
+// its result checked against the truth within 3 sigma (the issue-10 promise). Returns whether it
+// failed.
+bool streetSessionFailedOrTrue(unsigned seed, bool mono) {
   auto loaded = sim::loadScenario(std::string(BOARD_CALIB_SOURCE_DIR) +
                                   "/config/scenarios/plain_vlp16_outdoor_far.yaml");
-  ASSERT_TRUE(loaded.ok()) << loaded.error();
-  // The defaults: image memory and its offline pre-pass, as calibrate_bag; the other seeds and
-  // the variants without them are in docs/BENCHMARKS.md, session 5 (each run is ~15 s).
-  for (const unsigned seed : {21u, 22u, 24u}) {
-    // Full-size camera (the board is 120-350 px only at 1440x1080), 2 Hz, the VLP-16 without ring
-    // and unorganized, 8 holds, every frame of holds and moves.
-    const sim::Scenario s = test_support::captureScenario(*loaded, 1.0, 2.0, false, 8, seed);
-    auto session = test_support::runSimulatedSession(s, PipelineOptions{});
-    ASSERT_TRUE(session.ok()) << session.error();
-    std::printf(
-        "[far street] seed %u: pre-pass %d frames, static %d rectangles, %d lines; %.1f s\n", seed,
-        session->prepass_frames, session->prepass_static_rectangles, session->prepass_static_lines,
-        session->seconds);
-    std::printf("[far street] seed %u: images %d: true board %d, wrong %d, none %d\n", seed,
-                session->images, session->images_true, session->images_wrong,
-                session->images - session->images_true - session->images_wrong);
-    std::printf("[far street] %zu views; capture: %s\n", session->views.size(),
-                session->capture_summary.c_str());
-    const PairCalibration run =
-        calibratePair(session->views, {Method::kPbpc}, s.scene.target, "camera", "lidar");
-    std::printf("[far street] verdict %s: %s\n", verdictName(run.verdict), run.reason.c_str());
-    if (seed == 21) {
-      EXPECT_FALSE(run.failed());
-    }
-    if (run.failed()) {
-      EXPECT_FALSE(run.reason.empty());  // a failure says why
-      continue;
-    }
-    const Eigen::Isometry3d& T = run.chosenRun()->solution.camera_T_lidar;
-    const ResultFile& truth = session->truth;
-    const PoseStddev& sd = run.chosenRun()->verdict.stddev;
-    const double rot = rotationErrorDeg(T, truth.camera_T_lidar);
-    const double trans = translationErrorM(T, truth.camera_T_lidar);
-    std::printf("[far street] error %.3f deg %.1f mm, 1 sigma %.3f deg %.1f mm\n", rot, trans * 1e3,
-                sd.rotation_deg.norm(), sd.translation_m.norm() * 1e3);
-    // Not failed: the truth within 3 sigma of the reported result (plus 0.05 deg / 5 mm for the
-    // simulator's own rendering and scan bias).
-    EXPECT_LE(rot, 3.0 * sd.rotation_deg.norm() + 0.05);
-    EXPECT_LE(trans, 3.0 * sd.translation_m.norm() + 0.005);
+  EXPECT_TRUE(loaded.ok()) << loaded.error();
+  if (!loaded.ok()) return false;
+  // Full-size camera (the board is 120-350 px only at 1440x1080), 2 Hz, the VLP-16 without ring
+  // and unorganized, 8 holds, every frame of holds and moves; the defaults: image memory and its
+  // offline pre-pass, as calibrate_bag (each run is ~8-15 s).
+  sim::Scenario s = test_support::captureScenario(*loaded, 1.0, 2.0, false, 8, seed);
+  s.cameras.front().render.mono = mono;
+  auto session = test_support::runSimulatedSession(s, PipelineOptions{});
+  EXPECT_TRUE(session.ok()) << session.error();
+  if (!session.ok()) return false;
+  const char* camera = mono ? "mono" : "colour";
+  std::printf(
+      "[far street] %s seed %u: pre-pass %d frames, static %d rectangles, %d lines; %.1f s\n",
+      camera, seed, session->prepass_frames, session->prepass_static_rectangles,
+      session->prepass_static_lines, session->seconds);
+  std::printf("[far street] %s seed %u: images %d: true board %d, wrong %d, none %d\n", camera,
+              seed, session->images, session->images_true, session->images_wrong,
+              session->images - session->images_true - session->images_wrong);
+  std::printf("[far street] %zu views; capture: %s\n", session->views.size(),
+              session->capture_summary.c_str());
+  const PairCalibration run =
+      calibratePair(session->views, {Method::kPbpc}, s.scene.target, "camera", "lidar");
+  std::printf("[far street] verdict %s: %s\n", verdictName(run.verdict), run.reason.c_str());
+  if (run.failed()) {
+    EXPECT_FALSE(run.reason.empty());  // a failure says why
+    return true;
   }
+  const Eigen::Isometry3d& T = run.chosenRun()->solution.camera_T_lidar;
+  const ResultFile& truth = session->truth;
+  const PoseStddev& sd = run.chosenRun()->verdict.stddev;
+  const double rot = rotationErrorDeg(T, truth.camera_T_lidar);
+  const double trans = translationErrorM(T, truth.camera_T_lidar);
+  std::printf("[far street] error %.3f deg %.1f mm, 1 sigma %.3f deg %.1f mm\n", rot, trans * 1e3,
+              sd.rotation_deg.norm(), sd.translation_m.norm() * 1e3);
+  // Not failed: the truth within 3 sigma of the reported result (plus 0.05 deg / 5 mm for the
+  // simulator's own rendering and scan bias).
+  EXPECT_LE(rot, 3.0 * sd.rotation_deg.norm() + 0.05) << camera << " seed " << seed;
+  EXPECT_LE(trans, 3.0 * sd.translation_m.norm() + 0.005) << camera << " seed " << seed;
+  return false;
+}
+
+TEST(ImageDetectorFarSim, StreetSessionNeverReportsAWrongCalibration) {
+  // BOARD_CALIB_FAR_MONO set: through a mono camera (a development aid; seed 21's "calibrates"
+  // is then not asserted).
+  const bool mono = std::getenv("BOARD_CALIB_FAR_MONO") != nullptr;
+  for (const unsigned seed : {21u, 22u, 24u}) {
+    const bool failed = streetSessionFailedOrTrue(seed, mono);
+    if (seed == 21 && !mono) {
+      EXPECT_FALSE(failed);
+    }
+  }
+}
+
+// The same sessions through a mono camera (docs/BENCHMARKS.md, "Session 22"): the board's sides
+// against the facade of its grey vanish, so few images hold it (measured 7, 4 and 8 of 38, with
+// 1, 1 and 0 other objects taken); every session must fail with its reason or agree with the
+// truth. Measured: all three fail ("2 usable views", "only 1 usable view", "no three views
+// agree on one rigid motion").
+TEST(ImageDetectorFarSim, MonoStreetSessionNeverReportsAWrongCalibration) {
+  for (const unsigned seed : {21u, 22u, 24u}) streetSessionFailedOrTrue(seed, true);
 }
 
 }  // namespace board_calib

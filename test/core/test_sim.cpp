@@ -141,6 +141,45 @@ TEST(SimCamera, BoardCornersLandOnProjectedTruth) {
   RecordProperty("worst_board_corner_error_px", std::to_string(worst));
 }
 
+// A mono camera (render.mono) gives one 8-bit channel: the colour render's luminance, the board
+// where it was, and its noise on that channel.
+TEST(SimCamera, MonoCameraGivesTheLuminanceInOneChannel) {
+  const Target target = loadConfigTarget("plain_1016.yaml");
+  const SceneSpec scene = boardOnly(target);
+  const CameraModel camera = makeCamera(640, 480, 500, DistortionModel::kNone, {});
+  const Eigen::Isometry3d world_T_camera = cameraLookingAlongX(Eigen::Vector3d::Zero());
+  const Eigen::Isometry3d world_T_board = boardPose(target, {3.0, 0.0, 0.0}, 45, 10, 0);
+  RenderOptions options;
+  options.noise_sigma = 0.0;
+  std::mt19937 rng(3);
+  const cv::Mat colour =
+      renderCameraImage(camera, world_T_camera, scene, world_T_board, options, rng);
+  options.mono = true;
+  const cv::Mat mono =
+      renderCameraImage(camera, world_T_camera, scene, world_T_board, options, rng);
+  ASSERT_EQ(colour.type(), CV_8UC3);
+  ASSERT_EQ(mono.type(), CV_8UC1);
+  cv::Mat grey, diff;
+  cv::cvtColor(colour, grey, cv::COLOR_BGR2GRAY);
+  cv::absdiff(grey, mono, diff);
+  double worst = 0;
+  cv::minMaxLoc(diff, nullptr, &worst);
+  EXPECT_LE(worst, 1.0);  // one rounding step apart
+  // Noise on the one channel: sigma 4 measured on the difference of two renders (sigma * sqrt 2),
+  // where 8 bits do not clip it.
+  options.noise_sigma = 4.0;
+  cv::Mat a, b, unclipped;
+  cv::inRange(mono, 30, 225, unclipped);
+  ASSERT_GT(cv::countNonZero(unclipped), 1000);
+  renderCameraImage(camera, world_T_camera, scene, world_T_board, options, rng)
+      .convertTo(a, CV_32F);
+  renderCameraImage(camera, world_T_camera, scene, world_T_board, options, rng)
+      .convertTo(b, CV_32F);
+  cv::Scalar mean, stddev;
+  cv::meanStdDev(a - b, mean, stddev, unclipped);
+  EXPECT_NEAR(stddev[0] / std::sqrt(2.0), 4.0, 0.3);
+}
+
 TEST(SimCamera, OpenCvFindsCheckerboardAtTruth) {
   const Target target = loadConfigTarget("checkerboard_7x5.yaml");
   SceneSpec scene;

@@ -288,6 +288,27 @@ TEST(SimScenario, SeededClutterAndOutdoorFarPoses) {
     for (const auto* s : {&*clutter, &*far}) dumpStillImages(*s, dump);
 }
 
+// render.mono in a scenario file: the camera's frames come as one grey channel.
+TEST(SimScenario, MonoCameraFromTheScenarioFile) {
+  auto s = parseScenario(
+      "target: ../targets/plain_1016.yaml\n"
+      "cameras: [{name: c, width: 320, height: 200, fx: 240, fy: 240, cx: 160, cy: 100,\n"
+      "           render: {supersampling: 1, mono: true}}]\n"
+      "motion: {poses: 1}\n",
+      kScenarioDir);
+  ASSERT_TRUE(s.ok()) << s.error();
+  EXPECT_TRUE(s->cameras[0].render.mono);
+  auto timeline = makeTimeline(*s);
+  ASSERT_TRUE(timeline.ok()) << timeline.error();
+  auto generator = FrameGenerator::create(*s);
+  ASSERT_TRUE(generator.ok());
+  for (size_t i = 0; i < timeline->frames.size(); ++i)
+    if (timeline->frames[i].is_camera) {
+      EXPECT_EQ(generator->image(timeline->frames[i], i).type(), CV_8UC1);
+      break;
+    }
+}
+
 TEST(SimScenario, BadFilesGiveReasonsNamingTheKey) {
   const std::string base = kScenarioDir;
   const std::string good_camera =

@@ -216,23 +216,27 @@ cv::Mat finishCameraImage(const cv::Mat& radiance, const CameraModel& camera,
       std::max({in.cx * in.cx + in.cy * in.cy, (w - in.cx) * (w - in.cx) + in.cy * in.cy,
                 in.cx * in.cx + (h - in.cy) * (h - in.cy),
                 (w - in.cx) * (w - in.cx) + (h - in.cy) * (h - in.cy)});
+  // A mono sensor sees the scene's luminance, with its noise on that one channel.
+  if (options.mono) cv::cvtColor(colour, colour, cv::COLOR_BGR2GRAY);
+  const int channels = colour.channels();
   cv::Mat noise;
   if (options.noise_sigma > 0) {
-    noise.create(h, w, CV_32FC3);
+    noise.create(h, w, CV_32FC(channels));
     cv::RNG cv_rng(static_cast<uint64_t>(rng()) << 32 | rng());
     cv_rng.fill(noise, cv::RNG::NORMAL, 0.0, options.noise_sigma);
   }
-  cv::Mat image(h, w, CV_8UC3);
+  cv::Mat image(h, w, CV_8UC(channels));
   for (int v = 0; v < h; ++v) {
-    const auto* src = colour.ptr<cv::Vec3f>(v);
-    const auto* nrow = noise.empty() ? nullptr : noise.ptr<cv::Vec3f>(v);
-    auto* dst = image.ptr<cv::Vec3b>(v);
+    const float* src = colour.ptr<float>(v);
+    const float* nrow = noise.empty() ? nullptr : noise.ptr<float>(v);
+    uint8_t* dst = image.ptr<uint8_t>(v);
     for (int u = 0; u < w; ++u) {
       const double r2 = ((u - in.cx) * (u - in.cx) + (v - in.cy) * (v - in.cy)) / r_max2;
       const double gain = 255.0 * (1.0 - options.vignetting * r2);
-      for (int c = 0; c < 3; ++c) {
-        const double value = src[u][c] * gain + (nrow ? nrow[u][c] : 0.0f);
-        dst[u][c] = cv::saturate_cast<uint8_t>(value);
+      for (int c = 0; c < channels; ++c) {
+        const int k = u * channels + c;
+        const double value = src[k] * gain + (nrow ? nrow[k] : 0.0f);
+        dst[k] = cv::saturate_cast<uint8_t>(value);
       }
     }
   }

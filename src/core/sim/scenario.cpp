@@ -136,11 +136,13 @@ RenderOptions readRender(const YAML::Node& parent, const std::string& where) {
   const YAML::Node node = parent["render"];
   if (!node) return r;
   const std::string at = where + ".render";
-  rejectUnknownKeys(node, {"supersampling", "noise_sigma", "vignetting", "blur_sigma_px"}, at);
+  rejectUnknownKeys(node, {"supersampling", "noise_sigma", "vignetting", "blur_sigma_px", "mono"},
+                    at);
   readOptional(node, "supersampling", at, "integer", &r.supersampling);
   readOptional(node, "noise_sigma", at, "number", &r.noise_sigma);
   readOptional(node, "vignetting", at, "number", &r.vignetting);
   readOptional(node, "blur_sigma_px", at, "number", &r.blur_sigma_px);
+  readOptional(node, "mono", at, "bool", &r.mono);
   const std::string why = r.validate();
   if (!why.empty()) throw ScenarioError{"'" + at + "': " + why};
   return r;

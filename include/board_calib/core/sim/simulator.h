@@ -98,6 +98,7 @@ struct RenderOptions {
   double noise_sigma = 2.0;    ///< Gaussian pixel noise, grey levels
   double vignetting = 0.15;    ///< relative darkening at the image corners, 0..1
   double blur_sigma_px = 0.0;  ///< optional Gaussian blur, px
+  bool mono = false;           ///< a mono camera: one grey channel (mono8), its noise added to it
   std::string validate() const;
 };
 
