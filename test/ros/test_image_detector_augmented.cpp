@@ -50,18 +50,21 @@ struct EdgeScore {
   double worst = 0;
 };
 
-EdgeScore scoreEdges(const Frame& f, const CameraBoardFeatures& fe, const std::string& case_name) {
+EdgeScore scoreEdges(const Frame& f, const ImageDetection& det, const std::string& case_name) {
+  const CameraBoardFeatures& fe = det.features;
   EdgeScore s;
   for (int j = 0; j < kNumEdges; ++j) {
     double dist = segmentDistancePx(f, j, fe.edge_lines[j]);
-    if (f.lines[j].head<2>().dot(fe.edge_lines[j].head<2>()) < 0.99)
-      dist = std::max(dist, 1e3);  // other orientation
+    const double along = f.lines[j].head<2>().dot(fe.edge_lines[j].head<2>());
+    if (along < 0.99) dist = std::max(dist, 1e3);  // other orientation
     ++s.edges;
     s.within += dist <= 1.0;
     s.worst = std::max(s.worst, dist);
     if (dist > 1.0)
-      std::printf("  edge %-10s %s %s: %.2f px\n", f.name.c_str(), case_name.c_str(), edgeName(j),
-                  dist);
+      std::printf(
+          "  edge %-10s %s %s: %.2f px (normals' cosine %.3f, bow %.1f +- %.1f px over %.0f)\n",
+          f.name.c_str(), case_name.c_str(), edgeName(j), dist, along, det.details.edge_bow_px[j],
+          det.details.edge_bow_sigma_px[j], det.details.edge_span_px[j]);
   }
   return s;
 }
@@ -180,7 +183,7 @@ CaseTally runCase(const std::vector<Frame>& frames, const Case& c, size_t index,
     }
     ++t.found;
     (basler ? t.basler_found : t.rs16_found) += 1;
-    const EdgeScore s = scoreEdges(f, fe, c.name);
+    const EdgeScore s = scoreEdges(f, d, c.name);
     t.all.edges += s.edges;
     t.all.within += s.within;
     t.all.worst = std::max(t.all.worst, s.worst);
@@ -196,7 +199,10 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   if (!std::filesystem::exists(BOARD_CALIB_SHARED_DIR)) GTEST_SKIP() << "../shared absent";
   const std::vector<Frame>& frames = recordedFrames();
   ASSERT_GE(frames.size(), 16u + kRs16WithReference);
-  std::mt19937 rng(14);
+  // Development aid: BOARD_CALIB_AUG_SEED draws other augmentations (the floors below hold for
+  // the default 14 only).
+  const char* seed = std::getenv("BOARD_CALIB_AUG_SEED");
+  std::mt19937 rng(seed ? static_cast<unsigned>(std::atoi(seed)) : 14u);
   CaseTally total;
   std::printf("%-40s %8s %8s %8s %12s %10s %9s %8s %8s\n", "case", "found", "basler", "rs16",
               "edges<=1px", "worst px", "mean ms", "max ms", "cpu ms");
@@ -270,9 +276,36 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   // is deterministic, so a lost frame is a regression. All frames: 209 (211 before session 22:
   // that board and a far wood-grain basler board with a line 8.7 px off, corner misfits 1.0 %
   // and 2.5 % of the side; 201 before session 14).
-  if (!only) {
+  if (!only && !seed) {
     EXPECT_GE(total.rs16_found, 32);
     EXPECT_GE(total.found, 209);
+  }
+}
+
+// Other draws of the same augmentations: no found board is another object or has a side off the
+// board's. Before the edge straightness test, draw 2 took a printed disc for the board (its
+// tangents bowed 13 % of their span) and draw 4 a far board's side running on along a leg of its
+// colour (bowed 8 %), both with sides 1000 px "off" (other orientation); now 215 and 210 of 252
+// found, worst edges 6.2 and 4.5 px.
+TEST(ImageDetectorAugmented, OtherDrawsGiveNoWrongBoard) {
+  if (!std::filesystem::exists(BOARD_CALIB_SHARED_DIR)) GTEST_SKIP() << "../shared absent";
+  const std::vector<Frame>& frames = recordedFrames();
+  ASSERT_GE(frames.size(), 16u + kRs16WithReference);
+  for (const unsigned seed : {2u, 4u}) {
+    std::mt19937 rng(seed);
+    int found = 0, frames_run = 0;
+    double worst = 0;
+    for (size_t k = 0; k < kCases.size(); ++k) {
+      const CaseTally t = runCase(frames, kCases[k], k, rng);
+      found += t.found;
+      frames_run += t.frames;
+      worst = std::max(worst, t.all.worst);
+    }
+    std::printf("draw %u: four edges in %d/%d frames, worst edge %.2f px\n", seed, found,
+                frames_run, worst);
+    // As the default draw's bound: a side of the right board is within a few px, another
+    // object's 100 px or more.
+    EXPECT_LT(worst, 20.0) << "draw " << seed;
   }
 }
 

@@ -50,6 +50,9 @@ int refineSides(const cv::Mat& gray, const CameraModel& camera, const ImageBoard
     f.edge_valid[j] = fit.valid;
     d.edge_points_raw[j] = fit.raw_inliers;
     d.edge_rms_px[j] = fit.rms;
+    d.edge_bow_px[j] = fit.bow;
+    d.edge_bow_sigma_px[j] = fit.bow_sigma;
+    d.edge_span_px[j] = fit.span;
     d.edge_reason[j] = fit.reason;
     if (fit.valid) support->score += fit.coverage * sides[k].length;
     support->min_coverage = k == 0 ? fit.coverage : std::min(support->min_coverage, fit.coverage);
@@ -109,6 +112,9 @@ PoseFit boardPose(const Target& target, const ImageBoardDetectorOptions& o, Imag
     rotate(f.corners_px);
     rotate(d.edge_points_raw);
     rotate(d.edge_rms_px);
+    rotate(d.edge_bow_px);
+    rotate(d.edge_bow_sigma_px);
+    rotate(d.edge_span_px);
     rotate(d.edge_reason);
   }
   return pose;

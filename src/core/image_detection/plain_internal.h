@@ -108,6 +108,8 @@ struct EdgeFit {
   double span = 0;
   double coverage = 0;         ///< inlier samples / sample positions inside the image
   double median_strength = 0;  ///< grey levels per px
+  double bow = 0;              ///< px, sagitta of a parabola through the inliers over their span
+  double bow_sigma = 0;        ///< px, its standard error from the parabola's residuals
   std::string reason;
   bool valid = false;
 };

@@ -123,8 +123,12 @@ struct PlainStageTimes {
 struct ImageDetectionDetails {
   std::array<Points2, kNumEdges> edge_points_raw;  ///< plain: inlier edge samples per edge, raw px
   std::array<double, kNumEdges> edge_rms_px{};     ///< plain: line fit RMS per edge, px
-  std::array<std::string, kNumEdges> edge_reason;  ///< why an edge is invalid (empty when valid)
-  Points2 outline_raw;                             ///< plain: coarse board outline, raw px
+  std::array<double, kNumEdges> edge_bow_px{};     ///< plain: sagitta of a parabola through each
+                                                   ///< edge's samples over their span, px
+  std::array<double, kNumEdges> edge_bow_sigma_px{};  ///< plain: standard error of that sagitta, px
+  std::array<double, kNumEdges> edge_span_px{};       ///< plain: length each edge is seen along, px
+  std::array<std::string, kNumEdges> edge_reason;     ///< why an edge is invalid (empty when valid)
+  Points2 outline_raw;                                ///< plain: coarse board outline, raw px
   std::vector<std::array<Eigen::Vector2d, 4>>
       hypotheses_px;  ///< plain: quadrilaterals tried (undistorted px corners)
   std::vector<std::string>
