@@ -1,6 +1,7 @@
 // A plain board's edge must be straight (issue 14): the sub-pixel edge fit refuses a side whose
 // samples bend beyond a held board's bow and their own noise (a printed disc's tangent, a side
-// that runs on along an occluder at an angle), and keeps straight and gently bowed edges.
+// that runs on along an occluder at an angle, a hand on a far side), and keeps straight and gently
+// bowed edges.
 // Synthetic edges rendered at 4x and area-averaged, with noise.
 #include "../../src/core/image_detection/plain_internal.h"
 
@@ -118,6 +119,21 @@ TEST(PlainEdges, ASideRunningOnAlongAnOccluderIsBent) {
   const EdgeFit fit = fitTop(
       render(
           {regionUnder(x0, x1, y, [&](double s) { return s < 0.6 ? 0.0 : -(s - 0.6) * slope; })}),
+      x0, x1, y, y + 40);
+  EXPECT_FALSE(fit.valid);
+  EXPECT_NE(fit.reason.find("edge bent"), std::string::npos) << fit.reason;
+}
+
+TEST(PlainEdges, AHandOnAFarSideIsNotPartOfIt) {
+  // A hand over the middle fifth of a 90 px side, standing 2.5 px out of it: within the inlier
+  // band, so the line would follow it (on an augmented real frame, a hand so took a far side
+  // 9.6 px off at its end). The noise is measured between neighbouring samples: from the
+  // parabola's residuals, the bump's own misfit made it look like noise and the side passed.
+  cv::setRNGSeed(4);
+  constexpr double x0 = 200, x1 = 290, y = 150.6;
+  const EdgeFit fit = fitTop(
+      render(
+          {regionUnder(x0, x1, y, [](double s) { return std::abs(s - 0.5) < 0.1 ? -2.5 : 0.0; })}),
       x0, x1, y, y + 40);
   EXPECT_FALSE(fit.valid);
   EXPECT_NE(fit.reason.find("edge bent"), std::string::npos) << fit.reason;

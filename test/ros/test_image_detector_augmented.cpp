@@ -267,9 +267,10 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   // Lines within 1 px of the independent reference: measured 696 of 708 basler edges (the rest
   // are shifted lines in the far, occluded and recoloured cases).
   EXPECT_GE(total.basler.within, 0.97 * total.basler.edges);
-  // No found board is another quadrilateral: its worst edge measured 6.15 px off (legs over an
-  // rs16 board), a wrong board's 100 px or more, or named otherwise (1000).
-  EXPECT_LT(total.all.worst, 20.0);
+  // No found board is another quadrilateral or has a bent side: its worst edge measured 6.15 px
+  // off (legs along basler3's side, straight), a wrong board's 100 px or more, or named otherwise
+  // (1000); a side a hand pulled, 9.6 px (another draw, before the straightness test).
+  EXPECT_LT(total.all.worst, 8.0);
   // rs16_plain over every case (the whole table, when no case is selected): measured 32 of 60
   // (33 before session 22's corner fit of 1 % of the side, which refuses a far rs16 board with
   // one line 6.4 px off; 23 before session 14's colour parts; 17 before session 6); the search
@@ -285,13 +286,14 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
 // Other draws of the same augmentations: no found board is another object or has a side off the
 // board's. Before the edge straightness test, draw 2 took a printed disc for the board (its
 // tangents bowed 13 % of their span) and draw 4 a far board's side running on along a leg of its
-// colour (bowed 8 %), both with sides 1000 px "off" (other orientation); now 215 and 210 of 252
-// found, worst edges 6.2 and 4.5 px.
+// colour (bowed 8 %), both with sides 1000 px "off" (other orientation); draw 3 kept a far side
+// a hand pulled 9.6 px off at its end. Now 215, 211 and 210 of 252 found, worst edges 6.2, 3.0
+// and 4.5 px.
 TEST(ImageDetectorAugmented, OtherDrawsGiveNoWrongBoard) {
   if (!std::filesystem::exists(BOARD_CALIB_SHARED_DIR)) GTEST_SKIP() << "../shared absent";
   const std::vector<Frame>& frames = recordedFrames();
   ASSERT_GE(frames.size(), 16u + kRs16WithReference);
-  for (const unsigned seed : {2u, 4u}) {
+  for (const unsigned seed : {2u, 3u, 4u}) {
     std::mt19937 rng(seed);
     int found = 0, frames_run = 0;
     double worst = 0;
@@ -303,9 +305,9 @@ TEST(ImageDetectorAugmented, OtherDrawsGiveNoWrongBoard) {
     }
     std::printf("draw %u: four edges in %d/%d frames, worst edge %.2f px\n", seed, found,
                 frames_run, worst);
-    // As the default draw's bound: a side of the right board is within a few px, another
-    // object's 100 px or more.
-    EXPECT_LT(worst, 20.0) << "draw " << seed;
+    // A side of the right board shifted by a straight occluder along it measured up to 6.15 px
+    // (legs over basler3, the default draw); a bent side or another object's is further.
+    EXPECT_LT(worst, 8.0) << "draw " << seed;
   }
 }
 
