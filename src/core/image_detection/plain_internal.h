@@ -133,7 +133,8 @@ EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseE
 
 /// Fraction of the stretch [gap, gap + length] px past `corner` along `outward` (undistorted px)
 /// where the side's line carries an edge of either polarity: a board side ends at its corners, a
-/// scene line (window frame, floor) usually runs on. `positions`: samples inside the image;
+/// scene line (window frame, floor) usually runs on, on the same line to 2 px. `positions`:
+/// samples inside the image;
 /// `run_on_px`: px of the stretch that carry the edge.
 double edgeContinuation(const cv::Mat& gray, const CameraModel& camera, const Eigen::Vector3d& line,
                         const Eigen::Vector2d& corner, const Eigen::Vector2d& outward,
