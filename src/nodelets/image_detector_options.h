@@ -31,6 +31,7 @@
   X(min_edge_points, min_edge_points)                             \
   X(edge_inlier, edge_inlier_px)                                  \
   X(max_edge_rms, max_edge_rms_px)                                \
+  X(max_edge_bow_fraction, max_edge_bow_fraction)                 \
   X(max_plain_corner_rms, max_plain_corner_rms_px)                \
   X(fast_check_width, fast_check_width_px)                        \
   X(subpix_window, subpix_window_px)                              \

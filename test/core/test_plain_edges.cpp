@@ -63,13 +63,13 @@ std::vector<cv::Point2d> regionUnder(double x0, double x1, double y,
   return outline;
 }
 
-EdgeFit fitTop(const cv::Mat& image, double x0, double x1, double y, double inside_y) {
+EdgeFit fitTop(const cv::Mat& image, double x0, double x1, double y, double inside_y,
+               const ImageBoardDetectorOptions& o = {}) {
   CoarseEdge coarse;
   coarse.a = {x0, y + 1.0};  // a coarse side is a pixel or so off
   coarse.b = {x1, y - 1.0};
   coarse.angle = -M_PI / 2;
   coarse.length = x1 - x0;
-  const ImageBoardDetectorOptions o;
   return refineEdge(image, pinhole(), coarse, {0.5 * (x0 + x1), inside_y}, o, 5.0);
 }
 
@@ -93,6 +93,23 @@ TEST(PlainEdges, StraightAndGentlyBowedEdgesAreBoardEdges) {
       EXPECT_TRUE(fit.valid) << span << ": " << fit.reason;
     }
   }
+}
+
+TEST(PlainEdges, AFloppyBoardPassesWithAHigherBowLimit) {
+  // A 200 px side bowed by 2 % of its length (4 px, still within the edge inlier band and RMS):
+  // bent at the default limit, a board side when the user allows a floppy board's bow
+  // (max_edge_bow_fraction 3 %).
+  cv::setRNGSeed(5);
+  const double x0 = 120, x1 = 320, y = 200.3, sagitta = 0.02 * (x1 - x0);
+  const cv::Mat image =
+      render({regionUnder(x0, x1, y, [&](double s) { return 4 * sagitta * s * (1 - s); })});
+  const EdgeFit strict = fitTop(image, x0, x1, y + 0.5 * sagitta, y + 60);
+  EXPECT_FALSE(strict.valid);
+  EXPECT_NE(strict.reason.find("edge bent"), std::string::npos) << strict.reason;
+  ImageBoardDetectorOptions floppy;
+  floppy.max_edge_bow_fraction = 0.03;
+  const EdgeFit lenient = fitTop(image, x0, x1, y + 0.5 * sagitta, y + 60, floppy);
+  EXPECT_TRUE(lenient.valid) << lenient.reason;
 }
 
 TEST(PlainEdges, APrintedDiscIsNotABoard) {

@@ -68,6 +68,8 @@ std::string ImageBoardDetectorOptions::validate() const {
   if (min_edge_points < 2) return "min_edge_points must be >= 2";
   if (!(edge_inlier_px > 0)) return "edge_inlier_px must be > 0";
   if (!(max_edge_rms_px > 0)) return "max_edge_rms_px must be > 0";
+  if (!(max_edge_bow_fraction > 0 && max_edge_bow_fraction <= 1))
+    return "max_edge_bow_fraction must be in (0, 1]";
   if (fast_check_width_px < 160) return "fast_check_width_px must be >= 160";
   if (subpix_window_px < 2) return "subpix_window_px must be >= 2";
   if (!(tag_decimate >= 1)) return "tag_decimate must be >= 1";

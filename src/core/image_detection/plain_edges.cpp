@@ -30,12 +30,12 @@ constexpr double kPolarityWindowSteps =
     8;  // edge polarity is a majority over +-this many samples ...
 constexpr double kPolarityWindowFraction =
     0.1;  // ... or this fraction of the side, whichever is longer
-// A board's edge is straight; a held board bows a little. Measured on the augmented real frames
-// (6 draws, ~5000 edges of found boards): edges within 1 px of the reference bowed by at most
-// 1.1 % of their span beyond 3 standard errors (0.4 % on near boards), while a printed disc's
-// tangents bowed 11-13 % (raw sagitta over span), a far side running on along a same-colour leg
-// 6-8 % and one a hand pulled 9.6 px off at its end 3 % (2.7 px over 88 px).
-constexpr double kMaxBowFraction = 0.015;
+// A board's edge is straight; a held board bows a little (ImageBoardDetectorOptions::
+// max_edge_bow_fraction, 1.5 %). Measured on the augmented real frames (6 draws, ~5000 edges of
+// found boards): edges within 1 px of the reference bowed by at most 1.1 % of their span beyond
+// 3 standard errors (0.4 % on near boards), while a printed disc's tangents bowed 11-13 % (raw
+// sagitta over span), a far side running on along a same-colour leg 6-8 % and one a hand pulled
+// 9.6 px off at its end 3 % (2.7 px over 88 px).
 constexpr double kBowSigmas = 3.0;
 // px: a scene line running on past a corner continues the side's fitted line this closely (the
 // same straight edge: a window frame, a ceiling grid). A held board's bow does not enter (the
@@ -318,7 +318,7 @@ EdgeFit refineOnce(const cv::Mat& gray, const CameraModel& camera, const CoarseE
                             100 * fit.coverage, 100 * o.min_side_coverage);
   } else if (fit.rms > o.max_edge_rms_px) {
     fit.reason = cv::format("edge not straight (rms %.2f px)", fit.rms);
-  } else if (std::abs(fit.bow) - kBowSigmas * fit.bow_sigma > kMaxBowFraction * fit.span) {
+  } else if (std::abs(fit.bow) - kBowSigmas * fit.bow_sigma > o.max_edge_bow_fraction * fit.span) {
     fit.reason = cv::format("edge bent (%.1f px over %.0f px)", std::abs(fit.bow), fit.span);
   } else {
     fit.valid = true;

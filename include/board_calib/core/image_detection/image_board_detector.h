@@ -58,6 +58,10 @@ struct ImageBoardDetectorOptions {
   double edge_inlier_px = 3.0;   ///< px, edge samples farther than this from the line are outliers
                                  ///< (a held board bows ~3 px)
   double max_edge_rms_px = 1.5;  ///< px, an edge fit worse than this is marked invalid
+  double max_edge_bow_fraction =
+      0.015;  ///< an edge whose samples bow by more than this fraction of their span beyond 3
+              ///< standard errors is bent, not a board side (a printed disc, a side pulled along
+              ///< a leg or a hand); held boards measured <= 1.1 %
   int line_detection_width_px = 640;  ///< px, width of the downscaled image the line segment
                                       ///< detector (LSD) runs on; 0 = no line hypotheses
   int max_line_hypotheses =
