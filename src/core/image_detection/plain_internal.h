@@ -109,7 +109,7 @@ struct EdgeFit {
   double coverage = 0;         ///< inlier samples / sample positions inside the image
   double median_strength = 0;  ///< grey levels per px
   double bow = 0;              ///< px, sagitta of a parabola through the inliers over their span
-  double bow_sigma = 0;        ///< px, its standard error from the parabola's residuals
+  double bow_sigma = 0;        ///< px, its standard error (noise from neighbouring samples)
   std::string reason;
   bool valid = false;
 };
@@ -134,8 +134,7 @@ EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseE
 /// Fraction of the stretch [gap, gap + length] px past `corner` along `outward` (undistorted px)
 /// where the side's line carries an edge of either polarity: a board side ends at its corners, a
 /// scene line (window frame, floor) usually runs on, on the same line to 2 px. `positions`:
-/// samples inside the image;
-/// `run_on_px`: px of the stretch that carry the edge.
+/// samples inside the image; `run_on_px`: px of the stretch that carry the edge.
 double edgeContinuation(const cv::Mat& gray, const CameraModel& camera, const Eigen::Vector3d& line,
                         const Eigen::Vector2d& corner, const Eigen::Vector2d& outward,
                         double gap_px, double length_px, const ImageBoardDetectorOptions& o,
