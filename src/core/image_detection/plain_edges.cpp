@@ -188,19 +188,12 @@ EdgeSamples searchPeaks(const cv::Mat& gray, const CameraModel& camera, const Co
 }
 
 // Sagitta of the parabola r = a + b t + c t^2 through the inliers' residuals r from the line, over
-// their span (t along the line, centred), and its standard error: a straight edge has none beyond
-// noise; an arc (a printed disc's tangent), a kink (a side running on along an occluder) or a
-// bump (a hand) has.
-void bowOfInliers(const Points2& pts, const std::vector<bool>& use, const Eigen::Vector3d& line,
-                  double* bow, double* sigma) {
+// their span (t: their position along the line), and its standard error: a straight edge has none
+// beyond noise; an arc (a printed disc's tangent), a kink (a side running on along an occluder) or
+// a bump (a hand) has.
+void bowOfInliers(const std::vector<double>& t, const std::vector<double>& r, double* bow,
+                  double* sigma) {
   *bow = *sigma = 0;
-  const Eigen::Vector2d n = line.head<2>(), dir(-n.y(), n.x());
-  std::vector<double> t, r;
-  for (size_t i = 0; i < pts.size(); ++i)
-    if (use[i]) {
-      t.push_back(dir.dot(pts[i]));
-      r.push_back(n.dot(pts[i]) + line.z());
-    }
   if (t.size() < 6) return;
   const auto [lo, hi] = std::minmax_element(t.begin(), t.end());
   const double mid = 0.5 * (*lo + *hi), half = 0.5 * (*hi - *lo);
@@ -233,9 +226,10 @@ void bowOfInliers(const Points2& pts, const std::vector<bool>& use, const Eigen:
 }
 
 // Robust line through the peaks (weak peaks out, MAD band never tighter than the configured
-// inlier distance); fills the fit's line, inliers, rms, span and coverage.
+// inlier distance); fills the fit's line, inliers, rms, span and coverage, and with
+// `measure_bow` (the last pass: only its fit is judged) the bow.
 void fitPeaks(const EdgeSamples& s, const Orienter& orient, const ImageBoardDetectorOptions& o,
-              EdgeFit* fit) {
+              bool measure_bow, EdgeFit* fit) {
   const double median_strength = medianOf(s.strength);
   const size_t n = s.pts_u.size();
   std::vector<bool> use(n);
@@ -255,22 +249,24 @@ void fitPeaks(const EdgeSamples& s, const Orienter& orient, const ImageBoardDete
   }
   line = fitLine(s.pts_u, use, orient);
   fit->raw_inliers.clear();
-  double sum_sq = 0, tmin = 1e18, tmax = -1e18;
+  double sum_sq = 0;
+  std::vector<double> along, residual;  // of the inliers
   const Eigen::Vector2d ldir(-line.y(), line.x());
   for (size_t i = 0; i < n; ++i) {
     if (!use[i]) continue;
     const double r = line.head<2>().dot(s.pts_u[i]) + line.z();
     sum_sq += r * r;
     fit->raw_inliers.push_back(s.pts_raw[i]);
-    tmin = std::min(tmin, ldir.dot(s.pts_u[i]));
-    tmax = std::max(tmax, ldir.dot(s.pts_u[i]));
+    along.push_back(ldir.dot(s.pts_u[i]));
+    residual.push_back(r);
   }
   const int count = static_cast<int>(fit->raw_inliers.size());
   fit->rms = count > 0 ? std::sqrt(sum_sq / count) : 0.0;
-  bowOfInliers(s.pts_u, use, line, &fit->bow, &fit->bow_sigma);
   fit->coverage = s.positions > 0 ? static_cast<double>(count) / s.positions : 0.0;
   fit->median_strength = median_strength;
-  fit->span = count > 0 ? tmax - tmin : 0.0;
+  const auto [lo, hi] = std::minmax_element(along.begin(), along.end());
+  fit->span = count > 0 ? *hi - *lo : 0.0;
+  if (measure_bow) bowOfInliers(along, residual, &fit->bow, &fit->bow_sigma);
   fit->line = line;
 }
 
@@ -305,7 +301,7 @@ EdgeFit refineOnce(const cv::Mat& gray, const CameraModel& camera, const CoarseE
       fit.reason = "too few edge pixels (" + std::to_string(s.pts_u.size()) + ")";
       return fit;
     }
-    fitPeaks(s, orient, o, &fit);
+    fitPeaks(s, orient, o, pass == kFinePasses, &fit);
     if (static_cast<int>(fit.raw_inliers.size()) < o.min_edge_points) {
       fit.reason = "too few edge inliers (" + std::to_string(fit.raw_inliers.size()) + ")";
       return fit;
