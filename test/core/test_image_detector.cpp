@@ -303,6 +303,61 @@ TEST(ImageDetectorSim, PlainBoardEdgeAlongBorderIsNotAnEdge) {
   EXPECT_TRUE(d.features.found) << d.features.reason;
 }
 
+// A far board (~100 px, too small for a region proposal) in a scene of many longer lines: its
+// sides rank behind the window frames' edges, so only the quadrilaterals of the lines past
+// max_lines can outline it, and its segment support is far below that of the frames'
+// rectangles. Ranked by the gradient along their sides, it is tried and found with its true
+// lines; no window passes for it. The boards, windows and seeds vary.
+TEST(ImageDetectorSim, AFarBoardBehindManyLongerLinesIsFoundByItsSides) {
+  const CameraModel camera = testCamera();
+  const Target target = configTarget("plain_1016.yaml");
+  auto det = ImageBoardDetector::create(target, ImageBoardDetectorOptions{});
+  ASSERT_TRUE(det.ok()) << det.error();
+  int found = 0;
+  double worst_px = 0;
+  constexpr int kFrames = 12;
+  for (int i = 0; i < kFrames; ++i) {
+    std::mt19937 rng(40 + i);
+    std::uniform_real_distribution<double> unit(-1.0, 1.0), u01(0.0, 1.0);
+    // 12-15 m: 100-125 px across, in the lower left of the image.
+    const double z = 12.0 + 3.0 * u01(rng);
+    const Eigen::Isometry3d truth =
+        cameraTBoard(target, {-0.25 * z + 0.05 * z * unit(rng), 0.12 * z + 0.03 * z * unit(rng), z},
+                     45 + 10 * unit(rng), 25 * unit(rng), 20 * unit(rng));
+    Rendered r = render(camera, target, truth, rng, false);
+    // 30 frames of 4:1 windows, 300-700 px long, in the upper band and the right part, away
+    // from the board: each outline gives up to 8 edges longer than the board's sides, and
+    // rectangles whose lines end at their corners. A square board fits none of them (turned
+    // past max_board_tilt_deg).
+    for (int k = 0; k < 30; ++k) {
+      const double grey = 60 + 160 * u01(rng), len = 300 + 400 * u01(rng);
+      const bool wide = k % 2 == 0;
+      const cv::Point2d size = wide ? cv::Point2d(len, len / 4) : cv::Point2d(len / 4, len);
+      const cv::Point2d at =
+          wide ? cv::Point2d(40 + (1860 - len) * u01(rng), 30 + 200 * u01(rng))
+               : cv::Point2d(1000 + (860 - len / 4) * u01(rng), 30 + (1150 - len) * u01(rng));
+      cv::rectangle(r.image, cv::Rect2d(at, at + size), cv::Scalar::all(grey),
+                    3 + static_cast<int>(3 * u01(rng)), cv::LINE_AA);
+    }
+    const ImageDetection d = det->detect(r.image, camera);
+    writeDebug("sim_plain_far_lines_" + std::to_string(i), r.image, camera, d);
+    double off = 0;
+    for (int j = 0; j < kNumEdges && d.features.found; ++j)
+      off = std::max(off, edgeOffPx(d.features, truth, target, camera, j));
+    std::printf(
+        "far board behind lines %d: %.1f m, %d lines, found %d (%s), worst edge %.2f px %s\n", i, z,
+        d.details.straight_lines, d.features.found, d.details.board_source.c_str(), off,
+        d.features.reason.c_str());
+    found += d.features.found;
+    worst_px = std::max(worst_px, off);
+  }
+  // Measured: 12 of 12, lines within 0.03 px. Before the weak lines' quadrilaterals were ranked
+  // by their sides' gradient (their segment score had to match the best quadrilaterals'), 4 of
+  // 12: the others took a window frame's quadrilateral that fits no board.
+  EXPECT_EQ(found, kFrames);
+  EXPECT_LT(worst_px, 1.0);  // sub-pixel lines on a ~100 px board (issue 14)
+}
+
 // Plain board in the simulator's textured room (grey flat panels, tiles, a person behind the
 // board): the board must be found in most frames where it is largely visible, as in
 // config/scenarios/plain_*.yaml (1.5-6 m, held as a diamond, tilted both ways).

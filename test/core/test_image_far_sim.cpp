@@ -166,7 +166,7 @@ FarResult runScenario(unsigned seed, int poses, bool street,
                 seed, f.pose, camera_T_board.translation().norm(), hi.x() - lo.x(), hi.y() - lo.y(),
                 d.features.found ? "found" : "miss");
     if (d.features.found)
-      std::printf(", lines within %.2f px%s\n", err,
+      std::printf(", lines within %.2f px (%s)%s\n", err, d.details.board_source.c_str(),
                   err > kWrongBoardPx
                       ? (" (WRONG board; true side ends from each line, px: " + sides + ")").c_str()
                       : "");

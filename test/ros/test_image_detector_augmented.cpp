@@ -15,6 +15,7 @@
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -69,6 +70,49 @@ EdgeScore scoreEdges(const Frame& f, const ImageDetection& det, const std::strin
   return s;
 }
 
+// Per reference side: the share of its visible length whose grey-level step across the line
+// (largest 1 px difference within 2 px of it) reaches the detector's weakest edge gradient (its
+// minEdgeGradient at the defaults), and that step's median: a side without it cannot be found by
+// its edge, a miss with it is the detector's.
+void printSideSteps(const Frame& f, const ImageDetection& d) {
+  const CameraModel camera = f.camera();
+  const ImageBoardDetectorOptions defaults;
+  const double min_gradient = std::max(defaults.min_edge_contrast,
+                                       defaults.edge_snr * std::sqrt(2.0) * d.details.noise_sigma);
+  cv::Mat grey;
+  if (f.image.channels() == 3)
+    cv::cvtColor(f.image, grey, cv::COLOR_BGR2GRAY);
+  else
+    grey = f.image.clone();
+  grey.convertTo(grey, CV_32F);
+  auto at = [&](const Eigen::Vector2d& u) {
+    const Eigen::Vector2d r = camera.distortPixel(u);
+    cv::Mat patch;
+    cv::getRectSubPix(grey, cv::Size(1, 1), cv::Point2f(float(r.x()), float(r.y())), patch);
+    return patch.at<float>(0, 0);
+  };
+  std::string steps;
+  for (int j = 0; j < kNumEdges; ++j) {
+    const Eigen::Vector2d a = f.segments[j][0], b = f.segments[j][1];
+    const Eigen::Vector2d n = f.lines[j].head<2>();
+    const int samples = std::max(2, static_cast<int>((b - a).norm()));
+    std::vector<double> step;
+    int strong = 0;
+    for (int k = 0; k < samples; ++k) {
+      const Eigen::Vector2d p = a + (b - a) * (k + 0.5) / samples;
+      double best = 0;
+      for (double o = -2.0; o <= 2.0; o += 0.5)
+        best = std::max(best, double(std::abs(at(p + (o + 0.5) * n) - at(p + (o - 0.5) * n))));
+      step.push_back(best);
+      strong += best >= min_gradient;
+    }
+    std::nth_element(step.begin(), step.begin() + step.size() / 2, step.end());
+    steps += cv::format(" %s %.0f%% (%.1f)", edgeName(j), 100.0 * strong / samples,
+                        step[step.size() / 2]);
+  }
+  std::printf("    step >= %.1f along:%s\n", min_gradient, steps.c_str());
+}
+
 // Development aid (BOARD_CALIB_AUG_DIAG set): for a miss, per reference side the merged lines
 // along it (rank among the kept lines, length) and the segments on it; every hypothesis
 // tried whose corners lie within `kNearPx` of the reference corners and why it was rejected, or
@@ -119,6 +163,7 @@ void printNearHypotheses(const Frame& f, const ImageDetection& d) {
     std::printf("    side %s %.0f px: %d segments %.0f px; lines%s\n", edgeName(j), side, count, on,
                 ranks.empty() ? " none" : ranks.c_str());
   }
+  printSideSteps(f, d);
   std::printf("    %zu tried, %d lines, %d quads; nearest %.0f px%s%s\n", tried.size(),
               d.details.straight_lines, d.details.line_quads, nearest,
               nearest_k < tried.size() ? ": " : "",
@@ -271,16 +316,19 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   // off (legs along basler3's side, straight), a wrong board's 100 px or more, or named otherwise
   // (1000); a side a hand pulled, 9.6 px (another draw, before the straightness test).
   EXPECT_LT(total.all.worst, 8.0);
-  // rs16_plain over every case (the whole table, when no case is selected): measured 35 of 60
-  // (32 before session 23's run-on test on the side's own line to 2 px, not the 3 px inlier band;
+  // rs16_plain over every case (the whole table, when no case is selected): measured 37 of 60
+  // (35 before session 24's gradient ranking of the weak lines' quadrilaterals, whose segments
+  // cover little of a faint or far board's sides; 32 before session 23's run-on test on the
+  // side's own line to 2 px, not the 3 px inlier band;
   // 33 before session 22's corner fit of 1 % of the side, which refuses a far rs16 board with
   // one line 6.4 px off; 23 before session 14's colour parts; 17 before session 6); the search
-  // is deterministic, so a lost frame is a regression. All frames: 212 (209 before session 23;
+  // is deterministic, so a lost frame is a regression. All frames: 214 (212 before session 24,
+  // 209 before session 23;
   // 211 before session 22: that board and a far wood-grain basler board with a line 8.7 px off,
   // corner misfits 1.0 % and 2.5 % of the side; 201 before session 14).
   if (!only && !seed) {
-    EXPECT_GE(total.rs16_found, 35);
-    EXPECT_GE(total.found, 212);
+    EXPECT_GE(total.rs16_found, 37);
+    EXPECT_GE(total.found, 214);
   }
 }
 
@@ -288,7 +336,7 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
 // board's. Before the edge straightness test, draw 2 took a printed disc for the board (its
 // tangents bowed 13 % of their span) and draw 4 a far board's side running on along a leg of its
 // colour (bowed 8 %), both with sides 1000 px "off" (other orientation); draw 3 kept a far side
-// a hand pulled 9.6 px off at its end. Now 215, 212 and 211 of 252 found, worst edges 6.2, 3.0
+// a hand pulled 9.6 px off at its end. Now 215, 213 and 214 of 252 found, worst edges 6.2, 3.0
 // and 4.5 px.
 TEST(ImageDetectorAugmented, OtherDrawsGiveNoWrongBoard) {
   if (!std::filesystem::exists(BOARD_CALIB_SHARED_DIR)) GTEST_SKIP() << "../shared absent";

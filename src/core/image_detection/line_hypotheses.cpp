@@ -43,6 +43,9 @@ constexpr int kMinCornerEnds = 3;
 // Three-sided chains whose fourth side is traced (each costs a 1-D gradient search and up to two
 // hypothesis fits: bounds the time when nothing else was the board).
 constexpr int kMaxThreeSides = 4;
+// Quadrilaterals of the lines past the first ones handed on to be ranked by their sides' gradient
+// (a look along each side: bounds that ranking to ~1 ms on the rs16 office frames).
+constexpr size_t kMaxWeakCandidates = 48;
 
 }  // namespace
 
@@ -244,16 +247,17 @@ bool scoreSide(const MergedLine& l, const Eigen::Vector2d& p, const Eigen::Vecto
 }
 
 // The quadrilateral of corners c (corner c[s] ends side s and starts side s+1) from its scored
-// sides; false when their segment support does not outweigh gaps and overshoots.
+// sides; false when their segment support does not outweigh gaps and overshoots (unless
+// `any_score`: the weak lines' quadrilaterals are judged by their gradient instead).
 bool scoreQuad(const std::array<QuadSide, 4>& sides, const std::array<Eigen::Vector2d, 4>& c,
-               QuadHypothesis* q) {
+               bool any_score, QuadHypothesis* q) {
   double score = 0, size = 0;
   for (int s = 0; s < 4; ++s) {
     score += sides[s].score;
     size += sides[s].length;
     q->support[s] = sides[s].support;
   }
-  if (score <= 0) return false;
+  if (score <= 0 && !any_score) return false;
   q->corners = c;
   q->score = score;
   q->size_px = size / 4;
@@ -266,6 +270,9 @@ struct QuadSearch {
   int first_new = 0;           // at least one side from the lines from here on
   int min_corner_ends = 0;     // line ends at the corners (of 8)
   bool per_perimeter = false;  // ranked by support per px of perimeter
+  // Kept whatever their segment score (gaps may outweigh the support): the plain detector
+  // measures their sides' gradient instead.
+  bool any_score = false;
   const std::vector<char>* is_static = nullptr;  // lines on the static scene (or none)
   const ExpectedBoard* expected = nullptr;
 };
@@ -325,7 +332,7 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
           // corners, less gap and overshoot); scoreQuad adds the sides in this order, and
           // rounding is monotone, so the bound holds in floating point too.
           const double score_ij = sides[0].score + sides[1].score;
-          if (score_ij + lines[k].support + lines[m].support <= 0) continue;
+          if (!search.any_score && score_ij + lines[k].support + lines[m].support <= 0) continue;
           const std::array<int, 4> idx = {i, j, k, m};
           std::array<Eigen::Vector2d, 4> c;
           for (int s = 0; s < 4; ++s) c[s] = g.at(idx[s], idx[(s + 1) % 4]);
@@ -333,11 +340,11 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
           const int ends = search.min_corner_ends > 0 ? endsAtCorners(set, idx, c) : 0;
           if (ends < search.min_corner_ends) continue;
           if (!scoreSide(lines[k], c[1], c[2], ubox, o, &sides[2]) ||
-              score_ij + sides[2].score + lines[m].support <= 0 ||
+              (!search.any_score && score_ij + sides[2].score + lines[m].support <= 0) ||
               !scoreSide(lines[m], c[2], c[3], ubox, o, &sides[3]))
             continue;
           QuadHypothesis q;
-          if (!scoreQuad(sides, c, &q)) continue;
+          if (!scoreQuad(sides, c, search.any_score, &q)) continue;
           q.corner_ends = ends;
           if (search.expected &&
               expectedOffset(c, *search.expected) > search.expected->tolerance_px)
@@ -361,12 +368,14 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
 }
 
 // Visible support: the fraction of each side inside the image that carries segments; a board
-// shows its edges along most of every visible side. Keeps the best distinct quadrilaterals.
+// shows its edges along most of every visible side (at least `support_share` x
+// min_side_coverage). Keeps the first `limit` distinct quadrilaterals whose four sides show.
 std::vector<QuadHypothesis> keepBest(std::vector<QuadHypothesis>* quads, const CameraModel& camera,
-                                     const ImageBoardDetectorOptions& o) {
+                                     const ImageBoardDetectorOptions& o, size_t limit,
+                                     double support_share) {
   std::vector<QuadHypothesis> kept;
   for (QuadHypothesis& q : *quads) {
-    if (static_cast<int>(kept.size()) >= o.max_line_hypotheses) break;
+    if (kept.size() >= limit) break;
     bool duplicate = false;
     for (const auto& k : kept) {
       double worst = 0;
@@ -388,7 +397,7 @@ std::vector<QuadHypothesis> keepBest(std::vector<QuadHypothesis>* quads, const C
         continue;  // a side fully outside the image: judged by the others
       }
       q.visible[s] = (b - a).norm();
-      ok = q.support[s] >= o.min_side_coverage * q.visible[s] * kLineCoverageShare;
+      ok = q.support[s] >= o.min_side_coverage * q.visible[s] * support_share;
     }
     int visible_sides = 0;
     for (int s = 0; s < 4; ++s) visible_sides += q.visible[s] > 0;
@@ -508,27 +517,37 @@ LineQuads lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
   std::vector<QuadHypothesis> quads =
       enumerateQuads(set, cornerGraph(set, best.lines, camera, o, false), camera, o, best);
   if (evidence) evidence->quads = static_cast<int>(quads.size());
-  out.best = keepBest(&quads, camera, o);
+  out.best = keepBest(&quads, camera, o, static_cast<size_t>(std::max(0, o.max_line_hypotheses)),
+                      kLineCoverageShare);
   // The board's sides may rank far below a line-rich scene's (an office ceiling and floor): the
-  // lines past the first ones give quadrilaterals only where the lines end at the corners, as
-  // a board's sides do and a scene grid's crossing lines do not.
+  // lines past the first ones give quadrilaterals only where the lines end at the corners, as a
+  // board's sides do and a scene grid's crossing lines do not.
   if (all > best.lines) {
     QuadSearch ends;
     ends.lines = all;
     ends.first_new = best.lines;
     ends.min_corner_ends = kMinCornerEnds;
+    ends.any_score = true;
     ends.expected = expected;
     std::vector<QuadHypothesis> more = enumerateQuads(set, ends_graph, camera, o, ends);
     // The line cap hid them, not their support: each must carry as much as the quadrilaterals
-    // kept from the best lines (a door of a street facade does not).
+    // kept from the best lines (a door of a street facade does not). The others go to the
+    // plain detector, which judges them by the gradient along their sides.
+    double least = 0;
     if (out.best.size() >= static_cast<size_t>(o.max_line_hypotheses)) {
-      double least = out.best.front().score;
+      least = out.best.front().score;
       for (const auto& q : out.best) least = std::min(least, q.score);
-      more.erase(std::remove_if(more.begin(), more.end(),
-                                [&](const QuadHypothesis& q) { return q.score < least; }),
-                 more.end());
     }
-    out.ending_at_corners = keepBest(&more, camera, o);
+    const auto faint = std::stable_partition(
+        more.begin(), more.end(),
+        [&](const QuadHypothesis& q) { return q.score > 0 && q.score >= least; });
+    std::vector<QuadHypothesis> rest(std::make_move_iterator(faint),
+                                     std::make_move_iterator(more.end()));
+    more.erase(faint, more.end());
+    out.ending_at_corners =
+        keepBest(&more, camera, o, static_cast<size_t>(std::max(0, o.max_line_hypotheses)),
+                 kLineCoverageShare);
+    out.faint = keepBest(&rest, camera, o, kMaxWeakCandidates, kLineCoverageShare);
   }
   return out;
 }

@@ -342,6 +342,17 @@ double edgeContinuation(const cv::Mat& gray, const CameraModel& camera, const Ei
   return s.positions > 0 ? static_cast<double>(on_line) / s.positions : 0.0;
 }
 
+double edgeCoverage(const cv::Mat& gray, const CameraModel& camera, const Eigen::Vector2d& a,
+                    const Eigen::Vector2d& b, const Eigen::Vector2d& inside,
+                    const ImageBoardDetectorOptions& o, double min_gradient) {
+  CoarseEdge side;
+  side.a_corner = side.b_corner = true;
+  const Eigen::Vector3d line = lineThrough(a, b, inside);
+  const EdgeSamples s = searchPeaks(gray, camera, side, a, b, line.head<2>(), o.fine_search_px,
+                                    nullptr, o, min_gradient);
+  return s.positions > 0 ? static_cast<double>(s.pts_u.size()) / s.positions : 0.0;
+}
+
 EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse,
                    const Eigen::Vector2d& inside_u, const ImageBoardDetectorOptions& o,
                    double min_gradient, RefinedSides* refined) {

@@ -140,6 +140,13 @@ double edgeContinuation(const cv::Mat& gray, const CameraModel& camera, const Ei
                         double gap_px, double length_px, const ImageBoardDetectorOptions& o,
                         double min_gradient, int* positions, double* run_on_px);
 
+/// Fraction of the side a-b (undistorted px, its corners' neighbourhoods skipped) whose normal
+/// crosses an edge of either polarity within fine_search_px of it: a cheap look at the gradient
+/// along a proposed side before its refinement.
+double edgeCoverage(const cv::Mat& gray, const CameraModel& camera, const Eigen::Vector2d& a,
+                    const Eigen::Vector2d& b, const Eigen::Vector2d& inside,
+                    const ImageBoardDetectorOptions& o, double min_gradient);
+
 /// Counts the corner ends past which a found board's side lines still carry an edge that would
 /// itself count as a seen board edge; false (reason set) for a scene rectangle.
 bool sidesEndAtCorners(const cv::Mat& gray, const CameraModel& camera,
