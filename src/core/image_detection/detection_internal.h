@@ -62,6 +62,9 @@ double facingCosine(const Eigen::Isometry3d& camera_T_board);
 
 /// ImageDetectionDetails::board_source of a board outlined as a uniform region.
 constexpr const char kRegionSource[] = "region";
+/// Source of a board found by the quadrilaterals of the lines past max_lines (no prior of being
+/// the board).
+constexpr const char kWeakLinesSource[] = "weak lines";
 
 /// Names edges by their outward normal angle (atan2(b, a), image v down). `angles` are in
 /// clockwise image order when `cyclic` (then a cyclic shift is chosen); otherwise each edge gets

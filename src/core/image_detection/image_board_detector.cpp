@@ -27,14 +27,15 @@ constexpr double kSteepTurnFacing = 0.7071;  // cos 45 deg
 
 // Whether a board inside `place` could replace the grey board `found` (searchInColour), judged
 // before the costly search: not when the place is the grey board itself (each mostly inside the
-// other), nor when it lies apart from it and its outline, grown by its tolerance, is shorter
-// than the grey board's edge support (a board inside it cannot have more).
+// other) unless the weak lines found it (its colour contrast may fit it better: a rare search),
+// nor when it lies apart from it and its outline, grown by its tolerance, is shorter than the
+// grey board's edge support (a board inside it cannot have more).
 bool canChallenge(const ExpectedBoard& place, const ImageDetection& found) {
   const auto& board = found.features.corners_px;
   const double place_in_board = image_detection::shareInside(place.corners_px, board);
   if (place_in_board >= kHeldInFrontShare &&
       image_detection::shareInside(board, place.corners_px) >= kHeldInFrontShare)
-    return false;
+    return found.details.board_source == image_detection::kWeakLinesSource;
   const double bound =
       kNumEdges * (image_detection::meanSidePx(place.corners_px) + 2.0 * place.tolerance_px);
   return place_in_board > 0.0 || bound > found.details.board_support_px;
@@ -284,10 +285,15 @@ void ImageBoardDetector::Impl::searchInColour(const cv::Mat& image, const cv::Ma
       const bool in_front = image_detection::shareInside(held, outline) >= kHeldInFrontShare &&
                             misfit(colour) < misfit(*out);
       const bool better = colour.details.board_support_px > out->details.board_support_px;
-      if ((!in_front && !better) || image_detection::worstCornerOffset(held, outline) <
-                                        kSameBoardFraction * image_detection::meanSidePx(outline))
-        continue;  // a lesser board elsewhere, or the grey board itself
-      colour.details.board_source += std::string(in_front ? " (held in front of" : " (over") +
+      // The grey board itself: kept unless its colour contrast fits the declared board better
+      // (a side's grey edge pulled by a scene edge of the board's grey).
+      const bool same = image_detection::worstCornerOffset(held, outline) <
+                        kSameBoardFraction * image_detection::meanSidePx(outline);
+      if (same ? !(misfit(colour) < misfit(*out)) : !in_front && !better)
+        continue;  // a lesser board elsewhere, or the grey board fitted as well
+      colour.details.board_source += std::string(same       ? " (refitting"
+                                                 : in_front ? " (held in front of"
+                                                            : " (over") +
                                      " a " + out->details.board_source + " quadrilateral)";
     }
     if (colour.features.found) {

@@ -194,7 +194,7 @@ bool sidesEndAtCorners(const cv::Mat& gray, const CameraModel& camera,
 Hypothesis fromQuad(const QuadHypothesis& q, const CameraModel& camera,
                     const ImageBoardDetectorOptions& o, bool weak) {
   Hypothesis h;
-  h.source = weak ? "weak lines" : "lines";
+  h.source = weak ? kWeakLinesSource : "lines";
   // Lines past the best-supported ones carry no prior of being the board: a scene rectangle of
   // about the board's shape (a glass pane of the office fits a 0.8 x 0.6 m board to 8.4 px of
   // 10) must not pass on the lenient fit a held board's flex needs.
