@@ -159,6 +159,7 @@ CASES = {
     "scripts/build.sh test_image_detector_augmented bench_image_detector": {
         "kind": "run", "expect": r"built in", "timeout": 900},
     "ws/ci/devel/lib/board_calib/test_image_detector_augmented --gtest_filter='*RealFrames'": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/test_image_detector --gtest_filter='*FarBoardBehind*'": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_image_tracker --gtest_filter='ScenePrepass.*'": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_image_far_sim --gtest_filter='*Street*'": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/bench_image_memory --hz 10 --seconds 60": {"kind": "dev"},
