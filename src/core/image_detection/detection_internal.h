@@ -131,9 +131,9 @@ struct LineQuads {
   /// of the further lines (up to options.max_lines_static_scene) with at least one side among
   /// them, where the lines end at the corners: to try when nothing else was the board
   std::vector<QuadHypothesis> ending_at_corners;
-  /// the other quadrilaterals of those lines, whose segments cover less of their sides than the
-  /// best quadrilaterals' (a far or faint board's may): to rank by their sides' gradient (at most
-  /// a few dozen, unranked)
+  /// the other quadrilaterals of those lines, whose segment score (support less the gaps) is below
+  /// the best quadrilaterals' (a far or faint board's may be): to rank by their sides' gradient
+  /// (at most a few dozen, unranked)
   std::vector<QuadHypothesis> faint;
   /// three sides ending at their two corners, the fourth to be traced in the image (best first)
   std::vector<ThreeSides> three_sides;

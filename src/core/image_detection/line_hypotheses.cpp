@@ -529,7 +529,7 @@ LineQuads lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
     ends.min_corner_ends = kMinCornerEnds;
     ends.any_score = true;
     ends.expected = expected;
-    std::vector<QuadHypothesis> more = enumerateQuads(set, ends_graph, camera, o, ends);
+    std::vector<QuadHypothesis> supported = enumerateQuads(set, ends_graph, camera, o, ends);
     // The line cap hid them, not their support: each must carry as much as the quadrilaterals
     // kept from the best lines (a door of a street facade does not). The others go to the
     // plain detector, which judges them by the gradient along their sides.
@@ -538,16 +538,16 @@ LineQuads lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
       least = out.best.front().score;
       for (const auto& q : out.best) least = std::min(least, q.score);
     }
-    const auto faint = std::stable_partition(
-        more.begin(), more.end(),
+    const auto first_faint = std::stable_partition(
+        supported.begin(), supported.end(),
         [&](const QuadHypothesis& q) { return q.score > 0 && q.score >= least; });
-    std::vector<QuadHypothesis> rest(std::make_move_iterator(faint),
-                                     std::make_move_iterator(more.end()));
-    more.erase(faint, more.end());
+    std::vector<QuadHypothesis> faint(std::make_move_iterator(first_faint),
+                                      std::make_move_iterator(supported.end()));
+    supported.erase(first_faint, supported.end());
     out.ending_at_corners =
-        keepBest(&more, camera, o, static_cast<size_t>(std::max(0, o.max_line_hypotheses)),
+        keepBest(&supported, camera, o, static_cast<size_t>(std::max(0, o.max_line_hypotheses)),
                  kLineCoverageShare);
-    out.faint = keepBest(&rest, camera, o, kMaxWeakCandidates, kLineCoverageShare);
+    out.faint = keepBest(&faint, camera, o, kMaxWeakCandidates, kLineCoverageShare);
   }
   return out;
 }
