@@ -353,7 +353,8 @@ TEST(ImageDetectorSim, AFarBoardBehindManyLongerLinesIsFoundByItsSides) {
   }
   // Measured: 12 of 12, lines within 0.03 px. Before the weak lines' quadrilaterals were ranked
   // by their sides' gradient (their segment score had to match the best quadrilaterals'), 4 of
-  // 12: the others took a window frame's quadrilateral that fits no board.
+  // 12: in the others no board was found (the attempt reported: a window frame's quadrilateral,
+  // which fits no board).
   EXPECT_EQ(found, kFrames);
   EXPECT_LT(worst_px, 1.0);  // sub-pixel lines on a ~100 px board (issue 14)
 }
