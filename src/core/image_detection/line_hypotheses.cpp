@@ -368,11 +368,10 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
 }
 
 // Visible support: the fraction of each side inside the image that carries segments; a board
-// shows its edges along most of every visible side (at least `support_share` x
-// min_side_coverage). Keeps the first `limit` distinct quadrilaterals whose four sides show.
+// shows its edges along most of every visible side. Keeps the first `limit` distinct
+// quadrilaterals whose four sides show.
 std::vector<QuadHypothesis> keepBest(std::vector<QuadHypothesis>* quads, const CameraModel& camera,
-                                     const ImageBoardDetectorOptions& o, size_t limit,
-                                     double support_share) {
+                                     const ImageBoardDetectorOptions& o, size_t limit) {
   std::vector<QuadHypothesis> kept;
   for (QuadHypothesis& q : *quads) {
     if (kept.size() >= limit) break;
@@ -397,7 +396,7 @@ std::vector<QuadHypothesis> keepBest(std::vector<QuadHypothesis>* quads, const C
         continue;  // a side fully outside the image: judged by the others
       }
       q.visible[s] = (b - a).norm();
-      ok = q.support[s] >= o.min_side_coverage * q.visible[s] * support_share;
+      ok = q.support[s] >= o.min_side_coverage * q.visible[s] * kLineCoverageShare;
     }
     int visible_sides = 0;
     for (int s = 0; s < 4; ++s) visible_sides += q.visible[s] > 0;
@@ -517,8 +516,8 @@ LineQuads lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
   std::vector<QuadHypothesis> quads =
       enumerateQuads(set, cornerGraph(set, best.lines, camera, o, false), camera, o, best);
   if (evidence) evidence->quads = static_cast<int>(quads.size());
-  out.best = keepBest(&quads, camera, o, static_cast<size_t>(std::max(0, o.max_line_hypotheses)),
-                      kLineCoverageShare);
+  const size_t max_hypotheses = static_cast<size_t>(std::max(0, o.max_line_hypotheses));
+  out.best = keepBest(&quads, camera, o, max_hypotheses);
   // The board's sides may rank far below a line-rich scene's (an office ceiling and floor): the
   // lines past the first ones give quadrilaterals only where the lines end at the corners, as a
   // board's sides do and a scene grid's crossing lines do not.
@@ -544,10 +543,8 @@ LineQuads lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
     std::vector<QuadHypothesis> faint(std::make_move_iterator(first_faint),
                                       std::make_move_iterator(supported.end()));
     supported.erase(first_faint, supported.end());
-    out.ending_at_corners =
-        keepBest(&supported, camera, o, static_cast<size_t>(std::max(0, o.max_line_hypotheses)),
-                 kLineCoverageShare);
-    out.faint = keepBest(&faint, camera, o, kMaxWeakCandidates, kLineCoverageShare);
+    out.ending_at_corners = keepBest(&supported, camera, o, max_hypotheses);
+    out.faint = keepBest(&faint, camera, o, kMaxWeakCandidates);
   }
   return out;
 }
