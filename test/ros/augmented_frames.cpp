@@ -194,18 +194,60 @@ void recolourBoard(Frame* f, const cv::Scalar& bgr) {
   recoloured.copyTo(f->image, mask);
 }
 
-// Board brought to `delta` grey levels from the mean of a ring of background around it.
+// The board inpainted from the background around it, out to `margin_px` past its edges (plus
+// noise); outside that the frame is unchanged.
+void inpaintBoard(Frame* f, int margin_px) {
+  const cv::Mat mask = boardMask(*f, -margin_px);
+  constexpr int kCoarse = 8;
+  cv::Mat small, small_mask, filled, big;
+  cv::resize(f->image, small, f->image.size() / kCoarse, 0, 0, cv::INTER_AREA);
+  cv::resize(mask, small_mask, small.size(), 0, 0, cv::INTER_NEAREST);
+  cv::dilate(small_mask, small_mask, cv::Mat());
+  cv::inpaint(small, small_mask, filled, 5, cv::INPAINT_TELEA);
+  cv::resize(filled, big, f->image.size(), 0, 0, cv::INTER_CUBIC);
+  cv::Mat noise(big.size(), CV_8UC3);
+  // Its own generator: a blanked frame must not depend on what else in the process drew from
+  // OpenCV's global one (figures unchanged: 211/252, 818/844 edges).
+  cv::RNG noise_rng(kBlankNoiseSeed);
+  noise_rng.fill(noise, cv::RNG::NORMAL, cv::Scalar::all(0), cv::Scalar::all(2));
+  cv::Mat noisy;
+  cv::add(big, noise, noisy, cv::noArray(), CV_8UC3);
+  noisy.copyTo(f->image, mask);
+}
+
+// Board brought to `delta` grey levels from the background around it: blended towards the
+// background inpainted behind it, I' = B + w (I - B) with w = delta / (board - background
+// contrast). The edge keeps its own profile (blur, bow, rim) at the new contrast; a shift inside
+// the board's outline would leave the old contrast's blur tail outside it as an outline. The blend
+// fades out over a band past the edge blur, so the background's fine texture has no border.
 void lowContrast(Frame* f, double delta) {
+  constexpr int kFullPx = 4, kFadePx = 12;  // blend weight 1 up to here past the edge, 0 from here
   const cv::Mat mask = boardMask(*f);
   cv::Mat ring = boardMask(*f, -25);
   ring.setTo(0, mask);
   const cv::Scalar in = cv::mean(f->image, mask), around = cv::mean(f->image, ring);
-  cv::Mat img, shifted;
+  const double contrast = (in[0] + in[1] + in[2] - around[0] - around[1] - around[2]) / 3;
+  if (std::abs(contrast) <= std::abs(delta)) return;  // already that faint
+  const double w = delta / contrast;
+  Frame behind = *f;
+  behind.image = f->image.clone();
+  inpaintBoard(&behind, kFadePx);
+  cv::Mat outside, distance;
+  cv::bitwise_not(mask, outside);
+  cv::distanceTransform(outside, distance, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  cv::Mat img, bg;
   f->image.convertTo(img, CV_32FC3);
-  img +=
-      cv::Scalar(around[0] - in[0] + delta, around[1] - in[1] + delta, around[2] - in[2] + delta);
-  img.convertTo(shifted, CV_8UC3);
-  shifted.copyTo(f->image, mask);
+  behind.image.convertTo(bg, CV_32FC3);
+  for (int y = 0; y < img.rows; ++y) {
+    const float* d = distance.ptr<float>(y);
+    cv::Vec3f* p = img.ptr<cv::Vec3f>(y);
+    const cv::Vec3f* b = bg.ptr<cv::Vec3f>(y);
+    for (int x = 0; x < img.cols; ++x) {
+      const double m = std::clamp((kFadePx - d[x]) / double(kFadePx - kFullPx), 0.0, 1.0);
+      if (m > 0) p[x] -= static_cast<float>((1 - w) * m) * (p[x] - b[x]);
+    }
+  }
+  img.convertTo(f->image, CV_8UC3);
 }
 
 // Background contrast scaled and tinted (board untouched).
@@ -369,23 +411,8 @@ void shrink(Frame* f, double s, bool canvas, std::mt19937& rng) {
 
 // The board replaced by the background around it (inpainted on a coarse copy, plus noise).
 void blankBoard(Frame* f, std::mt19937& rng) {
-  const cv::Mat mask = boardMask(*f, -6);
-  constexpr int kCoarse = 8;
-  cv::Mat small, small_mask, filled, big;
-  cv::resize(f->image, small, f->image.size() / kCoarse, 0, 0, cv::INTER_AREA);
-  cv::resize(mask, small_mask, small.size(), 0, 0, cv::INTER_NEAREST);
-  cv::dilate(small_mask, small_mask, cv::Mat());
-  cv::inpaint(small, small_mask, filled, 5, cv::INPAINT_TELEA);
-  cv::resize(filled, big, f->image.size(), 0, 0, cv::INTER_CUBIC);
-  cv::Mat noise(big.size(), CV_8UC3);
-  // Its own generator: a blanked frame must not depend on what else in the process drew from
-  // OpenCV's global one (figures unchanged: 211/252, 818/844 edges).
-  cv::RNG noise_rng(kBlankNoiseSeed);
-  noise_rng.fill(noise, cv::RNG::NORMAL, cv::Scalar::all(0), cv::Scalar::all(2));
-  cv::Mat noisy;
-  cv::add(big, noise, noisy, cv::noArray(), CV_8UC3);
   (void)rng;
-  noisy.copyTo(f->image, mask);
+  inpaintBoard(f, 6);
 }
 
 // The 16 basler_os1_plain frames, then the rs16_plain frames with a reference. Read once per
@@ -441,17 +468,21 @@ double segmentDistancePx(const Frame& f, int ref, const Eigen::Vector3d& line) {
 const std::vector<Case>& augmentedCases() {
   static const std::vector<Case> cases = {
       // Floors: the measured count minus one (the 95 % = 15.2 of 16 is not met by every
-      // case yet: low contrast and the far + low contrast + wood combination fall short).
+      // case yet: low contrast and the far + low contrast + wood combination fall short). Low
+      // contrast: 14 of 16 while its shift left the old contrast's blur tail as an outline; 5
+      // since the blend keeps each edge's own profile: a 12-level step over the basler edges'
+      // blur (sigma ~1.7 px) peaks at ~3 levels per px, below min_edge_contrast. Wood grain: 15
+      // since the rival-line test (a stripe beside a side is as well supported as the edge).
       {"clean", {}, 15},
       {"board colour (cardboard, blue)", {kColour}, 15},
-      {"low contrast (+-12 grey levels)", {kLowContrast}, 13},
+      {"low contrast (+-12 grey levels)", {kLowContrast}, 4},
       {"background tint and contrast", {kBackground}, 15},
       {"printed marks", {kPrint}, 15},
-      {"wood grain", {kWood}, 15},
+      {"wood grain", {kWood}, 14},
       {"far (board 80-250 px)", {kFar}, 14},
       {"legs and hand over the lower corners", {kOcclude}, 15},
       {"colour + print + occluders", {kColour, kPrint, kOcclude}, 15},
-      {"far + low contrast + wood", {kLowContrast, kWood, kFar}, 3},
+      {"far + low contrast + wood", {kLowContrast, kWood, kFar}, 1},
       {"far + colour + occluders", {kColour, kOcclude, kFar}, 14},
       {"far + background + print + occluders", {kBackground, kPrint, kOcclude, kFar}, 14},
   };
