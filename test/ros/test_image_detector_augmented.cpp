@@ -34,6 +34,7 @@ using augmented::Frame;
 using namespace augmented;  // the Op names of the case table
 
 const std::vector<Case>& kCases = augmentedCases();
+constexpr unsigned kDefaultSeed = 14;  // the augmentation draw the floors are measured on
 
 void writeDebug(const std::string& name, const cv::Mat& image, const CameraModel& camera,
                 const ImageDetection& det) {
@@ -247,7 +248,7 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   // Development aid: BOARD_CALIB_AUG_SEED draws other augmentations (the floors below hold for
   // the default 14 only).
   const char* seed = std::getenv("BOARD_CALIB_AUG_SEED");
-  std::mt19937 rng(seed ? static_cast<unsigned>(std::atoi(seed)) : 14u);
+  std::mt19937 rng(seed ? static_cast<unsigned>(std::atoi(seed)) : kDefaultSeed);
   CaseTally total;
   std::printf("%-40s %8s %8s %8s %12s %10s %9s %8s %8s\n", "case", "found", "basler", "rs16",
               "edges<=1px", "worst px", "mean ms", "max ms", "cpu ms");
@@ -309,26 +310,29 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
         "%s stages, mean ms per frame: %s\n", basler ? "basler_os1_plain" : "rs16_plain",
         (basler ? total.basler_stages : total.rs16_stages).scaled(1.0 / cpu.size()).text().c_str());
   }
-  // Lines within 1 px of the independent reference: measured 696 of 708 basler edges (the rest
+  // Lines within 1 px of the independent reference: measured 642 of 648 basler edges (the rest
   // are shifted lines in the far, occluded and recoloured cases).
   EXPECT_GE(total.basler.within, 0.97 * total.basler.edges);
-  // No found board is another quadrilateral or has a bent side: its worst edge measured 6.15 px
-  // off (legs along basler3's side, straight), a wrong board's 100 px or more, or named otherwise
+  // No found board is another quadrilateral or has a bent side: its worst edge measured 2.35 px
+  // (6.15 px, legs along basler3's side, before the rival-line test), a wrong board's 100 px or
+  // more, or named otherwise
   // (1000); a side a hand pulled, 9.6 px (another draw, before the straightness test).
   EXPECT_LT(total.all.worst, 8.0);
-  // rs16_plain over every case (the whole table, when no case is selected): measured 37 of 60
-  // (35 before session 24's gradient ranking of the weak lines' quadrilaterals, whose segments
-  // cover little of a faint or far board's sides; 32 before session 23's run-on test on the
-  // side's own line to 2 px, not the 3 px inlier band;
-  // 33 before session 22's corner fit of 1 % of the side, which refuses a far rs16 board with
-  // one line 6.4 px off; 23 before session 14's colour parts; 17 before session 6); the search
-  // is deterministic, so a lost frame is a regression. All frames: 214 (212 before session 24,
-  // 209 before session 23;
-  // 211 before session 22: that board and a far wood-grain basler board with a line 8.7 px off,
-  // corner misfits 1.0 % and 2.5 % of the side; 201 before session 14).
+  // rs16_plain over every case (the whole table, when no case is selected): measured 35 of 60
+  // (session 25: 36 with the low-contrast blend that keeps each edge's profile, 37 with the old
+  // shift's outline; the rival-line test refused one more far side; 35 before session 24's gradient
+  // ranking of the weak lines' quadrilaterals, whose segments cover little of a faint or far
+  // board's sides; 32 before session 23's run-on test on the side's own line to 2 px, not the 3 px
+  // inlier band; 33 before session 22's corner fit of 1 % of the side, which refuses a far rs16
+  // board with one line 6.4 px off; 23 before session 14's colour parts; 17 before session 6); the
+  // search is deterministic, so a lost frame is a regression. All frames: 197 (session 25: 214 with
+  // the low-contrast shift's outline, 200 without it, 197 with the rival-line test, which removed
+  // the table's two worst edges, 6.15 and 3.4 px; 212 before session 24, 209 before session 23; 211
+  // before session 22: that board and a far wood-grain basler board with a line 8.7 px off, corner
+  // misfits 1.0 % and 2.5 % of the side; 201 before session 14).
   if (!only && !seed) {
-    EXPECT_GE(total.rs16_found, 37);
-    EXPECT_GE(total.found, 214);
+    EXPECT_GE(total.rs16_found, 35);
+    EXPECT_GE(total.found, 197);
   }
 }
 
@@ -336,7 +340,7 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
 // board's. Before the edge straightness test, draw 2 took a printed disc for the board (its
 // tangents bowed 13 % of their span) and draw 4 a far board's side running on along a leg of its
 // colour (bowed 8 %), both with sides 1000 px "off" (other orientation); draw 3 kept a far side
-// a hand pulled 9.6 px off at its end. Now 215, 213 and 214 of 252 found, worst edges 6.2, 3.0
+// a hand pulled 9.6 px off at its end. Now 197, 197 and 196 of 252 found, worst edges 5.2, 3.6
 // and 4.5 px.
 TEST(ImageDetectorAugmented, OtherDrawsGiveNoWrongBoard) {
   if (!std::filesystem::exists(BOARD_CALIB_SHARED_DIR)) GTEST_SKIP() << "../shared absent";
@@ -354,10 +358,36 @@ TEST(ImageDetectorAugmented, OtherDrawsGiveNoWrongBoard) {
     }
     std::printf("draw %u: four edges in %d/%d frames, worst edge %.2f px\n", seed, found,
                 frames_run, worst);
-    // A side of the right board shifted by a straight occluder along it measured up to 6.15 px
-    // (legs over basler3, the default draw); a bent side or another object's is further.
+    // A side of the right board shifted by a straight occluder along it measured up to 5.2 px
+    // (draw 2); a bent side or another object's is further.
     EXPECT_LT(worst, 8.0) << "draw " << seed;
   }
+}
+
+// The far cases alone, each from a fresh draw (its own generator at the default seed: other
+// placements, occluders and textures than in the whole table). Before the first pass's rival-line
+// test, the far case alone kept an rs16 side 10.8 px off at its end: a hand and the board's edge
+// along it, the fit settled between them and stayed within the bow limit. (The other cases from
+// fresh draws are not asserted yet: wood grain alone takes a scene rectangle of the rs16 office
+// for the board, docs/BENCHMARKS.md, session 25.)
+TEST(ImageDetectorAugmented, FarCasesFromAFreshDrawGiveNoWrongBoard) {
+  if (!std::filesystem::exists(BOARD_CALIB_SHARED_DIR)) GTEST_SKIP() << "../shared absent";
+  const std::vector<Frame>& frames = recordedFrames();
+  ASSERT_GE(frames.size(), 16u + kRs16WithReference);
+  int found = 0, frames_run = 0;
+  double worst = 0;
+  for (size_t k = 0; k < kCases.size(); ++k) {
+    const auto& ops = kCases[k].ops;
+    if (std::find(ops.begin(), ops.end(), kFar) == ops.end()) continue;
+    std::mt19937 rng(kDefaultSeed);
+    const CaseTally t = runCase(frames, kCases[k], k, rng);
+    found += t.found;
+    frames_run += t.frames;
+    worst = std::max(worst, t.all.worst);
+  }
+  std::printf("far cases from a fresh draw: four edges in %d/%d frames, worst edge %.2f px\n",
+              found, frames_run, worst);
+  EXPECT_LT(worst, 8.0);
 }
 
 // No wrong board: the blanked frames (board inpainted from its surroundings) give "not found".

@@ -225,6 +225,66 @@ void bowOfInliers(const std::vector<double>& t, const std::vector<double>& r, do
   *sigma = std::sqrt(std::max(0.0, cov(2, 2)));
 }
 
+// The first pass searches as wide as the hypothesis is uncertain. A second straight edge there
+// with as many peaks near it as the fitted line (a hand's or a leg's outline along the side, a
+// rim) makes the side ambiguous: the robust fit may settle between the two and the narrow passes
+// then keep a line through parts of both (a far rs16 side so ran 10.8 px off at its end, bowed
+// within the limit). Returns how far (px, at the ends of the side's peaks) the best line
+// through two peaks lies from the fitted one when it carries at least as many peaks within
+// `band`; 0 otherwise. Peaks are picked deterministically, a dozen from each half of the side.
+double rivalOffset(const EdgeSamples& s, const Eigen::Vector3d& line, double band) {
+  const double median_strength = medianOf(s.strength);
+  std::vector<size_t> idx;  // the peaks the fit may use
+  for (size_t i = 0; i < s.pts_u.size(); ++i)
+    if (s.strength[i] >= kWeakPeakFraction * median_strength) idx.push_back(i);
+  const size_t n = idx.size();
+  constexpr size_t kPicks = 12;
+  if (n < 4) return 0.0;
+  const Eigen::Vector2d normal = line.head<2>(), dir(-line.y(), line.x());
+  int own = 0;
+  double lo = 1e18, hi = -1e18;  // the side's extent
+  for (const size_t i : idx) {
+    own += std::abs(normal.dot(s.pts_u[i]) + line.z()) <= band;
+    lo = std::min(lo, dir.dot(s.pts_u[i]));
+    hi = std::max(hi, dir.dot(s.pts_u[i]));
+  }
+  if (own == 0) return 0.0;
+  int best = -1;
+  double best_sq = 0;
+  Eigen::Vector2d best_point = Eigen::Vector2d::Zero(), best_normal = Eigen::Vector2d::Zero();
+  for (size_t ka = 0; ka < kPicks; ++ka) {
+    const Eigen::Vector2d& p = s.pts_u[idx[ka * (n / 2) / kPicks]];
+    for (size_t kb = 0; kb < kPicks; ++kb) {
+      const Eigen::Vector2d d = s.pts_u[idx[n / 2 + kb * (n - n / 2) / kPicks]] - p;
+      if (d.norm() < 1e-6) continue;
+      const Eigen::Vector2d nn = Eigen::Vector2d(-d.y(), d.x()).normalized();
+      int count = 0;
+      double sq = 0;
+      for (const size_t i : idx) {
+        const double r = nn.dot(s.pts_u[i] - p);
+        if (std::abs(r) > band) continue;
+        ++count;
+        sq += r * r;
+      }
+      if (count > best || (count == best && sq < best_sq)) {
+        best = count;
+        best_sq = sq;
+        best_point = p;
+        best_normal = nn;
+      }
+    }
+  }
+  const double cosine = best_normal.dot(normal);
+  if (best < own || std::abs(cosine) < 1e-6) return 0.0;
+  double offset = 0;
+  for (const double t : {lo, hi}) {
+    // The fitted line's point at t, and the rival's distance from it along the fitted normal.
+    const Eigen::Vector2d q = -line.z() * normal + t * dir;
+    offset = std::max(offset, std::abs(best_normal.dot(q - best_point) / cosine));
+  }
+  return offset;
+}
+
 // Robust line through the peaks (weak peaks out, MAD band never tighter than the configured
 // inlier distance); fills the fit's line, inliers, rms, span and coverage, and with
 // `measure_bow` (the last pass: only its fit is judged) the bow.
@@ -302,6 +362,7 @@ EdgeFit refineOnce(const cv::Mat& gray, const CameraModel& camera, const CoarseE
       return fit;
     }
     fitPeaks(s, orient, o, pass == kFinePasses, &fit);
+    if (pass == 0) fit.rival_offset = rivalOffset(s, fit.line, o.edge_inlier_px);
     if (static_cast<int>(fit.raw_inliers.size()) < o.min_edge_points) {
       fit.reason = "too few edge inliers (" + std::to_string(fit.raw_inliers.size()) + ")";
       return fit;
@@ -316,6 +377,9 @@ EdgeFit refineOnce(const cv::Mat& gray, const CameraModel& camera, const CoarseE
     fit.reason = cv::format("edge not straight (rms %.2f px)", fit.rms);
   } else if (std::abs(fit.bow) - kBowSigmas * fit.bow_sigma > o.max_edge_bow_fraction * fit.span) {
     fit.reason = cv::format("edge bent (%.1f px over %.0f px)", std::abs(fit.bow), fit.span);
+  } else if (fit.rival_offset > o.edge_inlier_px) {
+    fit.reason = cv::format("two edges along the side (another as well supported, %.1f px off)",
+                            fit.rival_offset);
   } else {
     fit.valid = true;
   }
