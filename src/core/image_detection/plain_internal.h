@@ -110,8 +110,8 @@ struct EdgeFit {
   double median_strength = 0;  ///< grey levels per px
   double bow = 0;              ///< px, sagitta of a parabola through the inliers over their span
   double bow_sigma = 0;        ///< px, its standard error (noise from neighbouring samples)
-  /// px: another line through the peaks, as well supported, lies this far from the fitted one
-  /// at an end of its span (0: none)
+  /// px: in the first, widest pass, another line through the peaks as well supported lies this
+  /// far from the fitted one at an end of the side (0: none)
   double rival_offset = 0;
   std::string reason;
   bool valid = false;
