@@ -246,11 +246,12 @@ void bowOfInliers(const std::vector<double>& t, const std::vector<double>& r, do
 // within the limit). Returns how far (px, at the ends of the side's peaks) the best line
 // through two peaks lies from the fitted one when it carries at least as many peaks within
 // `band`; 0 otherwise. Peaks are picked deterministically, a dozen from each half of the side.
-double rivalOffset(const EdgeSamples& s, const Eigen::Vector3d& line, double band) {
-  const double median_strength = medianOf(s.strength);
+// `fit`: fitPeaks' result on these samples (its line, and the median strength it took of them).
+double rivalOffset(const EdgeSamples& s, const EdgeFit& fit, double band) {
+  const Eigen::Vector3d& line = fit.line;
   std::vector<size_t> idx;  // the peaks the fit may use
   for (size_t i = 0; i < s.pts_u.size(); ++i)
-    if (s.strength[i] >= kWeakPeakFraction * median_strength) idx.push_back(i);
+    if (s.strength[i] >= kWeakPeakFraction * fit.median_strength) idx.push_back(i);
   const size_t n = idx.size();
   constexpr size_t kPicks = 12;
   if (n < 4) return 0.0;
@@ -376,7 +377,7 @@ EdgeFit refineOnce(const cv::Mat& gray, const CameraModel& camera, const CoarseE
       return fit;
     }
     fitPeaks(s, orient, o, pass == kFinePasses, &fit);
-    if (pass == 0) fit.rival_offset = rivalOffset(s, fit.line, o.edge_inlier_px);
+    if (pass == 0) fit.rival_offset = rivalOffset(s, fit, o.edge_inlier_px);
     if (static_cast<int>(fit.raw_inliers.size()) < o.min_edge_points) {
       fit.reason = "too few edge inliers (" + std::to_string(fit.raw_inliers.size()) + ")";
       return fit;
