@@ -100,6 +100,10 @@ FarResult runScenario(unsigned seed, int poses, bool street,
   s.motion.poses = poses;
   s.cameras.front().render.supersampling = 2;  // test time; edges still anti-aliased
   s.cameras.front().render.mono = mono || std::getenv("BOARD_CALIB_FAR_MONO");
+  // Development aid: BOARD_CALIB_FAR_NOISE sets the camera's pixel noise (grey levels; real
+  // cameras after compression measure 0.3-0.8, where the faint-line search runs).
+  if (const char* noise = std::getenv("BOARD_CALIB_FAR_NOISE"))
+    s.cameras.front().render.noise_sigma = std::atof(noise);
   if (!street) {
     s.scene.outdoor = false;
     s.scene.room = false;

@@ -139,11 +139,58 @@ TEST(LineSegments, AgreesWithOpenCvLsd) {
               0.05 * theirs.size());
 }
 
+// A faint blurred quadrilateral (8 grey levels over a 0.8 px blur at the line stage's scale: a
+// 12-level board edge of the Basler frames, sigma ~1.7 px at full resolution, downscaled 3x) in
+// the noise of a 0.5-level camera: LSD's raw bound (gradient 5.2) leaves its sides without
+// direction; the faint-line search's bound for that noise finds each on its true line. A camera
+// of noise 2 gets no faint search (its bound would be no lower than a quarter).
+TEST(LineSegments, AFaintSideIsFoundAtTheBoundTheNoiseAllows) {
+  ImageBoardDetectorOptions options;
+  constexpr int kFullWidth = 1920;  // 3x the line stage's 640 px
+  EXPECT_EQ(image_detection::faintLineQuantization(options, kFullWidth, 2.0), 0.0);
+  const double q = image_detection::faintLineQuantization(options, kFullWidth, 0.5);
+  ASSERT_GT(q, 0.0);
+  EXPECT_LT(q, image_detection::kLsdRawQuantization);
+  std::mt19937 rng(11);
+  const std::array<Eigen::Vector2d, 4> corners = {
+      Eigen::Vector2d(300.2, 70.6), {420.7, 180.3}, {310.4, 290.9}, {190.1, 175.2}};
+  cv::Mat image = drawQuad(cv::Size(640, 360), corners, 128, 120, 0.0, &rng);
+  cv::Mat blurred;
+  image.convertTo(blurred, CV_32F);
+  cv::GaussianBlur(blurred, blurred, cv::Size(0, 0), 0.8);
+  std::normal_distribution<float> n(0.f, 0.5f / 3.0f);  // the area average's noise
+  for (auto it = blurred.begin<float>(); it != blurred.end<float>(); ++it) *it += n(rng);
+  blurred.convertTo(image, CV_8U);
+  const auto longestOnSide = [&](const std::vector<cv::Vec4f>& segments, int s) {
+    const Eigen::Vector2d& a = corners[s];
+    const Eigen::Vector2d& b = corners[(s + 1) % 4];
+    double best = 0;
+    for (const auto& seg : segments) {
+      const Eigen::Vector2d p(seg[0], seg[1]), r(seg[2], seg[3]);
+      if (std::max(lineDistance(p, a, b), lineDistance(r, a, b)) <= 0.5)
+        best = std::max(best, segmentLength(seg));
+    }
+    return best / (b - a).norm();
+  };
+  const std::vector<cv::Vec4f> raw = lineSegments(image), faint = lineSegments(image, q);
+  for (int s = 0; s < 4; ++s) {
+    std::printf("side %d: %.0f %% of it at the raw bound, %.0f %% at q %.2f\n", s,
+                100 * longestOnSide(raw, s), 100 * longestOnSide(faint, s), q);
+    EXPECT_LT(longestOnSide(raw, s), 0.5) << "side " << s;
+    EXPECT_GT(longestOnSide(faint, s), 0.8) << "side " << s;
+  }
+}
+
 TEST(LineSegments, DegenerateInputGivesNoSegments) {
   EXPECT_TRUE(lineSegments(cv::Mat()).empty());
   EXPECT_TRUE(lineSegments(cv::Mat(1, 1, CV_8U, cv::Scalar(7))).empty());
   EXPECT_TRUE(lineSegments(cv::Mat(50, 50, CV_8U, cv::Scalar(7))).empty());   // flat
   EXPECT_TRUE(lineSegments(cv::Mat(50, 50, CV_16U, cv::Scalar(7))).empty());  // wrong type
+  cv::Mat step(50, 50, CV_8U, cv::Scalar(0));
+  step.colRange(25, 50).setTo(200);
+  EXPECT_FALSE(lineSegments(step).empty());
+  EXPECT_TRUE(lineSegments(step, 0.0).empty());  // no bound: no direction is trusted
+  EXPECT_TRUE(lineSegments(step, std::nan("")).empty());
 }
 
 }  // namespace

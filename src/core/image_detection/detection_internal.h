@@ -65,6 +65,8 @@ constexpr const char kRegionSource[] = "region";
 /// Source of a board found by the quadrilaterals of the lines past max_lines (no prior of being
 /// the board).
 constexpr const char kWeakLinesSource[] = "weak lines";
+/// Source of a board found by the faint-line search (faintLineQuantization), judged as weak lines.
+constexpr const char kFaintLinesSource[] = "faint lines";
 
 /// Names edges by their outward normal angle (atan2(b, a), image v down). `angles` are in
 /// clockwise image order when `cyclic` (then a cyclic shift is chosen); otherwise each edge gets
@@ -139,12 +141,23 @@ struct LineQuads {
   std::vector<ThreeSides> three_sides;
 };
 
+/// LSD's q for raw 8-bit pixels (its default): the bound of the error on a 2x2 gradient
+/// component, twice what the rounding of integer grey levels makes.
+constexpr double kLsdRawQuantization = 2.0;
+
 /// With `expected`, only quadrilaterals whose corners all lie near the expected ones compete;
-/// quadrilaterals of four `static_lines` (undistorted px) are not proposed.
+/// quadrilaterals of four `static_lines` (undistorted px) are not proposed. `lsd_quantization`:
+/// LSD's q on the downscaled image (faintLineQuantization for a second, fainter search).
 LineQuads lineQuadHypotheses(
     const cv::Mat& gray, const CameraModel& camera, const ImageBoardDetectorOptions& options,
     LineEvidence* evidence, const ExpectedBoard* expected = nullptr,
-    const std::vector<std::array<Eigen::Vector2d, 2>>* static_lines = nullptr);
+    const std::vector<std::array<Eigen::Vector2d, 2>>* static_lines = nullptr,
+    double lsd_quantization = kLsdRawQuantization);
+
+/// LSD's q for the faint-line search of an image of this noise (full-resolution grey levels), or
+/// 0 when it would be no lower than the raw one (a noisy image: no fainter line is meaningful).
+double faintLineQuantization(const ImageBoardDetectorOptions& options, int image_width,
+                             double noise_sigma);
 
 /// The line stage alone (an offline pre-pass of the static scene): every merged straight line a
 /// session may learn from this image, support ends in undistorted px.
@@ -200,10 +213,13 @@ bool visibleSideInterval(const CameraModel& camera, const Eigen::Vector2d& p,
 double estimateNoiseSigma(const cv::Mat& gray);
 
 /// With `expected`, a second chance inside the projected board (ImageBoardDetector::detectNear);
-/// with `excluded`, boards on static scene rectangles are not accepted.
+/// with `excluded`, boards on static scene rectangles are not accepted. `faint_lines`: when
+/// nothing else is the board, a second line search with a lower gradient bound
+/// (faintLineQuantization); for the grey image (a colour contrast image stretches the board's).
 void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                  const ImageBoardDetectorOptions& options, ImageDetection* out,
-                 const ExpectedBoard* expected = nullptr, const StaticScene* excluded = nullptr);
+                 const ExpectedBoard* expected = nullptr, const StaticScene* excluded = nullptr,
+                 bool faint_lines = false);
 /// Weakest edge gradient (grey levels per px) a board edge sample needs in an image of this noise.
 double minEdgeGradient(const ImageBoardDetectorOptions& options, double noise_sigma);
 /// A board found in another channel, its sides tested in the grey image: a coloured tile of a

@@ -27,15 +27,16 @@ constexpr double kSteepTurnFacing = 0.7071;  // cos 45 deg
 
 // Whether a board inside `place` could replace the grey board `found` (searchInColour), judged
 // before the costly search: not when the place is the grey board itself (each mostly inside the
-// other) unless the weak lines found it (its colour contrast may fit it better: a rare search),
-// nor when it lies apart from it and its outline, grown by its tolerance, is shorter than the
-// grey board's edge support (a board inside it cannot have more).
+// other) unless the weak or faint lines found it (its colour contrast may fit it better: a rare
+// search), nor when it lies apart from it and its outline, grown by its tolerance, is shorter than
+// the grey board's edge support (a board inside it cannot have more).
 bool canChallenge(const ExpectedBoard& place, const ImageDetection& found) {
   const auto& board = found.features.corners_px;
   const double place_in_board = image_detection::shareInside(place.corners_px, board);
   if (place_in_board >= kHeldInFrontShare &&
       image_detection::shareInside(board, place.corners_px) >= kHeldInFrontShare)
-    return found.details.board_source == image_detection::kWeakLinesSource;
+    return found.details.board_source == image_detection::kWeakLinesSource ||
+           found.details.board_source == image_detection::kFaintLinesSource;
   const double bound =
       kNumEdges * (image_detection::meanSidePx(place.corners_px) + 2.0 * place.tolerance_px);
   return place_in_board > 0.0 || bound > found.details.board_support_px;
@@ -335,7 +336,7 @@ ImageDetection ImageBoardDetector::run(const cv::Mat& image, const CameraModel& 
       switch (impl_->target.type) {
         case TargetType::kPlain:
           image_detection::detectPlain(gray, camera, impl_->target, impl_->options, &out, expected,
-                                       excluded);
+                                       excluded, true);
           if (image.channels() == 3 && (!f.found || worthChallenging(out)))
             impl_->searchInColour(image, gray, camera, expected, excluded, &out);
           break;

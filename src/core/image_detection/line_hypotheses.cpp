@@ -486,15 +486,16 @@ std::vector<ThreeSides> threeSideChains(const LineSet& set, const CornerGraph& g
 LineQuads lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
                              const ImageBoardDetectorOptions& o, LineEvidence* evidence,
                              const ExpectedBoard* expected,
-                             const std::vector<std::array<Eigen::Vector2d, 2>>* static_lines) {
+                             const std::vector<std::array<Eigen::Vector2d, 2>>* static_lines,
+                             double lsd_quantization) {
   if (o.line_detection_width_px <= 0) return {};
   // Once a session knows the static scene, its quadrilaterals are not tried: the search can
   // afford more lines and a scale-free ranking, so a far board competes with near windows.
   // Every line a session may learn is reported (evidence), the quadrilaterals use the first
   // max_lines until the scene is known.
   const bool scene_known = static_lines && !static_lines->empty();
-  const LineSet set =
-      detectLines(gray, camera, o, evidence, std::max(o.max_lines, o.max_lines_static_scene));
+  const LineSet set = detectLines(
+      gray, camera, o, evidence, std::max(o.max_lines, o.max_lines_static_scene), lsd_quantization);
   const int all = static_cast<int>(set.lines.size());
   for (const MergedLine& l : set.lines)
     if (evidence) evidence->line_ends.push_back(l.ends());

@@ -56,8 +56,10 @@ struct MergedLine {
 };
 
 /// Line segments of an 8-bit grey image (x1, y1, x2, y2; pixel centres at integers): the LSD
-/// algorithm as OpenCV's LSD_REFINE_NONE, faster (line_segment_detector.cpp).
-std::vector<cv::Vec4f> lineSegments(const cv::Mat& gray);
+/// algorithm as OpenCV's LSD_REFINE_NONE, faster (line_segment_detector.cpp). `quantization`:
+/// LSD's q, the bound of the error on a gradient component (grey levels; 2 is LSD's for raw 8-bit
+/// images); gradients below q / sin(22.5 deg) have no direction.
+std::vector<cv::Vec4f> lineSegments(const cv::Mat& gray, double quantization = kLsdRawQuantization);
 
 /// The merged lines of an image, most supported first.
 struct LineSet {
@@ -67,9 +69,10 @@ struct LineSet {
 
 /// LSD on the image downscaled to options.line_detection_width_px, segments merged into lines
 /// with enough support, at most max_lines (evidence: the raw segments and their count).
+/// `quantization`: LSD's q (lineSegments).
 LineSet detectLines(const cv::Mat& gray, const CameraModel& camera,
-                    const ImageBoardDetectorOptions& options, LineEvidence* evidence,
-                    int max_lines);
+                    const ImageBoardDetectorOptions& options, LineEvidence* evidence, int max_lines,
+                    double quantization = kLsdRawQuantization);
 
 }  // namespace image_detection
 }  // namespace board_calib

@@ -15,7 +15,6 @@ namespace image_detection {
 namespace {
 
 constexpr double kAngleToleranceRad = CV_PI * 22.5 / 180.0;  // LSD's tau: region pixels agree
-constexpr double kQuantization = 2.0;        // LSD's q: bound of the grey-level quantization error
 constexpr int kGradientBins = 1024;          // LSD's pseudo-ordering of the seeds by gradient
 constexpr double kNumberOfTestsBase = 11.0;  // LSD: 11 widths per rectangle in its test count
 
@@ -29,7 +28,7 @@ struct LevelLines {
   int defined = 0;
 };
 
-LevelLines levelLines(const cv::Mat& gray) {
+LevelLines levelLines(const cv::Mat& gray, double quantization) {
   LevelLines f;
   f.w = gray.cols;
   f.h = gray.rows;
@@ -39,7 +38,7 @@ LevelLines levelLines(const cv::Mat& gray) {
   f.norm.assign(n, 0.f);
   f.free.assign(n, 0);
   // A gradient below this is the quantization error's: its direction is undefined.
-  const double min_norm = kQuantization / std::sin(kAngleToleranceRad);
+  const double min_norm = quantization / std::sin(kAngleToleranceRad);
   for (int y = 0; y + 1 < f.h; ++y) {
     const uchar* r0 = gray.ptr<uchar>(y);
     const uchar* r1 = gray.ptr<uchar>(y + 1);
@@ -144,10 +143,10 @@ cv::Vec4f regionSegment(const LevelLines& f, const std::vector<int>& region,
 
 }  // namespace
 
-std::vector<cv::Vec4f> lineSegments(const cv::Mat& gray) {
+std::vector<cv::Vec4f> lineSegments(const cv::Mat& gray, double quantization) {
   std::vector<cv::Vec4f> out;
-  if (gray.cols < 2 || gray.rows < 2 || gray.type() != CV_8UC1) return out;
-  LevelLines f = levelLines(gray);
+  if (gray.cols < 2 || gray.rows < 2 || gray.type() != CV_8UC1 || !(quantization > 0)) return out;
+  LevelLines f = levelLines(gray, quantization);
   // LSD's smallest region that can be meaningful: -log10(number of tests) / log10(p), p the
   // chance that a pixel's direction agrees by accident.
   const double log_tests =

@@ -20,6 +20,13 @@ constexpr double kMergeSigmas = 3.0;        // angle tolerance of a merge, in en
 constexpr double kMinMergeAngleRad = 0.02;  // ~1 deg: floor of that tolerance (long segments)
 constexpr double kMaxMergeAngleRad = 0.10;  // ~6 deg: cap (short segments)
 constexpr double kMergeOffsetPx = 3.5;      // full-res px: a held board bows ~3 px
+// The faint-line search's q: the rounding bound of a gradient component, or this many sigmas of
+// its noise if more.
+constexpr double kRoundingQuantization = 1.0;
+constexpr double kFaintNoiseSigmas = 3.0;
+// A bound less than a quarter lower reaches few fainter edges for the cost of a second line
+// search (the simulator's street, noise 1.5 at 1440 px: q 1.97, +11 ms per frame for no board).
+constexpr double kFaintQuantizationShare = 0.75;
 constexpr double kCosRoundingMargin = 1e-9;  // far above the rounding of a cosine near 1
 
 // Segment ends this far from a line still lie on it: a held board's bow, or the ends' noise.
@@ -33,8 +40,8 @@ double lineDetectionScale(const ImageBoardDetectorOptions& o, int image_width) {
 // LSD segments of the downscaled image, in undistorted full-resolution px, longest first.
 // `scale`: full-resolution px per LSD px.
 std::vector<Member> detectSegments(const cv::Mat& gray, const CameraModel& camera,
-                                   const ImageBoardDetectorOptions& o, LineEvidence* evidence,
-                                   double* scale) {
+                                   const ImageBoardDetectorOptions& o, double quantization,
+                                   LineEvidence* evidence, double* scale) {
   *scale = lineDetectionScale(o, gray.cols);
   PlainStageTimes times;
   double start = threadCpuMs();
@@ -52,7 +59,7 @@ std::vector<Member> detectSegments(const cv::Mat& gray, const CameraModel& camer
   start = threadCpuMs();
   // LSD's region growing, no internal rescale (done above, by area averaging, which also lowers
   // the noise).
-  const std::vector<cv::Vec4f> raw_segments = lineSegments(small);
+  const std::vector<cv::Vec4f> raw_segments = lineSegments(small, quantization);
   times.lsd_ms = msSince(start);
   start = threadCpuMs();
 
@@ -166,15 +173,28 @@ void MergedLine::refit() {
 }
 
 LineSet detectLines(const cv::Mat& gray, const CameraModel& camera,
-                    const ImageBoardDetectorOptions& o, LineEvidence* evidence, int max_lines) {
+                    const ImageBoardDetectorOptions& o, LineEvidence* evidence, int max_lines,
+                    double quantization) {
   double scale = 1.0;
-  const std::vector<Member> segments = detectSegments(gray, camera, o, evidence, &scale);
+  const std::vector<Member> segments =
+      detectSegments(gray, camera, o, quantization, evidence, &scale);
   LineSet set;
   set.end_sigma_px = kSegmentEndSigmaPx * scale;
   const double start = threadCpuMs();
   set.lines = mergeSegments(segments, set.end_sigma_px, o, max_lines);
   if (evidence) evidence->times.merge_ms += msSince(start);
   return set;
+}
+
+double faintLineQuantization(const ImageBoardDetectorOptions& o, int image_width,
+                             double noise_sigma) {
+  if (o.line_detection_width_px <= 0 || !(noise_sigma >= 0)) return 0.0;
+  // The area average divides the noise by the scale; a 2x2 gradient component has the pixel
+  // sigma. The rounding of the averaged grey levels bounds the error at 1 (LSD's raw q is twice
+  // that).
+  const double noise = noise_sigma / lineDetectionScale(o, image_width);
+  const double q = std::max(kRoundingQuantization, kFaintNoiseSigmas * noise);
+  return q <= kFaintQuantizationShare * kLsdRawQuantization ? q : 0.0;
 }
 
 double sameLineTolerancePx(const ImageBoardDetectorOptions& o, int image_width) {

@@ -265,7 +265,7 @@ bool sidesEndInGray(const cv::Mat& gray, const CameraModel& camera,
 
 void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                  const ImageBoardDetectorOptions& o, ImageDetection* out,
-                 const ExpectedBoard* expected, const StaticScene* excluded) {
+                 const ExpectedBoard* expected, const StaticScene* excluded, bool faint_lines) {
   PlainStageTimes times;
   // Edge pixels must stand out of this image's own noise (sensor, compression, texture).
   const double noise = timed(&times.noise_ms, [&] { return estimateNoiseSigma(gray); });
@@ -308,7 +308,7 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
   // Openings of the rejected regions (distance transforms: as costly as the segmentation) are
   // made only when no region was the board; they come before the line quadrilaterals.
   size_t regions = first_regions;
-  bool projected_tried = false;
+  bool projected_tried = false, faint_tried = !faint_lines;
   for (size_t i = 0;; ++i) {
     if (i == first_regions && !search.found()) {
       timed(&times.regions_ms, [&] { proposeOpenedRegions(small.size(), o, &seg); });
@@ -347,6 +347,29 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
         addTracedSides(gray, camera, target, o, evidence, expected, min_gradient,
                        &line_quads.three_sides, &hypotheses, &quads);
       });
+    // Then the lines of a second line search with a lower gradient bound, where the image's
+    // noise allows one: LSD's raw bound keeps a faint board's blurred edges (12 grey levels
+    // over a ~1.7 px blur) out of the downscaled image's level lines. Judged as weak lines.
+    if (i == hypotheses.size() && i >= regions && !search.found() && !faint_tried) {
+      faint_tried = true;
+      const double q = faintLineQuantization(o, gray.cols, noise);
+      if (q > 0) {
+        LineEvidence faint_evidence;
+        LineQuads faint = timed(&times.quads_ms, [&] {
+          return lineQuadHypotheses(gray, camera, o, &faint_evidence, expected,
+                                    excluded ? &excluded->lines_px : nullptr, q);
+        });
+        times.quads_ms -= faint_evidence.times.total();
+        times += faint_evidence.times;
+        for (auto* list : {&faint.best, &faint.ending_at_corners})
+          for (auto& q : *list) {
+            Hypothesis h = fromQuad(q, camera, o, true);
+            h.source = kFaintLinesSource;
+            hypotheses.push_back(std::move(h));
+            quads.push_back(std::move(q));
+          }
+      }
+    }
     // Last, a second chance's expected board itself: where the other sensor's board projects,
     // its sides searched as wide as the prior is uncertain (a board no hypothesis of its own
     // outlined: too faint or too small against the scene's longer lines).
