@@ -91,7 +91,7 @@ constexpr double kWrongBoardPx = 3.0;
 // detector's.
 FarResult runScenario(unsigned seed, int poses, bool street,
                       const ImageBoardDetectorOptions& options, bool tracked, bool prepass,
-                      bool mono) {
+                      bool mono, double noise_sigma) {
   auto loaded = sim::loadScenario(std::string(BOARD_CALIB_SOURCE_DIR) +
                                   "/config/scenarios/plain_vlp16_outdoor_far.yaml");
   EXPECT_TRUE(loaded.ok()) << loaded.error();
@@ -102,6 +102,7 @@ FarResult runScenario(unsigned seed, int poses, bool street,
   s.cameras.front().render.mono = mono || std::getenv("BOARD_CALIB_FAR_MONO");
   // Development aid: BOARD_CALIB_FAR_NOISE sets the camera's pixel noise (grey levels; real
   // cameras after compression measure 0.3-0.8, where the faint-line search runs).
+  if (noise_sigma >= 0) s.cameras.front().render.noise_sigma = noise_sigma;
   if (const char* noise = std::getenv("BOARD_CALIB_FAR_NOISE"))
     s.cameras.front().render.noise_sigma = std::atof(noise);
   if (!street) {
@@ -199,12 +200,13 @@ std::vector<unsigned> defaultSeeds() {
   return seeds;
 }
 
+// `noise_sigma`: the camera's pixel noise, grey levels (negative: the scenario's, 1.5).
 FarResult runSeeds(bool street, const ImageBoardDetectorOptions& options = {}, bool tracked = false,
                    bool prepass = false, const std::vector<unsigned>& seeds = defaultSeeds(),
-                   bool mono = false) {
+                   bool mono = false, double noise_sigma = -1.0) {
   FarResult all;
   for (unsigned seed : seeds) {
-    const FarResult r = runScenario(seed, 8, street, options, tracked, prepass, mono);
+    const FarResult r = runScenario(seed, 8, street, options, tracked, prepass, mono, noise_sigma);
     all.poses += r.poses;
     all.found += r.found;
     all.wrong += r.wrong;
@@ -298,6 +300,28 @@ TEST(ImageDetectorFarSim, TheFacadeOrTorsoIsNotTakenForTheBoardInFrontOfIt) {
   EXPECT_EQ(prepass.wrong, 0);
   EXPECT_GE(prepass.found, 15);
   EXPECT_LT(alone.worst_line_px, 1.5);
+}
+
+// The street at the noise real cameras measure (0.5 grey levels, not the simulator's 1.5): seed
+// 45's pose 4 has the cardboard's lower right side against the facade of its grey. With session
+// memory and with the pre-pass, the grey search outlined it by lines alone, that side 7.9 px off
+// at its end while the corners fit the declared board to 0.03 px, and kept it: the foreground
+// places' colour search found no board, and the place that was the grey board itself was not
+// challenged unless weak lines had outlined it. Now a board of lines alone is challenged at its
+// own place, and the frame's colour parts follow the foreground places (docs/BENCHMARKS.md,
+// "Session 26"). Measured with seeds 14 and 45: 16 of 16 found in each run, none wrong.
+TEST(ImageDetectorFarSim, AtARealCamerasNoiseNoSideFollowsTheFacade) {
+  constexpr double kRealNoise = 0.5;
+  const std::vector<unsigned> seeds = {14u, 45u};
+  for (const bool tracked : {false, true})
+    for (const bool prepass : {false, true}) {
+      if (prepass && !tracked) continue;
+      const FarResult r = runSeeds(true, {}, tracked, prepass, seeds, false, kRealNoise);
+      ASSERT_EQ(r.poses, 16);
+      EXPECT_EQ(r.wrong, 0) << "tracked " << tracked << ", pre-pass " << prepass;
+      EXPECT_GE(r.found, 15) << "tracked " << tracked << ", pre-pass " << prepass;
+      EXPECT_LT(r.worst_line_px, 1.0);
+    }
 }
 
 // The same street through the simulator's mono camera (docs/BENCHMARKS.md, "Session 22"): the
