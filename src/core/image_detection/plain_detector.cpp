@@ -362,11 +362,11 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
         times.quads_ms -= faint_evidence.times.total();
         times += faint_evidence.times;
         for (auto* list : {&faint.best, &faint.ending_at_corners})
-          for (auto& q : *list) {
-            Hypothesis h = fromQuad(q, camera, o, true);
+          for (auto& quad : *list) {
+            Hypothesis h = fromQuad(quad, camera, o, true);
             h.source = kFaintLinesSource;
             hypotheses.push_back(std::move(h));
-            quads.push_back(std::move(q));
+            quads.push_back(std::move(quad));
           }
       }
     }
