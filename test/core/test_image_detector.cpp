@@ -1,6 +1,7 @@
 // Image board detector against the simulator's ground truth: plain board (edges, corners),
 // checkerboard and AprilTag grid from 1.5 to 6 m on a distorted 1920x1200 camera, plus the
 // failure reasons.
+#include <board_calib/core/common/statistics.h>
 #include <board_calib/core/image_detection/image_board_detector.h>
 #include <board_calib/core/sim/simulator.h>
 #include <board_calib/core/transform.h>
@@ -443,10 +444,6 @@ TEST(ImageDetectorSim, AFaintBoardInATexturedRoomIsNeverAWrongBoard) {
   const auto luminance = [](const cv::Vec3f& c) {
     return 0.114 * c[0] + 0.587 * c[1] + 0.299 * c[2];
   };
-  const auto median = [](std::vector<double> v) {
-    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-    return v[v.size() / 2];
-  };
   std::mt19937 rng(61);
   std::uniform_real_distribution<double> distance(2.0, 6.0), unit(-1.0, 1.0), u01(0.0, 1.0);
   constexpr int kFrames = 16;
@@ -473,7 +470,8 @@ TEST(ImageDetectorSim, AFaintBoardInATexturedRoomIsNeverAWrongBoard) {
     ASSERT_FALSE(on_board.empty());
     const double contrast = (8.0 + 8.0 * u01(rng)) * (i % 2 ? 1 : -1);  // grey levels
     SceneSpec faint = scene;
-    faint.board_grey = scene.board_grey * (median(behind) + contrast / 255.0) / median(on_board);
+    faint.board_grey =
+        scene.board_grey * (medianOf(behind) + contrast / 255.0) / medianOf(on_board);
     board =
         sim::renderCameraRadiance(camera, world_T_camera, faint, world_T_camera * truth, options);
     options.noise_sigma = 0.3 + 0.5 * u01(rng);
