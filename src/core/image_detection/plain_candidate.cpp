@@ -191,6 +191,23 @@ bool sidesEndAtCorners(const cv::Mat& gray, const CameraModel& camera,
   return false;
 }
 
+double leastSpanShare(const CameraModel& camera, const ImageBoardDetectorOptions& o,
+                      const ImageDetection& d) {
+  const CameraBoardFeatures& f = d.features;
+  double least = 1.0;
+  for (int j = 0; j < kNumEdges; ++j) {
+    const Eigen::Vector2d& p = f.corners_px[(j + 3) % 4];
+    const Eigen::Vector2d& r = f.corners_px[j];
+    Eigen::Vector2d a, b;
+    if (!visibleSideInterval(camera, p, r, o.border_margin_px, &a, &b)) continue;
+    const double visible = (b - a).norm(), exclusion = cornerExclusionPx(o, visible);
+    const double sampled = visible - exclusion * (((a - p).norm() < kCornerMatchPx) +
+                                                  ((b - r).norm() < kCornerMatchPx));
+    if (sampled > 0) least = std::min(least, d.details.edge_span_px[j] / sampled);
+  }
+  return least;
+}
+
 Hypothesis fromQuad(const QuadHypothesis& q, const CameraModel& camera,
                     const ImageBoardDetectorOptions& o, bool weak) {
   Hypothesis h;

@@ -31,7 +31,7 @@ constexpr double kDuplicateHypothesisFraction =
 // the attempt that got furthest (most valid edges, then the more edge support) gives the reason.
 struct HypothesisSearch {
   ImageDetection best_found, best_miss;
-  double best_score = -1, best_miss_score = -1, best_min_coverage = 0;
+  double best_score = -1, best_miss_score = -1, best_min_coverage = 0, best_span_share = 0;
   int best_valid = -1;
   std::vector<std::array<Eigen::Vector2d, 4>> tried;
   std::vector<std::string> reasons;
@@ -39,6 +39,14 @@ struct HypothesisSearch {
 
   bool found() const { return best_score > 0; }
   bool cleanBoard() const { return found() && best_min_coverage >= kCleanBoardCoverage; }
+  // A board whose edges span the share of each side between its corners that a side must show
+  // (leastSpanShare): the weaker hypotheses, and those at its own place, need not be tried. A
+  // board seen on part of a side only may have followed something beside it there (a far
+  // board's side pulled onto the hand holding it, 9.2 px off at its end): those may refit it,
+  // and the one with more edge support wins.
+  bool settled(double min_side_coverage) const {
+    return found() && best_span_share >= min_side_coverage;
+  }
 
   // A line quadrilateral on the accepted board adds nothing.
   bool duplicatesBoard(const std::array<Eigen::Vector2d, 4>& corners) const {
@@ -56,7 +64,7 @@ struct HypothesisSearch {
   }
 
   void record(const Hypothesis& h, const std::array<Eigen::Vector2d, 4>& corners, bool is_board,
-              const CandidateSupport& support, ImageDetection&& attempt) {
+              const CandidateSupport& support, double span_share, ImageDetection&& attempt) {
     const CameraBoardFeatures& af = attempt.features;
     tried.push_back(corners);
     reasons.push_back(std::string(h.source) + ": " + (is_board ? "board" : af.reason));
@@ -68,6 +76,7 @@ struct HypothesisSearch {
       if (score > best_score) {
         best_score = score;
         best_min_coverage = support.min_coverage;
+        best_span_share = span_share;
         best_found = std::move(attempt);
         best_found.details.board_source = h.source;
         best_found.details.board_support_px = score;
@@ -326,9 +335,9 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
       quads = line_quads.best;
       for (const auto& q : quads) hypotheses.push_back(fromQuad(q, camera, o));
     }
-    // Quadrilaterals of the weaker lines only when nothing else was the board: those their
+    // Quadrilaterals of the weaker lines only when no board settled the search: those their
     // segments support first, then those their sides' gradient does.
-    if (i == hypotheses.size() && i >= regions && !search.found() &&
+    if (i == hypotheses.size() && i >= regions && !search.settled(o.min_side_coverage) &&
         !(line_quads.ending_at_corners.empty() && line_quads.faint.empty())) {
       timed(&times.quads_ms,
             [&] { rankByEdgeCoverage(gray, camera, o, min_gradient, &line_quads.faint); });
@@ -341,7 +350,7 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
       }
     }
     // Then three lines whose fourth side is traced in the image (faint, or under hands or legs).
-    if (i == hypotheses.size() && i >= regions && !search.found() &&
+    if (i == hypotheses.size() && i >= regions && !search.settled(o.min_side_coverage) &&
         !line_quads.three_sides.empty())
       timed(&times.trace_ms, [&] {
         addTracedSides(gray, camera, target, o, evidence, expected, min_gradient,
@@ -350,7 +359,8 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     // Then the lines of a second line search with a lower gradient bound, where the image's
     // noise allows one: LSD's raw bound keeps a faint board's blurred edges (12 grey levels
     // over a ~1.7 px blur) out of the downscaled image's level lines. Judged as weak lines.
-    if (i == hypotheses.size() && i >= regions && !search.found() && !faint_tried) {
+    if (i == hypotheses.size() && i >= regions && !search.settled(o.min_side_coverage) &&
+        !faint_tried) {
       faint_tried = true;
       const double q = faintLineQuantization(o, gray.cols, noise);
       if (q > 0) {
@@ -373,7 +383,8 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     // Last, a second chance's expected board itself: where the other sensor's board projects,
     // its sides searched as wide as the prior is uncertain (a board no hypothesis of its own
     // outlined: too faint or too small against the scene's longer lines).
-    if (i == hypotheses.size() && i >= regions && !search.found() && expected && !projected_tried) {
+    if (i == hypotheses.size() && i >= regions && !search.settled(o.min_side_coverage) &&
+        expected && !projected_tried) {
       projected_tried = true;
       QuadHypothesis q;
       q.corners = expected->corners_px;
@@ -394,7 +405,9 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     double bound = 0;
     for (const auto& side : hypotheses[i].sides) bound += side.length;
     if (bound <= search.best_score) continue;
-    if (i >= regions && search.duplicatesBoard(quads[i - regions].corners)) continue;
+    if (i >= regions && search.settled(o.min_side_coverage) &&
+        search.duplicatesBoard(quads[i - regions].corners))
+      continue;
     if (expected && i < regions && !nearExpected(hypotheses[i].inside_u, *expected)) continue;
     ImageDetection attempt = fresh;
     CandidateSupport support;
@@ -402,7 +415,8 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
                                    &support, &refined, &times) &&
                           keptBoard(expected, excluded, &attempt, &search);
     const auto corners = i >= regions ? quads[i - regions].corners : attempt.features.corners_px;
-    search.record(hypotheses[i], corners, is_board, support, std::move(attempt));
+    const double span_share = is_board ? leastSpanShare(camera, o, attempt) : 0.0;
+    search.record(hypotheses[i], corners, is_board, support, span_share, std::move(attempt));
   }
   times += evidence.times;
   report(std::move(search), std::move(evidence), region_reason, hypotheses.empty(), noise, out);

@@ -157,6 +157,14 @@ bool profilePeak(const std::vector<double>& profile, double polarity, double min
   return true;
 }
 
+}  // namespace
+
+double cornerExclusionPx(const ImageBoardDetectorOptions& o, double side_px) {
+  return std::min(o.corner_exclusion_px, kMaxCornerExclusionFraction * side_px);
+}
+
+namespace {
+
 EdgeSamples searchPeaks(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse,
                         const Eigen::Vector2d& a, const Eigen::Vector2d& b,
                         const Eigen::Vector2d& n, double half, const LocalPolarity* polarity,
@@ -166,9 +174,7 @@ EdgeSamples searchPeaks(const cv::Mat& gray, const CameraModel& camera, const Co
   const double len = (b - a).norm();
   const Eigen::Vector2d dir = (b - a) / std::max(len, 1e-9);
   std::vector<double> profile(2 * steps + 1), gradient(profile.size());
-  // Corners are rounded by the coarse stage and crowded by the other side: skip their
-  // neighbourhood, at most a fraction of a short (far) side.
-  const double exclusion = std::min(o.corner_exclusion_px, kMaxCornerExclusionFraction * len);
+  const double exclusion = cornerExclusionPx(o, len);
   // Long sides need no more samples than a line fit can use.
   s.step = std::max(o.sample_step_px, len / kMaxSamplesPerSide);
   const double t_end = len - (coarse.b_corner ? exclusion : 0.0);

@@ -150,6 +150,18 @@ double edgeCoverage(const cv::Mat& gray, const CameraModel& camera, const Eigen:
                     const Eigen::Vector2d& b, const Eigen::Vector2d& inside,
                     const ImageBoardDetectorOptions& o, double min_gradient);
 
+/// px skipped at a corner end of a side `side_px` long: corners are rounded by the coarse stage
+/// and crowded by the other side; at most a fraction of a short (far) side.
+double cornerExclusionPx(const ImageBoardDetectorOptions& o, double side_px);
+
+/// Least share of a found board's side, between its corners, that its edge's inliers span (less
+/// the corner neighbourhoods the samples skip). The refinement measures coverage along the
+/// hypothesis' side, which may be shorter (a region's outline cut by a hand): a board under
+/// min_side_coverage here was seen only on part of a side, and its line there may follow
+/// something beside the board.
+double leastSpanShare(const CameraModel& camera, const ImageBoardDetectorOptions& options,
+                      const ImageDetection& found);
+
 /// Counts the corner ends past which a found board's side lines still carry an edge that would
 /// itself count as a seen board edge; false (reason set) for a scene rectangle.
 bool sidesEndAtCorners(const cv::Mat& gray, const CameraModel& camera,
