@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
+#include <Eigen/Geometry>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/photo.hpp>
 
@@ -347,45 +348,97 @@ void occludeLowerCorners(Frame* f, std::mt19937& rng) {
                 cv::Scalar(120, 150, 200), cv::FILLED, cv::LINE_AA);
 }
 
-// Shrinks the frame by `s` (a board farther away). `canvas`: paste the shrunk board with the
-// background around it (a feathered disc) into the blanked full-size frame, at a random place;
-// otherwise the image itself shrinks. The camera and the reference follow the pixel mapping
-// u' = s (u + 0.5) - 0.5 + offset (distortion acts on normalised coordinates: unchanged).
-void shrink(Frame* f, double s, bool canvas, std::mt19937& rng) {
+// A far rs16 board: the board, with the background around it (a feathered disc), moved into the
+// blanked full-size frame as the same camera would see it elsewhere. Its plane (from the reference
+// corners and the camera) moves 1/s times farther along its own rays, then turns about the camera
+// centre; the disc's pixels follow that plane's homography through the unchanged lens, drawn from
+// a copy shrunk by s, and the reference follows the same homography. (Until session 27 the shrunk
+// board was pasted and the camera's focal length scaled and principal point moved with it: through
+// the rs16's wide-angle lens, k1 -0.34, the rest of the frame then lay at normalised radii where
+// the distortion polynomial folds over, and its lines undistorted into curves.)
+void moveBoardThroughLens(Frame* f, double s, std::mt19937& rng) {
   cv::Mat small;
   cv::resize(f->image, small, cv::Size(), s, s, cv::INTER_AREA);
-  Eigen::Vector2d offset(0, 0);
-  cv::Mat out = small;
-  if (canvas) {
-    Frame blank = *f;
-    blankBoard(&blank, rng);
-    out = blank.image;
-    Eigen::Vector2d centre = Eigen::Vector2d::Zero();
-    for (const auto& c : f->corners) centre += 0.25 * (s * (c.array() + 0.5) - 0.5).matrix();
-    const double radius = 0.5 * s * boardSizePx(*f) * 1.6;
-    std::uniform_real_distribution<double> ux(radius, out.cols - radius),
-        uy(radius, out.rows - radius);
-    const Eigen::Vector2d place(ux(rng), uy(rng));
-    offset = place - centre;
-    // Integer offset: no resampling of the pasted pixels.
-    offset = Eigen::Vector2d(std::round(offset.x()), std::round(offset.y()));
-    cv::Mat alpha = cv::Mat::zeros(out.size(), CV_32F);
-    cv::circle(alpha, cv::Point(int(place.x()), int(place.y())), int(radius), 1.0, cv::FILLED);
-    const int blur = 2 * static_cast<int>(0.15 * radius) + 1;
-    cv::GaussianBlur(alpha, alpha, cv::Size(blur, blur), 0);
-    const cv::Rect dst = cv::Rect(int(offset.x()), int(offset.y()), small.cols, small.rows) &
-                         cv::Rect(0, 0, out.cols, out.rows);
-    const cv::Rect src = dst - cv::Point(int(offset.x()), int(offset.y()));
-    for (int y = 0; y < dst.height; ++y)
-      for (int x = 0; x < dst.width; ++x) {
-        const float a = alpha.at<float>(dst.y + y, dst.x + x);
-        cv::Vec3b& o = out.at<cv::Vec3b>(dst.y + y, dst.x + x);
-        const cv::Vec3b& p = small.at<cv::Vec3b>(src.y + y, src.x + x);
-        for (int c = 0; c < 3; ++c) o[c] = cv::saturate_cast<uchar>(a * p[c] + (1 - a) * o[c]);
-      }
+  const CameraModel camera = f->camera();
+  Frame blank = *f;
+  blankBoard(&blank, rng);
+  cv::Mat out = blank.image;
+  const double radius = 0.5 * s * boardSizePx(*f) * 1.6;
+  std::uniform_real_distribution<double> ux(radius, out.cols - radius),
+      uy(radius, out.rows - radius);
+  const Eigen::Vector2d place(ux(rng), uy(rng));  // raw pixels
+  // The board plane's homography from the unit square, K^-1 H = [a1 a2 a3] up to scale (a3
+  // towards a corner): a3 x 1/s puts the plane 1/s times farther.
+  const CameraIntrinsics& in = f->intrinsics;
+  Eigen::Matrix3d k;
+  k << in.fx, 0, in.cx, 0, in.fy, in.cy, 0, 0, 1;
+  std::vector<cv::Point2f> square = {{0, 0}, {1, 0}, {1, 1}, {0, 1}}, corners;
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+  for (const auto& c : f->corners) {
+    corners.emplace_back(float(c.x()), float(c.y()));
+    centre += 0.25 * c;
   }
+  const cv::Mat h_cv = cv::getPerspectiveTransform(square, corners);
+  Eigen::Matrix3d h;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) h(r, c) = h_cv.at<double>(r, c);
+  const Eigen::Matrix3d a = k.inverse() * h;
+  Eigen::Matrix3d farther = a;
+  farther.col(2) /= s;
+  const Eigen::Matrix3d move = farther * a.inverse();
+  const Eigen::Vector3d from = move * k.inverse() * centre.homogeneous();
+  const Eigen::Vector3d to = k.inverse() * camera.undistortPixel(place).homogeneous();
+  const Eigen::Matrix3d turn = Eigen::Quaterniond::FromTwoVectors(from, to).toRotationMatrix();
+  const Eigen::Matrix3d g = k * turn * move * k.inverse(), g_inverse = g.inverse();
+  auto moved = [&](const Eigen::Vector2d& u) -> Eigen::Vector2d {
+    return (g * u.homogeneous()).hnormalized();
+  };
+  cv::Mat alpha = cv::Mat::zeros(out.size(), CV_32F);
+  cv::circle(alpha, cv::Point(int(place.x()), int(place.y())), int(radius), 1.0, cv::FILLED);
+  const int blur = 2 * static_cast<int>(0.15 * radius) + 1;
+  cv::GaussianBlur(alpha, alpha, cv::Size(blur, blur), 0);
+  const int reach = static_cast<int>(radius + blur);
+  const cv::Rect dst =
+      cv::Rect(int(place.x()) - reach, int(place.y()) - reach, 2 * reach + 1, 2 * reach + 1) &
+      cv::Rect(0, 0, out.cols, out.rows);
+  // Each disc pixel: its undistorted place, the source's undistorted place, its raw pixel in
+  // the source frame, that pixel in the shrunk copy.
+  cv::Mat map_x(dst.size(), CV_32F), map_y(dst.size(), CV_32F);
+  for (int y = 0; y < dst.height; ++y)
+    for (int x = 0; x < dst.width; ++x) {
+      const Eigen::Vector2d u = camera.undistortPixel(Eigen::Vector2d(dst.x + x, dst.y + y));
+      const Eigen::Vector2d raw = camera.distortPixel((g_inverse * u.homogeneous()).hnormalized());
+      map_x.at<float>(y, x) = static_cast<float>(s * (raw.x() + 0.5) - 0.5);
+      map_y.at<float>(y, x) = static_cast<float>(s * (raw.y() + 0.5) - 0.5);
+    }
+  cv::Mat patch;
+  cv::remap(small, patch, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  for (int y = 0; y < dst.height; ++y)
+    for (int x = 0; x < dst.width; ++x) {
+      const float w = alpha.at<float>(dst.y + y, dst.x + x);
+      cv::Vec3b& o = out.at<cv::Vec3b>(dst.y + y, dst.x + x);
+      const cv::Vec3b& p = patch.at<cv::Vec3b>(y, x);
+      for (int c = 0; c < 3; ++c) o[c] = cv::saturate_cast<uchar>(w * p[c] + (1 - w) * o[c]);
+    }
+  f->image = out;
+  Eigen::Vector2d moved_centre = Eigen::Vector2d::Zero();
+  for (auto& corner : f->corners) {
+    corner = moved(corner);
+    moved_centre += 0.25 * corner;
+  }
+  for (int j = 0; j < kNumEdges; ++j) {
+    for (auto& p : f->segments[j]) p = moved(p);
+    f->lines[j] = lineThrough(f->segments[j][0], f->segments[j][1], moved_centre);
+  }
+}
+
+// Shrinks the frame by `s` (a board farther away): the camera and the reference follow the pixel
+// mapping u' = s (u + 0.5) - 0.5 (distortion acts on normalised coordinates: unchanged).
+void shrink(Frame* f, double s) {
+  cv::Mat small;
+  cv::resize(f->image, small, cv::Size(), s, s, cv::INTER_AREA);
   auto map = [&](const Eigen::Vector2d& p) -> Eigen::Vector2d {
-    return Eigen::Vector2d(s * (p.array() + 0.5) - 0.5) + offset;
+    return Eigen::Vector2d(s * (p.array() + 0.5) - 0.5);
   };
   CameraIntrinsics& in = f->intrinsics;
   in.fx *= s;
@@ -393,9 +446,9 @@ void shrink(Frame* f, double s, bool canvas, std::mt19937& rng) {
   const Eigen::Vector2d c = map({in.cx, in.cy});
   in.cx = c.x();
   in.cy = c.y();
-  in.width = out.cols;
-  in.height = out.rows;
-  f->image = out;
+  in.width = small.cols;
+  in.height = small.rows;
+  f->image = small;
   Eigen::Vector2d centre = Eigen::Vector2d::Zero();
   for (auto& corner : f->corners) {
     corner = map(corner);
@@ -450,7 +503,10 @@ Frame augment(const Frame& clean, const Case& c, int index, std::mt19937& rng) {
         const double s = sizes[index % 4] / boardSizePx(f);
         // Whole rs16 boards go into a full-size cluttered frame; basler boards are cut by the
         // image border, so the whole frame shrinks (a pasted part would add a false border).
-        shrink(&f, s, f.name.rfind("rs16", 0) == 0, rng);
+        if (f.name.rfind("rs16", 0) == 0)
+          moveBoardThroughLens(&f, s, rng);
+        else
+          shrink(&f, s);
         break;
       }
     }

@@ -318,24 +318,25 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   // more, or named otherwise
   // (1000); a side a hand pulled, 9.6 px (another draw, before the straightness test).
   EXPECT_LT(total.all.worst, 8.0);
-  // rs16_plain over every case (the whole table, when no case is selected): measured 34 of 60
-  // (session 25: 37 with the old low-contrast shift's outline, 36 with the blend that keeps each
-  // edge's profile, 35 with the rival-line test, 34 with a soft edge's step; 35 before session
-  // 24's gradient ranking of the weak lines' quadrilaterals, whose segments cover little of a
-  // faint or far board's sides; 32 before session 23's run-on test on the side's own line to 2 px,
-  // not the 3 px inlier band; 33 before session 22's corner fit of 1 % of the side, which refuses
-  // a far rs16 board with one line 6.4 px off; 23 before session 14's colour parts; 17 before
-  // session 6); the search is deterministic, so a lost frame is a regression. All frames: 210
-  // (session 26: 203 before the faint-line search, which finds 5 more low-contrast and 2 more
-  // far + low contrast + wood basler boards, 211 when it also searched the colour parts' contrast
-  // images; session 25: 214 with the low-contrast shift's outline,
-  // 200 without it, 197 with the rival-line test, which removed the table's two worst edges, 6.15
-  // and 2.14 px, 203 with a soft edge's step; 212 before session 24, 209 before session 23; 211
-  // before session 22: that board and a far wood-grain basler board with a line 8.7 px off, corner
-  // misfits 1.0 % and 2.5 % of the side; 201 before session 14).
+  // rs16_plain over every case (the whole table, when no case is selected): measured 35 of 60
+  // (session 27: 34 while the far rs16 board was pasted with a scaled camera; session 25: 37 with
+  // the old low-contrast shift's outline, 36 with the blend that keeps each edge's profile, 35 with
+  // the rival-line test, 34 with a soft edge's step; 35 before session 24's gradient ranking of the
+  // weak lines' quadrilaterals, whose segments cover little of a faint or far board's sides; 32
+  // before session 23's run-on test on the side's own line to 2 px, not the 3 px inlier band; 33
+  // before session 22's corner fit of 1 % of the side, which refuses a far rs16 board with one
+  // line 6.4 px off; 23 before session 14's colour parts; 17 before session 6); the search is
+  // deterministic, so a lost frame is a regression. All frames: 211 (session 27: 210 with the far
+  // rs16 board pasted with a scaled camera; session 26: 203 before the faint-line search, which
+  // finds 5 more low-contrast and 2 more far + low contrast + wood basler boards, 211 when it also
+  // searched the colour parts' contrast images; session 25: 214 with the low-contrast shift's
+  // outline, 200 without it, 197 with the rival-line test, which removed the table's two worst
+  // edges, 6.15 and 2.14 px, 203 with a soft edge's step; 212 before session 24, 209 before session
+  // 23; 211 before session 22: that board and a far wood-grain basler board with a line 8.7 px off,
+  // corner misfits 1.0 % and 2.5 % of the side; 201 before session 14).
   if (!only && !seed) {
-    EXPECT_GE(total.rs16_found, 34);
-    EXPECT_GE(total.found, 210);
+    EXPECT_GE(total.rs16_found, 35);
+    EXPECT_GE(total.found, 211);
   }
 }
 
@@ -343,8 +344,11 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
 // board's. Before the edge straightness test, draw 2 took a printed disc for the board (its
 // tangents bowed 13 % of their span) and draw 4 a far board's side running on along a leg of its
 // colour (bowed 8 %), both with sides 1000 px "off" (other orientation); draw 3 kept a far side
-// a hand pulled 9.6 px off at its end. Now 204, 204 and 202 of 252 found, worst edges 5.4, 3.6
-// and 4.6 px.
+// a hand pulled 9.6 px off at its end. Since the far rs16 board is moved through the lens
+// (session 27), draw 4 found a far rs16 board whose side, pulled onto the hand holding it, ran
+// 9.23 px off at its end and draw 2 one 5.52 px off beside a leg, both seen on less than half of
+// the side between their corners; now such a board does not settle the search and the board
+// refitted at its place wins. 208, 210 and 209 of 252 found, worst edges 1.70, 3.59 and 2.44 px.
 TEST(ImageDetectorAugmented, OtherDrawsGiveNoWrongBoard) {
   if (!std::filesystem::exists(BOARD_CALIB_SHARED_DIR)) GTEST_SKIP() << "../shared absent";
   const std::vector<Frame>& frames = recordedFrames();
@@ -361,9 +365,10 @@ TEST(ImageDetectorAugmented, OtherDrawsGiveNoWrongBoard) {
     }
     std::printf("draw %u: four edges in %d/%d frames, worst edge %.2f px\n", seed, found,
                 frames_run, worst);
-    // A side of the right board shifted by a straight occluder along it measured up to 5.4 px
-    // (draw 2); a bent side or another object's is further.
-    EXPECT_LT(worst, 8.0) << "draw " << seed;
+    // The right board's sides measured up to 3.59 px (draw 3: a far, faint, wood-grained side
+    // bowed 2.3 px); a side beside the board, 5.52 px and more; a bent side or another object's
+    // is further.
+    EXPECT_LT(worst, 5.0) << "draw " << seed;
   }
 }
 
