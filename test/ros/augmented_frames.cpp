@@ -348,6 +348,21 @@ void occludeLowerCorners(Frame* f, std::mt19937& rng) {
                 cv::Scalar(120, 150, 200), cv::FILLED, cv::LINE_AA);
 }
 
+// The reference corners and segments through a pixel mapping that keeps lines straight, the lines
+// refitted through the mapped segments.
+template <typename Map>
+void mapReference(Frame* f, const Map& map) {
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+  for (auto& corner : f->corners) {
+    corner = map(corner);
+    centre += 0.25 * corner;
+  }
+  for (int j = 0; j < kNumEdges; ++j) {
+    for (auto& p : f->segments[j]) p = map(p);
+    f->lines[j] = lineThrough(f->segments[j][0], f->segments[j][1], centre);
+  }
+}
+
 // A far rs16 board: the board, with the background around it (a feathered disc), moved into the
 // blanked full-size frame as the same camera would see it elsewhere. Its plane (from the reference
 // corners and the camera) moves 1/s times farther along its own rays, then turns about the camera
@@ -421,15 +436,7 @@ void moveBoardThroughLens(Frame* f, double s, std::mt19937& rng) {
       for (int c = 0; c < 3; ++c) o[c] = cv::saturate_cast<uchar>(w * p[c] + (1 - w) * o[c]);
     }
   f->image = out;
-  Eigen::Vector2d moved_centre = Eigen::Vector2d::Zero();
-  for (auto& corner : f->corners) {
-    corner = moved(corner);
-    moved_centre += 0.25 * corner;
-  }
-  for (int j = 0; j < kNumEdges; ++j) {
-    for (auto& p : f->segments[j]) p = moved(p);
-    f->lines[j] = lineThrough(f->segments[j][0], f->segments[j][1], moved_centre);
-  }
+  mapReference(f, moved);
 }
 
 // Shrinks the frame by `s` (a board farther away): the camera and the reference follow the pixel
@@ -449,15 +456,7 @@ void shrink(Frame* f, double s) {
   in.width = small.cols;
   in.height = small.rows;
   f->image = small;
-  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
-  for (auto& corner : f->corners) {
-    corner = map(corner);
-    centre += 0.25 * corner;
-  }
-  for (int j = 0; j < kNumEdges; ++j) {
-    for (auto& p : f->segments[j]) p = map(p);
-    f->lines[j] = lineThrough(f->segments[j][0], f->segments[j][1], centre);
-  }
+  mapReference(f, map);
 }
 
 }  // namespace
