@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 #include <Eigen/Geometry>
+#include <opencv2/core/eigen.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/photo.hpp>
 
@@ -384,27 +385,24 @@ void moveBoardThroughLens(Frame* f, double s, std::mt19937& rng) {
   const Eigen::Vector2d place(ux(rng), uy(rng));  // raw pixels
   // The board plane's homography from the unit square, K^-1 H = [a1 a2 a3] up to scale (a3
   // towards a corner): a3 x 1/s puts the plane 1/s times farther.
-  const CameraIntrinsics& in = f->intrinsics;
-  Eigen::Matrix3d k;
-  k << in.fx, 0, in.cx, 0, in.fy, in.cy, 0, 0, 1;
-  std::vector<cv::Point2f> square = {{0, 0}, {1, 0}, {1, 1}, {0, 1}}, corners;
+  const Eigen::Matrix3d k = camera.K(), k_inverse = k.inverse();
+  const std::vector<cv::Point2f> square = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+  std::vector<cv::Point2f> corners;
   Eigen::Vector2d centre = Eigen::Vector2d::Zero();
   for (const auto& c : f->corners) {
     corners.emplace_back(float(c.x()), float(c.y()));
     centre += 0.25 * c;
   }
-  const cv::Mat h_cv = cv::getPerspectiveTransform(square, corners);
   Eigen::Matrix3d h;
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) h(r, c) = h_cv.at<double>(r, c);
-  const Eigen::Matrix3d a = k.inverse() * h;
+  cv::cv2eigen(cv::getPerspectiveTransform(square, corners), h);
+  const Eigen::Matrix3d a = k_inverse * h;
   Eigen::Matrix3d farther = a;
   farther.col(2) /= s;
   const Eigen::Matrix3d move = farther * a.inverse();
-  const Eigen::Vector3d from = move * k.inverse() * centre.homogeneous();
-  const Eigen::Vector3d to = k.inverse() * camera.undistortPixel(place).homogeneous();
+  const Eigen::Vector3d from = move * k_inverse * centre.homogeneous();
+  const Eigen::Vector3d to = k_inverse * camera.undistortPixel(place).homogeneous();
   const Eigen::Matrix3d turn = Eigen::Quaterniond::FromTwoVectors(from, to).toRotationMatrix();
-  const Eigen::Matrix3d g = k * turn * move * k.inverse(), g_inverse = g.inverse();
+  const Eigen::Matrix3d g = k * turn * move * k_inverse, g_inverse = g.inverse();
   auto moved = [&](const Eigen::Vector2d& u) -> Eigen::Vector2d {
     return (g * u.homogeneous()).hnormalized();
   };
