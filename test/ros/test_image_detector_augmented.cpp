@@ -318,25 +318,14 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   // more, or named otherwise
   // (1000); a side a hand pulled, 9.6 px (another draw, before the straightness test).
   EXPECT_LT(total.all.worst, 8.0);
-  // rs16_plain over every case (the whole table, when no case is selected): measured 35 of 60
-  // (session 27: 34 while the far rs16 board was pasted with a scaled camera; session 25: 37 with
-  // the old low-contrast shift's outline, 36 with the blend that keeps each edge's profile, 35 with
-  // the rival-line test, 34 with a soft edge's step; 35 before session 24's gradient ranking of the
-  // weak lines' quadrilaterals, whose segments cover little of a faint or far board's sides; 32
-  // before session 23's run-on test on the side's own line to 2 px, not the 3 px inlier band; 33
-  // before session 22's corner fit of 1 % of the side, which refuses a far rs16 board with one
-  // line 6.4 px off; 23 before session 14's colour parts; 17 before session 6); the search is
-  // deterministic, so a lost frame is a regression. All frames: 211 (session 27: 210 with the far
-  // rs16 board pasted with a scaled camera; session 26: 203 before the faint-line search, which
-  // finds 5 more low-contrast and 2 more far + low contrast + wood basler boards, 211 when it also
-  // searched the colour parts' contrast images; session 25: 214 with the low-contrast shift's
-  // outline, 200 without it, 197 with the rival-line test, which removed the table's two worst
-  // edges, 6.15 and 2.14 px, 203 with a soft edge's step; 212 before session 24, 209 before session
-  // 23; 211 before session 22: that board and a far wood-grain basler board with a line 8.7 px off,
-  // corner misfits 1.0 % and 2.5 % of the side; 201 before session 14).
+  // Over every case (the whole table, when no case is selected): measured 39 of 60 rs16_plain
+  // frames and 215 of 252 in all. The search is deterministic, so a lost frame is a regression.
+  // Session 28: 35 and 211 before the weak lines' quadrilaterals could have one corner that both
+  // its lines stop short of (a hand or a leg over it). Each session's figures, and what each
+  // earlier change gained or cost, are in docs/BENCHMARKS.md.
   if (!only && !seed) {
-    EXPECT_GE(total.rs16_found, 35);
-    EXPECT_GE(total.found, 211);
+    EXPECT_GE(total.rs16_found, 39);
+    EXPECT_GE(total.found, 215);
   }
 }
 

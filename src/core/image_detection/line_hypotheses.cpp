@@ -122,11 +122,18 @@ namespace {
 // Which lines may meet at a board corner, and where.
 struct CornerGraph {
   int n = 0;
-  std::vector<char> adjacent;                // n x n, row-major
+  std::vector<char> adjacent;                // n x n, row-major: 0, kEndCorner or kOpenCorner
   std::vector<Eigen::Vector2d> corner;       // n x n, row-major
-  std::vector<std::vector<int>> neighbours;  // ascending
+  std::vector<std::vector<int>> neighbours;  // at kEndCorner, ascending
   const Eigen::Vector2d& at(int i, int j) const { return corner[static_cast<size_t>(i) * n + j]; }
+  char kind(int i, int j) const { return adjacent[static_cast<size_t>(i) * n + j]; }
 };
+
+// Kinds of adjacency in a corner graph: lines that meet (the lines-ends graph: at least one of
+// them ends there) and lines that both stop short of their corner without crossing it (a hand or
+// a leg over a board's corner, or a corner too faint for the line detector).
+constexpr char kEndCorner = 1;
+constexpr char kOpenCorner = 2;
 
 // px: a line's support ending this close to a corner ends there (segment end noise at the LSD
 // scale, and corner rounding of a held board as a share of the line's extent).
@@ -144,22 +151,39 @@ bool crossesAt(const MergedLine& l, const Eigen::Vector2d& c, double end_sigma) 
   return std::min(l.supportWithin(-inf, t - tol), l.supportWithin(t + tol, inf)) > tol;
 }
 
-// Neither line crosses c and at least one ends there (the other may stop short: occluded, faint).
-bool cornerOfEnds(const MergedLine& a, const MergedLine& b, const Eigen::Vector2d& c,
-                  double end_sigma) {
-  auto endsAt = [&](const MergedLine& l) {
-    const double t = l.along(c), tol = cornerEndTolerance(l, end_sigma);
-    return std::abs(l.t_min - t) <= tol || std::abs(l.t_max - t) <= tol;
-  };
+// One end of the line's support lies at c.
+bool endsAt(const MergedLine& l, const Eigen::Vector2d& c, double end_sigma) {
+  const double t = l.along(c), tol = cornerEndTolerance(l, end_sigma);
+  return std::abs(l.t_min - t) <= tol || std::abs(l.t_max - t) <= tol;
+}
+
+// The line's support does not run on past corner c on the side away from corner `from` (its
+// side's other end).
+bool endsBy(const MergedLine& l, const Eigen::Vector2d& from, const Eigen::Vector2d& c,
+            double end_sigma) {
+  const double t = l.along(c);
+  const double run_on = t > l.along(from) ? l.t_max - t : t - l.t_min;
+  return run_on <= cornerEndTolerance(l, end_sigma);
+}
+
+// How lines a and b meet at c, for the lines-ends graph: neither crosses there and at least one
+// ends there (the other may stop short: occluded, faint), or, with `open`, both stop short; 0
+// otherwise.
+char cornerOfEnds(const MergedLine& a, const MergedLine& b, const Eigen::Vector2d& c,
+                  double end_sigma, bool open) {
   // The cheaper test first.
-  return (endsAt(a) || endsAt(b)) && !crossesAt(a, c, end_sigma) && !crossesAt(b, c, end_sigma);
+  const bool ends = endsAt(a, c, end_sigma) || endsAt(b, c, end_sigma);
+  if (!ends && !open) return 0;
+  if (crossesAt(a, c, end_sigma) || crossesAt(b, c, end_sigma)) return 0;
+  return ends ? kEndCorner : kOpenCorner;
 }
 
 // Corner of lines i and j (both below n) when it is plausible: a real angle, and near both lines'
 // support or outside the image (corners of a board held close often are). With `ends_only`,
-// only where the lines end rather than cross (cornerOfEnds).
+// only where the lines end rather than cross, or with `open_corners` stop short (cornerOfEnds).
 CornerGraph cornerGraph(const LineSet& set, int n, const CameraModel& camera,
-                        const ImageBoardDetectorOptions& o, bool ends_only) {
+                        const ImageBoardDetectorOptions& o, bool ends_only,
+                        bool open_corners = false) {
   const std::vector<MergedLine>& lines = set.lines;
   CornerGraph g;
   g.n = n;
@@ -174,13 +198,15 @@ CornerGraph cornerGraph(const LineSet& set, int n, const CameraModel& camera,
       if (s < kMinCornerSin) continue;
       Eigen::Vector2d c;
       if (!intersectLines(homogeneous[i], homogeneous[j], &c)) continue;
-      const bool ends = ends_only && cornerOfEnds(lines[i], lines[j], c, set.end_sigma_px);
-      if (ends_only && !ends) continue;
-      // Where one line ends at the corner, the other may stop as far short of it as a side
-      // that shows its segments along kLineCoverageShare x min_side_coverage of its length
-      // (a hand over the rest of it).
-      const double max_gap =
-          ends ? 1.0 / (kLineCoverageShare * o.min_side_coverage) - 1.0 : kMaxCornerGapFraction;
+      const char kind = ends_only
+                            ? cornerOfEnds(lines[i], lines[j], c, set.end_sigma_px, open_corners)
+                            : kEndCorner;
+      if (kind == 0) continue;
+      // Where the lines end at the corner (or stop short of it), each may stop as far short of
+      // it as a side that shows its segments along kLineCoverageShare x min_side_coverage of its
+      // length (a hand over the rest of it).
+      const double max_gap = ends_only ? 1.0 / (kLineCoverageShare * o.min_side_coverage) - 1.0
+                                       : kMaxCornerGapFraction;
       bool near = true;
       for (const MergedLine* l : {&lines[i], &lines[j]}) {
         const double t = l->along(c);
@@ -188,12 +214,12 @@ CornerGraph cornerGraph(const LineSet& set, int n, const CameraModel& camera,
         near &= gap <= max_gap * (l->t_max - l->t_min);
       }
       if (!near && visibleUndistorted(camera, c, 0.0)) continue;
-      g.adjacent[i * n + j] = g.adjacent[j * n + i] = 1;
+      g.adjacent[i * n + j] = g.adjacent[j * n + i] = kind;
       g.corner[i * n + j] = g.corner[j * n + i] = c;
     }
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j)
-      if (g.adjacent[i * n + j]) g.neighbours[i].push_back(j);
+      if (g.adjacent[i * n + j] == kEndCorner) g.neighbours[i].push_back(j);
   return g;
 }
 
@@ -275,7 +301,76 @@ struct QuadSearch {
   bool any_score = false;
   const std::vector<char>* is_static = nullptr;  // lines on the static scene (or none)
   const ExpectedBoard* expected = nullptr;
+  // Also the quadrilaterals with one corner that both its lines stop short of (kOpenCorner).
+  bool one_open_corner = false;
+  // The graph of an earlier search over the lines before first_new: a quadrilateral of those
+  // lines alone is enumerated again only where that graph did not join them all.
+  const CornerGraph* earlier = nullptr;
 };
+
+// The earlier search's graph joined the lines of idx (all before search.first_new) at every
+// corner: it enumerated that quadrilateral already.
+bool joinedBefore(const QuadSearch& search, const std::array<int, 4>& idx) {
+  if (!search.earlier || *std::max_element(idx.begin(), idx.end()) >= search.first_new)
+    return false;
+  for (int s = 0; s < kNumEdges; ++s)
+    if (search.earlier->kind(idx[s], idx[(s + 1) % kNumEdges]) == 0) return false;
+  return true;
+}
+
+// The quadrilateral of lines idx (corner s where idx[s] meets idx[s + 1] in g) judged as
+// enumerateQuads judges its cycles, at once rather than pruned along the way.
+bool quadOfLines(const LineSet& set, const CornerGraph& g, const std::array<int, 4>& idx,
+                 const cv::Rect2d& ubox, const ImageBoardDetectorOptions& o,
+                 const QuadSearch& search, QuadHypothesis* q) {
+  const std::vector<MergedLine>& lines = set.lines;
+  int on_static = 0;
+  for (const int i : idx) on_static += search.is_static ? (*search.is_static)[i] : 0;
+  if (on_static >= kStaticSidesOfScene) return false;
+  for (int s = 0; s < 2; ++s)
+    if (angleBetweenLines(lines[idx[s]].dir, lines[idx[s + 2]].dir) > kMaxOppositeAngleRad)
+      return false;
+  if (joinedBefore(search, idx)) return false;
+  std::array<Eigen::Vector2d, 4> c;
+  for (int s = 0; s < 4; ++s) c[s] = g.at(idx[s], idx[(s + 1) % 4]);
+  if (!convexPolygon(c)) return false;
+  const int ends = endsAtCorners(set, idx, c);
+  if (ends < search.min_corner_ends) return false;
+  std::array<QuadSide, 4> sides;
+  for (int s = 0; s < 4; ++s)
+    if (!scoreSide(lines[idx[s]], c[(s + 3) % 4], c[s], ubox, o, &sides[s])) return false;
+  if (!scoreQuad(sides, c, search.any_score, q)) return false;
+  q->corner_ends = ends;
+  return !search.expected || expectedOffset(c, *search.expected) <= search.expected->tolerance_px;
+}
+
+// Quadrilaterals whose lines end at three of their corners and both stop short of the fourth
+// (a hand or a leg over it): paths a-b-c-d of the graph's end corners closed by an open corner
+// d-a. The sides at the open corner must not run on past their other corners: only there is a
+// side whose stretch at the open corner is unseen placed by its lines' ends (a line of the pavement
+// running on past a dark window's corner placed a window of the board's shape in the simulated
+// mono street). Each is
+// met from both ends; kept from the one with a < d.
+void addOneOpenCorner(const LineSet& set, const CornerGraph& g, const cv::Rect2d& ubox,
+                      const ImageBoardDetectorOptions& o, const QuadSearch& search,
+                      std::vector<QuadHypothesis>* quads) {
+  for (int a = 0; a < search.lines && quads->size() < kMaxQuads; ++a)
+    for (const int b : g.neighbours[a]) {
+      for (const int c : g.neighbours[b]) {
+        if (c == a) continue;
+        for (const int d : g.neighbours[c]) {
+          if (d <= a || d == b || g.kind(d, a) != kOpenCorner) continue;
+          const Eigen::Vector2d& open = g.at(d, a);
+          if (!endsBy(set.lines[a], open, g.at(a, b), set.end_sigma_px) ||
+              !endsBy(set.lines[d], open, g.at(c, d), set.end_sigma_px))
+            continue;
+          if (std::max({a, b, c, d}) < search.first_new && !search.earlier) continue;
+          QuadHypothesis q;
+          if (quadOfLines(set, g, {a, b, c, d}, ubox, o, search, &q)) quads->push_back(q);
+        }
+      }
+    }
+}
 
 // Every convex cycle of four lines (opposite sides may converge under perspective), scored.
 std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph& g,
@@ -313,8 +408,9 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
         std::array<QuadSide, 4> sides;
         if (!scoreSide(lines[j], g.at(i, j), g.at(j, k), ubox, o, &sides[1])) continue;
         // At least one side from the lines from search.first_new on (the others enumerated
-        // before).
-        const int m_from = std::max(j, k) < search.first_new ? search.first_new : j + 1;
+        // before), unless the earlier search's graph may not have joined them.
+        const int m_from =
+            std::max(j, k) < search.first_new && !search.earlier ? search.first_new : j + 1;
         const std::vector<int>& ms = g.neighbours[k];
         for (auto it = std::lower_bound(ms.begin(), ms.end(), m_from); it != ms.end(); ++it) {
           const int m = *it;
@@ -334,6 +430,7 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
           const double score_ij = sides[0].score + sides[1].score;
           if (!search.any_score && score_ij + lines[k].support + lines[m].support <= 0) continue;
           const std::array<int, 4> idx = {i, j, k, m};
+          if (joinedBefore(search, idx)) continue;
           std::array<Eigen::Vector2d, 4> c;
           for (int s = 0; s < 4; ++s) c[s] = g.at(idx[s], idx[(s + 1) % 4]);
           if (!convexPolygon(c)) continue;
@@ -353,6 +450,7 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
         }
       }
     }
+  if (search.one_open_corner) addOneOpenCorner(set, g, ubox, o, search, &quads);
   // Per perimeter, a 100 px board and a 1000 px facade rectangle whose sides are equally well
   // evidenced rank alike; by absolute support the facade always comes first.
   const auto rank = [&](const QuadHypothesis& q) {
@@ -511,11 +609,11 @@ LineQuads lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
   best.is_static = &is_static;
   LineQuads out;
   // Three lines of a board whose fourth has none (faint, hidden) are worth a trace.
-  const CornerGraph ends_graph = cornerGraph(set, all, camera, o, true);
+  const CornerGraph ends_graph = cornerGraph(set, all, camera, o, true, true);
   out.three_sides = threeSideChains(set, ends_graph, all, o, is_static);
   if (best.lines < kNumEdges) return out;
-  std::vector<QuadHypothesis> quads =
-      enumerateQuads(set, cornerGraph(set, best.lines, camera, o, false), camera, o, best);
+  const CornerGraph best_graph = cornerGraph(set, best.lines, camera, o, false);
+  std::vector<QuadHypothesis> quads = enumerateQuads(set, best_graph, camera, o, best);
   if (evidence) evidence->quads = static_cast<int>(quads.size());
   const size_t max_hypotheses = static_cast<size_t>(std::max(0, o.max_line_hypotheses));
   out.best = keepBest(&quads, camera, o, max_hypotheses);
@@ -529,6 +627,8 @@ LineQuads lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
     ends.min_corner_ends = kMinCornerEnds;
     ends.any_score = true;
     ends.expected = expected;
+    ends.one_open_corner = true;
+    ends.earlier = &best_graph;
     std::vector<QuadHypothesis> supported = enumerateQuads(set, ends_graph, camera, o, ends);
     // The line cap hid them, not their support: each must carry as much as the quadrilaterals
     // kept from the best lines (a door of a street facade does not). The others go to the
