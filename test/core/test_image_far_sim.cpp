@@ -329,12 +329,14 @@ TEST(ImageDetectorFarSim, AtARealCamerasNoiseNoSideFollowsTheFacade) {
 // is found; what is asserted is how rarely another object passes for it. With a corner fit of 3 %
 // of the side, facade outlines, a door and the holder's torso passed; at 1 % (true boards fit to
 // <= 0.54 % here, <= 0.73 % on the augmented real frames) fewer do (figures for seeds 40-63 in
-// docs/BENCHMARKS.md). On the seeds below, single frames 4 wrong at 3 %, 0 at 1 % (one of slack);
-// with the pre-pass 1 and 0.
+// docs/BENCHMARKS.md). On the seeds below, single frames 4 wrong at 3 %, 0 at 1 %; with the
+// pre-pass 1 and 0. A weak lines' quadrilateral with an open corner (both its lines stop short of
+// it) took a dark window for the board here (seed 40 pose 3) while its sides could run on past
+// their other corners.
 TEST(ImageDetectorFarSim, AMonoCameraRarelyTakesAnotherObjectForTheBoard) {
   const FarResult alone = runSeeds(true, {}, false, false, {40u, 41u, 42u, 46u, 50u}, true);
   ASSERT_EQ(alone.poses, 40);
-  EXPECT_LE(alone.wrong, 1);
+  EXPECT_EQ(alone.wrong, 0);
   const FarResult prepass = runSeeds(true, {}, true, true, {40u, 44u}, true);
   ASSERT_EQ(prepass.poses, 16);
   EXPECT_EQ(prepass.wrong, 0);
