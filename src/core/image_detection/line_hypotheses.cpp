@@ -346,16 +346,15 @@ bool quadOfLines(const LineSet& set, const CornerGraph& g, const std::array<int,
 
 // Quadrilaterals whose lines end at three of their corners and both stop short of the fourth
 // (a hand or a leg over it): paths a-b-c-d of the graph's end corners closed by an open corner
-// d-a. The sides at the open corner must not run on past their other corners: only there is a
-// side whose stretch at the open corner is unseen placed by its lines' ends (a line of the pavement
-// running on past a dark window's corner placed a window of the board's shape in the simulated
-// mono street). Each is
-// met from both ends; kept from the one with a < d.
+// d-a. Where a side's stretch at the open corner is unseen, its other end must hold it: the sides
+// at the open corner may not run on past their other corners (in the simulated mono street, a
+// pavement line running on past a dark window's corner made that window a board). Each is met
+// from both ends; kept from the one with a < d.
 void addOneOpenCorner(const LineSet& set, const CornerGraph& g, const cv::Rect2d& ubox,
                       const ImageBoardDetectorOptions& o, const QuadSearch& search,
                       std::vector<QuadHypothesis>* quads) {
   for (int a = 0; a < search.lines && quads->size() < kMaxQuads; ++a)
-    for (const int b : g.neighbours[a]) {
+    for (const int b : g.neighbours[a])
       for (const int c : g.neighbours[b]) {
         if (c == a) continue;
         for (const int d : g.neighbours[c]) {
@@ -369,7 +368,6 @@ void addOneOpenCorner(const LineSet& set, const CornerGraph& g, const cv::Rect2d
           if (quadOfLines(set, g, {a, b, c, d}, ubox, o, search, &q)) quads->push_back(q);
         }
       }
-    }
 }
 
 // Every convex cycle of four lines (opposite sides may converge under perspective), scored.
