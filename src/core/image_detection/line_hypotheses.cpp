@@ -412,7 +412,7 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
         const std::vector<int>& ms = g.neighbours[k];
         for (auto it = std::lower_bound(ms.begin(), ms.end(), m_from); it != ms.end(); ++it) {
           const int m = *it;
-          if (!g.adjacent[m * n + i] || !parallel(j, m)) continue;
+          if (g.kind(m, i) != kEndCorner || !parallel(j, m)) continue;
           if (static_ij + onStatic(k) + onStatic(m) >= kStaticSidesOfScene) continue;
           // Cheap tests first: every test must pass, so their order does not matter.
           signed char& side_i = side_i_state[m];
