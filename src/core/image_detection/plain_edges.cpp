@@ -117,7 +117,7 @@ struct EdgeSamples {
   std::vector<double> strength;
   std::vector<int> signs;
   std::vector<double> ts;
-  int positions = 0;  // sample positions whose profile lies inside the image
+  int positions = 0;  // sample positions whose narrow search lies inside the image
   double step = 0;
 };
 
@@ -184,14 +184,18 @@ EdgeSamples searchPeaks(const cv::Mat& gray, const CameraModel& camera, const Co
     const Eigen::Vector2d x = camera.distortPixel(xu);
     Eigen::Vector2d d = camera.distortPixel(xu + n) - x;
     d.normalize();
-    if (!insideImage(gray, x - (half + kProfileStepPx) * d, 1.0) ||
-        !insideImage(gray, x + (half + kProfileStepPx) * d, 1.0))
-      continue;
+    // A profile the image border cuts is flat past it (no edge there); the position counts when
+    // the image holds the narrow search around the line.
+    const double inner = std::min(half, o.fine_search_px) + kProfileStepPx;
+    if (!insideImage(gray, x - inner * d, 1.0) || !insideImage(gray, x + inner * d, 1.0)) continue;
     ++s.positions;
-    for (int k = -steps; k <= steps; ++k) {
-      const Eigen::Vector2d p = x + (k * kProfileStepPx) * d;
-      profile[k + steps] = sampleBilinear(gray, p.x(), p.y());
-    }
+    profile[steps] = sampleBilinear(gray, x.x(), x.y());
+    for (const int dk : {-1, 1})
+      for (int k = dk; std::abs(k) <= steps; k += dk) {
+        const Eigen::Vector2d p = x + (k * kProfileStepPx) * d;
+        profile[k + steps] = insideImage(gray, p, 1.0) ? sampleBilinear(gray, p.x(), p.y())
+                                                       : profile[k - dk + steps];
+      }
     double offset = 0, strength = 0;
     int sign = 0;
     if (!profilePeak(profile, sign_wanted, min_gradient, gradient, &offset, &strength, &sign))
