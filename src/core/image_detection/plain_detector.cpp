@@ -216,7 +216,11 @@ void rankByEdgeCoverage(const cv::Mat& gray, const CameraModel& camera,
       if (!visibleSideInterval(camera, q.corners[(s + 3) % 4], q.corners[s], o.border_margin_px, &a,
                                &b))
         continue;
-      const double c = edgeCoverage(gray, camera, a, b, inside, o, min_gradient);
+      double c = edgeCoverage(gray, camera, a, b, inside, o, min_gradient);
+      // A merged line may leave its side several px off at a corner (the wide-angle lens'
+      // residual bends a long edge): the side is looked at again around its own peaks' line.
+      if (c < min_coverage)
+        c = std::max(c, edgeCoverage(gray, camera, a, b, inside, o, min_gradient, true));
       least = std::min(least, c);
       sum += c;
     }

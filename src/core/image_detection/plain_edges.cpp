@@ -433,13 +433,24 @@ double edgeContinuation(const cv::Mat& gray, const CameraModel& camera, const Ei
 
 double edgeCoverage(const cv::Mat& gray, const CameraModel& camera, const Eigen::Vector2d& a,
                     const Eigen::Vector2d& b, const Eigen::Vector2d& inside,
-                    const ImageBoardDetectorOptions& o, double min_gradient) {
+                    const ImageBoardDetectorOptions& o, double min_gradient, bool refit) {
   CoarseEdge side;
   side.a_corner = side.b_corner = true;
   const Eigen::Vector3d line = lineThrough(a, b, inside);
-  const EdgeSamples s = searchPeaks(gray, camera, side, a, b, line.head<2>(), o.fine_search_px,
-                                    nullptr, o, min_gradient);
-  return s.positions > 0 ? static_cast<double>(s.pts_u.size()) / s.positions : 0.0;
+  const EdgeSamples s =
+      searchPeaks(gray, camera, side, a, b, line.head<2>(),
+                  refit ? o.coarse_search_px : o.fine_search_px, nullptr, o, min_gradient);
+  if (s.positions == 0) return 0.0;
+  if (!refit) return static_cast<double>(s.pts_u.size()) / s.positions;
+  if (static_cast<int>(s.pts_u.size()) < o.min_edge_points) return 0.0;
+  std::vector<Eigen::Vector3d> oriented;
+  EdgeFit fit;
+  fit.line = line;
+  fitPeaks(s, Orienter{inside, &oriented}, o, false, &fit);
+  int near = 0;
+  for (const auto& p : s.pts_u)
+    near += std::abs(fit.line.head<2>().dot(p) + fit.line.z()) <= o.fine_search_px;
+  return static_cast<double>(near) / s.positions;
 }
 
 EdgeFit refineEdge(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse,

@@ -145,10 +145,11 @@ double edgeContinuation(const cv::Mat& gray, const CameraModel& camera, const Ei
 
 /// Fraction of the side a-b (undistorted px, its corners' neighbourhoods skipped) whose normal
 /// crosses an edge of either polarity within fine_search_px of it: a cheap look at the gradient
-/// along a proposed side before its refinement.
+/// along a proposed side before its refinement. `refit`: within fine_search_px of the line that
+/// the peaks of a coarse_search_px wide search fit (a side proposed a few px off its edge).
 double edgeCoverage(const cv::Mat& gray, const CameraModel& camera, const Eigen::Vector2d& a,
                     const Eigen::Vector2d& b, const Eigen::Vector2d& inside,
-                    const ImageBoardDetectorOptions& o, double min_gradient);
+                    const ImageBoardDetectorOptions& o, double min_gradient, bool refit = false);
 
 /// px skipped at a corner end of a side `side_px` long: corners are rounded by the coarse stage
 /// and crowded by the other side; at most a fraction of a short (far) side.
