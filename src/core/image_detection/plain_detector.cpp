@@ -375,7 +375,9 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
         });
         times.quads_ms -= faint_evidence.times.total();
         times += faint_evidence.times;
-        for (auto* list : {&faint.best, &faint.ending_at_corners})
+        timed(&times.quads_ms,
+              [&] { rankByEdgeCoverage(gray, camera, o, min_gradient, &faint.faint); });
+        for (auto* list : {&faint.best, &faint.ending_at_corners, &faint.faint})
           for (auto& quad : *list) {
             Hypothesis h = fromQuad(quad, camera, o, true);
             h.source = kFaintLinesSource;
