@@ -156,5 +156,37 @@ TEST(PlainEdges, AHandOnAFarSideIsNotPartOfIt) {
   EXPECT_NE(fit.reason.find("edge bent"), std::string::npos) << fit.reason;
 }
 
+TEST(PlainEdges, AnEdgeBesideTheImageBorderIsFitUpToIt) {
+  // A side 6-8 px below the image's upper border: the first pass's profiles (coarse_search_px,
+  // 10 px each way) leave the image at every position. They used to be skipped, so a side near
+  // an image corner had "too few edge pixels"; the part past the border is now flat, and the
+  // position counts where the narrow search (fine_search_px) lies inside.
+  cv::setRNGSeed(5);
+  constexpr double x0 = 100, x1 = 500, y = 6.3, drop = 1.5;
+  const EdgeFit fit = fitTop(render({regionUnder(x0, x1, y, [](double s) { return drop * s; })}),
+                             x0, x1, y, y + 40);
+  ASSERT_TRUE(fit.valid) << fit.reason;
+  // The outline is drawn at 1/4 px; 400 px of samples with 2 grey levels of noise on a 90-level
+  // step place the line to a few hundredths of a pixel: 0.15 px bounds it with margin.
+  for (const auto& p : {Eigen::Vector2d(x0, y), Eigen::Vector2d(x1, y + drop)})
+    EXPECT_LT(std::abs(fit.line.head<2>().dot(p) + fit.line.z()), 0.15) << p.transpose();
+}
+
+TEST(PlainEdges, ASideProposedOffItsEdgeIsCoveredAroundItsOwnPeaksLine) {
+  // A weak lines' side 6 px off its edge at one end and 2 px at the other (a long merged line the
+  // lens' residual bent): the look along the proposed line finds the edge only where it lies
+  // within fine_search_px (3 px), about 5/8 of the side; around the line the side's own peaks fit
+  // (searched coarse_search_px wide) it finds it all along.
+  cv::setRNGSeed(6);
+  constexpr double x0 = 120, x1 = 520, y = 200.3;
+  const cv::Mat image = render({regionUnder(x0, x1, y, [](double) { return 0.0; })});
+  const Eigen::Vector2d a(x0, y + 6.0), b(x1, y - 2.0), inside(0.5 * (x0 + x1), y + 40);
+  const ImageBoardDetectorOptions o;
+  const double along = image_detection::edgeCoverage(image, pinhole(), a, b, inside, o, 5.0);
+  const double refit = image_detection::edgeCoverage(image, pinhole(), a, b, inside, o, 5.0, true);
+  EXPECT_LT(along, 0.75);  // short of the weak lines' bar (measured 0.66)
+  EXPECT_GT(refit, 0.95);  // measured 1.0
+}
+
 }  // namespace
 }  // namespace board_calib
