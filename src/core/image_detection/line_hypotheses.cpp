@@ -318,8 +318,32 @@ bool joinedBefore(const QuadSearch& search, const std::array<int, 4>& idx) {
   return true;
 }
 
-// The quadrilateral of lines idx (corner s where idx[s] meets idx[s + 1] in g) judged as
-// enumerateQuads judges its cycles, at once rather than pruned along the way.
+// The rest of the judgement of the quadrilateral of lines idx (corner s where idx[s] meets
+// idx[s + 1] in g) whose sides 0 and 1 are scored: not enumerated before, a convex outline, line
+// ends at its corners, sides 2 and 3, the score and the expected board.
+bool completeQuad(const LineSet& set, const CornerGraph& g, const std::array<int, 4>& idx,
+                  const cv::Rect2d& ubox, const ImageBoardDetectorOptions& o,
+                  const QuadSearch& search, std::array<QuadSide, 4>& sides, QuadHypothesis* q) {
+  if (joinedBefore(search, idx)) return false;
+  std::array<Eigen::Vector2d, 4> c;
+  for (int s = 0; s < 4; ++s) c[s] = g.at(idx[s], idx[(s + 1) % 4]);
+  if (!convexPolygon(c)) return false;
+  const int ends = search.min_corner_ends > 0 ? endsAtCorners(set, idx, c) : 0;
+  if (ends < search.min_corner_ends) return false;
+  // Side 3 is scored only while it could still lift the score above 0 (see enumerateQuads).
+  const std::vector<MergedLine>& lines = set.lines;
+  const double score_01 = sides[0].score + sides[1].score;
+  if (!scoreSide(lines[idx[2]], c[1], c[2], ubox, o, &sides[2]) ||
+      (!search.any_score && score_01 + sides[2].score + lines[idx[3]].support <= 0) ||
+      !scoreSide(lines[idx[3]], c[2], c[3], ubox, o, &sides[3]))
+    return false;
+  if (!scoreQuad(sides, c, search.any_score, q)) return false;
+  q->corner_ends = ends;
+  return !search.expected || expectedOffset(c, *search.expected) <= search.expected->tolerance_px;
+}
+
+// The quadrilateral of lines idx judged as enumerateQuads judges its cycles, at once rather than
+// pruned along the way.
 bool quadOfLines(const LineSet& set, const CornerGraph& g, const std::array<int, 4>& idx,
                  const cv::Rect2d& ubox, const ImageBoardDetectorOptions& o,
                  const QuadSearch& search, QuadHypothesis* q) {
@@ -330,18 +354,12 @@ bool quadOfLines(const LineSet& set, const CornerGraph& g, const std::array<int,
   for (int s = 0; s < 2; ++s)
     if (angleBetweenLines(lines[idx[s]].dir, lines[idx[s + 2]].dir) > kMaxOppositeAngleRad)
       return false;
-  if (joinedBefore(search, idx)) return false;
-  std::array<Eigen::Vector2d, 4> c;
-  for (int s = 0; s < 4; ++s) c[s] = g.at(idx[s], idx[(s + 1) % 4]);
-  if (!convexPolygon(c)) return false;
-  const int ends = endsAtCorners(set, idx, c);
-  if (ends < search.min_corner_ends) return false;
   std::array<QuadSide, 4> sides;
-  for (int s = 0; s < 4; ++s)
-    if (!scoreSide(lines[idx[s]], c[(s + 3) % 4], c[s], ubox, o, &sides[s])) return false;
-  if (!scoreQuad(sides, c, search.any_score, q)) return false;
-  q->corner_ends = ends;
-  return !search.expected || expectedOffset(c, *search.expected) <= search.expected->tolerance_px;
+  for (int s = 0; s < 2; ++s)
+    if (!scoreSide(lines[idx[s]], g.at(idx[(s + 3) % 4], idx[s]), g.at(idx[s], idx[s + 1]), ubox, o,
+                   &sides[s]))
+      return false;
+  return completeQuad(set, g, idx, ubox, o, search, sides, q);
 }
 
 // Quadrilaterals whose lines end at three of their corners and both stop short of the fourth
@@ -427,24 +445,8 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
           // rounding is monotone, so the bound holds in floating point too.
           const double score_ij = sides[0].score + sides[1].score;
           if (!search.any_score && score_ij + lines[k].support + lines[m].support <= 0) continue;
-          const std::array<int, 4> idx = {i, j, k, m};
-          if (joinedBefore(search, idx)) continue;
-          std::array<Eigen::Vector2d, 4> c;
-          for (int s = 0; s < 4; ++s) c[s] = g.at(idx[s], idx[(s + 1) % 4]);
-          if (!convexPolygon(c)) continue;
-          const int ends = search.min_corner_ends > 0 ? endsAtCorners(set, idx, c) : 0;
-          if (ends < search.min_corner_ends) continue;
-          if (!scoreSide(lines[k], c[1], c[2], ubox, o, &sides[2]) ||
-              (!search.any_score && score_ij + sides[2].score + lines[m].support <= 0) ||
-              !scoreSide(lines[m], c[2], c[3], ubox, o, &sides[3]))
-            continue;
           QuadHypothesis q;
-          if (!scoreQuad(sides, c, search.any_score, &q)) continue;
-          q.corner_ends = ends;
-          if (search.expected &&
-              expectedOffset(c, *search.expected) > search.expected->tolerance_px)
-            continue;
-          quads.push_back(q);
+          if (completeQuad(set, g, {i, j, k, m}, ubox, o, search, sides, &q)) quads.push_back(q);
         }
       }
     }
