@@ -217,7 +217,7 @@ class FuzzInputs : public ::testing::Test {
 }  // namespace
 
 TEST_F(FuzzInputs, PointCloud2) {
-  std::mt19937 rng(15001);
+  std::mt19937 rng(fuzz::seed(15001));
   int accepted = 0;
   for (int i = 0; i < kMessageIterations; ++i) {
     sensor_msgs::PointCloud2 msg = baseCloud(rng);
@@ -248,7 +248,7 @@ TEST_F(FuzzInputs, PointCloud2) {
 }
 
 TEST_F(FuzzInputs, Image) {
-  std::mt19937 rng(15002);
+  std::mt19937 rng(fuzz::seed(15002));
   int accepted = 0;
   for (int i = 0; i < kMessageIterations; ++i) {
     sensor_msgs::Image msg = baseImage(rng);
@@ -270,7 +270,7 @@ TEST_F(FuzzInputs, Image) {
 }
 
 TEST_F(FuzzInputs, CameraInfoAndTransform) {
-  std::mt19937 rng(15003);
+  std::mt19937 rng(fuzz::seed(15003));
   int accepted = 0;
   for (int i = 0; i < kMessageIterations; ++i) {
     sensor_msgs::CameraInfo msg = baseInfo();
@@ -297,7 +297,7 @@ TEST_F(FuzzInputs, CameraInfoAndTransform) {
 }
 
 TEST_F(FuzzInputs, TargetYaml) {
-  std::mt19937 rng(15004);
+  std::mt19937 rng(fuzz::seed(15004));
   const std::string root = BOARD_CALIB_SOURCE_DIR;
   const std::vector<std::string> seeds = {
       readFile(root + "/config/targets/plain_1016.yaml"),
@@ -315,7 +315,7 @@ TEST_F(FuzzInputs, TargetYaml) {
 }
 
 TEST_F(FuzzInputs, SessionYaml) {
-  std::mt19937 rng(15005);
+  std::mt19937 rng(fuzz::seed(15005));
   const std::string seed = sessionText(dir_.string());
   const std::string path = (dir_ / "session.yaml").string();
   Target target;
@@ -347,7 +347,7 @@ TEST_F(FuzzInputs, SessionYaml) {
 }
 
 TEST_F(FuzzInputs, ResultYaml) {
-  std::mt19937 rng(15006);
+  std::mt19937 rng(fuzz::seed(15006));
   const std::string root = BOARD_CALIB_SOURCE_DIR;
   const std::vector<std::string> results = {readFile(root + "/test/data/result_pair_example.yaml"),
                                             readFile(root + "/test/data/result_rig_example.yaml")};

@@ -15,7 +15,7 @@ constexpr int kIterations = 1500;  // as the other YAML fuzzers; a few seconds i
 }  // namespace
 
 TEST(FuzzRig, RigYaml) {
-  std::mt19937 rng(15007);
+  std::mt19937 rng(fuzz::seed(15007));
   const std::string dir = std::string(BOARD_CALIB_SOURCE_DIR) + "/config/rigs";
   std::ifstream in(dir + "/multi_rig_apriltag.yaml");
   std::stringstream buffer;

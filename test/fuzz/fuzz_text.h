@@ -2,12 +2,21 @@
 // hostile numbers, duplicated and swapped lines.
 #pragma once
 
+#include <cstdlib>
 #include <random>
 #include <sstream>
 #include <string>
 #include <vector>
 
 namespace fuzz {
+
+// The suite's seeds are fixed (a failure reproduces). BOARD_CALIB_FUZZ_ROUND=N (N > 0) shifts
+// every seed by N * 100 for a longer search by hand (rerun a failure with the same round).
+inline std::mt19937::result_type seed(std::mt19937::result_type base) {
+  const char* round = std::getenv("BOARD_CALIB_FUZZ_ROUND");
+  const long n = round ? std::strtol(round, nullptr, 10) : 0;
+  return base + static_cast<std::mt19937::result_type>(n > 0 ? n * 100 : 0);
+}
 
 inline std::string mutateText(std::mt19937& rng, std::string text) {
   static const char* kTokens[] = {
