@@ -124,33 +124,53 @@ SessionTally runSession(const sim::Scenario& scenario, bool stateful, const char
 sim::Scenario loadShippedScenario(const std::string& name) {
   auto s = sim::loadScenario(std::string(BOARD_CALIB_SOURCE_DIR) + "/config/scenarios/" + name);
   EXPECT_TRUE(s.ok()) << s.error();
+  // Development aid: BOARD_CALIB_SCENARIO_SEED draws other worlds (the suite runs the seeds
+  // below).
+  if (const char* seed = std::getenv("BOARD_CALIB_SCENARIO_SEED"))
+    s->seed = static_cast<unsigned>(std::strtoul(seed, nullptr, 10));
   return *s;
 }
 
 // Issue 14 targets: VLP-16 without ring, 5-14 m: board in >= 90 % of the clouds with >= 3
 // scan lines on it, four edges in >= 80 %, no wrong board.
-TEST(LidarDetectorScenario, FarSparseBoardOutdoorsWithoutRing) {
-  sim::Scenario s = loadShippedScenario("plain_vlp16_outdoor_far.yaml");
+void expectFarSparseTargets(sim::Scenario s, const std::string& world) {
   s.motion.poses = 30;
   s.motion.frames_per_move = 0;  // still frames: the held board
   s.motion.still_frames_per_hold = 2;
   for (const bool organized : {false, true}) {
     s.lidars[0].spec.organized = organized;
-    const SessionTally t = runSession(s, false, organized ? "far-organized" : "far-flat");
+    const std::string label = world + (organized ? " far-organized" : " far-flat");
+    const SessionTally t = runSession(s, false, label.c_str());
     ASSERT_GT(t.clouds, 40);
-    EXPECT_GE(t.found, (t.clouds * 90 + 99) / 100);
-    EXPECT_GE(t.four_edges, (t.clouds * 80 + 99) / 100);
-    EXPECT_EQ(t.wrong, 0);
-    EXPECT_GE(t.edges_within, (t.edges_measured * 90) / 100);
+    EXPECT_GE(t.found, (t.clouds * 90 + 99) / 100) << label;
+    EXPECT_GE(t.four_edges, (t.clouds * 80 + 99) / 100) << label;
+    EXPECT_EQ(t.wrong, 0) << label;
+    EXPECT_GE(t.edges_within, (t.edges_measured * 90) / 100) << label;
     if (organized) continue;
     // The session memory is on by default (pipeline, cloud detector nodelet): outdoors, with
     // parked cars and posters in view and a board moving between holds, it must keep every
     // board the single cloud found and accept nothing else.
-    const SessionTally memory = runSession(s, true, "far-flat-tracker");
-    EXPECT_EQ(memory.wrong, 0);
-    EXPECT_GE(memory.found, t.found);
-    EXPECT_GE(memory.four_edges, t.four_edges);
+    const std::string tracked = world + " far-flat-tracker";
+    const SessionTally memory = runSession(s, true, tracked.c_str());
+    EXPECT_EQ(memory.wrong, 0) << tracked;
+    EXPECT_GE(memory.found, t.found) << tracked;
+    EXPECT_GE(memory.four_edges, t.four_edges) << tracked;
   }
+}
+
+TEST(LidarDetectorScenario, FarSparseBoardOutdoorsWithoutRing) {
+  expectFarSparseTargets(loadShippedScenario("plain_vlp16_outdoor_far.yaml"), "shipped");
+}
+
+// The same street drawn again (board poses, holder, clutter and noise from another seed). Seed
+// 23 holds the board at 5.3 m where its lower half, seen by more lines, grew a voxel region of
+// its own (rejected: not rectangular): the scan-line candidate's plane refit then left those
+// voxels out as "another plane" and settled on the 30 returns of its top, 0.5 m off the board,
+// which was reported found.
+TEST(LidarDetectorScenario, FarSparseBoardInAnotherStreet) {
+  sim::Scenario s = loadShippedScenario("plain_vlp16_outdoor_far.yaml");
+  s.seed = 23;
+  expectFarSparseTargets(s, "seed 23");
 }
 
 // Board-sized posters, screens, doors and free-standing panels (some rolled like a held board)

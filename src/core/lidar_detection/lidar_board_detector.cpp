@@ -236,6 +236,15 @@ LidarBoardDetection detectImpl(const LidarCloud& cloud, const Target& target,
     return failure(std::move(det), LidarDetectionCode::kTooFewPoints,
                    "board candidate has only " + std::to_string(refined.inliers.size()) +
                        " points on its plane (need " + std::to_string(min_points) + ")");
+  // The refined plane is the candidate's own: a plane that keeps fewer than half of the points
+  // the candidate was judged on belongs to something around it.
+  const std::unordered_set<int> inlier_set(refined.inliers.begin(), refined.inliers.end());
+  size_t kept = 0;
+  for (int i : region_points) kept += inlier_set.count(i);
+  if (2 * kept < region_points.size())
+    return failure(std::move(det), LidarDetectionCode::kTooFewPoints,
+                   "the board candidate's plane, refined, keeps only " + std::to_string(kept) +
+                       " of its " + std::to_string(region_points.size()) + " points");
   f.found = true;
   det.code = LidarDetectionCode::kFound;
   const LidarBoardDetection before_edges = det;
