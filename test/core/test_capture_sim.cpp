@@ -10,6 +10,9 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <cstdlib>
+#include <sstream>
+#include <string>
 
 namespace board_calib {
 namespace {
@@ -33,8 +36,21 @@ sim::Scenario scenarioFor(const Config& c) {
 }  // namespace
 
 TEST(CaptureSim, EveryHoldOnceNeverAMovingBoard) {
-  const std::vector<Config> configs{
-      {2.0, true, 3}, {2.0, false, 4}, {30.0, true, 5}, {1.0, false, 6}};
+  std::vector<Config> configs{{2.0, true, 3}, {2.0, false, 4}, {30.0, true, 5}, {1.0, false, 6}};
+  // Development aid: BOARD_CALIB_CAPTURE_CONFIGS="7:1:11,15:0:12" (camera Hz : organized : seed)
+  // runs other rates and worlds instead.
+  if (const char* other = std::getenv("BOARD_CALIB_CAPTURE_CONFIGS")) {
+    configs.clear();
+    std::stringstream list(other);
+    std::string item;
+    while (std::getline(list, item, ',')) {
+      Config c{};
+      int organized = 0;
+      if (std::sscanf(item.c_str(), "%lf:%d:%u", &c.camera_hz, &organized, &c.seed) != 3) continue;
+      c.organized = organized != 0;
+      configs.push_back(c);
+    }
+  }
   for (const Config& c : configs) {
     const sim::Scenario scenario = scenarioFor(c);
     auto session = test_support::runSimulatedSession(scenario, PipelineOptions{});
