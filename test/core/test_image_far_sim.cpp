@@ -16,6 +16,7 @@
 #include <board_calib/core/sim/simulator.h>
 #include <board_calib/core/transform.h>
 
+#include "support/env_seeds.h"
 #include "support/sim_session.h"
 
 #include <gtest/gtest.h>
@@ -26,7 +27,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -191,13 +191,7 @@ FarResult runScenario(unsigned seed, int poses, bool street,
 // The seeds the found/wrong counts are asserted for; BOARD_CALIB_FAR_SEEDS="40,41" runs others by
 // hand (a development aid: the assertions then do not apply).
 std::vector<unsigned> defaultSeeds() {
-  std::vector<unsigned> seeds = {14u, 15u, 16u};
-  if (const char* other = std::getenv("BOARD_CALIB_FAR_SEEDS")) {
-    seeds.clear();
-    std::stringstream list(other);
-    for (std::string item; std::getline(list, item, ',');) seeds.push_back(std::stoul(item));
-  }
-  return seeds;
+  return test_support::seedsFromEnv("BOARD_CALIB_FAR_SEEDS", {14u, 15u, 16u});
 }
 
 // `noise_sigma`: the camera's pixel noise, grey levels (negative: the scenario's, 1.5).

@@ -8,6 +8,7 @@
 #include <board_calib/core/sim/scenario.h>
 #include <board_calib/core/transform.h>
 
+#include "support/env_seeds.h"
 #include "support/sim_session.h"
 
 #include <opencv2/imgproc.hpp>
@@ -38,7 +39,9 @@ sim::Scenario scenario() {
   auto s = sim::loadScenario(std::string(BOARD_CALIB_SOURCE_DIR) +
                              "/config/scenarios/plain_vlp32c_1920.yaml");
   EXPECT_TRUE(s.ok()) << s.error();
-  sim::Scenario out = test_support::captureScenario(*s, 0.5, 2.0, true, 12, 7);
+  // Development aid: BOARD_CALIB_SCENARIO_SEED draws another world (the suite runs seed 7).
+  const unsigned seed = test_support::seedsFromEnv("BOARD_CALIB_SCENARIO_SEED", {7u}).front();
+  sim::Scenario out = test_support::captureScenario(*s, 0.5, 2.0, true, 12, seed);
   out.cameras.front().render.supersampling = 2;
   return out;
 }

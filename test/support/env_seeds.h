@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+namespace board_calib {
 namespace test_support {
 
 inline std::vector<unsigned> seedsFromEnv(const char* variable, std::vector<unsigned> defaults) {
@@ -22,3 +23,4 @@ inline std::vector<unsigned> seedsFromEnv(const char* variable, std::vector<unsi
 }
 
 }  // namespace test_support
+}  // namespace board_calib
