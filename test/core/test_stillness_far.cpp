@@ -15,6 +15,7 @@
 #include <board_calib/core/sim/simulator.h>
 #include <board_calib/core/transform.h>
 
+#include "support/env_seeds.h"
 #include "support/sim_session.h"
 
 #include <gtest/gtest.h>
@@ -72,7 +73,8 @@ struct Streams {
 TEST(StillnessFar, FarHeldBoardsAreStill) {
   const StillnessOptions o = SessionOptions{}.stillness();
   int held = 0, still = 0, holds = 0, holds_still = 0;
-  for (const unsigned seed : {21u, 22u, 23u, 24u}) {
+  for (const unsigned seed :
+       test_support::seedsFromEnv("BOARD_CALIB_STILL_SEEDS", {21u, 22u, 23u, 24u})) {
     const sim::Scenario s = streetScenario(seed);
     auto timeline = sim::makeTimeline(s);
     ASSERT_TRUE(timeline.ok()) << timeline.error();
@@ -151,7 +153,9 @@ MotionCounts judgeMotions(const std::vector<SlowMotion>& motions, double near_m,
   StillnessOptions pairs = o;
   pairs.fit_drift = false;
   MotionCounts n;
-  const sim::Scenario s = streetScenario(21);
+  // Development aid: BOARD_CALIB_SCENARIO_SEED holds the board in another street.
+  const sim::Scenario s =
+      streetScenario(test_support::seedsFromEnv("BOARD_CALIB_SCENARIO_SEED", {21u}).front());
   auto timeline = sim::makeTimeline(s);
   EXPECT_TRUE(timeline.ok()) << timeline.error();
   if (!timeline) return n;
