@@ -2,6 +2,7 @@
 // hostile numbers, duplicated and swapped lines.
 #pragma once
 
+#include <algorithm>
 #include <cstdlib>
 #include <random>
 #include <sstream>
@@ -14,8 +15,8 @@ namespace fuzz {
 // every seed by N * 100 for a longer search by hand (rerun a failure with the same round).
 inline std::mt19937::result_type seed(std::mt19937::result_type base) {
   const char* round = std::getenv("BOARD_CALIB_FUZZ_ROUND");
-  const long n = round ? std::strtol(round, nullptr, 10) : 0;
-  return base + static_cast<std::mt19937::result_type>(n > 0 ? n * 100 : 0);
+  const long n = round ? std::clamp(std::strtol(round, nullptr, 10), 0L, 1000000L) : 0L;
+  return base + static_cast<std::mt19937::result_type>(n * 100);
 }
 
 inline std::string mutateText(std::mt19937& rng, std::string text) {
