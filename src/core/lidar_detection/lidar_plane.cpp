@@ -108,12 +108,14 @@ void gatherRegionPoints(const std::vector<Region>& regions, int region_id, const
       for (int j = 0; j < v.count; ++j) region_points->push_back(grid.sorted_points[v.first + j]);
   }
   if (region.sparse) *region_points = region.points;
-  const std::unordered_set<int> own(region.voxels.begin(), region.voxels.end());
+  // A voxel region's own voxels carry its id; a sparse candidate's may have grown a region of
+  // their own (a part of the board rejected as not rectangular: its lower half, seen by more
+  // lines), and stay in too.
+  std::unordered_set<int> own;
+  if (region.sparse) own.insert(region.voxels.begin(), region.voxels.end());
   for (int vi : gathered_voxels) {
     const Voxel& v = grid.voxels[vi];
-    // Only voxels that belong to no other large plane (walls behind the board stay out). A
-    // sparse candidate's own voxels stay in: they may have grown a region of their own, a part
-    // of the board rejected as not rectangular (its lower half, seen by more lines).
+    // Only voxels that belong to no other large plane (walls behind the board stay out).
     if (v.region >= 0 && v.region != region_id && !own.count(vi) &&
         regions[v.region].stats.n >= options.min_board_points)
       continue;
