@@ -2,6 +2,7 @@
 // the moves, camera rates from 1 to 30 Hz against a 10 Hz LiDAR, organized clouds with a ring
 // field and unorganized ones without (issue 13): every hold captured once, never a moving board,
 // and the run's verdict is honest about the result.
+#include "support/env_seeds.h"
 #include "support/sim_session.h"
 
 #include <board_calib/core/pipeline/pair_calibration.h>
@@ -10,8 +11,6 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
-#include <cstdlib>
-#include <sstream>
 #include <string>
 
 namespace board_calib {
@@ -39,17 +38,14 @@ TEST(CaptureSim, EveryHoldOnceNeverAMovingBoard) {
   std::vector<Config> configs{{2.0, true, 3}, {2.0, false, 4}, {30.0, true, 5}, {1.0, false, 6}};
   // Development aid: BOARD_CALIB_CAPTURE_CONFIGS="7:1:11,15:0:12" (camera Hz : organized : seed)
   // runs other rates and worlds instead.
-  if (const char* other = std::getenv("BOARD_CALIB_CAPTURE_CONFIGS")) {
-    configs.clear();
-    std::stringstream list(other);
-    std::string item;
-    while (std::getline(list, item, ',')) {
-      Config c{};
-      int organized = 0;
-      if (std::sscanf(item.c_str(), "%lf:%d:%u", &c.camera_hz, &organized, &c.seed) != 3) continue;
-      c.organized = organized != 0;
-      configs.push_back(c);
-    }
+  const std::vector<std::string> other = test_support::envList("BOARD_CALIB_CAPTURE_CONFIGS");
+  if (!other.empty()) configs.clear();
+  for (const std::string& item : other) {
+    Config c{};
+    int organized = 0;
+    if (std::sscanf(item.c_str(), "%lf:%d:%u", &c.camera_hz, &organized, &c.seed) != 3) continue;
+    c.organized = organized != 0;
+    configs.push_back(c);
   }
   for (const Config& c : configs) {
     const sim::Scenario scenario = scenarioFor(c);

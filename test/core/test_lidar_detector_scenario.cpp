@@ -9,6 +9,7 @@
 
 #include "lidar_truth.h"
 #include "sim_test_helpers.h"
+#include "support/env_seeds.h"
 
 #include <cmath>
 #include <cstdio>
@@ -127,8 +128,7 @@ sim::Scenario loadShippedScenario(const std::string& name) {
   EXPECT_TRUE(s.ok()) << s.error();
   // Development aid: BOARD_CALIB_SCENARIO_SEED draws other worlds (the suite runs the seeds
   // below).
-  if (const char* seed = std::getenv("BOARD_CALIB_SCENARIO_SEED"))
-    s->seed = static_cast<unsigned>(std::strtoul(seed, nullptr, 10));
+  s->seed = test_support::seedsFromEnv("BOARD_CALIB_SCENARIO_SEED", {s->seed}).front();
   return *s;
 }
 

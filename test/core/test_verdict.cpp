@@ -216,6 +216,8 @@ TEST(Verdict, ViewsWithATiltedImageSideAreAbsorbedOrTheResultRefused) {
   }
 }
 
+namespace {
+
 // The fault sweep of issue 13: each case failed or doubtful with a reason, never good.
 void faultSweep(unsigned seed) {
   SCOPED_TRACE("seed " + std::to_string(seed));
@@ -291,6 +293,8 @@ void faultSweep(unsigned seed) {
               failed, doubtful, good_but_right);
   EXPECT_GE(failed + doubtful, static_cast<int>(cases.size()) - 1);
 }
+
+}  // namespace
 
 TEST(Verdict, FaultSweepIsNeverASilentSuccess) {
   // Development aid: BOARD_CALIB_FAULT_SEEDS="1,2,3" sweeps other worlds.

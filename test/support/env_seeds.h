@@ -1,5 +1,5 @@
-// Seeds a test runs: its own fixed list, or (a development aid for sweeping other worlds by
-// hand) a comma-separated list from an environment variable.
+// Seeds (or other settings) a test runs: its own fixed list, or (a development aid for sweeping
+// other worlds by hand) a comma-separated list from an environment variable.
 #pragma once
 
 #include <cstdlib>
@@ -10,15 +10,21 @@
 namespace board_calib {
 namespace test_support {
 
-inline std::vector<unsigned> seedsFromEnv(const char* variable, std::vector<unsigned> defaults) {
+// The non-empty comma-separated items of an environment variable (none when it is unset).
+inline std::vector<std::string> envList(const char* variable) {
+  std::vector<std::string> items;
   const char* list = std::getenv(variable);
-  if (!list) return defaults;
-  std::vector<unsigned> seeds;
+  if (!list) return items;
   std::stringstream in(list);
-  std::string item;
-  while (std::getline(in, item, ','))
-    if (!item.empty())
-      seeds.push_back(static_cast<unsigned>(std::strtoul(item.c_str(), nullptr, 10)));
+  for (std::string item; std::getline(in, item, ',');)
+    if (!item.empty()) items.push_back(item);
+  return items;
+}
+
+inline std::vector<unsigned> seedsFromEnv(const char* variable, std::vector<unsigned> defaults) {
+  std::vector<unsigned> seeds;
+  for (const std::string& item : envList(variable))
+    seeds.push_back(static_cast<unsigned>(std::strtoul(item.c_str(), nullptr, 10)));
   return seeds.empty() ? defaults : seeds;
 }
 
