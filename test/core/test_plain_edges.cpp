@@ -188,5 +188,25 @@ TEST(PlainEdges, ASideProposedOffItsEdgeIsCoveredAroundItsOwnPeaksLine) {
   EXPECT_GT(refit, 0.95);  // measured 1.0
 }
 
+TEST(PlainEdges, AFarBoardsShortSideIsAnEdgeWhereItShowsHalfItsLength) {
+  // A 30 px side (a board ~80 px across, or a side the image cuts): after the corner exclusions
+  // its edge spans ~20 px, under min_edge_length_px (24 px), which refused it ("visible edge too
+  // short (18 px)" on augmented real frames). A side that short needs the share of its length
+  // the coverage asks of every side. The same side with its edge along its first third only (the
+  // rest is background: another object's corner) stays refused.
+  cv::setRNGSeed(7);
+  constexpr double x0 = 300, x1 = 330, y = 200.3;
+  const EdgeFit fit =
+      fitTop(render({regionUnder(x0, x1, y, [](double) { return 0.0; })}), x0, x1, y, y + 20);
+  ASSERT_TRUE(fit.valid) << fit.reason;
+  // ~10 samples with 2 grey levels of noise on a 90-level step: a few hundredths of a pixel;
+  // 0.3 px bounds it with margin.
+  for (const auto& p : {Eigen::Vector2d(x0, y), Eigen::Vector2d(x1, y)})
+    EXPECT_LT(std::abs(fit.line.head<2>().dot(p) + fit.line.z()), 0.3) << p.transpose();
+  const EdgeFit third =
+      fitTop(render({regionUnder(x0, x0 + 10, y, [](double) { return 0.0; })}), x0, x1, y, y + 20);
+  EXPECT_FALSE(third.valid);
+}
+
 }  // namespace
 }  // namespace board_calib

@@ -393,7 +393,10 @@ EdgeFit refineOnce(const cv::Mat& gray, const CameraModel& camera, const CoarseE
       return fit;
     }
   }
-  if (fit.span < o.min_edge_length_px) {
+  // A side shorter than twice min_edge_length_px (a far board's, or one the image cuts) shows its
+  // edge along the share of its visible length that the coverage asks of every side.
+  const double min_span = std::min(o.min_edge_length_px, o.min_side_coverage * (b - a).norm());
+  if (fit.span < min_span) {
     fit.reason = cv::format("visible edge too short (%.0f px)", fit.span);
   } else if (fit.coverage < o.min_side_coverage) {
     fit.reason = cv::format("edge seen along %.0f %% of its visible length (need %.0f %%)",

@@ -50,9 +50,10 @@ struct ImageBoardDetectorOptions {
                                    ///< the noise-based threshold)
   double edge_snr = 3.0;  ///< an edge gradient peak must exceed this many sigmas of the gradient
                           ///< noise (measured per image)
-  double min_edge_length_px = 24.0;  ///< px, shortest span of edge pixels accepted as a board edge
-                                     ///< (line direction from >= this)
-  int min_edge_points = 8;           ///< inlier edge samples needed for a valid edge
+  /// px, shortest span of edge pixels accepted as a board edge (line direction from >= this); a
+  /// visible side shorter than twice this needs its min_side_coverage share
+  double min_edge_length_px = 24.0;
+  int min_edge_points = 8;         ///< inlier edge samples needed for a valid edge
   double min_side_coverage = 0.5;  ///< fraction of a side's visible length that must show its edge
                                    ///< (the rest may be occluded: hands, legs)
   double edge_inlier_px = 3.0;   ///< px, edge samples farther than this from the line are outliers
