@@ -67,6 +67,8 @@ constexpr const char kRegionSource[] = "region";
 constexpr const char kWeakLinesSource[] = "weak lines";
 /// Source of a board found by the faint-line search (faintLineQuantization), judged as weak lines.
 constexpr const char kFaintLinesSource[] = "faint lines";
+/// Source of a board found by the line search at a finer width (far boards), judged as weak lines.
+constexpr const char kFineLinesSource[] = "fine lines";
 
 /// Names edges by their outward normal angle (atan2(b, a), image v down). `angles` are in
 /// clockwise image order when `cyclic` (then a cyclic shift is chosen); otherwise each edge gets
