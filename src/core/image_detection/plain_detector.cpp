@@ -325,6 +325,29 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
   const ImageDetection fresh = *out;
   HypothesisSearch search;
   RefinedSides refined;
+  // A further line search (another LSD bound or width): its quadrilaterals, those of its first
+  // lines with `with_first`, are judged as weak lines.
+  auto searchLinesAgain = [&](const ImageBoardDetectorOptions& line_o, double quantization,
+                              const char* source, bool with_first) {
+    LineEvidence again;
+    LineQuads found = timed(&times.quads_ms, [&] {
+      return lineQuadHypotheses(gray, camera, line_o, &again, expected,
+                                excluded ? &excluded->lines_px : nullptr, quantization);
+    });
+    times.quads_ms -= again.times.total();
+    times += again.times;
+    timed(&times.quads_ms,
+          [&] { rankByEdgeCoverage(gray, camera, o, min_gradient, &found.faint); });
+    for (auto* list : {&found.best, &found.ending_at_corners, &found.faint}) {
+      if (list == &found.best && !with_first) continue;
+      for (auto& quad : *list) {
+        Hypothesis h = fromQuad(quad, camera, o, true);
+        h.source = source;
+        hypotheses.push_back(std::move(h));
+        quads.push_back(std::move(quad));
+      }
+    }
+  };
   // Openings of the rejected regions (distance transforms: as costly as the segmentation) are
   // made only when no region was the board; they come before the line quadrilaterals.
   size_t regions = first_regions;
@@ -369,59 +392,26 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
       });
     // Then the lines of a second line search with a lower gradient bound, where the image's
     // noise allows one: LSD's raw bound keeps a faint board's blurred edges (12 grey levels
-    // over a ~1.7 px blur) out of the downscaled image's level lines. Judged as weak lines.
+    // over a ~1.7 px blur) out of the downscaled image's level lines.
     if (i == hypotheses.size() && i >= regions && !search.settled(o.min_side_coverage) &&
         !faint_tried) {
       faint_tried = true;
       const double q = faintLineQuantization(o, gray.cols, noise);
-      if (q > 0) {
-        LineEvidence faint_evidence;
-        LineQuads faint = timed(&times.quads_ms, [&] {
-          return lineQuadHypotheses(gray, camera, o, &faint_evidence, expected,
-                                    excluded ? &excluded->lines_px : nullptr, q);
-        });
-        times.quads_ms -= faint_evidence.times.total();
-        times += faint_evidence.times;
-        timed(&times.quads_ms,
-              [&] { rankByEdgeCoverage(gray, camera, o, min_gradient, &faint.faint); });
-        for (auto* list : {&faint.best, &faint.ending_at_corners, &faint.faint})
-          for (auto& quad : *list) {
-            Hypothesis h = fromQuad(quad, camera, o, true);
-            h.source = kFaintLinesSource;
-            hypotheses.push_back(std::move(h));
-            quads.push_back(std::move(quad));
-          }
-      }
+      if (q > 0) searchLinesAgain(o, q, kFaintLinesSource, true);
     }
     // Then, when nothing was the board, the lines of a search at kFineLineScale x the line width:
     // a far board's sides (40-100 px in a 1920 px image) are too short at that width to rank
-    // among a cluttered scene's lines or to be found at all. Judged as weak lines.
+    // among a cluttered scene's lines or to be found at all. Its first lines are the scene's long
+    // lines again, their quadrilaterals tried already (measured with them: a facade rectangle
+    // taken in the mono street's memory and pre-pass).
     if (i == hypotheses.size() && i >= regions && !search.found() && !fine_tried) {
       fine_tried = true;
       ImageBoardDetectorOptions fine_o = o;
       fine_o.line_detection_width_px =
           std::min(static_cast<double>(gray.cols), kFineLineScale * o.line_detection_width_px);
       if (o.line_detection_width_px > 0 &&
-          fine_o.line_detection_width_px >= kMinFineLineGain * o.line_detection_width_px) {
-        LineEvidence fine_evidence;
-        LineQuads fine = timed(&times.quads_ms, [&] {
-          return lineQuadHypotheses(gray, camera, fine_o, &fine_evidence, expected,
-                                    excluded ? &excluded->lines_px : nullptr);
-        });
-        times.quads_ms -= fine_evidence.times.total();
-        times += fine_evidence.times;
-        timed(&times.quads_ms,
-              [&] { rankByEdgeCoverage(gray, camera, o, min_gradient, &fine.faint); });
-        // Its first lines are the scene's long lines again, their quadrilaterals tried already
-        // (measured with them: a facade rectangle taken in the mono street's memory and pre-pass).
-        for (auto* list : {&fine.ending_at_corners, &fine.faint})
-          for (auto& quad : *list) {
-            Hypothesis h = fromQuad(quad, camera, o, true);
-            h.source = kFineLinesSource;
-            hypotheses.push_back(std::move(h));
-            quads.push_back(std::move(quad));
-          }
-      }
+          fine_o.line_detection_width_px >= kMinFineLineGain * o.line_detection_width_px)
+        searchLinesAgain(fine_o, kLsdRawQuantization, kFineLinesSource, false);
     }
     // Last, a second chance's expected board itself: where the other sensor's board projects,
     // its sides searched as wide as the prior is uncertain (a board no hypothesis of its own
