@@ -336,6 +336,12 @@ TEST(ImageDetectorFarSim, AMonoCameraRarelyTakesAnotherObjectForTheBoard) {
   EXPECT_EQ(prepass.wrong, 0);
 }
 
+// The street sessions both session tests run; BOARD_CALIB_STREET_SEEDS="30,31" runs others by
+// hand.
+std::vector<unsigned> streetSessionSeeds() {
+  return test_support::seedsFromEnv("BOARD_CALIB_STREET_SEEDS", {21u, 22u, 24u});
+}
+
 // One street session of `seed` (through a mono camera with `mono`): printed, and when not failed
 // its result checked against the truth within 3 sigma (the issue-10 promise). Returns whether it
 // failed.
@@ -394,10 +400,8 @@ bool streetSessionFailedOrTrue(unsigned seed, bool mono) {
 // covariance, too few views to cross-validate), then failed with its reason; since session 7's
 // segment detector (one wrong image board fewer, 4 views) it is doubtful, 0.79 deg / 80 mm off
 // with a 1 sigma of 0.26 deg / 38 mm: within the bound below, near it in rotation.
-// BOARD_CALIB_STREET_SEEDS="30,31" runs other sessions by hand (both tests below).
 TEST(ImageDetectorFarSim, StreetSessionNeverReportsAWrongCalibration) {
-  for (const unsigned seed :
-       test_support::seedsFromEnv("BOARD_CALIB_STREET_SEEDS", {21u, 22u, 24u})) {
+  for (const unsigned seed : streetSessionSeeds()) {
     const bool failed = streetSessionFailedOrTrue(seed, false);
     if (seed == 21) {
       EXPECT_FALSE(failed);
@@ -411,9 +415,7 @@ TEST(ImageDetectorFarSim, StreetSessionNeverReportsAWrongCalibration) {
 // truth. Measured: all three fail ("2 usable views", "only 1 usable view", "no three views
 // agree on one rigid motion").
 TEST(ImageDetectorFarSim, MonoStreetSessionNeverReportsAWrongCalibration) {
-  for (const unsigned seed :
-       test_support::seedsFromEnv("BOARD_CALIB_STREET_SEEDS", {21u, 22u, 24u}))
-    streetSessionFailedOrTrue(seed, true);
+  for (const unsigned seed : streetSessionSeeds()) streetSessionFailedOrTrue(seed, true);
 }
 
 }  // namespace board_calib
