@@ -360,6 +360,60 @@ TEST(ImageDetectorSim, AFarBoardBehindManyLongerLinesIsFoundByItsSides) {
   EXPECT_LT(worst_px, 1.0);  // sub-pixel lines on a ~100 px board (issue 14)
 }
 
+// The same far board behind five times as many window frames, in colour: ~1200 edges longer than
+// its sides, at the line search's width and at the finer one, so no line search ranks the
+// board's sides. It is still a stable region (uniform, bounded by its own contrast at every
+// threshold near its grey) and found as one, with its true lines; no window cell passes for it.
+// (Stable regions are searched in colour frames only: measured 0 of 8 without them.)
+TEST(ImageDetectorSim, AFarBoardBehindMoreLinesThanAnySearchRanksIsAStableRegion) {
+  const CameraModel camera = testCamera();
+  const Target target = configTarget("plain_1016.yaml");
+  auto det = ImageBoardDetector::create(target, ImageBoardDetectorOptions{});
+  ASSERT_TRUE(det.ok()) << det.error();
+  int found = 0, stable = 0, mono_stable = 0;
+  double worst_px = 0;
+  constexpr int kFrames = 8;
+  for (int i = 0; i < kFrames; ++i) {
+    std::mt19937 rng(60 + i);
+    std::uniform_real_distribution<double> unit(-1.0, 1.0), u01(0.0, 1.0);
+    const double z = 12.0 + 3.0 * u01(rng);
+    const Eigen::Isometry3d truth =
+        cameraTBoard(target, {-0.25 * z + 0.05 * z * unit(rng), 0.12 * z + 0.03 * z * unit(rng), z},
+                     45 + 10 * unit(rng), 25 * unit(rng), 20 * unit(rng));
+    Rendered r = render(camera, target, truth, rng, false);
+    for (int k = 0; k < 150; ++k) {
+      const double grey = 60 + 160 * u01(rng), len = 300 + 400 * u01(rng);
+      const bool wide = k % 2 == 0;
+      const cv::Point2d size = wide ? cv::Point2d(len, len / 4) : cv::Point2d(len / 4, len);
+      const cv::Point2d at =
+          wide ? cv::Point2d(40 + (1860 - len) * u01(rng), 30 + 200 * u01(rng))
+               : cv::Point2d(1000 + (860 - len / 4) * u01(rng), 30 + (1150 - len) * u01(rng));
+      cv::rectangle(r.image, cv::Rect2d(at, at + size), cv::Scalar(0.5 * grey, grey, 0.9 * grey),
+                    3 + static_cast<int>(3 * u01(rng)), cv::LINE_AA);
+    }
+    const ImageDetection d = det->detect(r.image, camera);
+    writeDebug("sim_plain_far_stable_" + std::to_string(i), r.image, camera, d);
+    double off = 0;
+    for (int j = 0; j < kNumEdges && d.features.found; ++j)
+      off = std::max(off, edgeOffPx(d.features, truth, target, camera, j));
+    std::printf(
+        "far board behind 1200 lines %d: %.1f m, %d lines, found %d (%s), worst edge %.2f px %s\n",
+        i, z, d.details.straight_lines, d.features.found, d.details.board_source.c_str(), off,
+        d.features.reason.c_str());
+    found += d.features.found;
+    stable += d.details.board_source == "stable regions";
+    // The same frame from a mono camera: no colour to challenge a stable region with.
+    cv::Mat mono;
+    cv::cvtColor(r.image, mono, cv::COLOR_BGR2GRAY);
+    mono_stable += det->detect(mono, camera).details.board_source == "stable regions";
+    worst_px = std::max(worst_px, off);
+  }
+  EXPECT_EQ(found, kFrames);
+  EXPECT_EQ(stable, kFrames);
+  EXPECT_LT(worst_px, 1.0);
+  EXPECT_EQ(mono_stable, 0);
+}
+
 // Plain board in the simulator's textured room (grey flat panels, tiles, a person behind the
 // board): the board must be found in most frames where it is largely visible, as in
 // config/scenarios/plain_*.yaml (1.5-6 m, held as a diamond, tilted both ways).

@@ -69,6 +69,8 @@ constexpr const char kWeakLinesSource[] = "weak lines";
 constexpr const char kFaintLinesSource[] = "faint lines";
 /// Source of a board found by the line search at a finer width (far boards), judged as weak lines.
 constexpr const char kFineLinesSource[] = "fine lines";
+/// Source of a board outlined by a stable region's quadrilateral, judged as weak lines.
+constexpr const char kStableRegionsSource[] = "stable regions";
 
 /// Names edges by their outward normal angle (atan2(b, a), image v down). `angles` are in
 /// clockwise image order when `cyclic` (then a cyclic shift is chosen); otherwise each edge gets
@@ -215,13 +217,16 @@ bool visibleSideInterval(const CameraModel& camera, const Eigen::Vector2d& p,
 double estimateNoiseSigma(const cv::Mat& gray);
 
 /// With `expected`, a second chance inside the projected board (ImageBoardDetector::detectNear);
-/// with `excluded`, boards on static scene rectangles are not accepted. `faint_lines`: when
-/// nothing else is the board, a second line search with a lower gradient bound
-/// (faintLineQuantization); for the grey image (a colour contrast image stretches the board's).
+/// with `excluded`, boards on static scene rectangles are not accepted. `grey_frame`: `gray` is
+/// the frame's own grey image (not a colour contrast image, which stretches the board's, nor a
+/// colour part's window); when nothing else is the board, it is also searched with a lower
+/// line gradient bound (faintLineQuantization), and with `colour_challenge` (the frame's colour
+/// can challenge a board found in grey: ImageBoardDetector searches it in colour) for the stable
+/// regions' quadrilaterals (stableRegionQuads).
 void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                  const ImageBoardDetectorOptions& options, ImageDetection* out,
                  const ExpectedBoard* expected = nullptr, const StaticScene* excluded = nullptr,
-                 bool faint_lines = false);
+                 bool grey_frame = false, bool colour_challenge = false);
 /// Weakest edge gradient (grey levels per px) a board edge sample needs in an image of this noise.
 double minEdgeGradient(const ImageBoardDetectorOptions& options, double noise_sigma);
 /// A board found in another channel, its sides tested in the grey image: a coloured tile of a

@@ -43,6 +43,27 @@ bool canChallenge(const ExpectedBoard& place, const ImageDetection& found) {
   return place_in_board > 0.0 || bound > found.details.board_support_px;
 }
 
+// A three-channel frame whose channels differ (a grey image sent as bgr8 has no colour to
+// challenge a board with): more than kColourShare of a sparse grid of pixels spread their
+// channels by more than kGreySpread grey levels (compression and demosaicing keep a grey scene
+// within a few).
+bool hasColour(const cv::Mat& image) {
+  if (image.channels() != 3 || image.depth() != CV_8U) return false;
+  constexpr int kStride = 8;
+  constexpr int kGreySpread = 6;
+  constexpr double kColourShare = 0.05;
+  long coloured = 0, sampled = 0;
+  for (int y = 0; y < image.rows; y += kStride) {
+    const cv::Vec3b* row = image.ptr<cv::Vec3b>(y);
+    for (int x = 0; x < image.cols; x += kStride, ++sampled) {
+      const cv::Vec3b& p = row[x];
+      const int spread = std::max({p[0], p[1], p[2]}) - std::min({p[0], p[1], p[2]});
+      coloured += spread > kGreySpread;
+    }
+  }
+  return sampled > 0 && coloured > kColourShare * sampled;
+}
+
 // Whether a grey board is searched for in colour too (searchInColour's challenge): a board of
 // straight lines alone always (nothing vouched for its interior); a region only when turned past
 // kSteepTurnFacing, where a board facing the camera with far less edge support outranks it (the
@@ -354,7 +375,7 @@ ImageDetection ImageBoardDetector::run(const cv::Mat& image, const CameraModel& 
       switch (impl_->target.type) {
         case TargetType::kPlain:
           image_detection::detectPlain(gray, camera, impl_->target, impl_->options, &out, expected,
-                                       excluded, true);
+                                       excluded, true, hasColour(image));
           if (image.channels() == 3 && (!f.found || worthChallenging(out)))
             impl_->searchInColour(image, gray, camera, expected, excluded, &out);
           break;

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace board_calib {
 namespace image_detection {
@@ -33,6 +34,15 @@ constexpr double kDuplicateHypothesisFraction =
 // CPU per frame +12 ms on average; at 3x no more frames at 1.5x the time.
 constexpr double kFineLineScale = 2.0;
 constexpr double kMinFineLineGain = 1.25;
+
+// Stable regions (stableRegionQuads) up to this multiple of the smallest region the segmentation
+// proposes: the boards too small for it, and those it merges with a neighbour of their grey.
+// Measured on the augmented real frames: 225 -> 227 of 252 (far rs16 boards), none wrong; MSER
+// takes 7-10 ms of the 480 px image where it runs (rs16_plain's region stage +1.4 ms per frame on
+// average).
+constexpr double kStableRegionAreaFactor = 4.0;
+// Downscaled px: how well a stable region's simplified outline places a corner.
+constexpr double kCoarseCornerPx = 1.5;
 
 // Every hypothesis tried; the accepted one with the most edge support wins. When none is a board,
 // the attempt that got furthest (most valid edges, then the more edge support) gives the reason.
@@ -242,6 +252,47 @@ void rankByEdgeCoverage(const cv::Mat& gray, const CameraModel& camera,
   }
 }
 
+// The stable regions' quadrilaterals that could be the declared board: its corners fit a board of
+// the declared size (to what a corner of the downscaled image is known, kCoarseCornerPx of it, or
+// the detector's own corner bound when that is larger) within max_board_distance_m and
+// max_board_tilt_deg; best fit first. A scene's stable regions are mostly cells of other shapes
+// or sizes (windows, tiles, a gap between frames), and only the first max_line_hypotheses are
+// refined.
+void keepBoardShaped(const Target& target, const CameraModel& camera,
+                     const ImageBoardDetectorOptions& o, double sx,
+                     std::vector<QuadHypothesis>* quads) {
+  const auto outer = target.outerCorners();
+  const Points3 obj(outer.begin(), outer.end());
+  std::vector<std::pair<double, QuadHypothesis>> kept;
+  for (QuadHypothesis& q : *quads) {
+    const double side = meanSidePx(q.corners);
+    const double bound = std::max(kCoarseCornerPx * sx, o.max_plain_corner_rms_fraction * side);
+    double best = std::numeric_limits<double>::infinity();
+    // Clockwise in the image (v down), as the edge naming orders a board's corners; either
+    // naming of a rectangular board (boardPose; a square one fits both alike).
+    const Eigen::Vector2d e1 = q.corners[1] - q.corners[0], e2 = q.corners[2] - q.corners[1];
+    const int step = e1.x() * e2.y() - e1.y() * e2.x() < 0 ? kNumEdges - 1 : 1;
+    for (int shift = 0; shift < 2; ++shift) {
+      Points2 img;
+      for (int k = 0; k < kNumEdges; ++k) img.push_back(q.corners[(shift + k * step) % kNumEdges]);
+      const PoseFit pose = fitPose(obj, img, camera.K(), o.pixel_sigma_px);
+      if (!pose.ok || pose.rms_px > bound) continue;
+      const Eigen::Vector3d centre = pose.camera_T_board * target.center();
+      const double facing =
+          std::abs(planeFromPose(pose.camera_T_board).normal.dot(centre.normalized()));
+      if (centre.norm() > o.max_board_distance_m ||
+          facing < std::cos(o.max_board_tilt_deg * M_PI / 180.0))
+        continue;
+      best = std::min(best, pose.rms_px / side);
+    }
+    if (std::isfinite(best)) kept.emplace_back(best, std::move(q));
+  }
+  std::stable_sort(kept.begin(), kept.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  quads->clear();
+  for (auto& k : kept) quads->push_back(std::move(k.second));
+}
+
 // The board (or the attempt that got furthest, or why nothing was tried) and what was seen.
 void report(HypothesisSearch&& search, LineEvidence&& evidence, const std::string& region_reason,
             bool no_hypotheses, double noise, ImageDetection* out) {
@@ -285,7 +336,8 @@ bool sidesEndInGray(const cv::Mat& gray, const CameraModel& camera,
 
 void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                  const ImageBoardDetectorOptions& o, ImageDetection* out,
-                 const ExpectedBoard* expected, const StaticScene* excluded, bool faint_lines) {
+                 const ExpectedBoard* expected, const StaticScene* excluded, bool grey_frame,
+                 bool colour_challenge) {
   PlainStageTimes times;
   // Edge pixels must stand out of this image's own noise (sensor, compression, texture).
   const double noise = timed(&times.noise_ms, [&] { return estimateNoiseSigma(gray); });
@@ -351,7 +403,7 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
   // Openings of the rejected regions (distance transforms: as costly as the segmentation) are
   // made only when no region was the board; they come before the line quadrilaterals.
   size_t regions = first_regions;
-  bool projected_tried = false, faint_tried = !faint_lines, fine_tried = false;
+  bool projected_tried = false, faint_tried = !grey_frame, fine_tried = false, stable_tried = false;
   for (size_t i = 0;; ++i) {
     if (i == first_regions && !search.found()) {
       timed(&times.regions_ms, [&] { proposeOpenedRegions(small.size(), o, &seg); });
@@ -412,6 +464,32 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
       if (o.line_detection_width_px > 0 &&
           fine_o.line_detection_width_px >= kMinFineLineGain * o.line_detection_width_px)
         searchLinesAgain(fine_o, kLsdRawQuantization, kFineLinesSource, false);
+    }
+    // Then, when still nothing was the board, in the frame's own search: the quadrilaterals of
+    // its stable regions (a far board in clutter, whose sides no line search ranks), judged as
+    // weak lines. Only where the frame's colour can challenge what they find: a facade's window,
+    // a door or a screen is as much a stable region of the board's shape as the board, and its
+    // edges, corners and fit pass as well (measured in the simulated mono street, seeds 40-63,
+    // single frames, memory and pre-pass: 32 windows taken, no board).
+    if (i == hypotheses.size() && i >= regions && !search.found() && !stable_tried && grey_frame &&
+        colour_challenge) {
+      stable_tried = true;
+      std::vector<QuadHypothesis> stable = timed(&times.regions_ms, [&] {
+        return stableRegionQuads(
+            small, sx, camera, o,
+            kStableRegionAreaFactor * o.min_board_area_fraction * small.total());
+      });
+      timed(&times.quads_ms, [&] {
+        keepBoardShaped(target, camera, o, sx, &stable);
+        rankByEdgeCoverage(gray, camera, o, min_gradient, &stable);
+      });
+      for (auto& q : stable) {
+        if (expected && expectedOffset(q.corners, *expected) > expected->tolerance_px) continue;
+        Hypothesis h = fromQuad(q, camera, o, true);
+        h.source = kStableRegionsSource;
+        hypotheses.push_back(std::move(h));
+        quads.push_back(std::move(q));
+      }
     }
     // Last, a second chance's expected board itself: where the other sensor's board projects,
     // its sides searched as wide as the prior is uncertain (a board no hypothesis of its own

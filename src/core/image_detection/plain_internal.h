@@ -51,6 +51,13 @@ std::vector<std::vector<cv::Point>> openedParts(const std::vector<cv::Point>& co
 /// a part holding both (in [0.5, 0.9]; 0 for a board without a size).
 double holderOpeningFraction(const Target& target);
 
+/// Quadrilaterals of the maximally stable extremal regions of the downscaled image (`sx`: full px
+/// per downscaled px) smaller than `max_area` downscaled px: small boards in clutter. Corners in
+/// undistorted full-resolution px, best first.
+std::vector<QuadHypothesis> stableRegionQuads(const cv::Mat& small, double sx,
+                                              const CameraModel& camera,
+                                              const ImageBoardDetectorOptions& o, double max_area);
+
 /// Second chance: openings of the rejected regions replace the candidates.
 void proposeOpenedRegions(cv::Size size, const ImageBoardDetectorOptions& o, Segmentation* seg);
 

@@ -3,6 +3,7 @@
 // sides of each region's outline.
 #include "plain_internal.h"
 
+#include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
@@ -27,6 +28,15 @@ constexpr double kHolderHalfWidthM = 0.25;
 constexpr double kHolderMargin = 1.25;
 // At its inradius an opening leaves nothing of a board but its centre.
 constexpr double kMaxOpeningFraction = 0.9;
+// Stable regions (stableRegionQuads): OpenCV's MSER delta and variation, and a diversity that
+// keeps one of a board's nested thresholds; simplification of the hull to four corners, as a
+// fraction of its perimeter; boxes overlapping this much are one region; at most this many.
+constexpr int kStableRegionDelta = 5;
+constexpr double kStableRegionMaxVariation = 0.25;
+constexpr double kStableRegionMinDiversity = 0.5;
+constexpr double kQuadEpsilonMin = 0.02, kQuadEpsilonMax = 0.1, kQuadEpsilonStep = 0.01;
+constexpr double kSameRegionOverlap = 0.8;
+constexpr size_t kMaxStableRegions = 48;
 
 // Scores one proposed region: a board is large, convex and uniform, and differs from its
 // surroundings. Returns false (with the rejection) when it is not board-like.
@@ -255,6 +265,101 @@ void proposeOpenedRegions(cv::Size size, const ImageBoardDetectorOptions& o, Seg
   for (const auto& contour : rejected)
     for (const auto& part : openRegion(contour, size, seg->min_area)) seg->add(part, o, false);
   seg->sort();
+}
+
+// A board far enough to be small (80-100 px in a 1920 px frame) is neither isolated by the
+// frame's global brightness threshold (it joins whatever else has its grey) nor outlined by the
+// frame's longest lines (its sides rank past a cluttered scene's few hundred). It is a maximally
+// stable extremal region: uniform, and bounded by its own contrast at every threshold near its
+// level. Those regions that are convex quadrilaterals become hypotheses; their sides are then
+// judged like the weak lines' (rankByEdgeCoverage, the strict corner fit).
+std::vector<QuadHypothesis> stableRegionQuads(const cv::Mat& small, double sx,
+                                              const CameraModel& camera,
+                                              const ImageBoardDetectorOptions& o, double max_area) {
+  // Smallest: a board whose sides all reach min_board_size_px (convexCorners refuses less).
+  const double min_area = (o.min_board_size_px / sx) * (o.min_board_size_px / sx);
+  if (!(max_area > min_area)) return {};
+  // OpenCV's defaults but the diversity: a region nested in one less than this much larger is
+  // the same board at another threshold.
+  const cv::Ptr<cv::MSER> mser = cv::MSER::create(
+      kStableRegionDelta, static_cast<int>(std::ceil(min_area)), static_cast<int>(max_area),
+      kStableRegionMaxVariation, kStableRegionMinDiversity);
+  std::vector<std::vector<cv::Point>> regions;
+  std::vector<cv::Rect> boxes;
+  mser->detectRegions(small, regions, boxes);
+  struct Quad {
+    std::vector<cv::Point> corners;
+    cv::Rect box;
+    double shape;  // solidity^4 x how well four corners outline the hull
+  };
+  std::vector<Quad> quads;
+  std::vector<int> row_min, row_max;
+  std::vector<cv::Point> extremes, hull, corners;
+  for (size_t r = 0; r < regions.size(); ++r) {
+    const cv::Rect& box = boxes[r];
+    if (box.area() < min_area) continue;
+    // The hull of a region is the hull of its rows' extreme pixels (a row's pixels lie between).
+    row_min.assign(box.height, INT_MAX);
+    row_max.assign(box.height, INT_MIN);
+    for (const cv::Point& p : regions[r]) {
+      const int y = p.y - box.y;
+      if (y < 0 || y >= box.height) continue;  // not in its own box: OpenCV's to keep
+      row_min[y] = std::min(row_min[y], p.x);
+      row_max[y] = std::max(row_max[y], p.x);
+    }
+    extremes.clear();
+    for (int y = 0; y < box.height; ++y)
+      if (row_min[y] <= row_max[y]) {
+        extremes.emplace_back(row_min[y], box.y + y);
+        extremes.emplace_back(row_max[y], box.y + y);
+      }
+    cv::convexHull(extremes, hull);
+    const double hull_area = cv::contourArea(hull);
+    if (hull_area < min_area) continue;
+    const double solidity = std::min(1.0, static_cast<double>(regions[r].size()) / hull_area);
+    if (solidity < o.min_solidity) continue;
+    // Four corners at the coarsest simplification that still keeps four (a hand on a corner
+    // adds a fifth at the finest).
+    for (double eps = kQuadEpsilonMin; eps <= kQuadEpsilonMax + 1e-9; eps += kQuadEpsilonStep) {
+      cv::approxPolyDP(hull, corners, eps * cv::arcLength(hull, true), true);
+      if (corners.size() <= static_cast<size_t>(kNumEdges)) break;
+    }
+    if (corners.size() != static_cast<size_t>(kNumEdges)) continue;
+    const double fill = hull_area / std::max(1.0, cv::contourArea(corners));
+    const double shape = std::pow(solidity, 4) * std::min(fill, 1.0 / fill);
+    const cv::Rect quad_box = cv::boundingRect(corners);
+    bool same = false;
+    for (Quad& q : quads)
+      if ((q.box & quad_box).area() > kSameRegionOverlap * (q.box | quad_box).area()) {
+        if (shape > q.shape) q = {corners, quad_box, shape};
+        same = true;
+        break;
+      }
+    if (!same) quads.push_back({corners, quad_box, shape});
+  }
+  // Uniform inside and unlike its surroundings, as a board region (scoreRegion) is.
+  cv::Mat blurred;
+  cv::GaussianBlur(small, blurred, cv::Size(5, 5), 0);
+  std::vector<std::pair<double, const Quad*>> ranked;
+  for (const Quad& q : quads) {
+    RegionCandidate candidate;
+    std::string rejection;
+    if (!scoreRegion(q.corners, blurred, o, &candidate, &rejection)) continue;
+    const double uniformity = candidate.score / std::max(1.0, cv::contourArea(q.corners));
+    ranked.emplace_back(q.shape * uniformity, &q);
+  }
+  std::stable_sort(ranked.begin(), ranked.end(),
+                   [](const auto& a, const auto& b) { return a.first > b.first; });
+  std::vector<QuadHypothesis> out;
+  for (const auto& [score, q] : ranked) {
+    if (out.size() >= kMaxStableRegions) break;
+    QuadHypothesis h;
+    for (int k = 0; k < kNumEdges; ++k)
+      h.corners[k] = camera.undistortPixel(
+          Eigen::Vector2d((q->corners[k].x + 0.5) * sx - 0.5, (q->corners[k].y + 0.5) * sx - 0.5));
+    out.push_back(h);
+  }
+  return out;
 }
 
 namespace {
