@@ -1,6 +1,6 @@
 // Plain board, region hypotheses: brightness and uniformity regions of a downscaled image,
-// their openings when a neighbour of the board's brightness merged with it, and the straight
-// sides of each region's outline.
+// their openings when a neighbour of the board's brightness merged with it, the straight sides of
+// each region's outline, and the quadrilaterals of its stable regions (a far board in clutter).
 #include "plain_internal.h"
 
 #include <opencv2/features2d.hpp>
