@@ -143,24 +143,27 @@ bool plausiblePose(const Target& target, const ImageBoardDetectorOptions& o, con
                           target.width, target.height, pose.rms_px, max_rms);
     return false;
   }
-  const Eigen::Vector3d centre = pose.camera_T_board * target.center();
-  const double tilt_deg =
-      std::acos(std::min(1.0, std::abs(f.plane.normal.dot(centre.normalized())))) * 180.0 / M_PI;
-  if (centre.norm() > o.max_board_distance_m) {
-    f.reason =
-        cv::format("a %.3f x %.3f m board would be %.1f m away (max %.1f m): another rectangle",
-                   target.width, target.height, centre.norm(), o.max_board_distance_m);
-    return false;
-  }
-  if (tilt_deg > o.max_board_tilt_deg) {
-    f.reason = cv::format("board turned %.0f deg from the line of sight (max %.0f)", tilt_deg,
-                          o.max_board_tilt_deg);
-    return false;
-  }
-  return true;
+  f.reason = implausiblePlace(target, o, pose.camera_T_board);
+  return f.reason.empty();
 }
 
 }  // namespace
+
+std::string implausiblePlace(const Target& target, const ImageBoardDetectorOptions& o,
+                             const Eigen::Isometry3d& camera_T_board) {
+  const Eigen::Vector3d centre = camera_T_board * target.center();
+  const double tilt_deg =
+      std::acos(
+          std::min(1.0, std::abs(planeFromPose(camera_T_board).normal.dot(centre.normalized())))) *
+      180.0 / M_PI;
+  if (centre.norm() > o.max_board_distance_m)
+    return cv::format("a %.3f x %.3f m board would be %.1f m away (max %.1f m): another rectangle",
+                      target.width, target.height, centre.norm(), o.max_board_distance_m);
+  if (tilt_deg > o.max_board_tilt_deg)
+    return cv::format("board turned %.0f deg from the line of sight (max %.0f)", tilt_deg,
+                      o.max_board_tilt_deg);
+  return {};
+}
 
 bool sidesEndAtCorners(const cv::Mat& gray, const CameraModel& camera,
                        const ImageBoardDetectorOptions& o, double min_gradient,

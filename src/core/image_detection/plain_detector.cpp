@@ -277,13 +277,8 @@ void keepBoardShaped(const Target& target, const CameraModel& camera,
       for (int k = 0; k < kNumEdges; ++k) img.push_back(q.corners[(shift + k * step) % kNumEdges]);
       const PoseFit pose = fitPose(obj, img, camera.K(), o.pixel_sigma_px);
       if (!pose.ok || pose.rms_px > bound) continue;
-      const Eigen::Vector3d centre = pose.camera_T_board * target.center();
-      const double facing =
-          std::abs(planeFromPose(pose.camera_T_board).normal.dot(centre.normalized()));
-      if (centre.norm() > o.max_board_distance_m ||
-          facing < std::cos(o.max_board_tilt_deg * M_PI / 180.0))
-        continue;
-      best = std::min(best, pose.rms_px / side);
+      if (implausiblePlace(target, o, pose.camera_T_board).empty())
+        best = std::min(best, pose.rms_px / side);
     }
     if (std::isfinite(best)) kept.emplace_back(best, std::move(q));
   }
@@ -377,6 +372,15 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
   const ImageDetection fresh = *out;
   HypothesisSearch search;
   RefinedSides refined;
+  // Quadrilaterals no line ranking vouches for, judged as weak lines, from `source`.
+  auto addWeakQuads = [&](std::vector<QuadHypothesis>* list, const char* source) {
+    for (auto& quad : *list) {
+      Hypothesis h = fromQuad(quad, camera, o, true);
+      h.source = source;
+      hypotheses.push_back(std::move(h));
+      quads.push_back(std::move(quad));
+    }
+  };
   // A further line search (another LSD bound or width): its quadrilaterals, those of its first
   // lines with `with_first`, are judged as weak lines.
   auto searchLinesAgain = [&](const ImageBoardDetectorOptions& line_o, double quantization,
@@ -390,15 +394,8 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     times += again.times;
     timed(&times.quads_ms,
           [&] { rankByEdgeCoverage(gray, camera, o, min_gradient, &found.faint); });
-    for (auto* list : {&found.best, &found.ending_at_corners, &found.faint}) {
-      if (list == &found.best && !with_first) continue;
-      for (auto& quad : *list) {
-        Hypothesis h = fromQuad(quad, camera, o, true);
-        h.source = source;
-        hypotheses.push_back(std::move(h));
-        quads.push_back(std::move(quad));
-      }
-    }
+    for (auto* list : {&found.best, &found.ending_at_corners, &found.faint})
+      if (list != &found.best || with_first) addWeakQuads(list, source);
   };
   // Openings of the rejected regions (distance transforms: as costly as the segmentation) are
   // made only when no region was the board; they come before the line quadrilaterals.
@@ -476,20 +473,21 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
       stable_tried = true;
       std::vector<QuadHypothesis> stable = timed(&times.regions_ms, [&] {
         return stableRegionQuads(
-            small, sx, camera, o,
+            small, seg, sx, camera, o,
             kStableRegionAreaFactor * o.min_board_area_fraction * small.total());
       });
       timed(&times.quads_ms, [&] {
         keepBoardShaped(target, camera, o, sx, &stable);
         rankByEdgeCoverage(gray, camera, o, min_gradient, &stable);
       });
-      for (auto& q : stable) {
-        if (expected && expectedOffset(q.corners, *expected) > expected->tolerance_px) continue;
-        Hypothesis h = fromQuad(q, camera, o, true);
-        h.source = kStableRegionsSource;
-        hypotheses.push_back(std::move(h));
-        quads.push_back(std::move(q));
-      }
+      if (expected)
+        stable.erase(std::remove_if(stable.begin(), stable.end(),
+                                    [&](const QuadHypothesis& q) {
+                                      return expectedOffset(q.corners, *expected) >
+                                             expected->tolerance_px;
+                                    }),
+                     stable.end());
+      addWeakQuads(&stable, kStableRegionsSource);
     }
     // Last, a second chance's expected board itself: where the other sensor's board projects,
     // its sides searched as wide as the prior is uncertain (a board no hypothesis of its own

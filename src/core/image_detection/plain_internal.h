@@ -51,11 +51,17 @@ std::vector<std::vector<cv::Point>> openedParts(const std::vector<cv::Point>& co
 /// a part holding both (in [0.5, 0.9]; 0 for a board without a size).
 double holderOpeningFraction(const Target& target);
 
+/// Why a board at this pose is no calibration view: farther than max_board_distance_m or turned
+/// past max_board_tilt_deg from the line of sight; empty when it is plausible.
+std::string implausiblePlace(const Target& target, const ImageBoardDetectorOptions& o,
+                             const Eigen::Isometry3d& camera_T_board);
+
 /// Quadrilaterals of the maximally stable extremal regions of the downscaled image (`sx`: full px
 /// per downscaled px) smaller than `max_area` downscaled px: small boards in clutter. Corners in
-/// undistorted full-resolution px, best first.
-std::vector<QuadHypothesis> stableRegionQuads(const cv::Mat& small, double sx,
-                                              const CameraModel& camera,
+/// undistorted full-resolution px, best first. `seg`: the segmentation of the same image (its
+/// blurred copy judges uniformity).
+std::vector<QuadHypothesis> stableRegionQuads(const cv::Mat& small, const Segmentation& seg,
+                                              double sx, const CameraModel& camera,
                                               const ImageBoardDetectorOptions& o, double max_area);
 
 /// Second chance: openings of the rejected regions replace the candidates.

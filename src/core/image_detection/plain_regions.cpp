@@ -38,6 +38,12 @@ constexpr double kQuadEpsilonMin = 0.02, kQuadEpsilonMax = 0.1, kQuadEpsilonStep
 constexpr double kSameRegionOverlap = 0.8;
 constexpr size_t kMaxStableRegions = 48;
 
+// A downscaled pixel's place at full resolution (`scale` full px per downscaled px; pixel centres
+// at integers in both).
+Eigen::Vector2d fullResolution(const Eigen::Vector2d& p, double scale) {
+  return Eigen::Vector2d((p.array() + 0.5) * scale - 0.5);
+}
+
 // Scores one proposed region: a board is large, convex and uniform, and differs from its
 // surroundings. Returns false (with the rejection) when it is not board-like.
 bool scoreRegion(const std::vector<cv::Point>& contour, const cv::Mat& blurred,
@@ -273,8 +279,8 @@ void proposeOpenedRegions(cv::Size size, const ImageBoardDetectorOptions& o, Seg
 // stable extremal region: uniform, and bounded by its own contrast at every threshold near its
 // level. Those regions that are convex quadrilaterals become hypotheses; their sides are then
 // judged like the weak lines' (rankByEdgeCoverage, the strict corner fit).
-std::vector<QuadHypothesis> stableRegionQuads(const cv::Mat& small, double sx,
-                                              const CameraModel& camera,
+std::vector<QuadHypothesis> stableRegionQuads(const cv::Mat& small, const Segmentation& seg,
+                                              double sx, const CameraModel& camera,
                                               const ImageBoardDetectorOptions& o, double max_area) {
   // Smallest: a board whose sides all reach min_board_size_px (convexCorners refuses less).
   const double min_area = (o.min_board_size_px / sx) * (o.min_board_size_px / sx);
@@ -338,13 +344,11 @@ std::vector<QuadHypothesis> stableRegionQuads(const cv::Mat& small, double sx,
     if (!same) quads.push_back({corners, quad_box, shape});
   }
   // Uniform inside and unlike its surroundings, as a board region (scoreRegion) is.
-  cv::Mat blurred;
-  cv::GaussianBlur(small, blurred, cv::Size(5, 5), 0);
   std::vector<std::pair<double, const Quad*>> ranked;
   for (const Quad& q : quads) {
     RegionCandidate candidate;
     std::string rejection;
-    if (!scoreRegion(q.corners, blurred, o, &candidate, &rejection)) continue;
+    if (!scoreRegion(q.corners, seg.blurred, o, &candidate, &rejection)) continue;
     const double uniformity = candidate.score / std::max(1.0, cv::contourArea(q.corners));
     ranked.emplace_back(q.shape * uniformity, &q);
   }
@@ -356,7 +360,7 @@ std::vector<QuadHypothesis> stableRegionQuads(const cv::Mat& small, double sx,
     QuadHypothesis h;
     for (int k = 0; k < kNumEdges; ++k)
       h.corners[k] = camera.undistortPixel(
-          Eigen::Vector2d((q->corners[k].x + 0.5) * sx - 0.5, (q->corners[k].y + 0.5) * sx - 0.5));
+          fullResolution(Eigen::Vector2d(q->corners[k].x, q->corners[k].y), sx));
     out.push_back(h);
   }
   return out;
@@ -372,9 +376,7 @@ std::vector<CoarseEdge> coarseEdges(const std::vector<cv::Point>& hull, double s
   cv::approxPolyDP(hull, poly, kPolygonEpsilon * cv::arcLength(hull, true), true);
   const cv::Moments m = cv::moments(hull);
   const Eigen::Vector2d c_small(m.m10 / m.m00, m.m01 / m.m00);
-  auto toFull = [scale](const Eigen::Vector2d& p) {
-    return Eigen::Vector2d((p.array() + 0.5) * scale - 0.5);
-  };
+  auto toFull = [scale](const Eigen::Vector2d& p) { return fullResolution(p, scale); };
   *centroid = toFull(c_small);
   const double border = o.border_margin_px / scale + 1.5;  // small px; the opening erodes ~1 px
   auto onBorder = [&](const cv::Point& p, int side) {
