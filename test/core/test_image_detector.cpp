@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 
 namespace board_calib {
@@ -279,6 +280,47 @@ TEST(ImageDetectorSim, FailuresGiveReasons) {
   auto fam = ImageBoardDetector::create(unknown_family, ImageBoardDetectorOptions{});
   ASSERT_FALSE(fam.ok());
   EXPECT_NE(fam.error().find("tag25h9"), std::string::npos);
+}
+
+// A miss names the attempt its reason is from and where it was: in clutter that attempt may be
+// another object, and a user reading only the reason would look at the wrong place. Here the
+// only rectangle is 4:1, which no turn within max_board_tilt_deg makes a square board.
+TEST(ImageDetectorSim, AMissNamesWhereItsBestAttemptWas) {
+  const CameraModel camera = testCamera();
+  auto det =
+      ImageBoardDetector::create(configTarget("plain_1016.yaml"), ImageBoardDetectorOptions{});
+  ASSERT_TRUE(det.ok());
+  cv::Mat image(1200, 1920, CV_8UC1, cv::Scalar(90));
+  const cv::Point2d centre(1300, 420);
+  const cv::Size2d size(480, 120);
+  cv::rectangle(
+      image,
+      cv::Rect2d(centre.x - size.width / 2, centre.y - size.height / 2, size.width, size.height),
+      cv::Scalar(200), cv::FILLED);
+  const ImageDetection d = det->detect(image, camera);
+  ASSERT_FALSE(d.features.found);
+  const ImageDetectionDetails& x = d.details;
+  ASSERT_GE(x.best_attempt, 0) << d.features.reason;
+  ASSERT_LT(x.best_attempt, static_cast<int>(x.hypothesis_reasons.size()));
+  int index = -1, of = 0;
+  double u = 0, v = 0;
+  char source[64] = {};
+  ASSERT_EQ(std::sscanf(d.features.reason.c_str(),
+                        "best attempt #%d of %d (%63[^,], sides ~%*f px, centred at (%lf, %lf)",
+                        &index, &of, source, &u, &v),
+            5)
+      << d.features.reason;
+  EXPECT_EQ(index, x.best_attempt);
+  EXPECT_EQ(of, static_cast<int>(x.hypotheses_px.size()));
+  // The rest of the reason is that attempt's own rejection, as the hypothesis list gives it.
+  const std::string& tried = x.hypothesis_reasons[static_cast<size_t>(index)];
+  EXPECT_EQ(tried.substr(0, tried.find(':')), source);
+  EXPECT_NE(d.features.reason.find(tried.substr(tried.find(": ") + 2)), std::string::npos)
+      << d.features.reason << " / " << tried;
+  // Where the rectangle is (raw px): within 5 % of its short side (the mean of the corners'
+  // undistorted places, distorted back, is not quite the raw centre under the lens).
+  EXPECT_NEAR(u, centre.x, 0.05 * size.height) << d.features.reason;
+  EXPECT_NEAR(v, centre.y, 0.05 * size.height) << d.features.reason;
 }
 
 TEST(ImageDetectorSim, PlainBoardEdgeAlongBorderIsNotAnEdge) {

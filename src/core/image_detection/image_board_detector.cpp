@@ -72,6 +72,26 @@ bool worthChallenging(const ImageDetection& grey) {
   return grey.details.board_source != image_detection::kRegionSource ||
          image_detection::facingCosine(grey.features.camera_T_board) < kSteepTurnFacing;
 }
+// A miss names the attempt its reason is from and where that was (raw px, as the image shows
+// it): in a cluttered scene the attempt that got furthest may be another object, the board never
+// outlined at all. The index is the one the debug image lists the hypotheses by.
+void nameBestAttempt(const CameraModel& camera, ImageDetection* out) {
+  const ImageDetectionDetails& d = out->details;
+  const int k = d.best_attempt;
+  if (out->features.found || k < 0 || k >= static_cast<int>(d.hypotheses_px.size()) ||
+      k >= static_cast<int>(d.hypothesis_reasons.size()))
+    return;
+  const auto& q = d.hypotheses_px[static_cast<size_t>(k)];
+  const double side = image_detection::meanSidePx(q);
+  const Eigen::Vector2d raw = camera.distortPixel(0.25 * (q[0] + q[1] + q[2] + q[3]));
+  if (!(side > 0) || !std::isfinite(side) || !raw.allFinite()) return;
+  const std::string& tried = d.hypothesis_reasons[static_cast<size_t>(k)];
+  out->features.reason =
+      cv::format("best attempt #%d of %zu (%s, sides ~%.0f px, centred at (%.0f, %.0f) px): ", k,
+                 d.hypotheses_px.size(), tried.substr(0, tried.find(':')).c_str(), side, raw.x(),
+                 raw.y()) +
+      out->features.reason;
+}
 }  // namespace
 
 std::string ImageBoardDetectorOptions::validate() const {
@@ -376,6 +396,7 @@ ImageDetection ImageBoardDetector::run(const cv::Mat& image, const CameraModel& 
         case TargetType::kPlain:
           image_detection::detectPlain(gray, camera, impl_->target, impl_->options, &out, expected,
                                        excluded, true, hasColour(image));
+          nameBestAttempt(camera, &out);
           if (image.channels() == 3 && (!f.found || worthChallenging(out)))
             impl_->searchInColour(image, gray, camera, expected, excluded, &out);
           break;

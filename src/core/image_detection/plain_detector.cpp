@@ -49,7 +49,7 @@ constexpr double kCoarseCornerPx = 1.5;
 struct HypothesisSearch {
   ImageDetection best_found, best_miss;
   double best_score = -1, best_miss_score = -1, best_min_coverage = 0, best_span_share = 0;
-  int best_valid = -1;
+  int best_valid = -1, best_miss_index = -1;
   std::vector<std::array<Eigen::Vector2d, 4>> tried;
   std::vector<std::string> reasons;
   std::vector<std::array<Eigen::Vector2d, 4>> boards;  // passed the board checks
@@ -106,6 +106,7 @@ struct HypothesisSearch {
       best_valid = valid;
       best_miss_score = support.score;
       best_miss = std::move(attempt);
+      best_miss_index = static_cast<int>(tried.size()) - 1;
     }
   }
 };
@@ -295,6 +296,7 @@ void report(HypothesisSearch&& search, LineEvidence&& evidence, const std::strin
     *out = std::move(search.best_found);
   } else if (search.best_valid >= 0) {
     *out = std::move(search.best_miss);
+    out->details.best_attempt = search.best_miss_index;
   } else {
     out->features.reason =
         no_hypotheses && evidence.lines < kNumEdges

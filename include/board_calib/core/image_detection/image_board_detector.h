@@ -138,6 +138,8 @@ struct ImageDetectionDetails {
       hypotheses_px;  ///< plain: quadrilaterals tried (undistorted px corners)
   std::vector<std::string>
       hypothesis_reasons;  ///< plain: per hypothesis, "found" or why it is not the board
+  int best_attempt = -1;   ///< plain, no board: the hypothesis (index into hypotheses_px) whose
+                           ///< rejection the reason gives; -1 when none got that far
   std::vector<std::array<Eigen::Vector2d, 4>>
       boards_px;  ///< plain: corners (undistorted px) of every hypothesis that passed the board
                   ///< checks, the accepted one and those dropped as static rectangles included
