@@ -291,7 +291,7 @@ TEST(ImageDetectorSim, AMissNamesWhereItsBestAttemptWas) {
       ImageBoardDetector::create(configTarget("plain_1016.yaml"), ImageBoardDetectorOptions{});
   ASSERT_TRUE(det.ok());
   cv::Mat image(1200, 1920, CV_8UC1, cv::Scalar(90));
-  const cv::Point2d centre(1300, 420);
+  const cv::Point2d centre(1300, 900);
   const cv::Size2d size(480, 120);
   cv::rectangle(
       image,
@@ -321,6 +321,21 @@ TEST(ImageDetectorSim, AMissNamesWhereItsBestAttemptWas) {
   // undistorted places, distorted back, is not quite the raw centre under the lens).
   EXPECT_NEAR(u, centre.x, 0.05 * size.height) << d.features.reason;
   EXPECT_NEAR(v, centre.y, 0.05 * size.height) << d.features.reason;
+  // The debug image lists that attempt in orange (its sides are those drawn as the miss's
+  // edges), the other hypotheses in blue.
+  const cv::Mat debug = drawImageDetection(image, camera, d);
+  cv::Mat orange;
+  cv::inRange(debug, cv::Scalar(0, 140, 255), cv::Scalar(0, 140, 255), orange);
+  const int thick = std::max(1, image.cols / 800), row = 18 * thick;  // drawImageDetection's
+  const cv::Rect line(0, 30 * thick + index * row + row / 4, image.cols, row);
+  EXPECT_GT(cv::countNonZero(orange(line)), 0) << "its line of the list";
+  orange(line).setTo(0);
+  const cv::Rect outline(
+      cv::Point(static_cast<int>(centre.x - size.width / 2) - 8,
+                static_cast<int>(centre.y - size.height / 2) - 8),
+      cv::Size(static_cast<int>(size.width) + 16, static_cast<int>(size.height) + 16));
+  orange(outline).setTo(0);
+  EXPECT_EQ(cv::countNonZero(orange), 0) << "orange elsewhere than its line and its outline";
 }
 
 TEST(ImageDetectorSim, PlainBoardEdgeAlongBorderIsNotAnEdge) {

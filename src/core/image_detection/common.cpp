@@ -350,8 +350,11 @@ bool clipLine(const Eigen::Vector3d& l, const CameraModel& camera, Eigen::Vector
 
 namespace {
 
+// The quadrilaterals tried, and the one a miss's reason comes from (best_attempt).
+const cv::Scalar kTriedColour(255, 80, 0), kBestAttemptColour(0, 140, 255);
+
 // Plain board: line segments (thin grey) and the quadrilaterals tried (thin blue, with their
-// verdicts), drawn under the result.
+// verdicts; the best attempt of a miss in orange), drawn under the result.
 void drawHypotheses(cv::Mat* image, const CameraModel& camera, const ImageDetectionDetails& details,
                     int thick) {
   cv::Mat& out = *image;
@@ -367,12 +370,14 @@ void drawHypotheses(cv::Mat* image, const CameraModel& camera, const ImageDetect
         thick);
   for (size_t h = 0; h < details.hypotheses_px.size(); ++h) {
     const auto& c = details.hypotheses_px[h];
+    const bool best = static_cast<int>(h) == details.best_attempt;
+    const cv::Scalar& colour = best ? kBestAttemptColour : kTriedColour;
     for (int j = 0; j < kNumEdges; ++j)
-      drawUndistortedSegment(&out, camera, c[j], c[(j + 1) % 4], {255, 80, 0}, 1);
+      drawUndistortedSegment(&out, camera, c[j], c[(j + 1) % 4], colour, best ? thick : 1);
     if (h < details.hypothesis_reasons.size())
       cv::putText(out, std::to_string(h) + " " + details.hypothesis_reasons[h],
                   cv::Point(10, 30 * thick + static_cast<int>(h + 1) * 18 * thick),
-                  cv::FONT_HERSHEY_SIMPLEX, 0.45 * thick, {255, 80, 0}, thick);
+                  cv::FONT_HERSHEY_SIMPLEX, 0.45 * thick, colour, thick);
   }
 }
 
