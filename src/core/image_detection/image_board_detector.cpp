@@ -72,6 +72,7 @@ bool worthChallenging(const ImageDetection& grey) {
   return grey.details.board_source != image_detection::kRegionSource ||
          image_detection::facingCosine(grey.features.camera_T_board) < kSteepTurnFacing;
 }
+
 // A miss names the attempt its reason is from and where that was (raw px, as the image shows
 // it): in a cluttered scene the attempt that got furthest may be another object, the board never
 // outlined at all. The index is the one the debug image lists the hypotheses by.
