@@ -208,5 +208,77 @@ TEST(PlainEdges, AFarBoardsShortSideIsAnEdgeWhereItShowsHalfItsLength) {
   EXPECT_FALSE(third.valid);
 }
 
+// A board whose grain or stripes meet its side: the region under the top side from (x0, y) to
+// (x1, y) is `step` grey levels above the background on average, with stripes of +-`amplitude`
+// `period` px apart whose normal lies at `angle` from the side, rendered like render().
+cv::Mat renderStriped(double x0, double x1, double y, double step, double amplitude, double period,
+                      double angle) {
+  cv::Mat big(kHeight * kSuper, kWidth * kSuper, CV_32FC1, cv::Scalar(80));
+  const double c = std::cos(angle), s = std::sin(angle);
+  for (int r = 0; r < big.rows; ++r)
+    for (int k = 0; k < big.cols; ++k) {
+      const double u = (k + 0.5) / kSuper - 0.5, v = (r + 0.5) / kSuper - 0.5;
+      if (u < x0 || u > x1 || v < y || v > y + 150) continue;
+      big.at<float>(r, k) =
+          static_cast<float>(80 + step + amplitude * std::sin(2 * M_PI * (u * c + v * s) / period));
+    }
+  cv::Mat small;
+  cv::resize(big, small, cv::Size(kWidth, kHeight), 0, 0, cv::INTER_AREA);
+  cv::Mat noise(small.size(), CV_32F);
+  cv::randn(noise, 0, kNoiseSigma);
+  small += noise;
+  small.convertTo(small, CV_8U);
+  return small;
+}
+
+TEST(PlainEdges, StripesMeetingAFaintSideNeverPutItOff) {
+  // A 100 px side 12 grey levels above the background, with stripes of +-18 levels 4-6 px apart
+  // meeting it at 20-40 deg (the augmented frames' far, faint, wood-grained board), under 45 noise
+  // draws. One profile at a time, a stripe's flank inside the board outshines the edge where
+  // the stripe is dark: before the averaged look, 5 of the 45 sides passed every test 2.0-4.8 px
+  // off. Now a side either agrees with its averaged look (measured within 1.47 px of the truth,
+  // 21 of 45) or is refused; 2 px bounds the agreement (half the 3 px inlier band) plus noise.
+  constexpr double x0 = 200, x1 = 300, y = 150.6;
+  int valid = 0;
+  for (const double period : {4.0, 5.0, 6.0})
+    for (const double angle_deg : {110.0, 120.0, 130.0})
+      for (int seed = 8; seed < 13; ++seed) {
+        cv::setRNGSeed(seed);
+        const cv::Mat image = renderStriped(x0, x1, y, 12, 18, period, angle_deg * M_PI / 180);
+        const EdgeFit fit = fitTop(image, x0, x1, y, y + 40);
+        if (!fit.valid) {
+          EXPECT_FALSE(fit.reason.empty());
+          continue;
+        }
+        ++valid;
+        for (const auto& p : {Eigen::Vector2d(x0, y), Eigen::Vector2d(x1, y)})
+          EXPECT_LT(std::abs(fit.line.head<2>().dot(p) + fit.line.z()), 2.0)
+              << period << " px, " << angle_deg << " deg, seed " << seed << " at " << p.transpose();
+      }
+  EXPECT_GE(valid, 18);  // measured 21: the check refuses the stripes' victims, not every side
+}
+
+TEST(PlainEdges, AStripedSideRefusedAloneIsTheAveragedLooks) {
+  // Sides the single profiles refuse ("two edges along the side", "not straight") while their
+  // line lies near the edge: the averaged look passes, agrees, and is the side (measured 0.11,
+  // 0.22 and 0.14 px from the truth; refused without it). 0.5 px bounds ~40 averaged samples on
+  // a 12-level step under the stripes' residue.
+  constexpr double x0 = 200, x1 = 300, y = 150.6;
+  struct Stripes {
+    double period, angle_deg;
+    int seed;
+  };
+  for (const Stripes& st : {Stripes{5, 120, 8}, Stripes{5, 110, 8}, Stripes{6, 130, 11}}) {
+    cv::setRNGSeed(st.seed);
+    const cv::Mat image = renderStriped(x0, x1, y, 12, 18, st.period, st.angle_deg * M_PI / 180);
+    const EdgeFit fit = fitTop(image, x0, x1, y, y + 40);
+    EXPECT_TRUE(fit.valid) << st.period << " px, " << st.angle_deg << " deg: " << fit.reason;
+    if (!fit.valid) continue;
+    for (const auto& p : {Eigen::Vector2d(x0, y), Eigen::Vector2d(x1, y)})
+      EXPECT_LT(std::abs(fit.line.head<2>().dot(p) + fit.line.z()), 0.5)
+          << st.period << " px, " << st.angle_deg << " deg at " << p.transpose();
+  }
+}
+
 }  // namespace
 }  // namespace board_calib
