@@ -172,6 +172,7 @@ CASES = {
     "ws/ci/devel/lib/board_calib/test_image_far_sim --gtest_filter='*StreetFrames*'": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_line_segments": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_image_detector --gtest_filter='*RoomsGrey*'": {"kind": "dev"},
+    "ws/ci/devel/lib/board_calib/test_image_detector --gtest_filter='PlainEdges.*'": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_image_detector_augmented": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_image_detector": {"kind": "dev"},
     "ws/ci/devel/lib/board_calib/test_image_detector_second_chance": {"kind": "dev"},
