@@ -173,13 +173,29 @@ double cornerExclusionPx(const ImageBoardDetectorOptions& o, double side_px) {
 
 namespace {
 
+// The intensity profiles across a side at its sample positions, in order: the first pass of a
+// side's two fits (refineOnce) samples the same coarse line, so the second reuses them.
+struct SideProfiles {
+  struct Position {
+    double t;
+    Eigen::Vector2d x, d;  // raw pixel on the line, unit normal there
+  };
+  std::vector<Position> positions;
+  std::vector<double> samples;  // `size` per position
+  size_t size = 0;
+  bool filled = false;
+};
+
 // `along` > 0: each position's profile is the mean of the profiles within +-along positions of
 // it (a texture across the side, such as wood grain or stripes meeting the edge, averages out;
-// the straight edge does not).
+// the straight edge does not). `shared`: the profiles along this very line (a, b, n, half), filled
+// by the first call and read by later ones.
 EdgeSamples searchPeaks(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse,
                         const Eigen::Vector2d& a, const Eigen::Vector2d& b,
                         const Eigen::Vector2d& n, double half, const LocalPolarity* polarity,
-                        const ImageBoardDetectorOptions& o, double min_gradient, int along = 0) {
+                        const ImageBoardDetectorOptions& o, double min_gradient, int along = 0,
+                        SideProfiles* shared = nullptr) {
+  using Position = SideProfiles::Position;
   EdgeSamples s;
   const int steps = static_cast<int>(std::ceil(half / kProfileStepPx)) + 1;
   const size_t size = 2 * steps + 1;
@@ -190,10 +206,6 @@ EdgeSamples searchPeaks(const cv::Mat& gray, const CameraModel& camera, const Co
   // Long sides need no more samples than a line fit can use.
   s.step = std::max(o.sample_step_px, len / kMaxSamplesPerSide);
   const double t_end = len - (coarse.b_corner ? exclusion : 0.0);
-  struct Position {
-    double t;
-    Eigen::Vector2d x, d;  // raw pixel on the line, unit normal there
-  };
   auto keepPeak = [&](const std::vector<double>& across, const Position& pos) {
     const double sign_wanted = polarity ? polarity->at(pos.t) : 0.0;
     double offset = 0, strength = 0;
@@ -208,41 +220,51 @@ EdgeSamples searchPeaks(const cv::Mat& gray, const CameraModel& camera, const Co
     s.signs.push_back(sign);
     s.ts.push_back(pos.t);
   };
-  std::vector<Position> positions;  // with `along`: every position and its profile, in order
-  std::vector<double> profiles;
-  for (double t = coarse.a_corner ? exclusion : 0.0; t <= t_end; t += s.step) {
-    const Eigen::Vector2d xu = a + t * dir;
-    const Eigen::Vector2d x = camera.distortPixel(xu);
-    Eigen::Vector2d d = camera.distortPixel(xu + n) - x;
-    d.normalize();
-    // A profile the image border cuts is flat past it (no edge there); the position counts when
-    // the image holds the narrow search around the line.
-    const double inner = std::min(half, o.fine_search_px) + kProfileStepPx;
-    if (!insideImage(gray, x - inner * d, 1.0) || !insideImage(gray, x + inner * d, 1.0)) continue;
-    ++s.positions;
-    profile[steps] = sampleBilinear(gray, x.x(), x.y());
-    for (const int dk : {-1, 1})
-      for (int k = dk; std::abs(k) <= steps; k += dk) {
-        const Eigen::Vector2d p = x + (k * kProfileStepPx) * d;
-        profile[k + steps] = insideImage(gray, p, 1.0) ? sampleBilinear(gray, p.x(), p.y())
-                                                       : profile[k - dk + steps];
+  SideProfiles own;  // stored only with `along` and nothing shared
+  SideProfiles& stored = shared ? *shared : own;
+  const bool store = shared || along > 0;
+  if (!(stored.filled && stored.size == size)) {
+    stored = SideProfiles{};
+    for (double t = coarse.a_corner ? exclusion : 0.0; t <= t_end; t += s.step) {
+      const Eigen::Vector2d xu = a + t * dir;
+      const Eigen::Vector2d x = camera.distortPixel(xu);
+      Eigen::Vector2d d = camera.distortPixel(xu + n) - x;
+      d.normalize();
+      // A profile the image border cuts is flat past it (no edge there); the position counts
+      // when the image holds the narrow search around the line.
+      const double inner = std::min(half, o.fine_search_px) + kProfileStepPx;
+      if (!insideImage(gray, x - inner * d, 1.0) || !insideImage(gray, x + inner * d, 1.0))
+        continue;
+      ++s.positions;
+      profile[steps] = sampleBilinear(gray, x.x(), x.y());
+      for (const int dk : {-1, 1})
+        for (int k = dk; std::abs(k) <= steps; k += dk) {
+          const Eigen::Vector2d p = x + (k * kProfileStepPx) * d;
+          profile[k + steps] = insideImage(gray, p, 1.0) ? sampleBilinear(gray, p.x(), p.y())
+                                                         : profile[k - dk + steps];
+        }
+      if (!store) {
+        keepPeak(profile, {t, x, d});
+        continue;
       }
-    if (along <= 0) {
-      keepPeak(profile, {t, x, d});
-      continue;
+      stored.positions.push_back({t, x, d});
+      stored.samples.insert(stored.samples.end(), profile.begin(), profile.end());
     }
-    positions.push_back({t, x, d});
-    profiles.insert(profiles.end(), profile.begin(), profile.end());
+    stored.size = size;
+    stored.filled = store;
+    if (!store) return s;
   }
+  const std::vector<Position>& positions = stored.positions;
+  s.positions = static_cast<int>(positions.size());
   // Windows by distance along the side: a position the image border dropped leaves a gap.
-  const double reach = (along + 0.5) * s.step;
+  const double reach = (std::max(along, 0) + 0.5) * s.step;
   size_t lo = 0, hi = 0;
   for (const Position& pos : positions) {
     while (positions[lo].t < pos.t - reach) ++lo;
     while (hi < positions.size() && positions[hi].t <= pos.t + reach) ++hi;
     std::fill(profile.begin(), profile.end(), 0.0);
     for (size_t j = lo; j < hi; ++j)
-      for (size_t k = 0; k < size; ++k) profile[k] += profiles[j * size + k];
+      for (size_t k = 0; k < size; ++k) profile[k] += stored.samples[j * size + k];
     for (double& v : profile) v /= static_cast<double>(hi - lo);
     keepPeak(profile, pos);
   }
@@ -394,10 +416,10 @@ void fitPeaks(const EdgeSamples& s, const Orienter& orient, const ImageBoardDete
 }
 
 // One side fitted afresh from its profiles, each one alone or averaged along the side (`along`:
-// searchPeaks).
+// searchPeaks); `first_pass`: the profiles of the first pass, shared with the side's other fit.
 EdgeFit fitSide(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse,
                 const Orienter& orient, const ImageBoardDetectorOptions& o, double min_gradient,
-                int along) {
+                int along, SideProfiles* first_pass) {
   EdgeFit fit;
   Eigen::Vector2d a = camera.undistortPixel(coarse.a), b = camera.undistortPixel(coarse.b);
   fit.line = orient.through(a, b);
@@ -409,8 +431,9 @@ EdgeFit fitSide(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge
     // Project the segment ends onto the current line.
     a = a - (n.dot(a) + fit.line.z()) * n;
     b = b - (n.dot(b) + fit.line.z()) * n;
-    EdgeSamples s = searchPeaks(gray, camera, coarse, a, b, n, half,
-                                pass == 0 ? nullptr : &polarity, o, min_gradient, along);
+    EdgeSamples s =
+        searchPeaks(gray, camera, coarse, a, b, n, half, pass == 0 ? nullptr : &polarity, o,
+                    min_gradient, along, pass == 0 ? first_pass : nullptr);
     if (pass == 0) {
       polarity.t = s.ts;
       polarity.sum.assign(1, 0);
@@ -466,9 +489,11 @@ EdgeFit fitSide(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge
 EdgeFit refineOnce(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse,
                    const Orienter& orient, const ImageBoardDetectorOptions& o,
                    double min_gradient) {
-  EdgeFit fit = fitSide(gray, camera, coarse, orient, o, min_gradient, 0);
+  SideProfiles first_pass;  // both fits' first pass samples the coarse line alike
+  EdgeFit fit = fitSide(gray, camera, coarse, orient, o, min_gradient, 0, &first_pass);
   if (fit.raw_inliers.size() < 2) return fit;
-  const EdgeFit averaged = fitSide(gray, camera, coarse, orient, o, min_gradient, kAlongPositions);
+  const EdgeFit averaged =
+      fitSide(gray, camera, coarse, orient, o, min_gradient, kAlongPositions, &first_pass);
   if (!averaged.valid) return fit;
   double apart = 0;
   for (const Eigen::Vector2d& end_raw : {fit.raw_inliers.front(), fit.raw_inliers.back()}) {
