@@ -243,16 +243,16 @@ EdgeSamples searchPeaks(const cv::Mat& gray, const CameraModel& camera, const Co
           profile[k + steps] = insideImage(gray, p, 1.0) ? sampleBilinear(gray, p.x(), p.y())
                                                          : profile[k - dk + steps];
         }
-      if (!store) {
-        keepPeak(profile, {t, x, d});
-        continue;
-      }
+      // Single profiles are judged as sampled; kept only for a later call to share.
+      if (along <= 0) keepPeak(profile, {t, x, d});
+      if (!store) continue;
       stored.positions.push_back({t, x, d});
       stored.samples.insert(stored.samples.end(), profile.begin(), profile.end());
     }
-    stored.size = size;
-    stored.filled = store;
     if (!store) return s;
+    stored.size = size;
+    stored.filled = true;
+    if (along <= 0) return s;
   }
   const std::vector<Position>& positions = stored.positions;
   s.positions = static_cast<int>(positions.size());
