@@ -154,7 +154,8 @@ bool profilePeak(const std::vector<double>& profile, double polarity, double min
     const int w = static_cast<int>(std::lround(kSoftEdgeHalfPx / kProfileStepPx));
     const int lo = std::max(0, best_k - w);
     const int hi = std::min(static_cast<int>(profile.size()) - 1, best_k + w);
-    if (std::abs(profile[hi] - profile[lo]) < min_gradient) return false;
+    const double step = profile[hi] - profile[lo];
+    if ((polarity != 0.0 ? polarity * step : std::abs(step)) < min_gradient) return false;
   }
   const double gm = g[best_k - 1], g0 = g[best_k], gp = g[best_k + 1];
   const double denom = gm - 2 * g0 + gp;
