@@ -141,19 +141,25 @@ TEST(PlainEdges, ASideRunningOnAlongAnOccluderIsBent) {
   EXPECT_NE(fit.reason.find("edge bent"), std::string::npos) << fit.reason;
 }
 
-TEST(PlainEdges, AHandOnAFarSideIsNotPartOfIt) {
+TEST(PlainEdges, AHandOnAFarSideIsDroppedFromIt) {
   // A hand over the middle fifth of a 90 px side, standing 2.5 px out of it: within the inlier
-  // band, so the line would follow it (on an augmented real frame, a hand so took a far side
-  // 9.6 px off at its end). The noise is measured between neighbouring samples: from the
-  // parabola's residuals, the bump's own misfit made it look like noise and the side passed.
-  cv::setRNGSeed(4);
+  // band, so the line follows it and the side is bent (on an augmented real frame, a hand so took
+  // a far side 9.6 px off at its end). Its stretch dropped, the rest of the side is straight and
+  // on the edge. The noise is measured between neighbouring samples: from the parabola's
+  // residuals, the bump's own misfit made it look like noise and the bent side passed.
   constexpr double x0 = 200, x1 = 290, y = 150.6;
-  const EdgeFit fit = fitTop(
-      render(
-          {regionUnder(x0, x1, y, [](double s) { return std::abs(s - 0.5) < 0.1 ? -2.5 : 0.0; })}),
-      x0, x1, y, y + 40);
-  EXPECT_FALSE(fit.valid);
-  EXPECT_NE(fit.reason.find("edge bent"), std::string::npos) << fit.reason;
+  for (const int seed : {4, 40, 41}) {
+    cv::setRNGSeed(seed);
+    const EdgeFit fit =
+        fitTop(render({regionUnder(x0, x1, y,
+                                   [](double s) { return std::abs(s - 0.5) < 0.1 ? -2.5 : 0.0; })}),
+               x0, x1, y, y + 40);
+    ASSERT_TRUE(fit.valid) << seed << ": " << fit.reason;
+    // 2 grey levels of noise on a 90-level step over ~30 samples: a few hundredths of a pixel;
+    // 0.3 px bounds it with margin (the line through the hand: 0.5 px off at the ends).
+    for (const auto& p : {Eigen::Vector2d(x0, y), Eigen::Vector2d(x1, y)})
+      EXPECT_LT(std::abs(fit.line.head<2>().dot(p) + fit.line.z()), 0.3) << seed << " " << p.x();
+  }
 }
 
 TEST(PlainEdges, AnEdgeBesideTheImageBorderIsFitUpToIt) {

@@ -318,17 +318,18 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   // more, or named otherwise
   // (1000); a side a hand pulled, 9.6 px (another draw, before the straightness test).
   EXPECT_LT(total.all.worst, 8.0);
-  // Over every case (the whole table, when no case is selected): measured 47 of 60 rs16_plain
-  // frames and 227 of 252 in all. The search is deterministic, so a lost frame is a regression.
+  // Over every case (the whole table, when no case is selected): measured 48 of 60 rs16_plain
+  // frames and 229 of 252 in all. The search is deterministic, so a lost frame is a regression.
   // Session 29: 39 and 215 before edge profiles cut by the image border, the second look at a
   // weak side around its own peaks' line and the faint-line search's weak quadrilaterals (one
   // frame each). Session 31: 41 and 218 before a short side's span rule (basler0 far, 3 frames)
   // and the line search at twice the width (4). Session 32: 45 and 225 before the stable
-  // regions' quadrilaterals (two far rs16 boards in the office). Each session's figures, and what
-  // each change gained or cost, are in docs/BENCHMARKS.md.
+  // regions' quadrilaterals (two far rs16 boards in the office). Session 35: 48 and 229 since a
+  // hand's stretch is dropped from a side it bent (a far rs16 board). Each session's figures, and
+  // what each change gained or cost, are in docs/BENCHMARKS.md.
   if (!only && !seed) {
-    EXPECT_GE(total.rs16_found, 47);
-    EXPECT_GE(total.found, 227);
+    EXPECT_GE(total.rs16_found, 48);
+    EXPECT_GE(total.found, 229);
   }
 }
 
@@ -341,11 +342,14 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
 // 9.23 px off at its end and draw 2 one 5.52 px off beside a leg, both seen on less than half of
 // the side between their corners; now such a board does not settle the search and the board
 // refitted at its place wins. 208, 210 and 209 of 252 found, worst edges 1.70, 3.59 and 2.44 px.
+// Draw 5 (session 35): dropping a hand's stretch from a far rs16 side left the side leaning on the
+// leg below it, and the 4:3 board was named a quarter turn round (sides 1000 px "off"); the rest
+// of a side must now be free of such a stretch.
 TEST(ImageDetectorAugmented, OtherDrawsGiveNoWrongBoard) {
   if (!std::filesystem::exists(BOARD_CALIB_SHARED_DIR)) GTEST_SKIP() << "../shared absent";
   const std::vector<Frame>& frames = recordedFrames();
   ASSERT_GE(frames.size(), 16u + kRs16WithReference);
-  for (const unsigned seed : {2u, 3u, 4u}) {
+  for (const unsigned seed : {2u, 3u, 4u, 5u}) {
     std::mt19937 rng(seed);
     int found = 0, frames_run = 0;
     double worst = 0;

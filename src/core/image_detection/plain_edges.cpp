@@ -416,6 +416,144 @@ void fitPeaks(const EdgeSamples& s, const Orienter& orient, const ImageBoardDete
   fit->line = line;
 }
 
+// Beyond what a held board's bow allows (the last pass's bow, less `sigmas` standard errors).
+bool bentBeyondHold(const ImageBoardDetectorOptions& o, const EdgeFit& fit,
+                    double sigmas = kBowSigmas) {
+  return std::abs(fit.bow) - sigmas * fit.bow_sigma > o.max_edge_bow_fraction * fit.span;
+}
+
+// The side's tests on its last pass's fit: sets valid, or the reason it is not. `bow_sigmas`:
+// the bow's allowance for its standard error.
+void judgeSide(const ImageBoardDetectorOptions& o, double min_span, EdgeFit* fit_out,
+               double bow_sigmas = kBowSigmas) {
+  EdgeFit& fit = *fit_out;
+  fit.valid = false;
+  fit.reason.clear();
+  if (fit.span < min_span) {
+    fit.reason = cv::format("visible edge too short (%.0f px)", fit.span);
+  } else if (fit.coverage < o.min_side_coverage) {
+    fit.reason = cv::format("edge seen along %.0f %% of its visible length (need %.0f %%)",
+                            100 * fit.coverage, 100 * o.min_side_coverage);
+  } else if (fit.rms > o.max_edge_rms_px) {
+    fit.reason = cv::format("edge not straight (rms %.2f px)", fit.rms);
+  } else if (bentBeyondHold(o, fit, bow_sigmas)) {
+    fit.reason = cv::format("edge bent (%.1f px over %.0f px)", std::abs(fit.bow), fit.span);
+  } else if (fit.rival_offset > o.edge_inlier_px) {
+    fit.reason = cv::format("two edges along the side (another as well supported, %.1f px off)",
+                            fit.rival_offset);
+  } else {
+    fit.valid = true;
+  }
+}
+
+// The contiguous run of `r` (residuals in order along a side) whose sum is largest in magnitude,
+// either sign: {first, last, |sum|}.
+struct Run {
+  size_t first = 0, last = 0;
+  double sum = 0;
+};
+Run strongestRun(const std::vector<double>& r) {
+  Run best;
+  for (const double sign : {1.0, -1.0}) {
+    double sum = 0;
+    size_t start = 0;
+    for (size_t k = 0; k < r.size(); ++k) {
+      if (sum <= 0) {
+        sum = 0;
+        start = k;
+      }
+      sum += sign * r[k];
+      if (sum > best.sum) best = {start, k, sum};
+    }
+  }
+  return best;
+}
+
+// The strong peaks within the robust band of `line`, in order along the side, and their
+// residuals.
+void inliersAlong(const EdgeSamples& s, const Eigen::Vector3d& line,
+                  const ImageBoardDetectorOptions& o, std::vector<size_t>* idx,
+                  std::vector<double>* r) {
+  idx->clear();
+  r->clear();
+  if (s.strength.empty()) return;
+  const double weak = kWeakPeakFraction * medianOf(s.strength);
+  const auto residual = [&](size_t i) { return line.head<2>().dot(s.pts_u[i]) + line.z(); };
+  std::vector<double> spread;
+  for (size_t i = 0; i < s.pts_u.size(); ++i)
+    if (s.strength[i] >= weak) spread.push_back(std::abs(residual(i)));
+  if (spread.empty()) return;
+  const double band = std::max(o.edge_inlier_px, kRobustSigmas * kMadToSigma * medianOf(spread));
+  for (size_t i = 0; i < s.pts_u.size(); ++i)
+    if (s.strength[i] >= weak && std::abs(residual(i)) <= band) idx->push_back(i);
+  std::sort(idx->begin(), idx->end(), [&](size_t x, size_t y) { return s.ts[x] < s.ts[y]; });
+  for (const size_t i : *idx) r->push_back(residual(i));
+}
+
+// Noise of residuals in order along a side, from neighbours' differences (a bump or a tilt does
+// not count as noise).
+double neighbourNoise(const std::vector<double>& r) {
+  if (r.size() < 2) return 0;
+  double d2 = 0;
+  for (size_t k = 1; k < r.size(); ++k) d2 += (r[k] - r[k - 1]) * (r[k] - r[k - 1]);
+  return std::sqrt(d2 / (2.0 * static_cast<double>(r.size() - 1)));
+}
+
+// A hand holding the board at a side puts its own outline within the inlier band along a stretch
+// of the side: the fit bends towards it ("edge bent", "not straight") while the rest of the side
+// is straight. The stretch is the run of inliers whose residuals add up most on one side of the
+// line. Without it (at most kMaxBumpShare of the side, and within the side: straight stretches of
+// kMinFlankShare on both sides pin the line; a stretch at an end may be a leg the side runs on
+// along), the side is fitted again from its other peaks into `rest`. Returns true when the
+// dropped stretch lay off the new line beyond the noise and no such stretch is left in the rest
+// (a hand and a leg on one side: the rest would still lean on the leg). The caller judges the new
+// fit by every test of a side.
+constexpr double kMaxBumpShare = 1.0 / 3.0;  // of the side's sample positions
+constexpr double kMinFlankShare = 0.15;      // of the inliers' extent, kept on each side of a drop
+constexpr double kRunSigmas = 4.0;    // a run's residual sum, in standard errors: a bump, not noise
+constexpr double kMinNoisePx = 0.05;  // floor of the residuals' noise (a synthetic edge has ~none)
+bool withoutBump(const EdgeSamples& s, const Orienter& orient, const ImageBoardDetectorOptions& o,
+                 EdgeFit* rest) {
+  std::vector<size_t> idx;
+  std::vector<double> r;
+  inliersAlong(s, rest->line, o, &idx, &r);
+  if (idx.size() < 6) return false;
+  const Run bump = strongestRun(r);
+  const size_t run = bump.last - bump.first + 1;
+  if (run < 3 || run > kMaxBumpShare * s.positions) return false;
+  const double t_from = s.ts[idx[bump.first]] - 0.5 * s.step,
+               t_to = s.ts[idx[bump.last]] + 0.5 * s.step;
+  const double t_lo = s.ts[idx.front()], t_hi = s.ts[idx.back()];
+  const double flank = kMinFlankShare * (t_hi - t_lo);
+  if (t_from - t_lo < flank || t_hi - t_to < flank) return false;
+  EdgeSamples kept;
+  kept.positions = s.positions;
+  kept.step = s.step;
+  std::vector<Eigen::Vector2d> dropped;
+  for (size_t k = bump.first; k <= bump.last; ++k) dropped.push_back(s.pts_u[idx[k]]);
+  for (size_t i = 0; i < s.pts_u.size(); ++i) {
+    if (s.ts[i] >= t_from && s.ts[i] <= t_to) continue;
+    kept.pts_u.push_back(s.pts_u[i]);
+    kept.pts_raw.push_back(s.pts_raw[i]);
+    kept.strength.push_back(s.strength[i]);
+    kept.signs.push_back(s.signs[i]);
+    kept.ts.push_back(s.ts[i]);
+  }
+  if (static_cast<int>(kept.pts_u.size()) < o.min_edge_points) return false;
+  fitPeaks(kept, orient, o, true, rest);
+  inliersAlong(kept, rest->line, o, &idx, &r);
+  if (idx.size() < 6) return false;
+  const double noise = std::max(neighbourNoise(r), kMinNoisePx);
+  double off = 0;  // the dropped stretch's residual sum from the new line
+  for (const Eigen::Vector2d& p : dropped) off += rest->line.head<2>().dot(p) + rest->line.z();
+  const Run left = strongestRun(r);
+  const auto sigmas = [&](double sum, size_t count) {
+    return std::abs(sum) / (noise * std::sqrt(static_cast<double>(count)));
+  };
+  return sigmas(off, dropped.size()) >= kRunSigmas &&
+         sigmas(left.sum, left.last - left.first + 1) < kRunSigmas;
+}
+
 // One side fitted afresh from its profiles, each one alone or averaged along the side (`along`:
 // searchPeaks); `first_pass`: the profiles of the first pass, shared with the side's other fit.
 EdgeFit fitSide(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse,
@@ -425,6 +563,7 @@ EdgeFit fitSide(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge
   Eigen::Vector2d a = camera.undistortPixel(coarse.a), b = camera.undistortPixel(coarse.b);
   fit.line = orient.through(a, b);
   LocalPolarity polarity;
+  EdgeSamples last;  // the last pass's peaks
   for (int pass = 0; pass <= kFinePasses; ++pass) {
     const double half = pass > 0 ? o.fine_search_px
                                  : (coarse.search_px > 0 ? coarse.search_px : o.coarse_search_px);
@@ -455,24 +594,21 @@ EdgeFit fitSide(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge
       fit.reason = "too few edge inliers (" + std::to_string(fit.raw_inliers.size()) + ")";
       return fit;
     }
+    if (pass == kFinePasses) last = std::move(s);
   }
   // A side shorter than twice min_edge_length_px (a far board's, or one the image cuts) shows its
   // edge along the share of its visible length that the coverage asks of every side.
   const double min_span = std::min(o.min_edge_length_px, o.min_side_coverage * (b - a).norm());
-  if (fit.span < min_span) {
-    fit.reason = cv::format("visible edge too short (%.0f px)", fit.span);
-  } else if (fit.coverage < o.min_side_coverage) {
-    fit.reason = cv::format("edge seen along %.0f %% of its visible length (need %.0f %%)",
-                            100 * fit.coverage, 100 * o.min_side_coverage);
-  } else if (fit.rms > o.max_edge_rms_px) {
-    fit.reason = cv::format("edge not straight (rms %.2f px)", fit.rms);
-  } else if (std::abs(fit.bow) - kBowSigmas * fit.bow_sigma > o.max_edge_bow_fraction * fit.span) {
-    fit.reason = cv::format("edge bent (%.1f px over %.0f px)", std::abs(fit.bow), fit.span);
-  } else if (fit.rival_offset > o.edge_inlier_px) {
-    fit.reason = cv::format("two edges along the side (another as well supported, %.1f px off)",
-                            fit.rival_offset);
-  } else {
-    fit.valid = true;
+  judgeSide(o, min_span, &fit);
+  if (!fit.valid && fit.span >= min_span && fit.coverage >= o.min_side_coverage &&
+      (fit.rms > o.max_edge_rms_px || bentBeyondHold(o, fit))) {
+    // The gap a drop leaves widens the bow's standard error: a side that needed the drop must be
+    // straight outright.
+    EdgeFit rest = fit;
+    if (withoutBump(last, orient, o, &rest)) {
+      judgeSide(o, min_span, &rest, 0.0);
+      if (rest.valid) return rest;
+    }
   }
   return fit;
 }
