@@ -506,14 +506,18 @@ double neighbourNoise(const std::vector<double>& r) {
 // kMinFlankShare on both sides pin the line; a stretch at an end may be a leg the side runs on
 // along), the side is fitted again from its other peaks into `rest`. Returns true when the
 // dropped stretch lay off the new line beyond the noise and no such stretch is left in the rest
-// (a hand and a leg on one side: the rest would still lean on the leg). The caller judges the new
-// fit by every test of a side.
+// (a hand and a leg on one side: the rest would still lean on the leg). `only_if_off` (a side that
+// passed its tests): only when the run stands that far off the side's own line too, so straight
+// sides are not refitted. The caller judges the new fit by every test of a side.
 constexpr double kMaxBumpShare = 1.0 / 3.0;  // of the side's sample positions
 constexpr double kMinFlankShare = 0.15;      // of the inliers' extent, kept on each side of a drop
 constexpr double kRunSigmas = 4.0;    // a run's residual sum, in standard errors: a bump, not noise
 constexpr double kMinNoisePx = 0.05;  // floor of the residuals' noise (a synthetic edge has ~none)
+// px: a valid side is its rest only when that moves its line this far at an end (half the 1 px a
+// board's line must keep): a held board's bow is a run too, and long sides would move by tenths.
+constexpr double kMinMovePx = 0.5;
 bool withoutBump(const EdgeSamples& s, const Orienter& orient, const ImageBoardDetectorOptions& o,
-                 EdgeFit* rest) {
+                 bool only_if_off, EdgeFit* rest) {
   std::vector<size_t> idx;
   std::vector<double> r;
   inliersAlong(s, rest->line, o, &idx, &r);
@@ -521,6 +525,9 @@ bool withoutBump(const EdgeSamples& s, const Orienter& orient, const ImageBoardD
   const Run bump = strongestRun(r);
   const size_t run = bump.last - bump.first + 1;
   if (run < 3 || run > kMaxBumpShare * s.positions) return false;
+  if (only_if_off && bump.sum < kRunSigmas * std::max(neighbourNoise(r), kMinNoisePx) *
+                                    std::sqrt(static_cast<double>(run)))
+    return false;
   const double t_from = s.ts[idx[bump.first]] - 0.5 * s.step,
                t_to = s.ts[idx[bump.last]] + 0.5 * s.step;
   const double t_lo = s.ts[idx.front()], t_hi = s.ts[idx.back()];
@@ -552,6 +559,18 @@ bool withoutBump(const EdgeSamples& s, const Orienter& orient, const ImageBoardD
   };
   return sigmas(off, dropped.size()) >= kRunSigmas &&
          sigmas(left.sum, left.last - left.first + 1) < kRunSigmas;
+}
+
+// px: how far `other` lies from the fit's line at the ends of the fit's inliers.
+double linesApartAtEnds(const CameraModel& camera, const EdgeFit& fit,
+                        const Eigen::Vector3d& other) {
+  double apart = 0;
+  for (const Eigen::Vector2d& end_raw : {fit.raw_inliers.front(), fit.raw_inliers.back()}) {
+    Eigen::Vector2d end = camera.undistortPixel(end_raw);
+    end -= (fit.line.head<2>().dot(end) + fit.line.z()) * fit.line.head<2>();  // onto the line
+    apart = std::max(apart, std::abs(other.head<2>().dot(end) + other.z()));
+  }
+  return apart;
 }
 
 // One side fitted afresh from its profiles, each one alone or averaged along the side (`along`:
@@ -600,14 +619,15 @@ EdgeFit fitSide(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge
   // edge along the share of its visible length that the coverage asks of every side.
   const double min_span = std::min(o.min_edge_length_px, o.min_side_coverage * (b - a).norm());
   judgeSide(o, min_span, &fit);
-  if (!fit.valid && fit.span >= min_span && fit.coverage >= o.min_side_coverage &&
-      (fit.rms > o.max_edge_rms_px || bentBeyondHold(o, fit))) {
-    // The gap a drop leaves widens the bow's standard error: a side that needed the drop must be
-    // straight outright.
+  if (fit.span >= min_span && fit.coverage >= o.min_side_coverage &&
+      (fit.valid || fit.rms > o.max_edge_rms_px || bentBeyondHold(o, fit))) {
+    // A hand bends a side (refused) or, off its middle, tilts it (passed, off at an end). The gap
+    // a drop leaves widens the bow's standard error: the rest must be straight outright.
     EdgeFit rest = fit;
-    if (withoutBump(last, orient, o, &rest)) {
+    if (withoutBump(last, orient, o, fit.valid, &rest)) {
       judgeSide(o, min_span, &rest, 0.0);
-      if (rest.valid) return rest;
+      if (rest.valid && (!fit.valid || linesApartAtEnds(camera, fit, rest.line) > kMinMovePx))
+        return rest;
     }
   }
   return fit;
@@ -632,12 +652,7 @@ EdgeFit refineOnce(const cv::Mat& gray, const CameraModel& camera, const CoarseE
   const EdgeFit averaged =
       fitSide(gray, camera, coarse, orient, o, min_gradient, kAlongPositions, &first_pass);
   if (!averaged.valid) return fit;
-  double apart = 0;
-  for (const Eigen::Vector2d& end_raw : {fit.raw_inliers.front(), fit.raw_inliers.back()}) {
-    Eigen::Vector2d end = camera.undistortPixel(end_raw);
-    end -= (fit.line.head<2>().dot(end) + fit.line.z()) * fit.line.head<2>();  // onto the line
-    apart = std::max(apart, std::abs(averaged.line.head<2>().dot(end) + averaged.line.z()));
-  }
+  const double apart = linesApartAtEnds(camera, fit, averaged.line);
   const bool agree = apart <= 0.5 * o.edge_inlier_px;
   if (!fit.valid) return agree ? averaged : fit;
   if (!agree) {
