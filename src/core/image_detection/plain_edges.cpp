@@ -561,10 +561,11 @@ bool withoutBump(const EdgeSamples& s, const Orienter& orient, const ImageBoardD
          sigmas(left.sum, left.last - left.first + 1) < kRunSigmas;
 }
 
-// px: how far `other` lies from the fit's line at the ends of the fit's inliers.
+// px: how far `other` lies from the fit's line at the ends of the fit's inliers (0: none).
 double linesApartAtEnds(const CameraModel& camera, const EdgeFit& fit,
                         const Eigen::Vector3d& other) {
   double apart = 0;
+  if (fit.raw_inliers.empty()) return apart;
   for (const Eigen::Vector2d& end_raw : {fit.raw_inliers.front(), fit.raw_inliers.back()}) {
     Eigen::Vector2d end = camera.undistortPixel(end_raw);
     end -= (fit.line.head<2>().dot(end) + fit.line.z()) * fit.line.head<2>();  // onto the line
