@@ -272,6 +272,20 @@ EdgeSamples searchPeaks(const cv::Mat& gray, const CameraModel& camera, const Co
   return s;
 }
 
+// Variance of residuals in order along a side, from neighbours' differences: a bump or a tilt (a
+// hand on a side) does not count as noise, as it would in residuals from any fitted shape.
+double neighbourVariance(const std::vector<double>& r) {
+  if (r.size() < 2) return 0;
+  double d2 = 0;
+  for (size_t k = 1; k < r.size(); ++k) {
+    const double d = r[k] - r[k - 1];
+    d2 += d * d;
+  }
+  return d2 / (2.0 * static_cast<double>(r.size() - 1));
+}
+
+double neighbourNoise(const std::vector<double>& r) { return std::sqrt(neighbourVariance(r)); }
+
 // Sagitta of the parabola r = a + b t + c t^2 through the inliers' residuals r from the line, over
 // their span (t: their position along the line), and its standard error: a straight edge has none
 // beyond noise; an arc (a printed disc's tangent), a kink (a side running on along an occluder) or
@@ -299,13 +313,10 @@ void bowOfInliers(const std::vector<double>& t, const std::vector<double>& r, do
   std::vector<size_t> order(t.size());
   for (size_t i = 0; i < order.size(); ++i) order[i] = i;
   std::sort(order.begin(), order.end(), [&](size_t x, size_t y) { return t[x] < t[y]; });
-  double d2 = 0;
-  for (size_t k = 1; k < order.size(); ++k) {
-    const double d = r[order[k]] - r[order[k - 1]];
-    d2 += d * d;
-  }
-  const double variance = d2 / (2.0 * static_cast<double>(order.size() - 1));
-  const Eigen::Matrix3d cov = ata.inverse() * variance;
+  std::vector<double> ordered;
+  ordered.reserve(order.size());
+  for (const size_t i : order) ordered.push_back(r[i]);
+  const Eigen::Matrix3d cov = ata.inverse() * neighbourVariance(ordered);
   *bow = c(2);
   *sigma = std::sqrt(std::max(0.0, cov(2, 2)));
 }
@@ -488,15 +499,6 @@ void inliersAlong(const EdgeSamples& s, const Eigen::Vector3d& line,
     if (s.strength[i] >= weak && std::abs(residual(i)) <= band) idx->push_back(i);
   std::sort(idx->begin(), idx->end(), [&](size_t x, size_t y) { return s.ts[x] < s.ts[y]; });
   for (const size_t i : *idx) r->push_back(residual(i));
-}
-
-// Noise of residuals in order along a side, from neighbours' differences (a bump or a tilt does
-// not count as noise).
-double neighbourNoise(const std::vector<double>& r) {
-  if (r.size() < 2) return 0;
-  double d2 = 0;
-  for (size_t k = 1; k < r.size(); ++k) d2 += (r[k] - r[k - 1]) * (r[k] - r[k - 1]);
-  return std::sqrt(d2 / (2.0 * static_cast<double>(r.size() - 1)));
 }
 
 // A hand holding the board at a side puts its own outline within the inlier band along a stretch
