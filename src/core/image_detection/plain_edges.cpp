@@ -22,7 +22,8 @@ constexpr double kWeakPeakFraction =
 constexpr double kMadToSigma = 1.4826;
 constexpr int kFinePasses = 2;
 constexpr int kRobustIterations = 3;
-constexpr double kRobustSigmas = 3.0;                 // inlier band of the refit, in robust sigmas
+constexpr double kRobustSigmas = 3.0;  // inlier band of the refit, in robust sigmas
+constexpr size_t kMinNoiseSteps = 5;   // neighbour differences that measure a side's noise
 constexpr double kMaxCornerExclusionFraction = 0.15;  // of a side, skipped at each end
 constexpr double kMaxSamplesPerSide =
     240;  // more add nothing to a line fit (errors ~1/sqrt(n) are already ~0.02 px)
@@ -382,11 +383,44 @@ double rivalOffset(const EdgeSamples& s, const EdgeFit& fit, double band) {
   return offset;
 }
 
-// Robust line through the peaks (weak peaks out, MAD band never tighter than the configured
-// inlier distance); fills the fit's line, inliers, rms, span and coverage, and with
-// `measure_bow` (the last pass: only its fit is judged) the bow.
+// Half-width (px) of the inlier band around `line` of the peaks `use` (in order along the side):
+// kRobustSigmas robust sigmas of their residuals, and at least what a straight edge needs there:
+// the configured edge_inlier_px, or, where that is wider, a held board's bow over their extent
+// (max_edge_bow_fraction) plus kRobustSigmas sigmas of their noise. The noise is taken from
+// neighbours' differences (median): a hand's or a leg's outline is no noise. Within 3 px of a
+// far board's short side lie the outlines of the hands and legs over it, which pulled its line
+// (augmented real frames: far sides 1.2-2.1 px off; docs/BENCHMARKS.md, session 36). Only for
+// peaks searched `near_line`, a fitted one: the first search follows the coarse hypothesis as
+// wide as it is uncertain, and keeps the configured band.
+double inlierBand(const EdgeSamples& s, const Eigen::Vector3d& line, const std::vector<bool>& use,
+                  const ImageBoardDetectorOptions& o, bool near_line) {
+  std::vector<double> spread, steps;
+  double previous = 0, t_lo = 0, t_hi = 0;
+  for (size_t i = 0; i < s.pts_u.size(); ++i) {
+    if (!use[i]) continue;
+    const double r = line.head<2>().dot(s.pts_u[i]) + line.z();
+    if (spread.empty())
+      t_lo = s.ts[i];
+    else
+      steps.push_back(std::abs(r - previous));
+    spread.push_back(std::abs(r));
+    previous = r;
+    t_hi = s.ts[i];
+  }
+  if (spread.empty()) return o.edge_inlier_px;
+  double straight = o.edge_inlier_px;
+  if (near_line && steps.size() >= kMinNoiseSteps) {
+    const double noise = kMadToSigma * medianOf(std::move(steps)) / std::sqrt(2.0);
+    straight = std::min(straight, o.max_edge_bow_fraction * (t_hi - t_lo) + kRobustSigmas * noise);
+  }
+  return std::max(straight, kRobustSigmas * kMadToSigma * medianOf(std::move(spread)));
+}
+
+// Robust line through the peaks (weak peaks out, inliers within inlierBand); fills the fit's
+// line, inliers, rms, span and coverage, and with `measure_bow` (the last pass: only its fit is
+// judged) the bow. `near_line`: the peaks were searched near a fitted line (inlierBand).
 void fitPeaks(const EdgeSamples& s, const Orienter& orient, const ImageBoardDetectorOptions& o,
-              bool measure_bow, EdgeFit* fit) {
+              bool measure_bow, bool near_line, EdgeFit* fit) {
   const double median_strength = medianOf(s.strength);
   const size_t n = s.pts_u.size();
   std::vector<bool> use(n);
@@ -394,12 +428,8 @@ void fitPeaks(const EdgeSamples& s, const Orienter& orient, const ImageBoardDete
   Eigen::Vector3d line = fit->line;
   for (int iter = 0; iter < kRobustIterations; ++iter) {
     line = fitLine(s.pts_u, use, orient);
-    std::vector<double> res;
-    for (size_t i = 0; i < n; ++i)
-      if (use[i]) res.push_back(std::abs(line.head<2>().dot(s.pts_u[i]) + line.z()));
-    if (res.empty()) break;
-    const double thr =
-        std::max(o.edge_inlier_px, kRobustSigmas * kMadToSigma * medianOf(std::move(res)));
+    if (std::none_of(use.begin(), use.end(), [](bool u) { return u; })) break;
+    const double thr = inlierBand(s, line, use, o, near_line);
     for (size_t i = 0; i < n; ++i)
       use[i] = s.strength[i] >= kWeakPeakFraction * median_strength &&
                std::abs(line.head<2>().dot(s.pts_u[i]) + line.z()) <= thr;
@@ -480,25 +510,45 @@ Run strongestRun(const std::vector<double>& r) {
   return best;
 }
 
-// The strong peaks within the robust band of `line`, in order along the side, and their
-// residuals.
+// The strong peaks within the inlier band of `line` (inlierBand; peaks of a last pass), in order
+// along the side, and their residuals.
 void inliersAlong(const EdgeSamples& s, const Eigen::Vector3d& line,
-                  const ImageBoardDetectorOptions& o, std::vector<size_t>* idx,
+                  const ImageBoardDetectorOptions& o, bool near_line, std::vector<size_t>* idx,
                   std::vector<double>* r) {
   idx->clear();
   r->clear();
   if (s.strength.empty()) return;
   const double weak = kWeakPeakFraction * medianOf(s.strength);
   const auto residual = [&](size_t i) { return line.head<2>().dot(s.pts_u[i]) + line.z(); };
-  std::vector<double> spread;
+  std::vector<bool> strong(s.pts_u.size());
+  for (size_t i = 0; i < s.pts_u.size(); ++i) strong[i] = s.strength[i] >= weak;
+  if (std::none_of(strong.begin(), strong.end(), [](bool u) { return u; })) return;
+  const double band = inlierBand(s, line, strong, o, near_line);
   for (size_t i = 0; i < s.pts_u.size(); ++i)
-    if (s.strength[i] >= weak) spread.push_back(std::abs(residual(i)));
-  if (spread.empty()) return;
-  const double band = std::max(o.edge_inlier_px, kRobustSigmas * kMadToSigma * medianOf(spread));
-  for (size_t i = 0; i < s.pts_u.size(); ++i)
-    if (s.strength[i] >= weak && std::abs(residual(i)) <= band) idx->push_back(i);
+    if (strong[i] && std::abs(residual(i)) <= band) idx->push_back(i);
   std::sort(idx->begin(), idx->end(), [&](size_t x, size_t y) { return s.ts[x] < s.ts[y]; });
   for (const size_t i : *idx) r->push_back(residual(i));
+}
+
+// The samples of s outside positions [stretch.first, stretch.second] along the side.
+EdgeSamples outside(const EdgeSamples& s, std::pair<double, double> stretch) {
+  EdgeSamples kept;
+  kept.positions = s.positions;
+  kept.step = s.step;
+  for (size_t i = 0; i < s.pts_u.size(); ++i) {
+    if (s.ts[i] >= stretch.first && s.ts[i] <= stretch.second) continue;
+    kept.pts_u.push_back(s.pts_u[i]);
+    kept.pts_raw.push_back(s.pts_raw[i]);
+    kept.strength.push_back(s.strength[i]);
+    kept.signs.push_back(s.signs[i]);
+    kept.ts.push_back(s.ts[i]);
+  }
+  return kept;
+}
+
+// |sum| of `count` residuals in standard errors of their sum.
+double runSigmas(double sum, size_t count, double noise) {
+  return std::abs(sum) / (noise * std::sqrt(static_cast<double>(count)));
 }
 
 // A hand holding the board at a side puts its own outline within the inlier band along a stretch
@@ -506,11 +556,12 @@ void inliersAlong(const EdgeSamples& s, const Eigen::Vector3d& line,
 // is straight. The stretch is the run of inliers whose residuals add up most on one side of the
 // line. Without it (at most kMaxBumpShare of the side, and within the side: straight stretches of
 // kMinFlankShare on both sides pin the line; a stretch at an end may be a leg the side runs on
-// along), the side is fitted again from its other peaks into `rest`. Returns true when the
-// dropped stretch lay off the new line beyond the noise and no such stretch is left in the rest
-// (a hand and a leg on one side: the rest would still lean on the leg). `only_if_off` (a side that
-// passed its tests): only when the run stands that far off the side's own line too, so straight
-// sides are not refitted. The caller judges the new fit by every test of a side.
+// along), the side is fitted again from its other peaks into `rest`, which records the stretch
+// (EdgeFit::dropped). Returns true when the dropped stretch lay off the new line beyond the noise
+// and no such stretch is left in the rest (a hand and a leg on one side: the rest would still lean
+// on the leg). `only_if_off` (a side that passed its tests): only when the run stands that far off
+// the side's own line too, so straight sides are not refitted. `near_line`: inlierBand's. The
+// caller judges the new fit by every test of a side.
 constexpr double kMaxBumpShare = 1.0 / 3.0;  // of the side's sample positions
 constexpr double kMinFlankShare = 0.15;      // of the inliers' extent, kept on each side of a drop
 constexpr double kRunSigmas = 4.0;    // a run's residual sum, in standard errors: a bump, not noise
@@ -519,10 +570,10 @@ constexpr double kMinNoisePx = 0.05;  // floor of the residuals' noise (a synthe
 // board's line must keep): a held board's bow is a run too, and long sides would move by tenths.
 constexpr double kMinMovePx = 0.5;
 bool withoutBump(const EdgeSamples& s, const Orienter& orient, const ImageBoardDetectorOptions& o,
-                 bool only_if_off, EdgeFit* rest) {
+                 bool only_if_off, bool near_line, EdgeFit* rest) {
   std::vector<size_t> idx;
   std::vector<double> r;
-  inliersAlong(s, rest->line, o, &idx, &r);
+  inliersAlong(s, rest->line, o, near_line, &idx, &r);
   if (idx.size() < 6) return false;
   const Run bump = strongestRun(r);
   const size_t run = bump.last - bump.first + 1;
@@ -535,32 +586,20 @@ bool withoutBump(const EdgeSamples& s, const Orienter& orient, const ImageBoardD
   const double t_lo = s.ts[idx.front()], t_hi = s.ts[idx.back()];
   const double flank = kMinFlankShare * (t_hi - t_lo);
   if (t_from - t_lo < flank || t_hi - t_to < flank) return false;
-  EdgeSamples kept;
-  kept.positions = s.positions;
-  kept.step = s.step;
   std::vector<Eigen::Vector2d> dropped;
   for (size_t k = bump.first; k <= bump.last; ++k) dropped.push_back(s.pts_u[idx[k]]);
-  for (size_t i = 0; i < s.pts_u.size(); ++i) {
-    if (s.ts[i] >= t_from && s.ts[i] <= t_to) continue;
-    kept.pts_u.push_back(s.pts_u[i]);
-    kept.pts_raw.push_back(s.pts_raw[i]);
-    kept.strength.push_back(s.strength[i]);
-    kept.signs.push_back(s.signs[i]);
-    kept.ts.push_back(s.ts[i]);
-  }
+  const EdgeSamples kept = outside(s, {t_from, t_to});
   if (static_cast<int>(kept.pts_u.size()) < o.min_edge_points) return false;
-  fitPeaks(kept, orient, o, true, rest);
-  inliersAlong(kept, rest->line, o, &idx, &r);
+  fitPeaks(kept, orient, o, true, near_line, rest);
+  rest->dropped = {t_from, t_to};
+  inliersAlong(kept, rest->line, o, near_line, &idx, &r);
   if (idx.size() < 6) return false;
   const double noise = std::max(neighbourNoise(r), kMinNoisePx);
   double off = 0;  // the dropped stretch's residual sum from the new line
   for (const Eigen::Vector2d& p : dropped) off += rest->line.head<2>().dot(p) + rest->line.z();
   const Run left = strongestRun(r);
-  const auto sigmas = [&](double sum, size_t count) {
-    return std::abs(sum) / (noise * std::sqrt(static_cast<double>(count)));
-  };
-  return sigmas(off, dropped.size()) >= kRunSigmas &&
-         sigmas(left.sum, left.last - left.first + 1) < kRunSigmas;
+  return runSigmas(off, dropped.size(), noise) >= kRunSigmas &&
+         runSigmas(left.sum, left.last - left.first + 1, noise) < kRunSigmas;
 }
 
 // px: how far `other` lies from the fit's line at the ends of the fit's inliers (0: none).
@@ -577,13 +616,20 @@ double linesApartAtEnds(const CameraModel& camera, const EdgeFit& fit,
 }
 
 // One side fitted afresh from its profiles, each one alone or averaged along the side (`along`:
-// searchPeaks); `first_pass`: the profiles of the first pass, shared with the side's other fit.
+// searchPeaks); `first_pass`: the profiles of the first pass, shared with the side's other fit;
+// `leave_out`: positions along the side whose peaks are not used (the other look's dropped
+// stretch).
 EdgeFit fitSide(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse,
                 const Orienter& orient, const ImageBoardDetectorOptions& o, double min_gradient,
-                int along, SideProfiles* first_pass) {
+                int along, SideProfiles* first_pass,
+                std::pair<double, double> leave_out = {1.0, 0.0}) {
   EdgeFit fit;
   Eigen::Vector2d a = camera.undistortPixel(coarse.a), b = camera.undistortPixel(coarse.b);
   fit.line = orient.through(a, b);
+  // The fine passes' band follows the side's bow and noise (inlierBand) in single profiles. The
+  // averaged look is a check on them (refineOnce), measured with the configured band: it keeps
+  // it (a striped side's two looks would otherwise part by more than their agreement allows).
+  const bool near_line = along == 0;
   LocalPolarity polarity;
   EdgeSamples last;  // the last pass's peaks
   for (int pass = 0; pass <= kFinePasses; ++pass) {
@@ -606,11 +652,14 @@ EdgeFit fitSide(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge
         if (s.signs[i] * polarity.at(s.ts[i]) < 0)
           s.strength[i] = 0;  // against its stretch: clutter
     }
+    // An averaged profile holds its neighbours within `along` positions: those of the stretch too.
+    if (leave_out.first <= leave_out.second)
+      s = outside(s, {leave_out.first - along * s.step, leave_out.second + along * s.step});
     if (static_cast<int>(s.pts_u.size()) < o.min_edge_points) {
       fit.reason = "too few edge pixels (" + std::to_string(s.pts_u.size()) + ")";
       return fit;
     }
-    fitPeaks(s, orient, o, pass == kFinePasses, &fit);
+    fitPeaks(s, orient, o, pass == kFinePasses, pass > 0 && near_line, &fit);
     if (pass == 0) fit.rival_offset = rivalOffset(s, fit, o.edge_inlier_px);
     if (static_cast<int>(fit.raw_inliers.size()) < o.min_edge_points) {
       fit.reason = "too few edge inliers (" + std::to_string(fit.raw_inliers.size()) + ")";
@@ -627,7 +676,7 @@ EdgeFit fitSide(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge
     // A hand bends a side (refused) or, off its middle, tilts it (passed, off at an end). The gap
     // a drop leaves widens the bow's standard error: the rest must be straight outright.
     EdgeFit rest = fit;
-    if (withoutBump(last, orient, o, fit.valid, &rest)) {
+    if (withoutBump(last, orient, o, fit.valid, near_line, &rest)) {
       judgeSide(o, min_span, &rest, 0.0);
       if (rest.valid && (!fit.valid || linesApartAtEnds(camera, fit, rest.line) > kMinMovePx))
         return rest;
@@ -652,8 +701,10 @@ EdgeFit refineOnce(const cv::Mat& gray, const CameraModel& camera, const CoarseE
   SideProfiles first_pass;  // both fits' first pass samples the coarse line alike
   EdgeFit fit = fitSide(gray, camera, coarse, orient, o, min_gradient, 0, &first_pass);
   if (fit.raw_inliers.size() < 2) return fit;
-  const EdgeFit averaged =
-      fitSide(gray, camera, coarse, orient, o, min_gradient, kAlongPositions, &first_pass);
+  // Both looks on the same part of the side: averaged, a hand's stretch the first look dropped
+  // spreads over its neighbours and pulls the line as it did before the drop.
+  const EdgeFit averaged = fitSide(gray, camera, coarse, orient, o, min_gradient, kAlongPositions,
+                                   &first_pass, fit.dropped);
   if (!averaged.valid) return fit;
   const double apart = linesApartAtEnds(camera, fit, averaged.line);
   const bool agree = apart <= 0.5 * o.edge_inlier_px;
@@ -702,7 +753,7 @@ double edgeCoverage(const cv::Mat& gray, const CameraModel& camera, const Eigen:
   std::vector<Eigen::Vector3d> oriented;
   EdgeFit fit;
   fit.line = line;
-  fitPeaks(s, Orienter{inside, &oriented}, o, false, &fit);
+  fitPeaks(s, Orienter{inside, &oriented}, o, false, false, &fit);
   int near = 0;
   for (const auto& p : s.pts_u)
     near += std::abs(fit.line.head<2>().dot(p) + fit.line.z()) <= o.fine_search_px;

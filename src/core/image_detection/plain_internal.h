@@ -7,6 +7,7 @@
 #include <opencv2/core.hpp>
 
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace board_calib {
@@ -126,6 +127,9 @@ struct EdgeFit {
   /// px: in the first, widest pass, another line through the peaks as well supported lies this
   /// far from the fitted one at an end of the side (0: none)
   double rival_offset = 0;
+  /// Positions along the side (px from its start) of a stretch left out of the fit (a hand's
+  /// outline); none when first > second.
+  std::pair<double, double> dropped{1.0, 0.0};
   std::string reason;
   bool valid = false;
 };
