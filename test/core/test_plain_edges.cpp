@@ -12,6 +12,8 @@
 
 #include <cmath>
 #include <functional>
+#include <string>
+#include <utility>
 #include <vector>
 
 namespace board_calib {
@@ -71,6 +73,29 @@ EdgeFit fitTop(const cv::Mat& image, double x0, double x1, double y, double insi
   coarse.angle = -M_PI / 2;
   coarse.length = x1 - x0;
   return refineEdge(image, pinhole(), coarse, {0.5 * (x0 + x1), inside_y}, o, 5.0);
+}
+
+// The top side of a region under the outline y + bend(s), with noise of draw `seed`, fitted.
+EdgeFit fitBentTop(double x0, double x1, double y, const std::function<double(double)>& bend,
+                   int seed) {
+  cv::setRNGSeed(seed);
+  return fitTop(render({regionUnder(x0, x1, y, bend)}), x0, x1, y, y + 40);
+}
+
+// Each outline (a name, its bend) under `draws` noise draws from `seed`: the top side is a board
+// side within `tolerance` px of the edge at height y at both ends.
+using Outline = std::pair<std::string, std::function<double(double)>>;
+void expectSidesOnEdge(double x0, double x1, double y, const std::vector<Outline>& outlines,
+                       int draws, int seed, double tolerance) {
+  for (const auto& [name, bend] : outlines)
+    for (int draw = 0; draw < draws; ++draw) {
+      const EdgeFit fit = fitBentTop(x0, x1, y, bend, seed++);
+      EXPECT_TRUE(fit.valid) << name << ": " << fit.reason;
+      if (!fit.valid) continue;
+      for (const double x : {x0, x1})
+        EXPECT_LT(std::abs(fit.line.head<2>().dot(Eigen::Vector2d(x, y)) + fit.line.z()), tolerance)
+            << name << " at x " << x;
+    }
 }
 
 TEST(PlainEdges, StraightAndGentlyBowedEdgesAreBoardEdges) {
@@ -148,21 +173,13 @@ TEST(PlainEdges, AHandOnAFarSideIsDroppedFromIt) {
   // 1.76 px off at an end. Its stretch dropped, the rest of the side is straight and on the edge.
   // The noise is measured between neighbouring samples: from the parabola's residuals, the bump's
   // own misfit made it look like noise and the bent side passed.
-  constexpr double x0 = 200, x1 = 290, y = 150.6;
-  int seed = 40;
+  std::vector<Outline> hands;
   for (const double at : {0.5, 0.35, 0.65})
-    for (int draw = 0; draw < 2; ++draw) {
-      cv::setRNGSeed(seed++);
-      const EdgeFit fit =
-          fitTop(render({regionUnder(
-                     x0, x1, y, [&](double s) { return std::abs(s - at) < 0.1 ? -2.5 : 0.0; })}),
-                 x0, x1, y, y + 40);
-      ASSERT_TRUE(fit.valid) << at << ": " << fit.reason;
-      // 2 grey levels of noise on a 90-level step over ~30 samples: a few hundredths of a pixel;
-      // 0.3 px bounds it with margin.
-      for (const auto& p : {Eigen::Vector2d(x0, y), Eigen::Vector2d(x1, y)})
-        EXPECT_LT(std::abs(fit.line.head<2>().dot(p) + fit.line.z()), 0.3) << at << " " << p.x();
-    }
+    hands.emplace_back("hand at " + std::to_string(at),
+                       [at](double s) { return std::abs(s - at) < 0.1 ? -2.5 : 0.0; });
+  // 2 grey levels of noise on a 90-level step over ~30 samples: a few hundredths of a pixel;
+  // 0.3 px bounds it with margin.
+  expectSidesOnEdge(200, 290, 150.6, hands, 2, 40, 0.3);
 }
 
 TEST(PlainEdges, AnOutlineAlongAFarSidesEndIsNotPartOfIt) {
@@ -173,18 +190,11 @@ TEST(PlainEdges, AnOutlineAlongAFarSidesEndIsNotPartOfIt) {
   // samples) plus three sigmas of their noise: the outline lies outside it, and the line on the
   // edge (measured 0.11 px). 0.3 px bounds ~20 samples with 2 grey levels of noise on a 90-level
   // step and the 1/4 px outline drawing.
-  constexpr double x0 = 200, x1 = 260, y = 150.6;
-  int seed = 70;
+  std::vector<Outline> outlines;
   for (const double out : {1.5, 2.0, 2.5})
-    for (int draw = 0; draw < 3; ++draw) {
-      cv::setRNGSeed(seed++);
-      const EdgeFit fit =
-          fitTop(render({regionUnder(x0, x1, y, [&](double s) { return s > 0.8 ? -out : 0.0; })}),
-                 x0, x1, y, y + 40);
-      ASSERT_TRUE(fit.valid) << out << ": " << fit.reason;
-      for (const auto& p : {Eigen::Vector2d(x0, y), Eigen::Vector2d(x1, y)})
-        EXPECT_LT(std::abs(fit.line.head<2>().dot(p) + fit.line.z()), 0.3) << out << " " << p.x();
-    }
+    outlines.emplace_back("outline " + std::to_string(out) + " px out",
+                          [out](double s) { return s > 0.8 ? -out : 0.0; });
+  expectSidesOnEdge(200, 260, 150.6, outlines, 3, 70, 0.3);
 }
 
 TEST(PlainEdges, AnEdgeBesideTheImageBorderIsFitUpToIt) {
