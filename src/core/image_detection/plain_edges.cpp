@@ -578,8 +578,8 @@ bool withoutBump(const EdgeSamples& s, const Orienter& orient, const ImageBoardD
   const Run bump = strongestRun(r);
   const size_t run = bump.last - bump.first + 1;
   if (run < 3 || run > kMaxBumpShare * s.positions) return false;
-  if (only_if_off && bump.sum < kRunSigmas * std::max(neighbourNoise(r), kMinNoisePx) *
-                                    std::sqrt(static_cast<double>(run)))
+  if (only_if_off &&
+      runSigmas(bump.sum, run, std::max(neighbourNoise(r), kMinNoisePx)) < kRunSigmas)
     return false;
   const double t_from = s.ts[idx[bump.first]] - 0.5 * s.step,
                t_to = s.ts[idx[bump.last]] + 0.5 * s.step;
@@ -618,11 +618,11 @@ double linesApartAtEnds(const CameraModel& camera, const EdgeFit& fit,
 // One side fitted afresh from its profiles, each one alone or averaged along the side (`along`:
 // searchPeaks); `first_pass`: the profiles of the first pass, shared with the side's other fit;
 // `leave_out`: positions along the side whose peaks are not used (the other look's dropped
-// stretch).
+// stretch), if any.
 EdgeFit fitSide(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge& coarse,
                 const Orienter& orient, const ImageBoardDetectorOptions& o, double min_gradient,
                 int along, SideProfiles* first_pass,
-                std::pair<double, double> leave_out = {1.0, 0.0}) {
+                const std::optional<std::pair<double, double>>& leave_out = std::nullopt) {
   EdgeFit fit;
   Eigen::Vector2d a = camera.undistortPixel(coarse.a), b = camera.undistortPixel(coarse.b);
   fit.line = orient.through(a, b);
@@ -653,8 +653,8 @@ EdgeFit fitSide(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge
           s.strength[i] = 0;  // against its stretch: clutter
     }
     // An averaged profile holds its neighbours within `along` positions: those of the stretch too.
-    if (leave_out.first <= leave_out.second)
-      s = outside(s, {leave_out.first - along * s.step, leave_out.second + along * s.step});
+    if (leave_out)
+      s = outside(s, {leave_out->first - along * s.step, leave_out->second + along * s.step});
     if (static_cast<int>(s.pts_u.size()) < o.min_edge_points) {
       fit.reason = "too few edge pixels (" + std::to_string(s.pts_u.size()) + ")";
       return fit;

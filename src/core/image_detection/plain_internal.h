@@ -6,6 +6,7 @@
 
 #include <opencv2/core.hpp>
 
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -128,8 +129,8 @@ struct EdgeFit {
   /// far from the fitted one at an end of the side (0: none)
   double rival_offset = 0;
   /// Positions along the side (px from its start) of a stretch left out of the fit (a hand's
-  /// outline); none when first > second.
-  std::pair<double, double> dropped{1.0, 0.0};
+  /// outline), if any.
+  std::optional<std::pair<double, double>> dropped;
   std::string reason;
   bool valid = false;
 };
