@@ -222,11 +222,15 @@ double estimateNoiseSigma(const cv::Mat& gray);
 /// colour part's window); when nothing else is the board, it is also searched with a lower
 /// line gradient bound (faintLineQuantization), and with `colour_challenge` (the frame's colour
 /// can challenge a board found in grey: ImageBoardDetector searches it in colour) for the stable
-/// regions' quadrilaterals (stableRegionQuads).
+/// regions' quadrilaterals (stableRegionQuads). `expected_is_prior`: `expected` comes from outside
+/// this frame (the other sensor, the session), so its own quadrilateral is also tried as the
+/// board, its sides searched as wide as it is uncertain; a single frame's colour part is not such
+/// a prior (detectPlainInColourWindow).
 void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                  const ImageBoardDetectorOptions& options, ImageDetection* out,
                  const ExpectedBoard* expected = nullptr, const StaticScene* excluded = nullptr,
-                 bool grey_frame = false, bool colour_challenge = false);
+                 bool grey_frame = false, bool colour_challenge = false,
+                 bool expected_is_prior = true);
 /// Weakest edge gradient (grey levels per px) a board edge sample needs in an image of this noise.
 double minEdgeGradient(const ImageBoardDetectorOptions& options, double noise_sigma);
 /// A board found in another channel, its sides tested in the grey image: a coloured tile of a

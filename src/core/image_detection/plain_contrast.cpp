@@ -320,7 +320,8 @@ void detectPlainInColourWindow(const cv::Mat& bgr, const CameraModel& camera, co
   found.features.image_width = window.width;
   found.features.image_height = window.height;
   detectPlain(contrast, *window_camera, target, o, &found, &local,
-              excluded ? &local_scene : nullptr);
+              excluded ? &local_scene : nullptr, /*grey_frame=*/false, /*colour_challenge=*/false,
+              /*expected_is_prior=*/false);
   if (found.features.found) sidesPartColours(contrast, *window_camera, &found.features);
   // Back to whole-frame pixels.
   const Eigen::Vector2d back = -to_window;

@@ -334,7 +334,7 @@ bool sidesEndInGray(const cv::Mat& gray, const CameraModel& camera,
 void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& target,
                  const ImageBoardDetectorOptions& o, ImageDetection* out,
                  const ExpectedBoard* expected, const StaticScene* excluded, bool grey_frame,
-                 bool colour_challenge) {
+                 bool colour_challenge, bool expected_is_prior) {
   PlainStageTimes times;
   // Edge pixels must stand out of this image's own noise (sensor, compression, texture).
   const double noise = timed(&times.noise_ms, [&] { return estimateNoiseSigma(gray); });
@@ -493,9 +493,13 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     }
     // Last, a second chance's expected board itself: where the other sensor's board projects,
     // its sides searched as wide as the prior is uncertain (a board no hypothesis of its own
-    // outlined: too faint or too small against the scene's longer lines).
+    // outlined: too faint or too small against the scene's longer lines). Not a colour part's
+    // own outline: a hand or a leg in front of the board notches it, and a side searched that
+    // wide follows their outline, which the colour contrast shows as strongly as the board's
+    // edge. Two far rs16 boards of fresh augmented draws so passed with a side 5 and 11 px off,
+    // and their corners then fitted the 4:3 board better a quarter turn round (tilted 55 deg).
     if (i == hypotheses.size() && i >= regions && !search.settled(o.min_side_coverage) &&
-        expected && !projected_tried) {
+        expected && expected_is_prior && !projected_tried) {
       projected_tried = true;
       QuadHypothesis q;
       q.corners = expected->corners_px;
