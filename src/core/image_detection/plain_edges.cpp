@@ -383,6 +383,14 @@ double rivalOffset(const EdgeSamples& s, const EdgeFit& fit, double band) {
   return offset;
 }
 
+// The peaks of s at least kWeakPeakFraction of their median strength (weaker ones are outliers).
+std::vector<bool> strongPeaks(const EdgeSamples& s, double median_strength) {
+  std::vector<bool> strong(s.pts_u.size());
+  for (size_t i = 0; i < strong.size(); ++i)
+    strong[i] = s.strength[i] >= kWeakPeakFraction * median_strength;
+  return strong;
+}
+
 // Half-width (px) of the inlier band around `line` of the peaks `use` (in order along the side):
 // kRobustSigmas robust sigmas of their residuals, and at least what a straight edge needs there:
 // the configured edge_inlier_px, or, where that is wider, a held board's bow over their extent
@@ -423,16 +431,15 @@ void fitPeaks(const EdgeSamples& s, const Orienter& orient, const ImageBoardDete
               bool measure_bow, bool near_line, EdgeFit* fit) {
   const double median_strength = medianOf(s.strength);
   const size_t n = s.pts_u.size();
-  std::vector<bool> use(n);
-  for (size_t i = 0; i < n; ++i) use[i] = s.strength[i] >= kWeakPeakFraction * median_strength;
+  const std::vector<bool> strong = strongPeaks(s, median_strength);
+  std::vector<bool> use = strong;
   Eigen::Vector3d line = fit->line;
   for (int iter = 0; iter < kRobustIterations; ++iter) {
     line = fitLine(s.pts_u, use, orient);
     if (std::none_of(use.begin(), use.end(), [](bool u) { return u; })) break;
     const double thr = inlierBand(s, line, use, o, near_line);
     for (size_t i = 0; i < n; ++i)
-      use[i] = s.strength[i] >= kWeakPeakFraction * median_strength &&
-               std::abs(line.head<2>().dot(s.pts_u[i]) + line.z()) <= thr;
+      use[i] = strong[i] && std::abs(line.head<2>().dot(s.pts_u[i]) + line.z()) <= thr;
   }
   line = fitLine(s.pts_u, use, orient);
   fit->raw_inliers.clear();
@@ -518,10 +525,8 @@ void inliersAlong(const EdgeSamples& s, const Eigen::Vector3d& line,
   idx->clear();
   r->clear();
   if (s.strength.empty()) return;
-  const double weak = kWeakPeakFraction * medianOf(s.strength);
   const auto residual = [&](size_t i) { return line.head<2>().dot(s.pts_u[i]) + line.z(); };
-  std::vector<bool> strong(s.pts_u.size());
-  for (size_t i = 0; i < s.pts_u.size(); ++i) strong[i] = s.strength[i] >= weak;
+  const std::vector<bool> strong = strongPeaks(s, medianOf(s.strength));
   if (std::none_of(strong.begin(), strong.end(), [](bool u) { return u; })) return;
   const double band = inlierBand(s, line, strong, o, near_line);
   for (size_t i = 0; i < s.pts_u.size(); ++i)
