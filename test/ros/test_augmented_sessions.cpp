@@ -5,8 +5,8 @@
 // reported as good: the session's view-consistency check (camera plane against LiDAR plane) and
 // the verdict are the guard. Each draw's frames of one camera form a session; the LiDAR side is
 // simulated (an OS1-64 at a known extrinsic ray-cast against the board where the frame's reference
-// corners put it, then the real LiDAR detector), so the reference corners are the ground truth of
-// both sensors.
+// lines put it, then the real LiDAR detector), so the reference lines are the ground truth of both
+// sensors.
 #include "augmented_frames.h"
 
 #include <board_calib/core/image_detection/image_board_detector.h>
