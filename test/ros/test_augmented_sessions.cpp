@@ -210,7 +210,7 @@ std::array<Session, 2> drawSessions(unsigned seed, bool with_basler) {
 // them nearly the same, moved about the camera centre for the far cases, may not determine a
 // calibration, and saying so is right.
 // Development aid: BOARD_CALIB_AUG_SESSION_BASLER=1 adds the basler_os1_plain sessions (192
-// frames per draw, ~4 times the time; docs/BENCHMARKS.md has their figures).
+// frames per draw, twice the time; docs/BENCHMARKS.md has their figures).
 TEST(AugmentedSessions, WrongBoardsAreLeftOutAndNoWrongResultIsGood) {
   if (!std::filesystem::exists(BOARD_CALIB_SHARED_DIR)) GTEST_SKIP() << "../shared absent";
   const auto methods = parseMethods("all");
