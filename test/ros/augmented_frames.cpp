@@ -518,6 +518,12 @@ double segmentDistancePx(const Frame& f, int ref, const Eigen::Vector3d& line) {
   return dist;
 }
 
+double edgeErrorPx(const Frame& f, const CameraBoardFeatures& found, int j) {
+  const double dist = segmentDistancePx(f, j, found.edge_lines[j]);
+  const double along = f.lines[j].head<2>().dot(found.edge_lines[j].head<2>());
+  return along < 0.99 ? std::max(dist, 1e3) : dist;
+}
+
 const std::vector<Case>& augmentedCases() {
   static const std::vector<Case> cases = {
       // Floors: the measured count minus one (the 95 % = 15.2 of 16 is not met by every

@@ -55,6 +55,10 @@ struct Case {
 /// (a, b) a unit normal).
 double segmentDistancePx(const Frame& f, int ref, const Eigen::Vector3d& line);
 
+/// How far found edge `j` (line j of `found`) is from reference edge j: its segment distance, or
+/// 1000 px when the line's normal is not the reference's (another object, or a board named round).
+double edgeErrorPx(const Frame& f, const CameraBoardFeatures& found, int j);
+
 /// The cases of the augmented tests, with their basler floors.
 const std::vector<Case>& augmentedCases();
 

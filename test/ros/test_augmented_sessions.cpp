@@ -141,11 +141,7 @@ LidarBoardFeatures lidarView(const Target& target, const Eigen::Isometry3d& came
 // another orientation, i.e. another object or a board named round).
 double worstEdgePx(const Frame& f, const CameraBoardFeatures& fe) {
   double worst = 0;
-  for (int j = 0; j < kNumEdges; ++j) {
-    double d = augmented::segmentDistancePx(f, j, fe.edge_lines[j]);
-    if (f.lines[j].head<2>().dot(fe.edge_lines[j].head<2>()) < 0.99) d = 1e3;
-    worst = std::max(worst, d);
-  }
+  for (int j = 0; j < kNumEdges; ++j) worst = std::max(worst, augmented::edgeErrorPx(f, fe, j));
   return worst;
 }
 

@@ -77,9 +77,8 @@ EdgeScore scoreEdges(const Frame& f, const ImageDetection& det, const std::strin
   const CameraBoardFeatures& fe = det.features;
   EdgeScore s;
   for (int j = 0; j < kNumEdges; ++j) {
-    double dist = segmentDistancePx(f, j, fe.edge_lines[j]);
+    const double dist = edgeErrorPx(f, fe, j);
     const double along = f.lines[j].head<2>().dot(fe.edge_lines[j].head<2>());
-    if (along < 0.99) dist = std::max(dist, 1e3);  // other orientation
     ++s.edges;
     s.within += dist <= 1.0;
     s.worst = std::max(s.worst, dist);
