@@ -85,23 +85,13 @@ bool referencePose(const Frame& f, Eigen::Isometry3d* camera_T_board) {
   cv::eigen2cv(K, k_cv);
   if (!cv::solvePnP(object, image, k_cv, cv::noArray(), rvec, tvec, false, cv::SOLVEPNP_IPPE))
     return false;
-  cv::Mat R;
-  cv::Rodrigues(rvec, R);
-  Eigen::Matrix3d r;
-  Eigen::Vector3d t;
-  cv::cv2eigen(R, r);
+  Eigen::Vector3d r, t;
+  cv::cv2eigen(rvec, r);
   cv::cv2eigen(tvec, t);
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = r;
-  T.translation() = t;
+  Eigen::Isometry3d T = makeTransform(expSO3(r), t);
   // Gauss-Newton on a left-multiplied update (rotation vector, translation), numeric Jacobian.
   auto moved = [&](const Eigen::Matrix<double, 6, 1>& d) {
-    Eigen::Isometry3d u = Eigen::Isometry3d::Identity();
-    if (d.head<3>().norm() > 0)
-      u.linear() =
-          Eigen::AngleAxisd(d.head<3>().norm(), d.head<3>().normalized()).toRotationMatrix();
-    u.translation() = d.tail<3>();
-    return u * T;
+    return makeTransform(expSO3(d.head<3>()), d.tail<3>()) * T;
   };
   for (int iteration = 0; iteration < 20; ++iteration) {
     const Eigen::Matrix<double, 8, 1> r0 = edgeResiduals(f, K, T);
@@ -150,10 +140,6 @@ struct Session {
   std::vector<double> worst_px;  // per view
   int frames = 0;
 };
-
-double rotationErrorDeg(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
-  return Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle() * kDegPerRad;
-}
 
 // One draw's frames, as the augmented table draws them (every frame is augmented, so the draw is
 // the table's), split into a basler and an rs16 session; basler frames are detected only when
@@ -248,8 +234,7 @@ TEST(AugmentedSessions, WrongBoardsAreLeftOutAndNoWrongResultIsGood) {
       wrong_total += wrong;
       const MethodRun& run = cal.shownRun();
       const Eigen::Isometry3d& got = run.solution.camera_T_lidar;
-      const double rot = rotationErrorDeg(got, truth),
-                   trans = (got.translation() - truth.translation()).norm();
+      const double rot = rotationErrorDeg(got, truth), trans = translationErrorM(got, truth);
       const double sigma_rot = run.verdict.stddev.rotation_deg.norm(),
                    sigma_trans = run.verdict.stddev.translation_m.norm();
       std::printf(
