@@ -171,6 +171,94 @@ INSTANTIATE_TEST_SUITE_P(Lidars, SimSweep,
                            return name;
                          });
 
+// A board held nearly upright at arm's length in front of its holder: the body shows right
+// below the board's lower side, and the voxels across that side mix both. The lower rim must
+// stay on the board (PBPC's lower edge line is fitted to it).
+struct RimCount {
+  int rim_returns = 0, rim_kept = 0, frames = 0, found = 0;
+  double worst_frame_share = 1.0;
+};
+
+RimCount lowerRimKept(const std::string& lidar, bool organized, unsigned seed, int frames) {
+  Target target = plainBoard();
+  target.width = 0.8;
+  target.height = 0.6;
+  const sim::LidarSpec s = spec(lidar, organized);
+  sim::SceneSpec world = scene(target);
+  world.occluder = true;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  RimCount r;
+  for (int i = 0; i < frames; ++i) {
+    const Eigen::Vector3d centre(1.9 + 0.5 * u(rng), 0.5 * u(rng), 0.2 * u(rng));
+    const Eigen::Isometry3d board =
+        boardPose(target, centre, 6.0 * u(rng), 25.0 * u(rng), 8.0 * u(rng));
+    const LidarCloud cloud =
+        sim::simulateLidarScan(s, Eigen::Isometry3d::Identity(), world, board, rng);
+    const LidarBoardDetection det = detectLidarBoard(cloud, target);
+    ++r.frames;
+    if (!det.features.found) {
+      std::printf("%s frame %d: %s\n", lidar.c_str(), i, det.features.reason.c_str());
+      continue;
+    }
+    ++r.found;
+    // Returns on the board within 5 cm of its lowest side, in board coordinates.
+    const Eigen::Isometry3d board_T_lidar = board.inverse();
+    const auto outer = target.outerCorners();
+    Eigen::Vector3d lo = outer[0], hi = outer[0];
+    for (const auto& c : outer) {
+      lo = lo.cwiseMin(c);
+      hi = hi.cwiseMax(c);
+    }
+    // The LiDAR's down direction in board coordinates: the lowest side is the one it points at.
+    const Eigen::Vector3d down = board_T_lidar.linear() * -Eigen::Vector3d::UnitZ();
+    const std::vector<Eigen::Vector3d>& kept = det.features.board_points;
+    int rim = 0, rim_kept = 0;
+    for (const auto& p : cloud.points) {
+      if (!std::isfinite(p.x)) continue;
+      const Eigen::Vector3d q(p.x, p.y, p.z);
+      const Eigen::Vector3d b = board_T_lidar * q;
+      if (std::abs(b.z()) > 0.02 || (b.head<2>().array() < lo.head<2>().array()).any() ||
+          (b.head<2>().array() > hi.head<2>().array()).any())
+        continue;
+      // Distance to the side the "down" direction points at.
+      const double along = down.head<2>().dot(b.head<2>() - 0.5 * (lo + hi).head<2>());
+      const double reach =
+          0.5 * (std::abs(down.x()) * (hi.x() - lo.x()) + std::abs(down.y()) * (hi.y() - lo.y()));
+      if (reach - along > 0.05) continue;
+      ++rim;
+      for (const auto& k : kept)
+        if ((k - q).squaredNorm() < 1e-10) {
+          ++rim_kept;
+          break;
+        }
+    }
+    r.rim_returns += rim;
+    r.rim_kept += rim_kept;
+    if (rim > 0) r.worst_frame_share = std::min(r.worst_frame_share, double(rim_kept) / rim);
+    if (std::getenv("LIDAR_TEST_VERBOSE"))
+      std::printf("  %s %d: rim %d kept %d\n", lidar.c_str(), i, rim, rim_kept);
+  }
+  std::printf("%-8s %-9s: found %d/%d, lower rim returns kept %d/%d (worst frame %.2f)\n",
+              lidar.c_str(), organized ? "organized" : "flat", r.found, r.frames, r.rim_kept,
+              r.rim_returns, r.worst_frame_share);
+  return r;
+}
+
+TEST(LidarDetectorSim, UprightBoardBeforeItsHolderKeepsItsLowerRim) {
+  // Before the holder's body was told from the board's rim (seeds 11-16), OS1-64 kept 67-86 %
+  // of these returns (single frames 3 %), VLP-32C 87-96 %, VLP-16 87-97 %; since, 97-100 %. A
+  // voxel that straddles the rim and holds mixed returns still loses its rows now and then.
+  const char* env_seed = std::getenv("LIDAR_TEST_SEED");
+  const unsigned seed = env_seed ? static_cast<unsigned>(std::atoi(env_seed)) : 11u;
+  for (const char* lidar : {"OS1-64", "VLP-32C", "VLP-16"})
+    for (bool organized : {true, false}) {
+      const RimCount r = lowerRimKept(lidar, organized, seed, 20);
+      EXPECT_GE(r.found, 19) << lidar;
+      EXPECT_GE(r.rim_kept, 0.96 * r.rim_returns) << lidar;
+    }
+}
+
 // Nearest return per direction of two organized scans of the same sensor: a scene with both
 // boards (each scan sees one board and the same room).
 LidarCloud mergeNearest(const LidarCloud& a, const LidarCloud& b) {

@@ -52,6 +52,10 @@ constexpr double kMaxAdaptiveBandFactor =
 // The plane refit after the edges keeps points this far inside the edge lines (drops the
 // mixed returns of the rim and anything touching the board from outside).
 constexpr double kRimExclusionM = 0.02;
+// Returns of another plane's voxel join the board only when at most this share of them (per
+// return in the board's band) lies in the next band out: a separate layer behind a gap, not a
+// surface crossing the board's plane. The board's own noise puts ~0.3 % there (3 to 6 sigma).
+constexpr double kMaxLayerGapShare = 0.1;
 // Points sampled for the convex hull of a large candidate.
 constexpr size_t kMaxHullPoints = 4000;
 // Re-assignment rounds between the two edges of one side.
@@ -225,8 +229,10 @@ void addSparseCandidates(const LidarCloud& cloud, const std::vector<ValidPoint>&
 RefinedPlane refinePlane(const std::vector<int>& region_points, const std::vector<int>& gathered,
                          const std::vector<ValidPoint>& pts, const LidarBoardDetectorOptions& o,
                          std::mt19937& rng);
-/// Points of a region and of its neighbouring voxels that belong to no other large plane.
+/// Points of a region and of its neighbouring voxels; of a neighbour that belongs to another
+/// large plane, only the returns on the board's plane, and only when the rest lie clear of it.
 void gatherRegionPoints(const std::vector<Region>& regions, int region_id, const VoxelGrid& grid,
+                        const std::vector<ValidPoint>& pts,
                         const LidarBoardDetectorOptions& options, std::vector<int>* region_points,
                         std::vector<int>* gathered);
 // Stage 4: scan lines and edges.

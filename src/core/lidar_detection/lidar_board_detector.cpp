@@ -229,7 +229,8 @@ LidarBoardDetection detectImpl(const LidarCloud& cloud, const Target& target,
   const Region& region = regions[static_cast<size_t>(candidates.front().region)];
   const int min_points = region.sparse ? sparseMinPoints(options) : options.min_board_points;
   std::vector<int> region_points, gathered;
-  gatherRegionPoints(regions, candidates.front().region, grid, options, &region_points, &gathered);
+  gatherRegionPoints(regions, candidates.front().region, grid, pts, options, &region_points,
+                     &gathered);
   std::mt19937 rng(options.random_seed);
   const RefinedPlane refined = refinePlane(region_points, gathered, pts, options, rng);
   if (static_cast<int>(refined.inliers.size()) < min_points)

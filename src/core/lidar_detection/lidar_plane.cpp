@@ -92,6 +92,7 @@ RefinedPlane refinePlane(const std::vector<int>& region_points, const std::vecto
 // Points of the winning region and of its neighbouring voxels (edge voxels mix the board
 // with what lies behind it, so they rarely join the region).
 void gatherRegionPoints(const std::vector<Region>& regions, int region_id, const VoxelGrid& grid,
+                        const std::vector<ValidPoint>& pts,
                         const LidarBoardDetectorOptions& options, std::vector<int>* region_points,
                         std::vector<int>* gathered) {
   const Region& region = regions[static_cast<size_t>(region_id)];
@@ -113,13 +114,37 @@ void gatherRegionPoints(const std::vector<Region>& regions, int region_id, const
   // lines), and stay in too.
   std::unordered_set<int> own;
   if (region.sparse) own.insert(region.voxels.begin(), region.voxels.end());
+  const PlaneFit board = fitPlane(region.stats);
+  // The band follows the board's measured noise (3 sigma), not the looser RANSAC threshold.
+  const double band =
+      std::clamp(kAdaptiveBandSigmas * std::sqrt(board.eigenvalues[0]), kMinRobustBandM,
+                 kMaxAdaptiveBandFactor * options.plane_distance_threshold_m);
+  std::vector<int> on_board;
   for (int vi : gathered_voxels) {
     const Voxel& v = grid.voxels[vi];
-    // Only voxels that belong to no other large plane (walls behind the board stay out).
-    if (v.region >= 0 && v.region != region_id && !own.count(vi) &&
-        regions[v.region].stats.n >= options.min_board_points)
+    const bool other_plane = v.region >= 0 && v.region != region_id && !own.count(vi) &&
+                             regions[v.region].stats.n >= options.min_board_points;
+    if (!other_plane) {
+      for (int j = 0; j < v.count; ++j) gathered->push_back(grid.sorted_points[v.first + j]);
       continue;
-    for (int j = 0; j < v.count; ++j) gathered->push_back(grid.sorted_points[v.first + j]);
+    }
+    // A voxel of another large plane (a wall behind the board, the holder's body below it)
+    // gives its returns on the board's plane only when its other returns lie in a layer of
+    // their own, with a gap between: the board's rim in a voxel that straddles the board's side
+    // and the body behind it. A surface that crosses the board's plane (a wall, a body touching
+    // the board) has as many returns just outside the band as inside it, and gives none.
+    on_board.clear();
+    int in_gap = 0;
+    for (int j = 0; j < v.count; ++j) {
+      const int i = grid.sorted_points[v.first + j];
+      const double d = std::abs(board.normal().dot(pts[i].p) - board.offset());
+      if (d < band)
+        on_board.push_back(i);
+      else
+        in_gap += d < 2.0 * band;
+    }
+    if (in_gap <= kMaxLayerGapShare * on_board.size())
+      gathered->insert(gathered->end(), on_board.begin(), on_board.end());
   }
 }
 
