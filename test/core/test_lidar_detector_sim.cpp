@@ -246,16 +246,18 @@ RimCount lowerRimKept(const std::string& lidar, bool organized, unsigned seed, i
 }
 
 TEST(LidarDetectorSim, UprightBoardBeforeItsHolderKeepsItsLowerRim) {
-  // Before the holder's body was told from the board's rim (seeds 11-16), OS1-64 kept 67-86 %
-  // of these returns (single frames 3 %), VLP-32C 87-96 %, VLP-16 87-97 %; since, 97-100 %. A
-  // voxel that straddles the rim and holds mixed returns still loses its rows now and then.
+  // Two draws of 20 clouds pooled per LiDAR. Before the holder's body was told from the board's
+  // rim, seeds 11 and 12 kept 76 % (OS1-64; single clouds 6 %), 94 % (VLP-32C) and 94 %
+  // (VLP-16); since, 98.5-99.7 %. Over other draws a LiDAR's 20 clouds keep 94-100 %: a voxel
+  // that straddles the rim and holds many mixed returns still loses its rows now and then.
   const char* env_seed = std::getenv("LIDAR_TEST_SEED");
   const unsigned seed = env_seed ? static_cast<unsigned>(std::atoi(env_seed)) : 11u;
   for (const char* lidar : {"OS1-64", "VLP-32C", "VLP-16"})
     for (bool organized : {true, false}) {
-      const RimCount r = lowerRimKept(lidar, organized, seed, 20);
-      EXPECT_GE(r.found, 19) << lidar;
-      EXPECT_GE(r.rim_kept, 0.96 * r.rim_returns) << lidar;
+      const RimCount a = lowerRimKept(lidar, organized, seed, 20);
+      const RimCount b = lowerRimKept(lidar, organized, seed + 1, 20);
+      EXPECT_EQ(a.found + b.found, a.frames + b.frames) << lidar;
+      EXPECT_GE(a.rim_kept + b.rim_kept, 0.95 * (a.rim_returns + b.rim_returns)) << lidar;
     }
 }
 
