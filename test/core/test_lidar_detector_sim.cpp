@@ -52,6 +52,24 @@ constexpr int kFrames = 20;
 constexpr int kMinDetected = 19;
 constexpr double kMaxNormalDeg = 0.5;
 
+// A board held at a random pose: centre ± spread per axis (m), roll ± roll spread, yaw and
+// pitch ± their limits (deg); the cloud of `s` seeing it.
+struct PoseDraw {
+  Eigen::Vector3d centre, spread;
+  double roll_deg, roll_spread_deg, yaw_deg, pitch_deg;
+};
+
+LidarCloud drawCloud(const sim::LidarSpec& s, const sim::SceneSpec& world, const Target& target,
+                     const PoseDraw& d, std::mt19937& rng, Eigen::Isometry3d* board) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const Eigen::Vector3d centre(d.centre.x() + d.spread.x() * u(rng),
+                               d.centre.y() + d.spread.y() * u(rng),
+                               d.centre.z() + d.spread.z() * u(rng));
+  *board = boardPose(target, centre, d.roll_deg + d.roll_spread_deg * u(rng), d.yaw_deg * u(rng),
+                     d.pitch_deg * u(rng));
+  return sim::simulateLidarScan(s, Eigen::Isometry3d::Identity(), world, *board, rng);
+}
+
 // Random diamond-held poses around 3 m, as a person holds the board in front of the rig.
 SweepResult sweep(const std::string& lidar, bool organized_with_ring, bool person, int frames,
                   unsigned seed) {
@@ -60,14 +78,11 @@ SweepResult sweep(const std::string& lidar, bool organized_with_ring, bool perso
   sim::SceneSpec world = scene(target);
   world.occluder = person;
   std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const PoseDraw diamond{{3.0, 0.0, 0.0}, {0.2, 0.6, 0.1}, 45.0, 10.0, 25.0, 15.0};
   SweepResult r;
   for (int i = 0; i < frames; ++i) {
-    const Eigen::Vector3d centre(3.0 + 0.2 * u(rng), 0.6 * u(rng), 0.1 * u(rng));
-    const Eigen::Isometry3d board =
-        boardPose(target, centre, 45.0 + 10.0 * u(rng), 25.0 * u(rng), 15.0 * u(rng));
-    const LidarCloud cloud =
-        sim::simulateLidarScan(s, Eigen::Isometry3d::Identity(), world, board, rng);
+    Eigen::Isometry3d board;
+    const LidarCloud cloud = drawCloud(s, world, target, diamond, rng, &board);
     const LidarBoardDetection det = detectLidarBoard(cloud, target);
     const Truth truth = truthOf(target, board);
     ++r.frames;
@@ -187,14 +202,11 @@ RimCount lowerRimKept(const std::string& lidar, bool organized, unsigned seed, i
   sim::SceneSpec world = scene(target);
   world.occluder = true;
   std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const PoseDraw upright{{1.9, 0.0, 0.0}, {0.5, 0.5, 0.2}, 0.0, 6.0, 25.0, 8.0};
   RimCount r;
   for (int i = 0; i < frames; ++i) {
-    const Eigen::Vector3d centre(1.9 + 0.5 * u(rng), 0.5 * u(rng), 0.2 * u(rng));
-    const Eigen::Isometry3d board =
-        boardPose(target, centre, 6.0 * u(rng), 25.0 * u(rng), 8.0 * u(rng));
-    const LidarCloud cloud =
-        sim::simulateLidarScan(s, Eigen::Isometry3d::Identity(), world, board, rng);
+    Eigen::Isometry3d board;
+    const LidarCloud cloud = drawCloud(s, world, target, upright, rng, &board);
     const LidarBoardDetection det = detectLidarBoard(cloud, target);
     ++r.frames;
     if (!det.features.found) {
