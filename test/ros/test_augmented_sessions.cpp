@@ -243,6 +243,22 @@ TEST(AugmentedSessions, WrongBoardsAreLeftOutAndNoWrongResultIsGood) {
           name.c_str(), s.frames, s.views.size(), usable, right_kept, right, wrong_kept, wrong,
           verdictName(cal.verdict), cal.chosen >= 0 ? methodName(run.solution.method) : "none", rot,
           trans * 1e3, sigma_rot, sigma_trans * 1e3, cal.reason.c_str());
+      // Every method's own verdict, as the side-by-side table shows it: none may be good and
+      // wrong either.
+      for (const MethodRun& r : cal.runs) {
+        const Eigen::Isometry3d& m = r.solution.camera_T_lidar;
+        const double r_rot = rotationErrorDeg(m, truth), r_trans = translationErrorM(m, truth);
+        const double r_sigma_rot = r.verdict.stddev.rotation_deg.norm(),
+                     r_sigma_trans = r.verdict.stddev.translation_m.norm();
+        std::printf("    %s: %s, error %.3f deg %.1f mm (1 sigma %.3f deg %.1f mm)\n",
+                    methodName(r.solution.method), verdictName(r.verdict.verdict), r_rot,
+                    r_trans * 1e3, r_sigma_rot, r_sigma_trans * 1e3);
+        if (c == 0 || r.verdict.verdict != Verdict::kGood) continue;
+        EXPECT_LT(r_rot, std::min(0.3, 3 * r_sigma_rot))
+            << name << " " << methodName(r.solution.method);
+        EXPECT_LT(r_trans, std::min(0.02, 3 * r_sigma_trans))
+            << name << " " << methodName(r.solution.method);
+      }
       if (c == 0) continue;  // basler: reported only
       EXPECT_GE(right_kept, 0.8 * right) << name;
       if (cal.verdict == Verdict::kGood) {
