@@ -203,6 +203,13 @@ RimCount lowerRimKept(const std::string& lidar, bool organized, unsigned seed, i
   world.occluder = true;
   std::mt19937 rng(seed);
   const PoseDraw upright{{1.9, 0.0, 0.0}, {0.5, 0.5, 0.2}, 0.0, 6.0, 25.0, 8.0};
+  // The board's extent in its own coordinates.
+  const auto outer = target.outerCorners();
+  Eigen::Vector3d lo = outer[0], hi = outer[0];
+  for (const auto& c : outer) {
+    lo = lo.cwiseMin(c);
+    hi = hi.cwiseMax(c);
+  }
   RimCount r;
   for (int i = 0; i < frames; ++i) {
     Eigen::Isometry3d board;
@@ -216,12 +223,6 @@ RimCount lowerRimKept(const std::string& lidar, bool organized, unsigned seed, i
     ++r.found;
     // Returns on the board within 5 cm of its lowest side, in board coordinates.
     const Eigen::Isometry3d board_T_lidar = board.inverse();
-    const auto outer = target.outerCorners();
-    Eigen::Vector3d lo = outer[0], hi = outer[0];
-    for (const auto& c : outer) {
-      lo = lo.cwiseMin(c);
-      hi = hi.cwiseMax(c);
-    }
     // The LiDAR's down direction in board coordinates: the lowest side is the one it points at.
     const Eigen::Vector3d down = board_T_lidar.linear() * -Eigen::Vector3d::UnitZ();
     const std::vector<Eigen::Vector3d>& kept = det.features.board_points;

@@ -243,8 +243,8 @@ TEST(AugmentedSessions, WrongBoardsAreLeftOutAndNoWrongResultIsGood) {
           name.c_str(), s.frames, s.views.size(), usable, right_kept, right, wrong_kept, wrong,
           verdictName(cal.verdict), cal.chosen >= 0 ? methodName(run.solution.method) : "none", rot,
           trans * 1e3, sigma_rot, sigma_trans * 1e3, cal.reason.c_str());
-      // Every method's own verdict, as the side-by-side table shows it: none may be good and
-      // wrong either.
+      // Every method's own verdict, as the side-by-side table shows it (the chosen run's is the
+      // session's): none may be good and wrong.
       for (const MethodRun& r : cal.runs) {
         const Eigen::Isometry3d& m = r.solution.camera_T_lidar;
         const double r_rot = rotationErrorDeg(m, truth), r_trans = translationErrorM(m, truth);
@@ -261,10 +261,6 @@ TEST(AugmentedSessions, WrongBoardsAreLeftOutAndNoWrongResultIsGood) {
       }
       if (c == 0) continue;  // basler: reported only
       EXPECT_GE(right_kept, 0.8 * right) << name;
-      if (cal.verdict == Verdict::kGood) {
-        EXPECT_LT(rot, std::min(0.3, 3 * sigma_rot)) << name;
-        EXPECT_LT(trans, std::min(0.02, 3 * sigma_trans)) << name;
-      }
     }
   }
   EXPECT_GE(wrong_total, 3) << "the draws no longer hold the wrong boards this test is about";
