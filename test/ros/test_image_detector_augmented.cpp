@@ -340,8 +340,8 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   // more, or named otherwise
   // (1000); a side a hand pulled, 9.6 px (another draw, before the straightness test).
   EXPECT_LT(total.all.worst, 8.0);
-  // Over every case (the whole table, when no case is selected): measured 47 of 60 rs16_plain
-  // frames and 228 of 252 in all. The search is deterministic, so a lost frame is a regression.
+  // Over every case (the whole table, when no case is selected): measured 46 of 60 rs16_plain
+  // frames and 227 of 252 in all. The search is deterministic, so a lost frame is a regression.
   // Session 29: 39 and 215 before edge profiles cut by the image border, the second look at a
   // weak side around its own peaks' line and the faint-line search's weak quadrilaterals (one
   // frame each). Session 31: 41 and 218 before a short side's span rule (basler0 far, 3 frames)
@@ -349,11 +349,13 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   // regions' quadrilaterals (two far rs16 boards in the office). Session 35: 48 and 229 since a
   // hand's stretch is dropped from a side it bent (a far rs16 board). Session 36: 47 and 228, the
   // far rs16_3 board no longer found: its side a hand held passed 3.44 px off; its fine passes
-  // now leave the hand out and its two looks disagree. Each session's figures, and what each
-  // change gained or cost, are in docs/BENCHMARKS.md.
+  // now leave the hand out and its two looks disagree. Session 40: 46 and 227, the far rs16_1
+  // board no longer found: its upper left side rests on two stretches 4 px apart, a side refused
+  // since draws 22 and 24 kept such sides 9.44 and 5.17 px off (OtherDrawsGiveNoWrongBoard). Each
+  // session's figures, and what each change gained or cost, are in docs/BENCHMARKS.md.
   if (!only && !seed) {
-    EXPECT_GE(total.rs16_found, 47);
-    EXPECT_GE(total.found, 228);
+    EXPECT_GE(total.rs16_found, 46);
+    EXPECT_GE(total.found, 227);
   }
 }
 
@@ -370,12 +372,15 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
 // leg below it, and the 4:3 board was named a quarter turn round (sides 1000 px "off"); the rest
 // of a side must now be free of such a stretch. Draws 15 and 17 (session 37): a far rs16 board's
 // colour part, its own outline searched as the board, passed with its lower right side on a hand
-// and a leg (5 and 11 px off), and the 4:3 board then fitted best a quarter turn round.
+// and a leg (5 and 11 px off), and the 4:3 board then fitted best a quarter turn round. Draws 22
+// and 24 (session 40): a far rs16 side rested on two offset stretches, a hand's outline 4.5 px
+// outside the edge at one end and the edge at the other, and ran 9.44 and 5.17 px off at its end;
+// a side whose line moves when fitted on its longest stretch alone is now refused.
 TEST(ImageDetectorAugmented, OtherDrawsGiveNoWrongBoard) {
   if (!std::filesystem::exists(BOARD_CALIB_SHARED_DIR)) GTEST_SKIP() << "../shared absent";
   const std::vector<Frame>& frames = recordedFrames();
   ASSERT_GE(frames.size(), 16u + kRs16WithReference);
-  for (const unsigned seed : {2u, 3u, 4u, 5u, 15u, 17u}) {
+  for (const unsigned seed : {2u, 3u, 4u, 5u, 15u, 17u, 22u, 24u}) {
     std::mt19937 rng(seed);
     int found = 0, frames_run = 0;
     double worst = 0;

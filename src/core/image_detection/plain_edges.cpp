@@ -607,6 +607,86 @@ bool withoutBump(const EdgeSamples& s, const Orienter& orient, const ImageBoardD
          runSigmas(left.sum, left.last - left.first + 1, noise) < kRunSigmas;
 }
 
+// A side whose inliers, in order along it, hold stretches offset from each other (a hand's or
+// a leg's outline at one end, the board's edge at the other): the line settles between them
+// within every straightness test and runs off at the end (augmented real frames, draw 22: a far
+// side's 22 px on a hand 4.5 px outside the edge and 40 px on the edge, 9.4 px off at the side's
+// end). A step is local: the mean residual of the kStepWindow inliers after a position against
+// the kStepWindow before it, beyond kStepSigmas standard errors of that difference from the
+// neighbour noise (a median: a step is one difference among many) and beyond half the inlier
+// band (two looks at a side may disagree that much, refineOnce; a near-axis edge's sub-pixel
+// staircase steps by ~1 px with hardly any noise between). The steps cut the inliers
+// into stretches; returns, in order along the side, whether each inlier lies on the longest
+// stretch or on one in line with it (within the same bound of its line: a bump's two flanks),
+// empty when there is no step.
+constexpr int kStepWindow = 6;       // inliers on each side of a position
+constexpr double kStepSigmas = 5.0;  // every position is tried: far beyond noise
+std::vector<bool> inLineWithLongestStretch(const EdgeSamples& s, const Eigen::Vector3d& line,
+                                           const ImageBoardDetectorOptions& o, bool near_line,
+                                           std::vector<size_t>* idx) {
+  std::vector<double> r;
+  inliersAlong(s, line, o, near_line, idx, &r);
+  const int n = static_cast<int>(r.size());
+  if (n < 2 * kStepWindow) return {};
+  std::vector<double> diffs;
+  for (int k = 1; k < n; ++k) diffs.push_back(std::abs(r[k] - r[k - 1]));
+  const double noise =
+      std::max(kMinNoisePx, kMadToSigma * medianOf(std::move(diffs)) / std::sqrt(2.0));
+  const double bound =
+      std::max(kStepSigmas * noise * std::sqrt(2.0 / kStepWindow), 0.5 * o.edge_inlier_px);
+  std::vector<double> d(n, 0.0);  // step before inlier k
+  for (int k = kStepWindow; k + kStepWindow <= n; ++k) {
+    double before = 0, after = 0;
+    for (int j = 0; j < kStepWindow; ++j) {
+      before += r[k - 1 - j];
+      after += r[k + j];
+    }
+    d[k] = std::abs(after - before) / kStepWindow;
+  }
+  // Steps, largest first, none within kStepWindow of a larger one.
+  std::vector<int> cuts;
+  std::vector<bool> taken(n, false);
+  while (true) {
+    int best = -1;
+    for (int k = 0; k < n; ++k)
+      if (!taken[k] && d[k] > bound && (best < 0 || d[k] > d[best])) best = k;
+    if (best < 0) break;
+    cuts.push_back(best);
+    for (int k = std::max(0, best - kStepWindow); k < std::min(n, best + kStepWindow + 1); ++k)
+      taken[k] = true;
+  }
+  if (cuts.empty()) return {};
+  cuts.push_back(0);
+  cuts.push_back(n);
+  std::sort(cuts.begin(), cuts.end());
+  int first = 0, last = 0;  // the longest stretch [first, last)
+  for (size_t c = 1; c < cuts.size(); ++c)
+    if (cuts[c] - cuts[c - 1] > last - first) {
+      first = cuts[c - 1];
+      last = cuts[c];
+    }
+  // The longest stretch's own line (residual offset and slope along the inliers' order).
+  double sx = 0, sy = 0, sxx = 0, sxy = 0;
+  for (int k = first; k < last; ++k) {
+    sx += k;
+    sy += r[k];
+    sxx += double(k) * k;
+    sxy += k * r[k];
+  }
+  const double m = last - first, den = m * sxx - sx * sx;
+  const double slope = den > 0 ? (m * sxy - sx * sy) / den : 0.0;
+  const double offset = (sy - slope * sx) / m;
+  std::vector<bool> keep(n, false);
+  for (size_t c = 1; c < cuts.size(); ++c) {
+    double mean = 0;
+    for (int k = cuts[c - 1]; k < cuts[c]; ++k) mean += r[k] - (offset + slope * k);
+    mean /= std::max(1, cuts[c] - cuts[c - 1]);
+    const bool in_line = std::abs(mean) <= bound;
+    for (int k = cuts[c - 1]; k < cuts[c]; ++k) keep[k] = in_line;
+  }
+  return keep;
+}
+
 // px: how far `other` lies from the fit's line at the ends of the fit's inliers (0: none).
 double linesApartAtEnds(const CameraModel& camera, const EdgeFit& fit,
                         const Eigen::Vector3d& other) {
@@ -618,6 +698,44 @@ double linesApartAtEnds(const CameraModel& camera, const EdgeFit& fit,
     apart = std::max(apart, std::abs(other.head<2>().dot(end) + other.z()));
   }
   return apart;
+}
+
+// A valid side of single profiles whose line depends on the stretches offset from its longest
+// one (inLineWithLongestStretch): fitted on the longest and those in line with it, the line
+// moves at the ends of the inliers by more than two looks at a side may disagree (refineOnce)
+// and more than a held board's bow over them (a long bowed side fitted on part of itself moves by
+// up to its sagitta). A hand's bump in the middle of a side moves it by tenths.
+EdgeFit withoutStep(const EdgeSamples& s, const CameraModel& camera, const Orienter& orient,
+                    const ImageBoardDetectorOptions& o, bool near_line, EdgeFit fit) {
+  if (!near_line || !fit.valid) return fit;
+  std::vector<size_t> idx;
+  const std::vector<bool> keep = inLineWithLongestStretch(s, fit.line, o, near_line, &idx);
+  if (keep.empty()) return fit;
+  EdgeSamples in_line;
+  in_line.positions = s.positions;
+  in_line.step = s.step;
+  for (size_t k = 0; k < idx.size(); ++k) {
+    if (!keep[k]) continue;
+    const size_t i = idx[k];
+    in_line.pts_u.push_back(s.pts_u[i]);
+    in_line.pts_raw.push_back(s.pts_raw[i]);
+    in_line.strength.push_back(s.strength[i]);
+    in_line.signs.push_back(s.signs[i]);
+    in_line.ts.push_back(s.ts[i]);
+  }
+  if (in_line.pts_u.size() == idx.size() || in_line.pts_u.size() < 2) return fit;
+  EdgeFit other = fit;
+  fitPeaks(in_line, orient, o, false, near_line, &other);
+  const double moved = linesApartAtEnds(camera, fit, other.line);
+  if (moved > std::max(0.5 * o.edge_inlier_px, o.max_edge_bow_fraction * fit.span)) {
+    fit.step_px = moved;
+    fit.valid = false;
+    fit.reason = cv::format(
+        "two edges along the side (on its longest stretch and those in line with it, it moves "
+        "%.1f px)",
+        moved);
+  }
+  return fit;
 }
 
 // One side fitted afresh from its profiles, each one alone or averaged along the side (`along`:
@@ -684,10 +802,11 @@ EdgeFit fitSide(const cv::Mat& gray, const CameraModel& camera, const CoarseEdge
     if (withoutBump(last, orient, o, fit.valid, near_line, &rest)) {
       judgeSide(o, min_span, &rest, 0.0);
       if (rest.valid && (!fit.valid || linesApartAtEnds(camera, fit, rest.line) > kMinMovePx))
-        return rest;
+        return withoutStep(outside(last, *rest.dropped), camera, orient, o, near_line,
+                           std::move(rest));
     }
   }
-  return fit;
+  return withoutStep(last, camera, orient, o, near_line, std::move(fit));
 }
 
 // One side refined afresh (refineEdge), looked at twice: one profile at a time, and with each
@@ -713,7 +832,7 @@ EdgeFit refineOnce(const cv::Mat& gray, const CameraModel& camera, const CoarseE
   if (!averaged.valid) return fit;
   const double apart = linesApartAtEnds(camera, fit, averaged.line);
   const bool agree = apart <= 0.5 * o.edge_inlier_px;
-  if (!fit.valid) return agree ? averaged : fit;
+  if (!fit.valid) return agree && fit.step_px == 0 ? averaged : fit;
   if (!agree) {
     fit.valid = false;
     fit.reason = cv::format(

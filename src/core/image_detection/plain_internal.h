@@ -131,6 +131,9 @@ struct EdgeFit {
   /// Positions along the side (px from its start) of a stretch left out of the fit (a hand's
   /// outline), if any.
   std::optional<std::pair<double, double>> dropped;
+  /// px: refused as two edges along the side, how far the line moves when fitted on its longest
+  /// stretch of inliers between steps (0: not refused so)
+  double step_px = 0;
   std::string reason;
   bool valid = false;
 };
