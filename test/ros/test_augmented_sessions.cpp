@@ -146,7 +146,7 @@ struct Session {
 // asked.
 std::array<Session, 2> drawSessions(unsigned seed, bool with_basler) {
   const std::vector<Frame>& frames = augmented::recordedFrames();
-  std::mt19937 rng(seed), lidar_rng(seed + 1000);
+  std::mt19937 rng(seed);
   std::array<Session, 2> sessions;
   const auto& cases = augmented::augmentedCases();
   for (size_t k = 0; k < cases.size(); ++k)
@@ -173,6 +173,9 @@ std::array<Session, 2> drawSessions(unsigned seed, bool with_basler) {
       v.camera = camera;
       v.camera.frame_id = "camera";
       v.camera.stamp = v.id;
+      // Each frame's scan draws its own noise: a view found or lost elsewhere (a detector
+      // change) leaves the other views' clouds as they were.
+      std::mt19937 lidar_rng(seed * 100003u + static_cast<unsigned>(k * frames.size() + i));
       v.lidar = lidarView(f.target, camera_T_board, lidar_rng);
       v.lidar.stamp = v.id;
       s.views.push_back(v);
