@@ -273,6 +273,13 @@ EdgeSamples searchPeaks(const cv::Mat& gray, const CameraModel& camera, const Co
   return s;
 }
 
+// Sigma of residuals in order along a side from their neighbours' absolute differences `steps`,
+// by their median: a hand's outline or a step between two stretches is a few differences among
+// many.
+double medianNeighbourNoise(std::vector<double> steps) {
+  return kMadToSigma * medianOf(std::move(steps)) / std::sqrt(2.0);
+}
+
 // Variance of residuals in order along a side, from neighbours' differences: a bump or a tilt (a
 // hand on a side) does not count as noise, as it would in residuals from any fitted shape.
 double neighbourVariance(const std::vector<double>& r) {
@@ -418,7 +425,7 @@ double inlierBand(const EdgeSamples& s, const Eigen::Vector3d& line, const std::
   if (spread.empty()) return o.edge_inlier_px;
   double straight = o.edge_inlier_px;
   if (near_line && steps.size() >= kMinNoiseSteps) {
-    const double noise = kMadToSigma * medianOf(std::move(steps)) / std::sqrt(2.0);
+    const double noise = medianNeighbourNoise(std::move(steps));
     straight = std::min(straight, o.max_edge_bow_fraction * (t_hi - t_lo) + kRobustSigmas * noise);
   }
   return std::max(straight, kRobustSigmas * kMadToSigma * medianOf(std::move(spread)));
@@ -535,13 +542,14 @@ void inliersAlong(const EdgeSamples& s, const Eigen::Vector3d& line,
   for (const size_t i : *idx) r->push_back(residual(i));
 }
 
-// The samples of s outside positions [stretch.first, stretch.second] along the side.
-EdgeSamples outside(const EdgeSamples& s, std::pair<double, double> stretch) {
+// The samples i of s for which keep(i) holds, on the same side (positions, step).
+template <typename Keep>
+EdgeSamples samplesWhere(const EdgeSamples& s, const Keep& keep) {
   EdgeSamples kept;
   kept.positions = s.positions;
   kept.step = s.step;
   for (size_t i = 0; i < s.pts_u.size(); ++i) {
-    if (s.ts[i] >= stretch.first && s.ts[i] <= stretch.second) continue;
+    if (!keep(i)) continue;
     kept.pts_u.push_back(s.pts_u[i]);
     kept.pts_raw.push_back(s.pts_raw[i]);
     kept.strength.push_back(s.strength[i]);
@@ -549,6 +557,12 @@ EdgeSamples outside(const EdgeSamples& s, std::pair<double, double> stretch) {
     kept.ts.push_back(s.ts[i]);
   }
   return kept;
+}
+
+// The samples of s outside positions [stretch.first, stretch.second] along the side.
+EdgeSamples outside(const EdgeSamples& s, std::pair<double, double> stretch) {
+  return samplesWhere(
+      s, [&](size_t i) { return s.ts[i] < stretch.first || s.ts[i] > stretch.second; });
 }
 
 // |sum| of `count` residuals in standard errors of their sum.
@@ -630,8 +644,7 @@ std::vector<bool> inLineWithLongestStretch(const EdgeSamples& s, const Eigen::Ve
   if (n < 2 * kStepWindow) return {};
   std::vector<double> diffs;
   for (int k = 1; k < n; ++k) diffs.push_back(std::abs(r[k] - r[k - 1]));
-  const double noise =
-      std::max(kMinNoisePx, kMadToSigma * medianOf(std::move(diffs)) / std::sqrt(2.0));
+  const double noise = std::max(kMinNoisePx, medianNeighbourNoise(std::move(diffs)));
   const double bound =
       std::max(kStepSigmas * noise * std::sqrt(2.0 / kStepWindow), 0.5 * o.edge_inlier_px);
   std::vector<double> d(n, 0.0);  // step before inlier k
@@ -711,18 +724,9 @@ EdgeFit withoutStep(const EdgeSamples& s, const CameraModel& camera, const Orien
   std::vector<size_t> idx;
   const std::vector<bool> keep = inLineWithLongestStretch(s, fit.line, o, near_line, &idx);
   if (keep.empty()) return fit;
-  EdgeSamples in_line;
-  in_line.positions = s.positions;
-  in_line.step = s.step;
-  for (size_t k = 0; k < idx.size(); ++k) {
-    if (!keep[k]) continue;
-    const size_t i = idx[k];
-    in_line.pts_u.push_back(s.pts_u[i]);
-    in_line.pts_raw.push_back(s.pts_raw[i]);
-    in_line.strength.push_back(s.strength[i]);
-    in_line.signs.push_back(s.signs[i]);
-    in_line.ts.push_back(s.ts[i]);
-  }
+  std::vector<bool> sample_kept(s.pts_u.size(), false);
+  for (size_t k = 0; k < idx.size(); ++k) sample_kept[idx[k]] = keep[k];
+  const EdgeSamples in_line = samplesWhere(s, [&](size_t i) { return sample_kept[i]; });
   if (in_line.pts_u.size() == idx.size() || in_line.pts_u.size() < 2) return fit;
   EdgeFit other = fit;
   fitPeaks(in_line, orient, o, false, near_line, &other);
