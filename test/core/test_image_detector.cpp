@@ -687,5 +687,35 @@ TEST(ImageDetectorSim, HostileColourImagesGiveReasons) {
   }
 }
 
+// Images a few pixels high or wide, for every board type: a reason, never a crash. libapriltag
+// read out of bounds on a 22 x 1 image (test_fuzz_detectors, round 5): its thresholding needs
+// more than 2 decimated rows, and 1-2 px wide images crash it at fractional decimations.
+TEST(ImageDetectorSim, ImagesAFewPixelsAcrossGiveReasonsForEveryBoard) {
+  const cv::Size sizes[] = {{1, 1}, {22, 1}, {300, 4}, {4, 300}, {2, 40}, {9, 9}, {40, 7}};
+  for (const char* name : {"plain_1016.yaml", "checkerboard_7x5.yaml", "apriltag_grid_4x4.yaml"}) {
+    for (const double decimate : {1.0, 1.5, 2.0, 4.0}) {
+      ImageBoardDetectorOptions options;
+      options.tag_decimate = decimate;
+      auto det = ImageBoardDetector::create(configTarget(name), options);
+      ASSERT_TRUE(det.ok()) << det.error();
+      for (const cv::Size& size : sizes) {
+        CameraIntrinsics in;
+        in.width = size.width;
+        in.height = size.height;
+        in.fx = in.fy = 100;
+        in.cx = 0.5 * size.width;
+        in.cy = 0.5 * size.height;
+        auto camera = CameraModel::create(in);
+        ASSERT_TRUE(camera.ok()) << camera.error();
+        cv::Mat noise(size, CV_8UC1);
+        cv::randu(noise, 0, 256);
+        const ImageDetection d = det->detect(noise, *camera);
+        EXPECT_FALSE(d.features.found) << name << " " << size;
+        EXPECT_FALSE(d.features.reason.empty()) << name << " " << size;
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace board_calib

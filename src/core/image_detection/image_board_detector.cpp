@@ -24,6 +24,8 @@ constexpr int kMaxHammingSupported =
 constexpr double kHeldInFrontShare = 0.5;
 constexpr double kSameBoardFraction = 0.05;
 constexpr double kSteepTurnFacing = 0.7071;  // cos 45 deg
+// A tag36h11 spans 10 cells with its white border: at one pixel per cell not yet readable.
+constexpr int kMinTagImageSidePx = 10;
 
 // Whether a board inside `place` could replace the grey board `found` (searchInColour), judged
 // before the costly search: the place that is the grey board itself (each mostly inside the
@@ -424,6 +426,15 @@ void ImageBoardDetector::Impl::detectAprilTags(const cv::Mat& gray_in, const Cam
                                                ImageDetection* out) {
   CameraBoardFeatures& f = out->features;
   ImageDetectionDetails& d = out->details;
+  // libapriltag reads out of bounds (and crashes) on an image whose decimated height is 2 px or
+  // less, and on 1-2 px wide ones at fractional decimations; no tag fits in one that small anyway.
+  const int min_side =
+      std::max(kMinTagImageSidePx, static_cast<int>(std::ceil(4 * options.tag_decimate)));
+  if (gray_in.cols < min_side || gray_in.rows < min_side) {
+    f.reason = cv::format("image too small for AprilTags (%dx%d px, need %d px on each side)",
+                          gray_in.cols, gray_in.rows, min_side);
+    return;
+  }
   const cv::Mat gray = gray_in.isContinuous() ? gray_in : gray_in.clone();
   image_u8_t im{gray.cols, gray.rows, static_cast<int32_t>(gray.step[0]),
                 const_cast<uint8_t*>(gray.ptr<uint8_t>())};
