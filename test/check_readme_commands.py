@@ -192,8 +192,9 @@ CASES = {
     "ws/ci/devel/lib/board_calib/bench_capture --scenario config/scenarios/checker_vlp16_1280.yaml --method ppc "
     "--poses 30 --seeds 2 --rates 1 --layouts organized": {"kind": "dev"},
     # docs/RELIABILITY.md
-    "scripts/build.sh test_fuzz_inputs test_fuzz_rig && ws/ci/devel/lib/board_calib/test_fuzz_inputs": {
-        "kind": "run", "expect": r"PASSED", "timeout": 900},
+    "scripts/build.sh test_fuzz_inputs test_fuzz_rig test_fuzz_detectors && "
+    "ws/ci/devel/lib/board_calib/test_fuzz_inputs": {"kind": "run", "expect": r"PASSED", "timeout": 900},
+    "ws/ci/devel/lib/board_calib/test_fuzz_detectors": {"kind": "run", "expect": r"PASSED", "timeout": 600},
     "scripts/test.sh --sanitize": {"kind": "runner"},
 }
 
