@@ -275,6 +275,9 @@ TEST(ImageDetectorSim, FailuresGiveReasons) {
   bad.fine_search_px = 20;  // wider than the coarse search
   EXPECT_FALSE(bad.validate().empty());
   EXPECT_FALSE(ImageBoardDetector::create(plain, bad).ok());
+  ImageBoardDetectorOptions threads;
+  threads.tag_threads = 100000;  // a thread each in libapriltag's pool
+  EXPECT_NE(threads.validate().find("tag_threads"), std::string::npos);
   Target unknown_family = configTarget("apriltag_grid_4x4.yaml");
   unknown_family.apriltag_grid.family = "tag25h9";
   auto fam = ImageBoardDetector::create(unknown_family, ImageBoardDetectorOptions{});
@@ -693,7 +696,7 @@ TEST(ImageDetectorSim, HostileColourImagesGiveReasons) {
 TEST(ImageDetectorSim, ImagesAFewPixelsAcrossGiveReasonsForEveryBoard) {
   const cv::Size sizes[] = {{1, 1}, {22, 1}, {300, 4}, {4, 300}, {2, 40}, {9, 9}, {40, 7}};
   for (const char* name : {"plain_1016.yaml", "checkerboard_7x5.yaml", "apriltag_grid_4x4.yaml"}) {
-    for (const double decimate : {1.0, 1.5, 2.0, 4.0}) {
+    for (const double decimate : {1.0, 1.5, 2.0, 4.0, 1e300}) {  // the last: no int overflow
       ImageBoardDetectorOptions options;
       options.tag_decimate = decimate;
       auto det = ImageBoardDetector::create(configTarget(name), options);

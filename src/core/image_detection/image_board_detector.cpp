@@ -25,7 +25,8 @@ constexpr double kHeldInFrontShare = 0.5;
 constexpr double kSameBoardFraction = 0.05;
 constexpr double kSteepTurnFacing = 0.7071;  // cos 45 deg
 // A tag36h11 spans 10 cells with its white border: at one pixel per cell not yet readable.
-constexpr int kMinTagImageSidePx = 10;
+constexpr double kMinTagImageSidePx = 10;
+constexpr int kMaxTagThreads = 64;
 
 // Whether a board inside `place` could replace the grey board `found` (searchInColour), judged
 // before the costly search: the place that is the grey board itself (each mostly inside the
@@ -121,7 +122,8 @@ std::string ImageBoardDetectorOptions::validate() const {
   if (subpix_window_px < 2) return "subpix_window_px must be >= 2";
   if (!(tag_decimate >= 1)) return "tag_decimate must be >= 1";
   if (!(tag_sigma >= 0)) return "tag_sigma must be >= 0";
-  if (tag_threads < 1) return "tag_threads must be >= 1";
+  // Each a thread of libapriltag's worker pool: a huge count exhausts the process.
+  if (tag_threads < 1 || tag_threads > kMaxTagThreads) return "tag_threads must be in [1, 64]";
   if (tag_max_hamming < 0 || tag_max_hamming > kMaxHammingSupported)
     return "tag_max_hamming must be in [0, 2]";
   if (min_tags < 1) return "min_tags must be >= 1";
@@ -428,10 +430,10 @@ void ImageBoardDetector::Impl::detectAprilTags(const cv::Mat& gray_in, const Cam
   ImageDetectionDetails& d = out->details;
   // libapriltag reads out of bounds (and crashes) on an image whose decimated height is 2 px or
   // less, and on 1-2 px wide ones at fractional decimations; no tag fits in one that small anyway.
-  const int min_side =
-      std::max(kMinTagImageSidePx, static_cast<int>(std::ceil(4 * options.tag_decimate)));
+  // In double: tag_decimate has no upper bound here (dynamic_reconfigure clamps it to 8).
+  const double min_side = std::max(kMinTagImageSidePx, std::ceil(4 * options.tag_decimate));
   if (gray_in.cols < min_side || gray_in.rows < min_side) {
-    f.reason = cv::format("image too small for AprilTags (%dx%d px, need %d px on each side)",
+    f.reason = cv::format("image too small for AprilTags (%dx%d px, need %.0f px on each side)",
                           gray_in.cols, gray_in.rows, min_side);
     return;
   }
