@@ -15,7 +15,9 @@
 #include <board_calib/core/sim/simulator.h>
 #include <board_calib/core/target.h>
 #include <board_calib/core/transform.h>
+#include "cloud_detector_options.h"
 #include "fuzz_text.h"
+#include "image_detector_options.h"
 
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
@@ -26,6 +28,7 @@
 #include <limits>
 #include <random>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 using namespace board_calib;
@@ -36,6 +39,8 @@ namespace {
 // several times; the binary stays under a minute in Release (a few under ASan).
 constexpr int kImageFrames = 90;
 constexpr int kCloudFrames = 120;
+// Settings of each detector's dynamic_reconfigure parameters drawn, one frame each.
+constexpr int kSettingsDrawn = 40;
 
 double uniform(std::mt19937& rng, double lo, double hi) {
   return std::uniform_real_distribution<double>(lo, hi)(rng);
@@ -330,6 +335,56 @@ void expectWellFormed(const LidarBoardDetection& d, const std::string& what) {
   }
 }
 
+struct ImageFrame {
+  CameraModel camera;
+  cv::Mat image;
+  Eigen::Isometry3d camera_T_board;
+};
+
+// A rendered frame of a random camera, scene and board pose, then the hostile edits.
+ImageFrame randomImageFrame(std::mt19937& rng, const Target& target) {
+  ImageFrame f{randomCamera(rng), {}, {}};
+  const sim::SceneSpec scene = randomScene(rng, target);
+  f.camera_T_board = randomCameraTBoard(rng, f.camera, target);
+  sim::RenderOptions render;
+  render.supersampling = 1;
+  render.noise_sigma = uniform(rng, 0, 10);
+  render.vignetting = uniform(rng, 0, 0.6);
+  render.mono = chance(rng, 0.3);
+  std::mt19937 render_rng(rng());
+  f.image = sim::renderCameraImage(f.camera, worldTCamera(), scene,
+                                   worldTCamera() * f.camera_T_board, render, render_rng);
+  EXPECT_FALSE(f.image.empty());
+  if (!f.image.empty()) editPixels(rng, &f.image);
+  return f;
+}
+
+struct CloudFrame {
+  LidarCloud cloud;
+  Eigen::Isometry3d world_T_board;
+};
+
+// A scan of a random LiDAR and scene with the board in front (x forward), from arm's length to
+// far beyond its rings, then the hostile edits.
+CloudFrame randomCloudFrame(std::mt19937& rng, const Target& target) {
+  const sim::LidarSpec spec = randomLidar(rng);
+  const sim::SceneSpec scene = randomScene(rng, target);
+  const double distance = std::exp(uniform(rng, std::log(0.4), std::log(40.0)));
+  const Eigen::Matrix3d R =
+      (Eigen::AngleAxisd(uniform(rng, -M_PI, M_PI), Eigen::Vector3d::UnitZ()) *
+       Eigen::AngleAxisd(M_PI / 2 + uniform(rng, -1.2, 1.2), Eigen::Vector3d::UnitY()) *
+       Eigen::AngleAxisd(uniform(rng, -M_PI, M_PI), Eigen::Vector3d::UnitZ()))
+          .toRotationMatrix();
+  const Eigen::Vector3d centre = uniform3(rng, {1, -0.5, -0.3}, {1, 0.5, 0.3}) * distance;
+  CloudFrame f;
+  f.world_T_board = makeTransform(R, centre - R * target.center());
+  std::mt19937 scan_rng(rng());
+  f.cloud =
+      sim::simulateLidarScan(spec, Eigen::Isometry3d::Identity(), scene, f.world_T_board, scan_rng);
+  editCloud(rng, &f.cloud);
+  return f;
+}
+
 }  // namespace
 
 TEST(FuzzDetectors, ImagesGiveWellFormedBoardsOrReasons) {
@@ -344,19 +399,10 @@ TEST(FuzzDetectors, ImagesGiveWellFormedBoardsOrReasons) {
     ASSERT_TRUE(tracker.ok()) << tracker.error();
     double stamp = 0;
     for (int i = 0; i < kImageFrames / 4; ++i) {
-      const CameraModel camera = randomCamera(rng);
-      const sim::SceneSpec scene = randomScene(rng, target);
-      const Eigen::Isometry3d camera_T_board = randomCameraTBoard(rng, camera, target);
-      sim::RenderOptions render;
-      render.supersampling = 1;
-      render.noise_sigma = uniform(rng, 0, 10);
-      render.vignetting = uniform(rng, 0, 0.6);
-      render.mono = chance(rng, 0.3);
-      std::mt19937 render_rng(rng());
-      cv::Mat image = sim::renderCameraImage(camera, worldTCamera(), scene,
-                                             worldTCamera() * camera_T_board, render, render_rng);
-      ASSERT_FALSE(image.empty()) << "kind " << kind << " frame " << i;
-      editPixels(rng, &image);
+      const ImageFrame frame = randomImageFrame(rng, target);
+      const CameraModel& camera = frame.camera;
+      const cv::Mat& image = frame.image;
+      const Eigen::Isometry3d& camera_T_board = frame.camera_T_board;
       const std::string what = "kind " + std::to_string(kind) + " frame " + std::to_string(i) +
                                " (" + std::to_string(image.cols) + "x" +
                                std::to_string(image.rows) + ", " +
@@ -390,21 +436,9 @@ TEST(FuzzDetectors, CloudsGiveWellFormedBoardsOrReasons) {
     LidarBoardTracker tracker(target);
     double stamp = 0;
     for (int i = 0; i < kCloudFrames / 3; ++i) {
-      const sim::LidarSpec spec = randomLidar(rng);
-      const sim::SceneSpec scene = randomScene(rng, target);
-      // The board in front of the LiDAR (x forward), from arm's length to far beyond its rings.
-      const double distance = std::exp(uniform(rng, std::log(0.4), std::log(40.0)));
-      const Eigen::Matrix3d R =
-          (Eigen::AngleAxisd(uniform(rng, -M_PI, M_PI), Eigen::Vector3d::UnitZ()) *
-           Eigen::AngleAxisd(M_PI / 2 + uniform(rng, -1.2, 1.2), Eigen::Vector3d::UnitY()) *
-           Eigen::AngleAxisd(uniform(rng, -M_PI, M_PI), Eigen::Vector3d::UnitZ()))
-              .toRotationMatrix();
-      const Eigen::Vector3d centre = uniform3(rng, {1, -0.5, -0.3}, {1, 0.5, 0.3}) * distance;
-      const Eigen::Isometry3d world_T_board = makeTransform(R, centre - R * target.center());
-      std::mt19937 scan_rng(rng());
-      LidarCloud cloud = sim::simulateLidarScan(spec, Eigen::Isometry3d::Identity(), scene,
-                                                world_T_board, scan_rng);
-      editCloud(rng, &cloud);
+      CloudFrame frame = randomCloudFrame(rng, target);
+      LidarCloud& cloud = frame.cloud;
+      const Eigen::Isometry3d& world_T_board = frame.world_T_board;
       stamp += chance(rng, 0.1) ? -uniform(rng, 0, 5) : uniform(rng, 0, 2);
       cloud.stamp = stamp;
       const std::string what = "kind " + std::to_string(kind) + " cloud " + std::to_string(i) +
@@ -428,4 +462,89 @@ TEST(FuzzDetectors, CloudsGiveWellFormedBoardsOrReasons) {
   }
   std::printf("clouds: %d boards found in %d calls\n", g_found, calls);
   EXPECT_GE(g_found, calls / 20);  // measured 101-172 of 360 over rounds 0-15
+}
+
+namespace {
+
+// One parameter as a user may set it in rqt_reconfigure: mostly its default, else its minimum,
+// its maximum or anything between (the .cfg ranges bound what a live nodelet can be given).
+template <typename T>
+T pickSetting(std::mt19937& rng, T value, T lo, T hi) {
+  if (chance(rng, 0.7)) return value;
+  switch (uniformInt(rng, 0, 2)) {
+    case 0: return lo;
+    case 1: return hi;
+    default: break;
+  }
+  if constexpr (std::is_same_v<T, bool>) {
+    return chance(rng, 0.5);
+  } else if constexpr (std::is_integral_v<T>) {
+    return static_cast<T>(uniformInt(rng, static_cast<int>(lo), static_cast<int>(hi)));
+  } else {
+    return static_cast<T>(uniform(rng, lo, hi));
+  }
+}
+
+ImageBoardDetectorConfig randomImageConfig(std::mt19937& rng) {
+  ImageBoardDetectorConfig c = ImageBoardDetectorConfig::__getDefault__();
+  const ImageBoardDetectorConfig& lo = ImageBoardDetectorConfig::__getMin__();
+  const ImageBoardDetectorConfig& hi = ImageBoardDetectorConfig::__getMax__();
+#define BOARD_CALIB_PICK(cfg, member) c.cfg = pickSetting(rng, c.cfg, lo.cfg, hi.cfg);
+  BOARD_CALIB_IMAGE_DETECTOR_FIELDS(BOARD_CALIB_PICK)
+#undef BOARD_CALIB_PICK
+  return c;
+}
+
+CloudBoardDetectorConfig randomCloudConfig(std::mt19937& rng) {
+  CloudBoardDetectorConfig c = CloudBoardDetectorConfig::__getDefault__();
+  const CloudBoardDetectorConfig& lo = CloudBoardDetectorConfig::__getMin__();
+  const CloudBoardDetectorConfig& hi = CloudBoardDetectorConfig::__getMax__();
+#define BOARD_CALIB_PICK(cfg, member) c.cfg = pickSetting(rng, c.cfg, lo.cfg, hi.cfg);
+  BOARD_CALIB_CLOUD_DETECTOR_FIELDS(BOARD_CALIB_PICK)
+  for (double* v :
+       {&c.roi_min_x, &c.roi_min_y, &c.roi_min_z, &c.roi_max_x, &c.roi_max_y, &c.roi_max_z})
+    *v = pickSetting(rng, *v, -100.0, 100.0);
+#undef BOARD_CALIB_PICK
+  return c;
+}
+
+}  // namespace
+
+// The detectors as the nodelets build them from any setting of their dynamic_reconfigure
+// parameters within the .cfg ranges: either the options are refused with a reason (the
+// nodelet keeps its previous ones) or every frame gives a well-formed board or a reason.
+TEST(FuzzDetectors, ReconfigureSettingsGiveReasonsOrWellFormedBoards) {
+  std::mt19937 rng(fuzz::seed(41));
+  g_found = 0;
+  int refused = 0, runs = 0;
+  for (int k = 0; k < kSettingsDrawn; ++k) {
+    const Target target = targetOf(k % 4);
+    const ImageBoardDetectorOptions options = optionsFromConfig(randomImageConfig(rng));
+    auto detector = ImageBoardDetector::create(target, options);
+    if (!detector.ok()) {
+      EXPECT_FALSE(detector.error().empty());
+      ++refused;
+      continue;
+    }
+    const ImageFrame frame = randomImageFrame(rng, target);
+    const std::string what = "image settings " + std::to_string(k);
+    expectWellFormed(detector->detect(frame.image, frame.camera), what + " detect");
+    ++runs;
+  }
+  for (int k = 0; k < kSettingsDrawn; ++k) {
+    const Target target = targetOf(k % 3);
+    const LidarBoardDetectorOptions options = optionsFromConfig(randomCloudConfig(rng));
+    if (const std::string why = options.validate(); !why.empty()) {
+      ++refused;
+      continue;
+    }
+    const CloudFrame frame = randomCloudFrame(rng, target);
+    const std::string what = "cloud settings " + std::to_string(k);
+    expectWellFormed(detectLidarBoard(frame.cloud, target, options), what + " detect");
+    LidarBoardTracker tracker(target, options);
+    expectWellFormed(tracker.detect(frame.cloud), what + " tracker");
+    ++runs;
+  }
+  std::printf("settings: %d refused, %d run, %d boards found\n", refused, runs, g_found);
+  EXPECT_GE(runs, kSettingsDrawn);  // most drawn settings are valid: the frames are reached
 }
