@@ -433,6 +433,27 @@ TEST(ImageDetectorSim, AFarBoardBehindManyLongerLinesIsFoundByItsSides) {
   EXPECT_LT(worst_px, 1.0);  // sub-pixel lines on a ~100 px board (issue 14)
 }
 
+// max_line_hypotheses 0 (a setting rqt_reconfigure allows) with more lines than the search
+// ranks: no line quadrilateral is kept, and the lines past the cap are judged without a least
+// score (it read the first of none: a segfault, test_fuzz_detectors' settings test, round 1).
+TEST(ImageDetectorSim, NoLineHypothesesAllowedIsNoCrash) {
+  const CameraModel camera = testCamera();
+  const Target target = configTarget("plain_1016.yaml");
+  ImageBoardDetectorOptions options;
+  options.max_line_hypotheses = 0;
+  auto det = ImageBoardDetector::create(target, options);
+  ASSERT_TRUE(det.ok()) << det.error();
+  for (int i = 0; i < 3; ++i) {
+    const Rendered r = farBoardBehindWindows(camera, target, 40 + i, 30);
+    const ImageDetection d = det->detect(r.image, camera);
+    if (d.features.found) {
+      EXPECT_EQ(malformedFeatures(d.features), "");
+    } else {
+      EXPECT_FALSE(d.features.reason.empty());
+    }
+  }
+}
+
 // The same far board behind five times as many window frames, in colour: ~1200 edges longer than
 // its sides, at the line search's width and at the finer one, so no line search ranks the
 // board's sides. It is still a stable region (uniform, bounded by its own contrast at every

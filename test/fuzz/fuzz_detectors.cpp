@@ -492,6 +492,14 @@ ImageBoardDetectorConfig randomImageConfig(std::mt19937& rng) {
 #define BOARD_CALIB_PICK(cfg, member) c.cfg = pickSetting(rng, c.cfg, lo.cfg, hi.cfg);
   BOARD_CALIB_IMAGE_DETECTOR_FIELDS(BOARD_CALIB_PICK)
 #undef BOARD_CALIB_PICK
+  if (std::getenv("BOARD_CALIB_FUZZ_VERBOSE")) {  // the settings that differ from the defaults
+    const ImageBoardDetectorConfig& d = ImageBoardDetectorConfig::__getDefault__();
+#define BOARD_CALIB_PRINT(cfg, member) \
+  if (c.cfg != d.cfg) std::printf(" " #cfg "=%g", static_cast<double>(c.cfg));
+    BOARD_CALIB_IMAGE_DETECTOR_FIELDS(BOARD_CALIB_PRINT)
+#undef BOARD_CALIB_PRINT
+    std::printf("\n");
+  }
   return c;
 }
 

@@ -633,8 +633,9 @@ LineQuads lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
     // The line cap hid them, not their support: each must carry as much as the quadrilaterals
     // kept from the best lines (a door of a street facade does not). The others go to the
     // plain detector, which judges them by the gradient along their sides.
+    // (max_line_hypotheses 0 keeps none: no least score then.)
     double least = 0;
-    if (out.best.size() >= static_cast<size_t>(o.max_line_hypotheses)) {
+    if (!out.best.empty() && out.best.size() >= max_hypotheses) {
       least = out.best.front().score;
       for (const auto& q : out.best) least = std::min(least, q.score);
     }
