@@ -12,6 +12,7 @@
 #include <board_calib/core/image_detection/image_board_detector.h>
 #include <board_calib/core/image_detection/image_board_tracker.h>
 #include <board_calib/core/lidar_detection/lidar_board_detector.h>
+#include <board_calib/core/projection/projection.h>
 #include <board_calib/core/sim/simulator.h>
 #include <board_calib/core/target.h>
 #include <board_calib/core/transform.h>
@@ -41,6 +42,8 @@ constexpr int kImageFrames = 90;
 constexpr int kCloudFrames = 120;
 // Settings of each detector's dynamic_reconfigure parameters drawn, one frame each.
 constexpr int kSettingsDrawn = 40;
+// Scans projected into a random camera.
+constexpr int kProjectionFrames = 60;
 
 double uniform(std::mt19937& rng, double lo, double hi) {
   return std::uniform_real_distribution<double>(lo, hi)(rng);
@@ -555,4 +558,86 @@ TEST(FuzzDetectors, ReconfigureSettingsGiveReasonsOrWellFormedBoards) {
   }
   std::printf("settings: %d refused, %d run, %d boards found\n", refused, runs, g_found);
   EXPECT_GE(runs, kSettingsDrawn);  // most drawn settings are valid: the frames are reached
+}
+
+// What the projection nodelet does with each cloud: the hostile scans above into a random
+// camera with a random extrinsic (near, far, turned away, huge) at settings within
+// cfg/Projection.cfg, then drawn, coloured and, with the frame's detections, edge-checked.
+// Every projected point must lie inside the image (plus the margin) with a finite depth.
+TEST(FuzzDetectors, ProjectionOfHostileScansStaysInTheImage) {
+  std::mt19937 rng(fuzz::seed(43));
+  int projected = 0, checked = 0;
+  for (int i = 0; i < kProjectionFrames; ++i) {
+    const Target target = targetOf(i % 2);
+    CloudFrame frame = randomCloudFrame(rng, target);
+    const CameraModel camera = randomCamera(rng);
+    // The LiDAR's x forward is the camera's z, then a random turn and shift.
+    Eigen::Matrix3d to_optical;
+    to_optical << 0, -1, 0, 0, 0, -1, 1, 0, 0;
+    const Eigen::Vector3d turn =
+        uniform3(rng, Eigen::Vector3d::Constant(-0.5), Eigen::Vector3d::Constant(0.5));
+    Eigen::Vector3d shift = uniform3(rng, Eigen::Vector3d::Constant(-1), Eigen::Vector3d::Ones());
+    if (chance(rng, 0.1)) shift *= 1e6;
+    const Eigen::Matrix3d R =
+        (Eigen::AngleAxisd(chance(rng, 0.1) ? M_PI : 0.0, Eigen::Vector3d::UnitY()) *
+         Eigen::AngleAxisd(turn.norm(), turn.normalized()))
+            .toRotationMatrix() *
+        to_optical;
+    const Eigen::Isometry3d camera_T_lidar = makeTransform(R, shift);
+    ProjectionOptions p;
+    p.min_depth_m = chance(rng, 0.7) ? 0.3 : uniform(rng, 0, 100);
+    p.max_depth_m = chance(rng, 0.7) ? 30.0 : uniform(rng, 0.1, 300);
+    p.zbuffer_cell_px = chance(rng, 0.7) ? 6 : uniformInt(rng, 0, 64);
+    p.occlusion_tolerance_m = chance(rng, 0.7) ? 0.3 : uniform(rng, 0, 10);
+    p.margin_px = chance(rng, 0.8) ? 0.0 : uniform(rng, 0, 50);
+    const std::string what = "projection " + std::to_string(i);
+    auto result = projectCloud(frame.cloud, camera, camera_T_lidar, p);
+    if (!result.ok()) {
+      EXPECT_FALSE(result.error().empty()) << what;
+      continue;
+    }
+    ++projected;
+    for (const ProjectedPoint& q : result->points) {
+      ASSERT_TRUE(std::isfinite(q.u) && std::isfinite(q.v) && std::isfinite(q.depth)) << what;
+      ASSERT_GE(q.u, -p.margin_px - 1) << what;
+      ASSERT_GE(q.v, -p.margin_px - 1) << what;
+      ASSERT_LE(q.u, camera.width() + p.margin_px) << what;
+      ASSERT_LE(q.v, camera.height() + p.margin_px) << what;
+      ASSERT_LT(static_cast<size_t>(q.index), frame.cloud.points.size()) << what;
+    }
+    cv::Mat image(camera.height(), camera.width(), chance(rng, 0.5) ? CV_8UC3 : CV_8UC1,
+                  cv::Scalar::all(uniformInt(rng, 0, 255)));
+    OverlayOptions overlay;
+    overlay.color_mode = static_cast<ColorMode>(uniformInt(rng, 0, 2));
+    overlay.point_radius_px = uniformInt(rng, 0, 10);
+    overlay.alpha = uniform(rng, 0, 1);
+    overlay.intensity_min = chance(rng, 0.5) ? 0.0 : uniform(rng, 0, 65535);
+    overlay.intensity_max = chance(rng, 0.5) ? 0.0 : uniform(rng, 0, 65535);
+    auto colored = colorCloud(frame.cloud, *result, image);
+    if (colored.ok()) EXPECT_LE(colored->points.size(), result->points.size()) << what;
+    const Status drawn = drawProjectedCloud(*result, overlay, &image);
+    if (!drawn.ok) EXPECT_FALSE(drawn.reason.empty()) << what;
+    // The edge check with this cloud's board (when found) against a board from another frame:
+    // a score or a reason.
+    const LidarBoardDetection lidar = detectLidarBoard(frame.cloud, target);
+    if (!lidar.features.found) continue;
+    const ImageFrame shot = randomImageFrame(rng, target);
+    auto detector = ImageBoardDetector::create(target, ImageBoardDetectorOptions{});
+    ASSERT_TRUE(detector.ok());
+    const ImageDetection seen = detector->detect(shot.image, shot.camera);
+    if (!seen.features.found) continue;
+    EdgeCheckOptions edges;
+    edges.reassociate = chance(rng, 0.5);
+    auto check =
+        checkProjectedEdges(lidar.features, seen.features, shot.camera, camera_T_lidar, edges);
+    if (check.ok()) {
+      EXPECT_TRUE(std::isfinite(check->mlre_px)) << what;
+      cv::Mat canvas(shot.camera.height(), shot.camera.width(), CV_8UC3, cv::Scalar::all(0));
+      EXPECT_TRUE(drawEdgeCheck(seen.features, *check, shot.camera, edges, &canvas).ok) << what;
+      ++checked;
+    }
+  }
+  std::printf("projection: %d of %d scans projected, %d edge checks\n", projected,
+              kProjectionFrames, checked);
+  EXPECT_GE(projected, kProjectionFrames / 2);
 }
