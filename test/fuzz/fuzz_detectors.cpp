@@ -44,6 +44,9 @@ constexpr int kCloudFrames = 120;
 constexpr int kSettingsDrawn = 40;
 // Scans projected into a random camera.
 constexpr int kProjectionFrames = 60;
+// Recordings of one scene (a camera and a LiDAR) for the session memories, and their frames.
+constexpr int kRecordings = 6;
+constexpr int kRecordingFrames = 6;
 
 double uniform(std::mt19937& rng, double lo, double hi) {
   return std::uniform_real_distribution<double>(lo, hi)(rng);
@@ -345,9 +348,9 @@ struct ImageFrame {
 };
 
 // A rendered frame of a random camera, scene and board pose, then the hostile edits.
-ImageFrame randomImageFrame(std::mt19937& rng, const Target& target) {
-  ImageFrame f{randomCamera(rng), {}, {}};
-  const sim::SceneSpec scene = randomScene(rng, target);
+ImageFrame renderFrame(std::mt19937& rng, const CameraModel& camera, const sim::SceneSpec& scene,
+                       const Target& target) {
+  ImageFrame f{camera, {}, {}};
   f.camera_T_board = randomCameraTBoard(rng, f.camera, target);
   sim::RenderOptions render;
   render.supersampling = 1;
@@ -362,6 +365,12 @@ ImageFrame randomImageFrame(std::mt19937& rng, const Target& target) {
   return f;
 }
 
+ImageFrame randomImageFrame(std::mt19937& rng, const Target& target) {
+  const CameraModel camera = randomCamera(rng);
+  const sim::SceneSpec scene = randomScene(rng, target);
+  return renderFrame(rng, camera, scene, target);
+}
+
 struct CloudFrame {
   LidarCloud cloud;
   Eigen::Isometry3d world_T_board;
@@ -369,9 +378,8 @@ struct CloudFrame {
 
 // A scan of a random LiDAR and scene with the board in front (x forward), from arm's length to
 // far beyond its rings, then the hostile edits.
-CloudFrame randomCloudFrame(std::mt19937& rng, const Target& target) {
-  const sim::LidarSpec spec = randomLidar(rng);
-  const sim::SceneSpec scene = randomScene(rng, target);
+CloudFrame scanFrame(std::mt19937& rng, const sim::LidarSpec& spec, const sim::SceneSpec& scene,
+                     const Target& target) {
   const double distance = std::exp(uniform(rng, std::log(0.4), std::log(40.0)));
   const Eigen::Matrix3d R =
       (Eigen::AngleAxisd(uniform(rng, -M_PI, M_PI), Eigen::Vector3d::UnitZ()) *
@@ -386,6 +394,12 @@ CloudFrame randomCloudFrame(std::mt19937& rng, const Target& target) {
       sim::simulateLidarScan(spec, Eigen::Isometry3d::Identity(), scene, f.world_T_board, scan_rng);
   editCloud(rng, &f.cloud);
   return f;
+}
+
+CloudFrame randomCloudFrame(std::mt19937& rng, const Target& target) {
+  const sim::LidarSpec spec = randomLidar(rng);
+  const sim::SceneSpec scene = randomScene(rng, target);
+  return scanFrame(rng, spec, scene, target);
 }
 
 }  // namespace
@@ -640,4 +654,67 @@ TEST(FuzzDetectors, ProjectionOfHostileScansStaysInTheImage) {
   std::printf("projection: %d of %d scans projected, %d edge checks\n", projected,
               kProjectionFrames, checked);
   EXPECT_GE(projected, kProjectionFrames / 2);
+}
+
+// The session memories on hostile recordings: one camera and one LiDAR in one scene, the board
+// moving, every frame edited as above. The image tracker's offline pre-pass learns the scene and
+// hands it to the main pass's tracker and to the detector as exclusions; the LiDAR's background
+// model is built from scans of the same sensor (an edit that changes the layout must be refused
+// with a reason) and used by the detector and the tracker.
+TEST(FuzzDetectors, SessionMemoriesOfHostileRecordingsGiveReasons) {
+  std::mt19937 rng(fuzz::seed(47));
+  int found = 0, calls = 0, refused_layouts = 0;
+  for (int recording = 0; recording < kRecordings; ++recording) {
+    const Target target = targetOf(recording % 2);
+    const CameraModel camera = randomCamera(rng);
+    const sim::SceneSpec scene = randomScene(rng, target);
+    auto learner = ImageBoardTracker::create(target, ImageBoardDetectorOptions{});
+    auto tracker = ImageBoardTracker::create(target, ImageBoardDetectorOptions{});
+    ASSERT_TRUE(learner.ok() && tracker.ok());
+    std::vector<ImageFrame> frames;
+    for (int i = 0; i < kRecordingFrames; ++i)
+      frames.push_back(renderFrame(rng, camera, scene, target));
+    // Over static_after_s (6 s): the places seen in every frame become static.
+    for (int i = 0; i < kRecordingFrames; ++i)
+      learner->learnScene(frames[i].image, camera, 2.0 * i, chance(rng, 0.7));
+    const StaticScene known = learner->staticScene();
+    tracker->setKnownScene(known);
+    for (int i = 0; i < kRecordingFrames; ++i) {
+      const std::string what =
+          "recording " + std::to_string(recording) + " frame " + std::to_string(i);
+      const ImageDetection tracked = tracker->detect(frames[i].image, camera, 2.0 * i);
+      expectWellFormed(tracked, what + " tracker");
+      const ImageDetection excluded = tracker->detector().detect(frames[i].image, camera, known);
+      expectWellFormed(excluded, what + " excluded");
+      found += tracked.features.found + excluded.features.found;
+      calls += 2;
+    }
+    const sim::LidarSpec spec = randomLidar(rng);
+    BackgroundModelOptions background_options;
+    background_options.voxel_size_m = chance(rng, 0.7) ? 0.1 : uniform(rng, 0.02, 1.0);
+    BackgroundModel background(background_options);
+    for (int i = 0; i < 3; ++i) {
+      const Status added = background.addFrame(scanFrame(rng, spec, scene, target).cloud);
+      if (!added.ok) {
+        EXPECT_FALSE(added.reason.empty());
+        ++refused_layouts;
+      }
+    }
+    LidarBoardTracker lidar_tracker(target);
+    for (int i = 0; i < kRecordingFrames; ++i) {
+      CloudFrame frame = scanFrame(rng, spec, scene, target);
+      frame.cloud.stamp = 2.0 * i;
+      const std::string what =
+          "recording " + std::to_string(recording) + " scan " + std::to_string(i);
+      const LidarBoardDetection alone = detectLidarBoard(frame.cloud, target, {}, &background);
+      expectWellFormed(alone, what + " background");
+      const LidarBoardDetection tracked = lidar_tracker.detect(frame.cloud, &background);
+      expectWellFormed(tracked, what + " tracker");
+      found += alone.features.found + tracked.features.found;
+      calls += 2;
+    }
+  }
+  std::printf("session memories: %d boards found in %d calls, %d background scans refused\n", found,
+              calls, refused_layouts);
+  EXPECT_GE(found, calls / 20);
 }
