@@ -3,9 +3,11 @@
 // random poses, clutter, then hostile edits of the pixels or the returns (saturated and dead
 // blocks, stripes, inverted parts, NaN / infinite / huge / duplicated points, wrong ring
 // indices, shuffled or truncated scans). Every call must return: a board found must pass
-// malformedFeatures (finite, consistent), a miss must carry a reason. The single frame, the
-// second chance near a random prior and the session trackers are all driven. A crash, an
-// exception or a sanitizer report (scripts/test.sh --sanitize) fails the suite.
+// malformedFeatures (finite, consistent), a miss must carry a reason. Driven: the single frame,
+// the second chance near a random prior, the trackers, the detectors as the nodelets build them
+// from any dynamic_reconfigure setting, the projection path and the session memories (image
+// pre-pass, LiDAR background). A crash, an exception or a sanitizer report
+// (scripts/test.sh --sanitize) fails the suite.
 // BOARD_CALIB_FUZZ_ROUND=N draws other frames; BOARD_CALIB_FUZZ_VERBOSE prints each call's outcome
 // (the frame a crash stopped at is the last one printed).
 #include <board_calib/core/features.h>
