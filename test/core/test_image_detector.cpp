@@ -433,6 +433,69 @@ TEST(ImageDetectorSim, AFarBoardBehindManyLongerLinesIsFoundByItsSides) {
   EXPECT_LT(worst_px, 1.0);  // sub-pixel lines on a ~100 px board (issue 14)
 }
 
+// A street's facade windows are as board-shaped as a 4:3 board 14 m away, and stable regions.
+// With the real board near but heavily grained and missed, one of them was taken as the board
+// (test_fuzz_detectors' hostile view sets, round 0, rig 2: poses 1, 6, 8 and 9 of 14, 10 m
+// off; here 3 of these 6 frames before the rule). A region that stands in a row of alike ones
+// is the scene's. That rig's camera, board and poses (camera_T_board: translation, quaternion
+// w x y z).
+TEST(ImageDetectorSim, AFacadesWindowsAreNeverTheBoard) {
+  CameraIntrinsics in;
+  in.width = 960;
+  in.height = 600;
+  in.fx = in.fy = 828.493;
+  in.cx = 496.535;
+  in.cy = 284.071;
+  in.model = DistortionModel::kPlumbBob;
+  in.coeffs = {-0.1891, 0.0073, 0, 0, 0};
+  const CameraModel camera = *CameraModel::create(in);
+  Target target;
+  target.type = TargetType::kPlain;
+  target.width = 0.8;
+  target.height = 0.6;
+  auto det = ImageBoardDetector::create(target, ImageBoardDetectorOptions{});
+  ASSERT_TRUE(det.ok()) << det.error();
+  SceneSpec scene;
+  scene.target = target;
+  scene.room = false;
+  scene.outdoor = true;
+  scene.board_grey = 0.562;
+  scene.board_tint = Eigen::Vector3d(0.575, 0.991, 0.687);
+  scene.board_texture = 0.337;
+  const double poses[][7] = {{-0.7311, 0.0383, 3.9165, 0.83538, -0.14622, -0.20761, 0.48750},
+                             {-0.7834, 0.3691, 3.4403, 0.52274, -0.20195, -0.11784, -0.81980},
+                             {0.3398, 0.3618, 4.2007, 0.55717, 0.22093, -0.10340, -0.79376},
+                             {0.9547, 0.0159, 3.8787, 0.54683, -0.07957, -0.19231, 0.81096},
+                             {0.1109, 0.4001, 2.6236, 0.26366, 0.18477, -0.17142, 0.93111},
+                             {-1.2113, -1.1166, 5.7447, 0.98618, -0.00379, -0.13456, 0.09658}};
+  std::mt19937 rng(11);
+  int found = 0, wrong = 0;
+  for (size_t i = 0; i < std::size(poses); ++i) {
+    const double* p = poses[i];
+    const Eigen::Isometry3d camera_T_board =
+        makeTransform(Eigen::Quaterniond(p[3], p[4], p[5], p[6]).normalized().toRotationMatrix(),
+                      Eigen::Vector3d(p[0], p[1], p[2]));
+    RenderOptions options;
+    options.supersampling = 2;
+    const cv::Mat image = sim::renderCameraImage(camera, worldTCamera(), scene,
+                                                 worldTCamera() * camera_T_board, options, rng);
+    const ImageDetection d = det->detect(image, camera);
+    writeDebug("sim_facade_windows_" + std::to_string(i), image, camera, d);
+    if (!d.features.found) continue;
+    ++found;
+    const double centre_off =
+        (d.features.camera_T_board * target.center() - camera_T_board * target.center()).norm();
+    if (normalErrorDeg(d.features, camera_T_board) > 5.0 || centre_off > 0.3) {
+      ++wrong;
+      std::printf("pose %zu: a board %.2f m off, at %.1f m (%s)\n", i, centre_off,
+                  (d.features.camera_T_board * target.center()).norm(),
+                  d.details.board_source.c_str());
+    }
+  }
+  std::printf("facade windows: %d of %zu frames found, %d wrong\n", found, std::size(poses), wrong);
+  EXPECT_EQ(wrong, 0);
+}
+
 // max_line_hypotheses 0 (a setting rqt_reconfigure allows) with more lines than the search
 // ranks: no line quadrilateral is kept, and the lines past the cap are judged without a least
 // score (it read the first of none: a segfault, test_fuzz_detectors' settings test, round 1).

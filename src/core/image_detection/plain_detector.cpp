@@ -43,6 +43,11 @@ constexpr double kMinFineLineGain = 1.25;
 constexpr double kStableRegionAreaFactor = 4.0;
 // Downscaled px: how well a stable region's simplified outline places a corner.
 constexpr double kCoarseCornerPx = 1.5;
+// Stable regions alike: mean sides and aspect (the ratio of opposite side pairs) within this
+// share of each other, and the steps of a row of them equal to it of the side. A facade's
+// windows are cut and spaced alike to well within it.
+constexpr double kAlikeShare = 0.15;
+constexpr double kAlikeTurnDeg = 5.0;
 
 // Every hypothesis tried; the accepted one with the most edge support wins. When none is a board,
 // the attempt that got furthest (most valid edges, then the more edge support) gives the reason.
@@ -289,6 +294,54 @@ void keepBoardShaped(const Target& target, const CameraModel& camera,
   for (auto& k : kept) quads->push_back(std::move(k.second));
 }
 
+// Drops the stable regions the scene repeats: three alike (mean side and aspect within
+// kAlikeShare, sides within kAlikeTurnDeg of the same direction) in a row at equal steps, as a
+// facade's windows or a shelf's cells stand. A street's windows are as board-shaped as the
+// board, and a far one passed every check of a board 14 m away while the real, heavily grained
+// board 4 m away was missed (test_fuzz_detectors, hostile view sets). A board among window cells
+// of its size is alike but not in their rows.
+void dropRepeated(std::vector<QuadHypothesis>* quads) {
+  struct Shape {
+    Eigen::Vector2d centre;
+    double side, aspect, turn;
+  };
+  std::vector<Shape> shapes;
+  for (const QuadHypothesis& q : *quads) {
+    const auto& c = q.corners;
+    const double a = (c[1] - c[0]).norm() + (c[3] - c[2]).norm();
+    const double b = (c[2] - c[1]).norm() + (c[0] - c[3]).norm();
+    const Eigen::Vector2d d = c[1] - c[0];
+    // Direction of the first side modulo a quarter turn (a cell named from another corner).
+    const double turn = std::fmod(std::atan2(d.y(), d.x()) * 180.0 / M_PI + 360.0, 90.0);
+    shapes.push_back({0.25 * (c[0] + c[1] + c[2] + c[3]), meanSidePx(c),
+                      std::max(a, b) / std::max(1e-9, std::min(a, b)), turn});
+  }
+  auto near = [](double x, double y) { return std::abs(x - y) <= kAlikeShare * std::max(x, y); };
+  auto alike = [&](size_t i, size_t j) {
+    const double dt = std::abs(shapes[i].turn - shapes[j].turn);
+    return i != j && near(shapes[i].side, shapes[j].side) &&
+           near(shapes[i].aspect, shapes[j].aspect) && std::min(dt, 90.0 - dt) <= kAlikeTurnDeg &&
+           (shapes[i].centre - shapes[j].centre).norm() > shapes[i].side;
+  };
+  std::vector<QuadHypothesis> kept;
+  for (size_t i = 0; i < quads->size(); ++i) {
+    bool repeated = false;
+    const double step_tolerance = kAlikeShare * shapes[i].side;
+    for (size_t j = 0; j < quads->size() && !repeated; ++j) {
+      if (!alike(i, j)) continue;
+      const Eigen::Vector2d step = shapes[j].centre - shapes[i].centre;
+      for (size_t k = 0; k < quads->size() && !repeated; ++k) {
+        if (k == j || !alike(i, k)) continue;
+        // i between j and k, or j between i and k, at equal steps.
+        repeated = (shapes[i].centre - shapes[k].centre - step).norm() <= step_tolerance ||
+                   (shapes[k].centre - shapes[j].centre - step).norm() <= step_tolerance;
+      }
+    }
+    if (!repeated) kept.push_back(std::move((*quads)[i]));
+  }
+  *quads = std::move(kept);
+}
+
 // The board (or the attempt that got furthest, or why nothing was tried) and what was seen.
 void report(HypothesisSearch&& search, LineEvidence&& evidence, const std::string& region_reason,
             bool no_hypotheses, double noise, ImageDetection* out) {
@@ -480,6 +533,7 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
       });
       timed(&times.quads_ms, [&] {
         keepBoardShaped(target, camera, o, sx, &stable);
+        dropRepeated(&stable);
         rankByEdgeCoverage(gray, camera, o, min_gradient, &stable);
       });
       if (expected)
