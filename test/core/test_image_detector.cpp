@@ -496,6 +496,184 @@ TEST(ImageDetectorSim, AFacadesWindowsAreNeverTheBoard) {
   EXPECT_EQ(wrong, 0);
 }
 
+// A room of wall panels and floor tiles (the simulator's textured room) and a plain board before
+// them: a 4:3 board darker than every panel and a square one of about their grey. The panels'
+// long seams outscore the board's sides on segment support: the board's own quadrilateral ranked
+// past the line search's first ones and was never tried (test_fuzz_detectors' view sets, round 1:
+// 11 of 14 frames of a dark 4:3 board took a panel, normals 7-55 deg off). Measured here before
+// the change: 3 of 20 found, 2 of them wrong; after: 12 found, none wrong. The room alone gives
+// no board.
+TEST(ImageDetectorSim, ATiledRoomsPanelsAndTilesAreNeverTheBoard) {
+  CameraIntrinsics in;
+  in.width = 960;
+  in.height = 600;
+  in.fx = in.fy = 1015.0;
+  in.cx = 472.0;
+  in.cy = 309.0;
+  in.model = DistortionModel::kPlumbBob;
+  in.coeffs = {-0.12, 0.02, 0, 0, 0};
+  const CameraModel camera = *CameraModel::create(in);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  int found = 0, wrong = 0, frames = 0;
+  for (int board = 0; board < 2; ++board) {
+    Target target = configTarget("plain_1016.yaml");
+    SceneSpec scene;
+    if (board == 0) {
+      target.width = 0.8;
+      target.height = 0.6;
+      scene.board_grey = 0.13;
+    } else {
+      scene.board_grey = 0.45;
+      scene.board_tint = Eigen::Vector3d(0.8, 0.9, 0.85);
+    }
+    scene.target = target;
+    scene.room = true;
+    auto det = ImageBoardDetector::create(target, ImageBoardDetectorOptions{});
+    ASSERT_TRUE(det.ok()) << det.error();
+    for (int pose = 0; pose < 10; ++pose, ++frames) {
+      const double distance = 2.0 + 4.0 * unit(rng);
+      const Eigen::Vector3d centre =
+          Eigen::Vector3d(0.5 * unit(rng) - 0.25, 0.3 * unit(rng) - 0.15, 1.0) * distance;
+      const Eigen::Matrix3d R =
+          (Eigen::AngleAxisd(1.2 * unit(rng) - 0.6, Eigen::Vector3d::UnitY()) *
+           Eigen::AngleAxisd(1.0 * unit(rng) - 0.5, Eigen::Vector3d::UnitX()) *
+           Eigen::AngleAxisd(2 * M_PI * unit(rng) - M_PI, Eigen::Vector3d::UnitZ()))
+              .toRotationMatrix();
+      const Eigen::Isometry3d camera_T_board = makeTransform(R, centre - R * target.center());
+      RenderOptions options;
+      options.supersampling = 2;
+      const cv::Mat image = sim::renderCameraImage(camera, worldTCamera(), scene,
+                                                   worldTCamera() * camera_T_board, options, rng);
+      const ImageDetection d = det->detect(image, camera);
+      writeDebug("sim_tiled_room_" + std::to_string(board) + "_" + std::to_string(pose), image,
+                 camera, d);
+      if (!d.features.found) continue;
+      ++found;
+      const double centre_off =
+          (d.features.camera_T_board * target.center() - camera_T_board * target.center()).norm();
+      if (normalErrorDeg(d.features, camera_T_board) > 5.0 || centre_off > 0.3) {
+        ++wrong;
+        std::printf("board %d pose %d: a board %.2f m and %.1f deg off (%s)\n", board, pose,
+                    centre_off, normalErrorDeg(d.features, camera_T_board),
+                    d.details.board_source.c_str());
+      }
+    }
+  }
+  std::printf("tiled room: %d of %d frames found, %d wrong\n", found, frames, wrong);
+  EXPECT_EQ(wrong, 0);
+  EXPECT_GE(found, frames / 2);
+  // The room alone (the board behind the camera), looked at from other places: every board found
+  // is a panel or a tile.
+  int empty_found = 0;
+  for (int view = 0; view < 8; ++view) {
+    const Target target = configTarget("plain_1016.yaml");
+    SceneSpec scene;
+    scene.target = target;
+    scene.room = true;
+    scene.occluder = false;
+    auto det = ImageBoardDetector::create(target, ImageBoardDetectorOptions{});
+    ASSERT_TRUE(det.ok()) << det.error();
+    const Eigen::Matrix3d look =
+        (Eigen::AngleAxisd(1.6 * unit(rng) - 0.8, Eigen::Vector3d::UnitZ()) *
+         Eigen::AngleAxisd(0.5 * unit(rng) - 0.1, Eigen::Vector3d::UnitY()))
+            .toRotationMatrix();
+    Eigen::Isometry3d world_T_camera = worldTCamera();
+    world_T_camera.linear() = look * world_T_camera.linear();
+    world_T_camera.translation() = Eigen::Vector3d(4.0 * unit(rng) - 2.0, 4.0 * unit(rng) - 2.0, 0);
+    const Eigen::Isometry3d behind =
+        world_T_camera * makeTransform(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, -3));
+    RenderOptions options;
+    options.supersampling = 2;
+    const cv::Mat image =
+        sim::renderCameraImage(camera, world_T_camera, scene, behind, options, rng);
+    const ImageDetection d = det->detect(image, camera);
+    writeDebug("sim_tiled_room_empty_" + std::to_string(view), image, camera, d);
+    if (d.features.found)
+      std::printf("empty room view %d: a board found (%s)\n", view, d.details.board_source.c_str());
+    empty_found += d.features.found;
+  }
+  EXPECT_EQ(empty_found, 0);
+}
+
+// A square board of about the floor tiles' grey, with print, in the textured room (a rig of
+// test_fuzz_detectors' view sets, round 1): where its sides do not show, the square floor tiles
+// and wall panels are stable regions that fit a square board as well as the board does (a tile
+// 0.6 m across is a 1.016 m board 1.7 times as far), and their copies in their own plane are
+// what gives them away. Measured before: 11 of 14 frames took a tile or a panel (the same floor
+// tile in 8), normals 25-114 deg off; after: 8 found, 2 wrong. Those two are left: a square
+// patch of a wall panel between the board and the person holding it, and a 3:2 panel at the
+// image border fitted as a tilted square (its copies out of view); a session's consistency
+// check drops such single views.
+TEST(ImageDetectorSim, ASquareBoardIsSeldomASquareTile) {
+  CameraIntrinsics in;
+  in.width = 960;
+  in.height = 600;
+  in.fx = in.fy = 510.0697;
+  in.cx = 482.1879;
+  in.cy = 304.5324;
+  in.model = DistortionModel::kPlumbBob;
+  in.coeffs = {0.0145, 0.01508, 0, 0, 0};
+  const CameraModel camera = *CameraModel::create(in);
+  const Target target = configTarget("plain_1016.yaml");
+  SceneSpec scene;
+  scene.target = target;
+  scene.board_grey = 0.3792;
+  scene.board_tint = Eigen::Vector3d(0.6478, 0.9163, 0.8243);
+  for (const auto& m : {std::array<double, 4>{0.7366, 0.5287, 1.0160, 0.6705},
+                        std::array<double, 4>{0.8950, 0.4846, 1.0160, 0.7023},
+                        std::array<double, 4>{0.1804, 0.2236, 0.2506, 0.2734},
+                        std::array<double, 4>{0.6496, 0.5601, 0.6845, 0.6688}}) {
+    sim::BoardMark mark;
+    mark.min = Eigen::Vector2d(m[0], m[1]);
+    mark.max = Eigen::Vector2d(m[2], m[3]);
+    scene.board_marks.push_back(mark);
+  }
+  auto det = ImageBoardDetector::create(target, ImageBoardDetectorOptions{});
+  ASSERT_TRUE(det.ok()) << det.error();
+  const double poses[][7] = {{-0.1966, -0.2592, 5.9211, 0.86622, 0.01839, 0.19025, 0.46166},
+                             {-0.1356, -0.3910, 3.0161, 0.93780, -0.14146, 0.29745, 0.10973},
+                             {0.8060, -0.9509, 4.5897, 0.54999, 0.12375, 0.00275, 0.82595},
+                             {1.2146, 1.2663, 5.8009, -0.20029, -0.09805, 0.21504, 0.95080},
+                             {-0.7491, -0.3957, 5.3839, 0.87020, 0.17827, 0.11796, -0.44391},
+                             {-0.2866, 0.2097, 4.7246, 0.97164, 0.19603, -0.09355, 0.09346},
+                             {-0.4456, 0.4619, 4.9656, 0.86740, -0.30254, 0.12915, -0.37337},
+                             {1.3055, 1.3858, 5.3826, -0.17401, -0.08888, 0.17475, 0.96503},
+                             {1.4479, 0.7626, 5.3857, 0.07993, -0.01617, 0.24690, 0.96560},
+                             {-0.3726, -1.0085, 2.7341, 0.88636, -0.13631, -0.20404, 0.39263},
+                             {-0.1177, -0.0397, 4.4548, 0.96206, 0.08002, 0.21921, -0.14137},
+                             {0.7426, 0.0711, 4.8834, 0.28845, -0.17174, 0.02631, 0.94160},
+                             {-0.2939, 0.0917, 2.4729, 0.86767, -0.16238, 0.14932, -0.44551},
+                             {-0.5348, 0.0718, 3.1423, 0.86696, -0.06373, -0.15713, -0.46865}};
+  std::mt19937 rng(3);
+  int found = 0, wrong = 0;
+  for (size_t i = 0; i < std::size(poses); ++i) {
+    const double* p = poses[i];
+    const Eigen::Isometry3d camera_T_board =
+        makeTransform(Eigen::Quaterniond(p[3], p[4], p[5], p[6]).normalized().toRotationMatrix(),
+                      Eigen::Vector3d(p[0], p[1], p[2]));
+    RenderOptions options;
+    options.supersampling = 2;
+    const cv::Mat image = sim::renderCameraImage(camera, worldTCamera(), scene,
+                                                 worldTCamera() * camera_T_board, options, rng);
+    const ImageDetection d = det->detect(image, camera);
+    writeDebug("sim_square_tiles_" + std::to_string(i), image, camera, d);
+    if (!d.features.found) continue;
+    ++found;
+    const double centre_off =
+        (d.features.camera_T_board * target.center() - camera_T_board * target.center()).norm();
+    if (normalErrorDeg(d.features, camera_T_board) > 5.0 || centre_off > 0.3) {
+      ++wrong;
+      std::printf("pose %zu: a board %.2f m and %.1f deg off (%s)\n", i, centre_off,
+                  normalErrorDeg(d.features, camera_T_board), d.details.board_source.c_str());
+    }
+  }
+  std::printf("square board among square tiles: %d of %zu frames found, %d wrong\n", found,
+              std::size(poses), wrong);
+  EXPECT_LE(wrong, 2);
+  EXPECT_GE(found - wrong, 6);
+}
+
 // max_line_hypotheses 0 (a setting rqt_reconfigure allows) with more lines than the search
 // ranks: no line quadrilateral is kept, and the lines past the cap are judged without a least
 // score (it read the first of none: a segfault, test_fuzz_detectors' settings test, round 1).

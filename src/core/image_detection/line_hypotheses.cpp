@@ -328,7 +328,7 @@ bool completeQuad(const LineSet& set, const CornerGraph& g, const std::array<int
   std::array<Eigen::Vector2d, 4> c;
   for (int s = 0; s < 4; ++s) c[s] = g.at(idx[s], idx[(s + 1) % 4]);
   if (!convexPolygon(c)) return false;
-  const int ends = search.min_corner_ends > 0 ? endsAtCorners(set, idx, c) : 0;
+  const int ends = endsAtCorners(set, idx, c);
   if (ends < search.min_corner_ends) return false;
   // Side 3 is scored only while it could still lift the score above 0 (see enumerateQuads).
   const std::vector<MergedLine>& lines = set.lines;
@@ -459,10 +459,22 @@ std::vector<QuadHypothesis> enumerateQuads(const LineSet& set, const CornerGraph
   // Among weak lines, the quadrilateral whose lines end at more of its corners first (a scene
   // grid's larger cells outscore a board on support alone).
   std::sort(quads.begin(), quads.end(), [&](const QuadHypothesis& x, const QuadHypothesis& y) {
-    if (x.corner_ends != y.corner_ends) return x.corner_ends > y.corner_ends;
+    if (search.min_corner_ends > 0 && x.corner_ends != y.corner_ends)
+      return x.corner_ends > y.corner_ends;
     return rank(x) > rank(y);
   });
   return quads;
+}
+
+// The two quadrilaterals' corners agree to kDuplicateCornerFraction of the smaller one's size.
+bool sameQuad(const QuadHypothesis& q, const QuadHypothesis& k) {
+  double worst = 0;
+  for (int s = 0; s < 4; ++s) {
+    double best = 1e18;
+    for (int t = 0; t < 4; ++t) best = std::min(best, (q.corners[s] - k.corners[t]).norm());
+    worst = std::max(worst, best);
+  }
+  return worst < kDuplicateCornerFraction * std::min(q.size_px, k.size_px);
 }
 
 // Visible support: the fraction of each side inside the image that carries segments; a board
@@ -473,17 +485,9 @@ std::vector<QuadHypothesis> keepBest(std::vector<QuadHypothesis>* quads, const C
   std::vector<QuadHypothesis> kept;
   for (QuadHypothesis& q : *quads) {
     if (kept.size() >= limit) break;
-    bool duplicate = false;
-    for (const auto& k : kept) {
-      double worst = 0;
-      for (int s = 0; s < 4; ++s) {
-        double best = 1e18;
-        for (int t = 0; t < 4; ++t) best = std::min(best, (q.corners[s] - k.corners[t]).norm());
-        worst = std::max(worst, best);
-      }
-      duplicate |= worst < kDuplicateCornerFraction * std::min(q.size_px, k.size_px);
-    }
-    if (duplicate) continue;
+    if (std::any_of(kept.begin(), kept.end(),
+                    [&](const QuadHypothesis& k) { return sameQuad(q, k); }))
+      continue;
     bool ok = true;
     for (int s = 0; s < 4 && ok; ++s) {
       Eigen::Vector2d a, b;
@@ -617,6 +621,17 @@ LineQuads lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
   if (evidence) evidence->quads = static_cast<int>(quads.size());
   const size_t max_hypotheses = static_cast<size_t>(std::max(0, o.max_line_hypotheses));
   out.best = keepBest(&quads, camera, o, max_hypotheses);
+  // A wall of panels or tiles gives hundreds of quadrilaterals whose long seams outscore the
+  // board's sides on support alone, and the board's own quadrilateral of the first lines ranked
+  // past the kept ones (a dark board before a tiled wall: test_fuzz_detectors' view sets). Those
+  // whose lines end at their corners, as a board's do and a seam grid's crossing lines do not,
+  // are tried with the quadrilaterals of the further lines below.
+  std::vector<QuadHypothesis> ending;
+  for (QuadHypothesis& q : quads)
+    if (q.corner_ends >= kMinCornerEnds &&
+        std::none_of(out.best.begin(), out.best.end(),
+                     [&](const QuadHypothesis& k) { return sameQuad(q, k); }))
+      ending.push_back(std::move(q));
   // The board's sides may rank far below a line-rich scene's (an office ceiling and floor): the
   // lines past the first ones give quadrilaterals only where the lines end at the corners, as a
   // board's sides do and a scene grid's crossing lines do not.
@@ -645,9 +660,19 @@ LineQuads lineQuadHypotheses(const cv::Mat& gray, const CameraModel& camera,
     std::vector<QuadHypothesis> faint(std::make_move_iterator(first_faint),
                                       std::make_move_iterator(supported.end()));
     supported.erase(first_faint, supported.end());
-    out.ending_at_corners = keepBest(&supported, camera, o, max_hypotheses);
+    ending.insert(ending.end(), std::make_move_iterator(supported.begin()),
+                  std::make_move_iterator(supported.end()));
     out.faint = keepBest(&faint, camera, o, kMaxWeakCandidates);
   }
+  // Ranked as enumerateQuads ranks the further lines' quadrilaterals.
+  const auto rank = [&](const QuadHypothesis& q) {
+    return scene_known ? q.score / (kNumEdges * q.size_px) : q.score;
+  };
+  std::stable_sort(
+      ending.begin(), ending.end(), [&](const QuadHypothesis& x, const QuadHypothesis& y) {
+        return x.corner_ends != y.corner_ends ? x.corner_ends > y.corner_ends : rank(x) > rank(y);
+      });
+  out.ending_at_corners = keepBest(&ending, camera, o, max_hypotheses);
   return out;
 }
 
