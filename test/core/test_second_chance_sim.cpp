@@ -168,20 +168,26 @@ const Session& session() {
   return *once;
 }
 
+// The true board's outer corners (undistorted px) in the image of the view at `stamp`.
+std::array<Eigen::Vector2d, 4> trueCornersPx(const sim::Scenario& s, const CameraModel& camera,
+                                             const std::vector<Recorded>& frames, double stamp) {
+  const sim::Frame& f = frameAt(frames, stamp, true);
+  const Eigen::Isometry3d T = sim::worldTCamera(s, 0).inverse() * f.world_T_board;
+  std::array<Eigen::Vector2d, 4> px;
+  for (int j = 0; j < 4; ++j)
+    camera.projectUndistorted(T * s.scene.target.outerCorners()[static_cast<size_t>(j)],
+                              &px[static_cast<size_t>(j)]);
+  return px;
+}
+
 // The worst image corner (px) of the first pass's views against the truth.
 double firstPassWorstCornerPx(const sim::Scenario& s, const std::vector<Recorded>& frames,
                               const CalibrationPipeline& first) {
   const CameraModel camera = *CameraModel::create(s.cameras.front().intrinsics);
   double worst = 0;
-  for (const auto& sv : first.session().views()) {
-    const sim::Frame& f = frameAt(frames, sv.view.camera.stamp, true);
-    const Eigen::Isometry3d T = sim::worldTCamera(s, 0).inverse() * f.world_T_board;
-    std::array<Eigen::Vector2d, 4> px;
-    for (int j = 0; j < 4; ++j)
-      camera.projectUndistorted(T * s.scene.target.outerCorners()[static_cast<size_t>(j)],
-                                &px[static_cast<size_t>(j)]);
-    worst = std::max(worst, cornerErrorPx(sv.view.camera, px));
-  }
+  for (const auto& sv : first.session().views())
+    worst = std::max(worst, cornerErrorPx(sv.view.camera,
+                                          trueCornersPx(s, camera, frames, sv.view.camera.stamp)));
   return worst;
 }
 
@@ -200,15 +206,9 @@ Recovered recoveredAgainstTruth(const sim::Scenario& s, const std::vector<Record
   Recovered r;
   for (const auto& sv : second.session().views()) {
     const View& v = sv.view;
-    if (!first.sightings().images.count(v.camera.stamp)) {
-      const sim::Frame& f = frameAt(frames, v.camera.stamp, true);
-      const Eigen::Isometry3d T = sim::worldTCamera(s, 0).inverse() * f.world_T_board;
-      std::array<Eigen::Vector2d, 4> px;
-      for (int j = 0; j < 4; ++j)
-        camera.projectUndistorted(T * target.outerCorners()[static_cast<size_t>(j)],
-                                  &px[static_cast<size_t>(j)]);
-      r.worst_px = std::max(r.worst_px, cornerErrorPx(v.camera, px));
-    }
+    if (!first.sightings().images.count(v.camera.stamp))
+      r.worst_px = std::max(
+          r.worst_px, cornerErrorPx(v.camera, trueCornersPx(s, camera, frames, v.camera.stamp)));
     if (!first.sightings().clouds.count(v.lidar.stamp)) {
       const sim::Frame& f = frameAt(frames, v.lidar.stamp, false);
       const Eigen::Isometry3d board_T_lidar =

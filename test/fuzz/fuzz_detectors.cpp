@@ -526,11 +526,16 @@ CloudBoardDetectorConfig randomCloudConfig(std::mt19937& rng) {
 #define BOARD_CALIB_PICK(cfg, member) c.cfg = pickSetting(rng, c.cfg, lo.cfg, hi.cfg);
   BOARD_CALIB_CLOUD_DETECTOR_FIELDS(BOARD_CALIB_PICK)
   // The ROI box corners map to one option each, outside the field list.
+  // clang-format off
   BOARD_CALIB_PICK(roi_min_x, )
-  BOARD_CALIB_PICK(roi_min_y, ) BOARD_CALIB_PICK(roi_min_z, ) BOARD_CALIB_PICK(roi_max_x, )
-      BOARD_CALIB_PICK(roi_max_y, ) BOARD_CALIB_PICK(roi_max_z, )
+  BOARD_CALIB_PICK(roi_min_y, )
+  BOARD_CALIB_PICK(roi_min_z, )
+  BOARD_CALIB_PICK(roi_max_x, )
+  BOARD_CALIB_PICK(roi_max_y, )
+  BOARD_CALIB_PICK(roi_max_z, )
+  // clang-format on
 #undef BOARD_CALIB_PICK
-          return c;
+  return c;
 }
 
 }  // namespace
@@ -771,32 +776,28 @@ TEST(FuzzDetectors, HostileViewSetsAreNeverAWrongGood) {
           sim::simulateLidarScan(spec, world_T_lidar, scene, world_T_board, scan_rng);
       const ImageDetection seen = detector->detect(image, camera);
       const LidarBoardDetection scanned = detectLidarBoard(cloud, target);
+      // Each detector's board against the truth.
+      auto off = [](const Plane& p, const Eigen::Vector3d& n) {
+        return std::acos(std::min(1.0, std::abs(p.normal.dot(n)))) * 180.0 / M_PI;
+      };
       const Eigen::Isometry3d camera_T_board = worldTCamera().inverse() * world_T_board;
+      const double image_normal_off = off(seen.features.plane, camera_T_board.linear().col(2));
       if (seen.features.found) {
         const double centre_off =
             (seen.features.camera_T_board * target.center() - camera_T_board * target.center())
                 .norm();
-        const double normal_off =
-            std::acos(std::min(
-                1.0, std::abs(seen.features.plane.normal.dot(camera_T_board.linear().col(2))))) *
-            180.0 / M_PI;
-        (normal_off > 5.0 || centre_off > 0.3 ? image_wrong : image_right) += 1;
+        (image_normal_off > 5.0 || centre_off > 0.3 ? image_wrong : image_right) += 1;
       } else {
         ++image_missed;
       }
-      if (std::getenv("BOARD_CALIB_FUZZ_VERBOSE")) {  // each detector's board against the truth
-        const Eigen::Vector3d truth_normal = camera_T_board.linear().col(2);
+      if (std::getenv("BOARD_CALIB_FUZZ_VERBOSE")) {
         const Eigen::Vector3d lidar_normal =
             (world_T_lidar.inverse() * world_T_board).linear().col(2);
-        auto off = [](const Plane& p, const Eigen::Vector3d& n) {
-          return std::acos(std::min(1.0, std::abs(p.normal.dot(n)))) * 180.0 / M_PI;
-        };
         std::printf("rig %d pose %d at %.1f m: image %s%s, lidar %s%s\n", rig, pose, distance,
-                    seen.features.found
-                        ? ("normal " + std::to_string(off(seen.features.plane, truth_normal)) +
-                           " deg off (" + seen.details.board_source + ")")
-                              .c_str()
-                        : "missed: ",
+                    seen.features.found ? ("normal " + std::to_string(image_normal_off) +
+                                           " deg off (" + seen.details.board_source + ")")
+                                              .c_str()
+                                        : "missed: ",
                     seen.features.found ? "" : seen.features.reason.c_str(),
                     scanned.features.found
                         ? ("normal " + std::to_string(off(scanned.features.plane, lidar_normal)) +

@@ -279,11 +279,11 @@ struct ShapedQuad {
 // max_line_hypotheses are refined.
 std::vector<ShapedQuad> boardShaped(const Target& target, const CameraModel& camera,
                                     const ImageBoardDetectorOptions& o, double sx,
-                                    std::vector<QuadHypothesis>* quads) {
+                                    std::vector<QuadHypothesis> quads) {
   const auto outer = target.outerCorners();
   const Points3 obj(outer.begin(), outer.end());
   std::vector<ShapedQuad> kept;
-  for (QuadHypothesis& q : *quads) {
+  for (QuadHypothesis& q : quads) {
     const double side = meanSidePx(q.corners);
     const double bound = std::max(kCoarseCornerPx * sx, o.max_plain_corner_rms_fraction * side);
     ShapedQuad best{std::numeric_limits<double>::infinity(), Eigen::Isometry3d::Identity(), {}};
@@ -310,20 +310,12 @@ std::vector<ShapedQuad> boardShaped(const Target& target, const CameraModel& cam
   return kept;
 }
 
-// The same, the quadrilaterals only.
-void keepBoardShaped(const Target& target, const CameraModel& camera,
-                     const ImageBoardDetectorOptions& o, double sx,
-                     std::vector<QuadHypothesis>* quads) {
-  std::vector<ShapedQuad> kept = boardShaped(target, camera, o, sx, quads);
-  quads->clear();
-  for (auto& k : kept) quads->push_back(std::move(k.quad));
-}
-
 // Where the ray through undistorted pixel u meets the board plane of camera_T_board, in board
-// coordinates; false when it does not (parallel, or behind the camera).
-bool onBoardPlane(const Eigen::Matrix3d& K, const Eigen::Isometry3d& camera_T_board,
+// coordinates; false when it does not (parallel, or behind the camera). K_inv: the camera
+// matrix's inverse.
+bool onBoardPlane(const Eigen::Matrix3d& K_inv, const Eigen::Isometry3d& camera_T_board,
                   const Eigen::Vector2d& u, Eigen::Vector2d* board_xy) {
-  const Eigen::Vector3d ray = K.inverse() * Eigen::Vector3d(u.x(), u.y(), 1.0);
+  const Eigen::Vector3d ray = K_inv * Eigen::Vector3d(u.x(), u.y(), 1.0);
   const Eigen::Vector3d n = camera_T_board.linear().col(2);
   const Eigen::Vector3d p = camera_T_board.translation();
   const double along = n.dot(ray);
@@ -342,22 +334,21 @@ bool onBoardPlane(const Eigen::Matrix3d& K, const Eigen::Isometry3d& camera_T_bo
 // Measured (test_fuzz_detectors' view sets, rounds 0-5): square windows, tiles and panels taken
 // for square and 4:3 boards, normals 25-88 deg off, in 21 frames, 7 after. A scene's rectangles
 // of about the board's image size (the far board behind window frames) are seldom turned alike.
-void dropCopiesInTheirPlane(const Target& target, const CameraModel& camera,
-                            const ImageBoardDetectorOptions& o, double sx,
+void dropCopiesInTheirPlane(const Target& target, const CameraModel& camera, double sx,
                             const std::vector<QuadHypothesis>& all,
-                            std::vector<QuadHypothesis>* quads) {
-  std::vector<ShapedQuad> shaped = boardShaped(target, camera, o, sx, quads);
+                            std::vector<ShapedQuad>* shaped) {
   const double w = std::max(target.width, target.height);
   const double h = std::min(target.width, target.height);
   const Eigen::Vector2d middle = target.center().head<2>();
-  quads->clear();
-  for (ShapedQuad& s : shaped) {
+  const Eigen::Matrix3d K_inv = camera.K().inverse();
+  std::vector<ShapedQuad> kept;
+  for (ShapedQuad& s : *shaped) {
     int in_line = 0, aligned = 0;
     for (const QuadHypothesis& other : all) {
       std::array<Eigen::Vector2d, kNumEdges> xy;
       bool placed = true;
       for (int k = 0; k < kNumEdges && placed; ++k)
-        placed = onBoardPlane(camera.K(), s.camera_T_board, other.corners[k], &xy[k]);
+        placed = onBoardPlane(K_inv, s.camera_T_board, other.corners[k], &xy[k]);
       if (!placed) continue;
       const Eigen::Vector2d step = 0.25 * (xy[0] + xy[1] + xy[2] + xy[3]) - middle;
       if (step.norm() < h) continue;  // itself, or inside it
@@ -379,8 +370,9 @@ void dropCopiesInTheirPlane(const Target& target, const CameraModel& camera,
       ++aligned;
       in_line += std::min(std::abs(step.x()), std::abs(step.y())) <= tolerance * h;
     }
-    if (in_line == 0 && aligned < 2) quads->push_back(std::move(s.quad));
+    if (in_line == 0 && aligned < 2) kept.push_back(std::move(s));
   }
+  *shaped = std::move(kept);
 }
 
 // Drops the stable regions the scene repeats: three alike (mean side and aspect within
@@ -389,14 +381,14 @@ void dropCopiesInTheirPlane(const Target& target, const CameraModel& camera,
 // board, and a far one passed every check of a board 14 m away while the real, heavily grained
 // board 4 m away was missed (test_fuzz_detectors, hostile view sets). A board among window cells
 // of its size is alike but not in their rows.
-void dropRepeated(std::vector<QuadHypothesis>* quads) {
+void dropRepeated(std::vector<ShapedQuad>* quads) {
   struct Shape {
     Eigen::Vector2d centre;
     double side, aspect, turn;
   };
   std::vector<Shape> shapes;
-  for (const QuadHypothesis& q : *quads) {
-    const auto& c = q.corners;
+  for (const ShapedQuad& q : *quads) {
+    const auto& c = q.quad.corners;
     const double a = (c[1] - c[0]).norm() + (c[3] - c[2]).norm();
     const double b = (c[2] - c[1]).norm() + (c[0] - c[3]).norm();
     const Eigen::Vector2d d = c[1] - c[0];
@@ -412,7 +404,7 @@ void dropRepeated(std::vector<QuadHypothesis>* quads) {
            near(shapes[i].aspect, shapes[j].aspect) && std::min(dt, 90.0 - dt) <= kAlikeTurnDeg &&
            (shapes[i].centre - shapes[j].centre).norm() > shapes[i].side;
   };
-  std::vector<QuadHypothesis> kept;
+  std::vector<ShapedQuad> kept;
   for (size_t i = 0; i < quads->size(); ++i) {
     bool repeated = false;
     const double step_tolerance = kAlikeShare * shapes[i].side;
@@ -666,9 +658,11 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
       timed(&times.quads_ms, [&] {
         const std::vector<QuadHypothesis> all_stable = stable;
         dropTiled(kCoarseCornerPx * sx, &stable);
-        keepBoardShaped(target, camera, o, sx, &stable);
-        dropRepeated(&stable);
-        dropCopiesInTheirPlane(target, camera, o, sx, all_stable, &stable);
+        std::vector<ShapedQuad> shaped = boardShaped(target, camera, o, sx, std::move(stable));
+        dropRepeated(&shaped);
+        dropCopiesInTheirPlane(target, camera, sx, all_stable, &shaped);
+        stable.clear();
+        for (ShapedQuad& q : shaped) stable.push_back(std::move(q.quad));
         rankByEdgeCoverage(gray, camera, o, min_gradient, &stable);
       });
       if (expected)
