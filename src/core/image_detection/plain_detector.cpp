@@ -55,8 +55,38 @@ constexpr double kSharedCornerShare = 0.1;
 // A scene's copies of one rectangle (tiles, panels, windows) are made alike to within this share
 // of their size, beyond what their corners' placement leaves unknown.
 constexpr double kCopyShare = 0.05;
+// Two outlines cross where their shared area is more than this share of the smaller one and less
+// than all but it: a touch at a corner or a side's blur is no crossing, nor is one inside the
+// other.
+constexpr double kCrossingShare = 0.05;
 
-// Every hypothesis tried; the accepted one with the most edge support wins. When none is a board,
+// Corners (undistorted px) of one board, to within kDuplicateHypothesisFraction of its size.
+bool sameBoard(const std::array<Eigen::Vector2d, 4>& corners,
+               const std::array<Eigen::Vector2d, 4>& board) {
+  double worst = 0, size = 0;
+  for (int s = 0; s < kNumEdges; ++s) {
+    double nearest = std::numeric_limits<double>::infinity();
+    for (int t = 0; t < kNumEdges; ++t) nearest = std::min(nearest, (corners[s] - board[t]).norm());
+    worst = std::max(worst, nearest);
+    size += (board[(s + 1) % 4] - board[s]).norm() / kNumEdges;
+  }
+  return worst < kDuplicateHypothesisFraction * size;
+}
+
+// Two convex outlines that overlap without one lying (nearly) inside the other.
+bool outlinesCross(const std::array<Eigen::Vector2d, 4>& a,
+                   const std::array<Eigen::Vector2d, 4>& b) {
+  std::vector<cv::Point2f> pa, pb, shared;
+  for (const auto& c : a) pa.emplace_back(static_cast<float>(c.x()), static_cast<float>(c.y()));
+  for (const auto& c : b) pb.emplace_back(static_cast<float>(c.x()), static_cast<float>(c.y()));
+  const double smaller = std::min(cv::contourArea(pa), cv::contourArea(pb));
+  if (!(smaller > 0)) return false;
+  const double share = cv::intersectConvexConvex(pa, pb, shared) / smaller;
+  return share > kCrossingShare && share < 1.0 - kCrossingShare;
+}
+
+// Every hypothesis tried; the accepted one with the most edge support wins (of two that cross, the
+// better fit). When none is a board,
 // the attempt that got furthest (most valid edges, then the more edge support) gives the reason.
 struct HypothesisSearch {
   ImageDetection best_found, best_miss;
@@ -65,6 +95,7 @@ struct HypothesisSearch {
   std::vector<std::array<Eigen::Vector2d, 4>> tried;
   std::vector<std::string> reasons;
   std::vector<std::array<Eigen::Vector2d, 4>> boards;  // passed the board checks
+  std::vector<ImageDetection> accepted;                // and were not excluded
 
   bool found() const { return best_score > 0; }
   bool cleanBoard() const { return found() && best_min_coverage >= kCleanBoardCoverage; }
@@ -79,17 +110,28 @@ struct HypothesisSearch {
 
   // A line quadrilateral on the accepted board adds nothing.
   bool duplicatesBoard(const std::array<Eigen::Vector2d, 4>& corners) const {
-    if (!found()) return false;
-    const auto& board = best_found.features.corners_px;
-    double worst = 0, size = 0;
-    for (int s = 0; s < kNumEdges; ++s) {
-      double nearest = 1e18;
-      for (int t = 0; t < kNumEdges; ++t)
-        nearest = std::min(nearest, (corners[s] - board[t]).norm());
-      worst = std::max(worst, nearest);
-      size += (board[(s + 1) % 4] - board[s]).norm() / kNumEdges;
+    return found() && sameBoard(corners, best_found.features.corners_px);
+  }
+
+  // Two accepted boards whose outlines cross (each reaching out of the other) cannot both be the
+  // board: the one whose corners fit the declared size better is kept, not the longer outline. A
+  // scene rectangle through the board fits it by turning far (augmented real frames, fresh draw
+  // 23: a wall and floor frame around the board at 4.39 px won over the board at 0.99 px).
+  // Nested outlines keep the edge support's choice: a board's inset print is no board.
+  void keepTheBetterFitWhereBoardsCross() {
+    if (!found()) return;
+    const ImageDetection* better = nullptr;
+    double rms = best_found.features.reprojection_rms_px;
+    for (const ImageDetection& other : accepted) {
+      const auto& corners = other.features.corners_px;
+      if (other.features.reprojection_rms_px >= rms ||
+          sameBoard(corners, best_found.features.corners_px) ||
+          !outlinesCross(corners, best_found.features.corners_px))
+        continue;
+      rms = other.features.reprojection_rms_px;
+      better = &other;
     }
-    return worst < kDuplicateHypothesisFraction * size;
+    if (better) best_found = *better;
   }
 
   void record(const Hypothesis& h, const std::array<Eigen::Vector2d, 4>& corners, bool is_board,
@@ -102,6 +144,9 @@ struct HypothesisSearch {
       // holder's legs seen edge-on fit a board only near the largest turn): support is weighed
       // by the cosine of the turn from the line of sight.
       const double score = support.score * facingCosine(af.camera_T_board);
+      accepted.push_back(attempt);
+      accepted.back().details.board_source = h.source;
+      accepted.back().details.board_support_px = score;
       if (score > best_score) {
         best_score = score;
         best_min_coverage = support.min_coverage;
@@ -469,6 +514,7 @@ void dropTiled(double corner_px, std::vector<QuadHypothesis>* quads) {
 // The board (or the attempt that got furthest, or why nothing was tried) and what was seen.
 void report(HypothesisSearch&& search, LineEvidence&& evidence, const std::string& region_reason,
             bool no_hypotheses, double noise, ImageDetection* out) {
+  search.keepTheBetterFitWhereBoardsCross();
   if (search.found()) {
     *out = std::move(search.best_found);
   } else if (search.best_valid >= 0) {

@@ -151,7 +151,8 @@ struct ImageDetectionDetails {
   /// "traced side", "projected board"; "colour part" and the like for the colour search)
   std::string board_source;
   /// plain: the board's edge support (px of its sides that show their edge), weighed by the
-  /// cosine of its turn from the line of sight; what ranks two boards found in one image
+  /// cosine of its turn from the line of sight; what ranks two boards found in one image (of two
+  /// whose outlines cross, the one whose corners fit the declared size better is kept)
   double board_support_px = 0.0;
   int line_segments = 0, straight_lines = 0,
       line_quads = 0;        ///< plain: LSD segments, merged lines, quadrilaterals
