@@ -266,7 +266,9 @@ TEST(AugmentedSessions, WrongBoardsAreLeftOutAndNoWrongResultIsGood) {
       EXPECT_GE(right_kept, 0.8 * right) << name;
     }
   }
-  EXPECT_GE(wrong_total, 3) << "the draws no longer hold the wrong boards this test is about";
+  // Draws 19 and 21 hold one wrong board each; draw 23's (a scene rectangle crossing the board)
+  // is mended since session 43 (ImageDetectorAugmented.ASceneRectangleCrossingTheBoardLosesToIt).
+  EXPECT_GE(wrong_total, 2) << "the draws no longer hold the wrong boards this test is about";
 }
 
 }  // namespace
