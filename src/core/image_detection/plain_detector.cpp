@@ -86,8 +86,8 @@ bool outlinesCross(const std::array<Eigen::Vector2d, 4>& a,
 }
 
 // Every hypothesis tried; the accepted one with the most edge support wins (of two that cross, the
-// better fit). When none is a board,
-// the attempt that got furthest (most valid edges, then the more edge support) gives the reason.
+// better fit). When none is a board, the attempt that got furthest (most valid edges, then the
+// more edge support) gives the reason.
 struct HypothesisSearch {
   ImageDetection best_found, best_miss;
   double best_score = -1, best_miss_score = -1, best_min_coverage = 0, best_span_share = 0;
@@ -144,16 +144,14 @@ struct HypothesisSearch {
       // holder's legs seen edge-on fit a board only near the largest turn): support is weighed
       // by the cosine of the turn from the line of sight.
       const double score = support.score * facingCosine(af.camera_T_board);
+      attempt.details.board_source = h.source;
+      attempt.details.board_support_px = score;
       accepted.push_back(attempt);
-      accepted.back().details.board_source = h.source;
-      accepted.back().details.board_support_px = score;
       if (score > best_score) {
         best_score = score;
         best_min_coverage = support.min_coverage;
         best_span_share = span_share;
         best_found = std::move(attempt);
-        best_found.details.board_source = h.source;
-        best_found.details.board_support_px = score;
       }
       return;
     }
