@@ -341,7 +341,7 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   // (1000); a side a hand pulled, 9.6 px (another draw, before the straightness test).
   EXPECT_LT(total.all.worst, 8.0);
   // Over every case (the whole table, when no case is selected): measured 46 of 60 rs16_plain
-  // frames and 227 of 252 in all. The search is deterministic, so a lost frame is a regression.
+  // frames and 230 of 252 in all. The search is deterministic, so a lost frame is a regression.
   // Session 29: 39 and 215 before edge profiles cut by the image border, the second look at a
   // weak side around its own peaks' line and the faint-line search's weak quadrilaterals (one
   // frame each). Session 31: 41 and 218 before a short side's span rule (basler0 far, 3 frames)
@@ -351,11 +351,13 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   // far rs16_3 board no longer found: its side a hand held passed 3.44 px off; its fine passes
   // now leave the hand out and its two looks disagree. Session 40: 46 and 227, the far rs16_1
   // board no longer found: its upper left side rests on two stretches 4 px apart, a side refused
-  // since draws 22 and 24 kept such sides 9.44 and 5.17 px off (OtherDrawsGiveNoWrongBoard). Each
+  // since draws 22 and 24 kept such sides 9.44 and 5.17 px off (OtherDrawsGiveNoWrongBoard).
+  // Session 44: 230, three far basler boards under grain, searched no wider than their lines'
+  // error (quadSearchPx). Each
   // session's figures, and what each change gained or cost, are in docs/BENCHMARKS.md.
   if (!only && !seed) {
     EXPECT_GE(total.rs16_found, 46);
-    EXPECT_GE(total.found, 227);
+    EXPECT_GE(total.found, 230);
   }
 }
 

@@ -24,7 +24,8 @@ constexpr double kContinuationFraction = 0.25;
 // (clutter as close as the board is small), so fewer testable ends are not judged.
 constexpr int kMinContinuingEnds = 3;
 constexpr int kMinTestedEnds = 6;
-constexpr double kWeakLinesRmsShare = 0.5;  // of the corner misfit (fromQuad)
+constexpr double kWeakLinesRmsShare = 0.5;       // of the corner misfit (fromQuad)
+constexpr double kQuadSearchDownscaledPx = 2.5;  // downscaled px (quadSearchPx)
 
 // Names and refines the sides; returns the number of valid edges (support filled).
 int refineSides(const cv::Mat& gray, const CameraModel& camera, const ImageBoardDetectorOptions& o,
@@ -211,6 +212,23 @@ double leastSpanShare(const CameraModel& camera, const ImageBoardDetectorOptions
   return least;
 }
 
+namespace {
+
+// Half width (px) of a line quadrilateral's first edge search. Its sides come from lines found
+// on a copy at most line_detection_width_px (or segmentation_width_px, stable regions) wide: a
+// coarse side is off by about kQuadSearchDownscaledPx of that copy's pixels, coarse_search_px at
+// 1920 px. In a smaller image the lines are found at full resolution, and a search that reaches
+// past their error reaches into the board: on a far board with grain along a side, a stripe
+// then rivals the edge (augmented real frames: far + low contrast + wood 5 -> 8 of 21 found).
+double quadSearchPx(const CameraModel& camera, const ImageBoardDetectorOptions& o) {
+  const double scale = static_cast<double>(camera.width()) /
+                       std::max(1, std::min(o.line_detection_width_px, o.segmentation_width_px));
+  return std::max(o.fine_search_px,
+                  std::min(o.coarse_search_px, kQuadSearchDownscaledPx * std::max(1.0, scale)));
+}
+
+}  // namespace
+
 Hypothesis fromQuad(const QuadHypothesis& q, const CameraModel& camera,
                     const ImageBoardDetectorOptions& o, bool weak) {
   Hypothesis h;
@@ -231,6 +249,7 @@ Hypothesis fromQuad(const QuadHypothesis& q, const CameraModel& camera,
     e.a = camera.distortPixel(a);
     e.b = camera.distortPixel(b);
     e.length = (b - a).norm();
+    e.search_px = quadSearchPx(camera, o);
     const Eigen::Vector3d l = lineThrough(a, b, h.inside_u);
     e.angle = std::atan2(l.y(), l.x());
     h.sides.push_back(e);
