@@ -41,7 +41,8 @@ struct ImageBoardDetectorOptions {
   double border_margin_px =
       3.0;  ///< px; edge pixels closer than this to the image border are not board edges
   double coarse_search_px =
-      10.0;  ///< px, half width of the first edge search around the coarse outline
+      10.0;  ///< px, half width of the first edge search around the coarse outline (a line
+             ///< quadrilateral in an image no wider than line_detection_width_px: fine_search_px)
   double fine_search_px = 3.0;  ///< px, half width of the refinement search around the fitted line
   double sample_step_px = 2.0;  ///< px, spacing of edge samples along each edge
   double corner_exclusion_px =
