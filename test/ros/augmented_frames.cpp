@@ -536,8 +536,8 @@ const std::vector<Case>& augmentedCases() {
       // grain: 15 since the rival-line test (a stripe beside a side is as well supported as the
       // edge). Far + low contrast + wood: 8 since a small image's line quadrilaterals search
       // their sides no wider than their lines' error (a wide search met the grain's stripes). Far
-      // basler frames: 16 in the three far cases without low contrast since a short
-      // side needs half its length, not min_edge_length_px (basler0's 29 px side).
+      // basler frames: 16 in the three far cases without low contrast since a short side needs
+      // half its length, not min_edge_length_px (basler0's 29 px side).
       {"clean", {}, 15},
       {"board colour (cardboard, blue)", {kColour}, 15},
       {"low contrast (+-12 grey levels)", {kLowContrast}, 15},

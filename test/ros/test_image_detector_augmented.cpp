@@ -353,8 +353,8 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   // board no longer found: its upper left side rests on two stretches 4 px apart, a side refused
   // since draws 22 and 24 kept such sides 9.44 and 5.17 px off (OtherDrawsGiveNoWrongBoard).
   // Session 44: 230, three far basler boards under grain, searched no wider than their lines'
-  // error (quadSearchPx). Each
-  // session's figures, and what each change gained or cost, are in docs/BENCHMARKS.md.
+  // error (quadSearchPx). Each session's figures, and what each change gained or cost, are in
+  // docs/BENCHMARKS.md.
   if (!only && !seed) {
     EXPECT_GE(total.rs16_found, 46);
     EXPECT_GE(total.found, 230);
