@@ -213,13 +213,14 @@ double leastSpanShare(const CameraModel& camera, const ImageBoardDetectorOptions
 
 namespace {
 
-// Half width (px) of a line quadrilateral's first edge search. In an image no wider than
-// line_detection_width_px its lines are found at full resolution, as close to the edge as the
-// fine passes search; searched coarse_search_px wide, a far board's side with grain along it
-// meets the stripes inside as rivals (augmented real frames: far + low contrast + wood 5 -> 8 of
-// 21 found). In wider images the lines come from a downscaled copy, and their quadrilaterals'
-// sides from lines merged and extended to corners: in 960 px simulated frames a 5 px search
-// found 23 more boards of 672 but took 4 scene squares (2 others no longer).
+// Half width (px) of a quadrilateral's first edge search (lines, a traced side, stable regions:
+// every fromQuad). In an image no wider than line_detection_width_px its lines are found at full
+// resolution, as close to the edge as the fine passes search; searched coarse_search_px wide, a
+// far board's side with grain along it meets the stripes inside as rivals (augmented real
+// frames: far + low contrast + wood 5 -> 8 of 21 found). In wider images the lines come from a
+// downscaled copy, and their quadrilaterals' sides from lines merged and extended to corners: in
+// 960 px simulated frames a 5 px search found 23 more boards of 672 but took 4 scene squares (2
+// others no longer).
 double quadSearchPx(const CameraModel& camera, const ImageBoardDetectorOptions& o) {
   return camera.width() <= o.line_detection_width_px
              ? std::min(o.fine_search_px, o.coarse_search_px)
