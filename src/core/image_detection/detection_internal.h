@@ -169,6 +169,10 @@ std::vector<std::array<Eigen::Vector2d, 2>> sceneLines(const cv::Mat& gray,
                                                        const CameraModel& camera,
                                                        const ImageBoardDetectorOptions& options);
 
+/// Full-resolution px per px of the line stage's image (1: lines found at full resolution; also
+/// when line detection is off).
+double lineDetectionScale(const ImageBoardDetectorOptions& options, int image_width);
+
 /// px: two straight lines of the line stage are one line when the ends of the shorter lie this
 /// close to the longer (the merge band: a held board's bow, or the segment ends' noise at the
 /// line detector's scale for this image width).

@@ -32,11 +32,6 @@ constexpr double kCosRoundingMargin = 1e-9;  // far above the rounding of a cosi
 // Segment ends this far from a line still lie on it: a held board's bow, or the ends' noise.
 double mergeOffsetPx(double end_sigma) { return std::max(kMergeOffsetPx, 2.0 * end_sigma); }
 
-// full-resolution px per LSD px
-double lineDetectionScale(const ImageBoardDetectorOptions& o, int image_width) {
-  return std::max(1.0, static_cast<double>(image_width) / o.line_detection_width_px);
-}
-
 // LSD segments of the downscaled image, in undistorted full-resolution px, longest first.
 // `scale`: full-resolution px per LSD px.
 std::vector<Member> detectSegments(const cv::Mat& gray, const CameraModel& camera,
@@ -133,6 +128,11 @@ std::vector<MergedLine> mergeSegments(const std::vector<Member>& segments, doubl
 }
 
 }  // namespace
+
+double lineDetectionScale(const ImageBoardDetectorOptions& o, int image_width) {
+  if (o.line_detection_width_px <= 0) return 1.0;
+  return std::max(1.0, static_cast<double>(image_width) / o.line_detection_width_px);
+}
 
 void MergedLine::refit() {
   double w = 0;

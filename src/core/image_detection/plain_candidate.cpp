@@ -222,9 +222,9 @@ namespace {
 // 960 px simulated frames a 5 px search found 23 more boards of 672 but took 4 scene squares (2
 // others no longer).
 double quadSearchPx(const CameraModel& camera, const ImageBoardDetectorOptions& o) {
-  return camera.width() <= o.line_detection_width_px
-             ? std::min(o.fine_search_px, o.coarse_search_px)
-             : o.coarse_search_px;
+  const bool full_resolution =
+      o.line_detection_width_px > 0 && lineDetectionScale(o, camera.width()) == 1.0;
+  return full_resolution ? std::min(o.fine_search_px, o.coarse_search_px) : o.coarse_search_px;
 }
 
 }  // namespace
@@ -238,6 +238,7 @@ Hypothesis fromQuad(const QuadHypothesis& q, const CameraModel& camera,
   // 10) must not pass on the lenient fit a held board's flex needs.
   if (weak) h.max_rms_share = kWeakLinesRmsShare;
   h.inside_u = 0.25 * (q.corners[0] + q.corners[1] + q.corners[2] + q.corners[3]);
+  const double search_px = quadSearchPx(camera, o);
   for (int s = 0; s < kNumEdges; ++s) {
     Eigen::Vector2d a, b;
     const Eigen::Vector2d& p = q.corners[(s + 3) % 4];
@@ -249,7 +250,7 @@ Hypothesis fromQuad(const QuadHypothesis& q, const CameraModel& camera,
     e.a = camera.distortPixel(a);
     e.b = camera.distortPixel(b);
     e.length = (b - a).norm();
-    e.search_px = quadSearchPx(camera, o);
+    e.search_px = search_px;
     const Eigen::Vector3d l = lineThrough(a, b, h.inside_u);
     e.angle = std::atan2(l.y(), l.x());
     h.sides.push_back(e);
