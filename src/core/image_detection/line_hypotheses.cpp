@@ -9,7 +9,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 
 namespace board_calib {
 namespace image_detection {
@@ -141,14 +140,18 @@ double cornerEndTolerance(const MergedLine& l, double end_sigma) {
   return kCornerEndSigmas * end_sigma + kCornerToleranceFraction * (l.t_max - l.t_min);
 }
 
-// The line carries support on both sides of c: it crosses there (a grid or a window bay), where a
-// board's side would end.
-bool crossesAt(const MergedLine& l, const Eigen::Vector2d& c, double end_sigma) {
+// The line carries support on both sides of c within `reach` of it: it crosses there (a grid or
+// a window bay), where a board's side would end. Only within reach: the greedy merge joins
+// segments that are collinear by chance hundreds of px apart, and a board side's line that took
+// in a scene segment far past its corner would otherwise cross there (augmented real frames: a
+// far board's top side and a ceiling segment 450 px on, its bottom side and a segment 870 px
+// off; the second board was then taken with the floor line below it as its side, 41 px off).
+bool crossesAt(const MergedLine& l, const Eigen::Vector2d& c, double end_sigma, double reach) {
   const double t = l.along(c), tol = cornerEndTolerance(l, end_sigma);
   // No support at all on one side (the intervals lie within [t_min, t_max]).
   if (t - tol <= l.t_min || t + tol >= l.t_max) return false;
-  const double inf = std::numeric_limits<double>::infinity();
-  return std::min(l.supportWithin(-inf, t - tol), l.supportWithin(t + tol, inf)) > tol;
+  return std::min(l.supportWithin(t - tol - reach, t - tol),
+                  l.supportWithin(t + tol, t + tol + reach)) > tol;
 }
 
 // One end of the line's support lies at c.
@@ -168,13 +171,17 @@ bool endsBy(const MergedLine& l, const Eigen::Vector2d& from, const Eigen::Vecto
 
 // How lines a and b meet at c, for the lines-ends graph: neither crosses there and at least one
 // ends there (the other may stop short: occluded, faint), or, with `open`, both stop short; 0
-// otherwise.
+// otherwise. Each is judged crossing within the other's extent, the scale of a quadrilateral
+// with that corner: a window grid's line runs on past the corner into the next window, well
+// within it.
 char cornerOfEnds(const MergedLine& a, const MergedLine& b, const Eigen::Vector2d& c,
                   double end_sigma, bool open) {
   // The cheaper test first.
   const bool ends = endsAt(a, c, end_sigma) || endsAt(b, c, end_sigma);
   if (!ends && !open) return 0;
-  if (crossesAt(a, c, end_sigma) || crossesAt(b, c, end_sigma)) return 0;
+  if (crossesAt(a, c, end_sigma, b.t_max - b.t_min) ||
+      crossesAt(b, c, end_sigma, a.t_max - a.t_min))
+    return 0;
   return ends ? kEndCorner : kOpenCorner;
 }
 
