@@ -23,6 +23,7 @@
 #include <cstdlib>
 #include <ctime>
 #include <filesystem>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -403,71 +404,73 @@ TEST(ImageDetectorAugmented, OtherDrawsGiveNoWrongBoard) {
   }
 }
 
-// Fresh draw 23, wood grain, rs16_1: a wall-and-floor rectangle of the office around the board
-// passed the board checks (corners fitting 0.8 x 0.6 m at 4.39 px by a steep turn) beside the
-// board itself (0.99 px), and won on its longer outline: all four sides 1000 px "off". Outlines
-// that cross cannot both be the board; the better fit is kept. Replays the draw's generator up to
-// that frame (the augmentations only) and detects it alone.
-TEST(ImageDetectorAugmented, ASceneRectangleCrossingTheBoardLosesToIt) {
-  if (!std::filesystem::exists(BOARD_CALIB_SHARED_DIR)) GTEST_SKIP() << "../shared absent";
-  const std::vector<Frame>& frames = recordedFrames();
-  ASSERT_GE(frames.size(), 16u + kRs16WithReference);
-  constexpr size_t kWoodCase = 5;
-  ASSERT_EQ(kCases[kWoodCase].ops, std::vector<augmented::Op>{kWood});
-  std::mt19937 rng(23);
-  for (size_t k = 0; k < kWoodCase; ++k)
+// One frame of a draw as the whole table's generator makes it (the augmentations of the cases
+// before it replayed, no detection), or nullopt when `name` is not among the recorded frames.
+std::optional<Frame> replayedFrame(const std::vector<Frame>& frames, unsigned seed,
+                                   size_t case_index, const std::string& name) {
+  std::mt19937 rng(seed);
+  for (size_t k = 0; k < case_index; ++k)
     for (size_t i = 0; i < frames.size(); ++i)
       augment(frames[i], kCases[k], static_cast<int>(i), rng);
   for (size_t i = 0; i < frames.size(); ++i) {
-    const Frame f = augment(frames[i], kCases[kWoodCase], static_cast<int>(i), rng);
-    if (f.name != "rs16_1") continue;
-    auto det = ImageBoardDetector::create(f.target, ImageBoardDetectorOptions{});
-    ASSERT_TRUE(det.ok());
-    const ImageDetection d = det->detect(f.image, f.camera());
-    writeDebug("crossing_" + f.name, f.image, f.camera(), d);
-    ASSERT_TRUE(d.features.found && d.features.allEdgesValid()) << d.features.reason;
-    // The board's sides: within 1 px but for a grain-bowed one (2.67 px measured); the scene
-    // rectangle's lie hundreds of px away.
-    for (int j = 0; j < kNumEdges; ++j)
-      EXPECT_LT(edgeErrorPx(f, d.features, j), 4.0) << edgeName(j);
-    return;
+    Frame f = augment(frames[i], kCases[case_index], static_cast<int>(i), rng);
+    if (f.name == name) return f;
   }
-  FAIL() << "rs16_1 is not among the recorded frames";
+  return std::nullopt;
+}
+
+// The board of a replayed frame, detected alone; its sides' errors against the reference (px).
+std::array<double, kNumEdges> replayedBoardErrors(unsigned seed, size_t case_index,
+                                                  augmented::Op op, const std::string& name,
+                                                  const std::string& debug_name) {
+  std::array<double, kNumEdges> errors;
+  errors.fill(1e9);
+  const std::vector<Frame>& frames = recordedFrames();
+  EXPECT_GE(frames.size(), 16u + kRs16WithReference);
+  EXPECT_EQ(kCases[case_index].ops, std::vector<augmented::Op>{op});
+  const std::optional<Frame> f = replayedFrame(frames, seed, case_index, name);
+  if (!f) {
+    ADD_FAILURE() << name << " is not among the recorded frames";
+    return errors;
+  }
+  auto det = ImageBoardDetector::create(f->target, ImageBoardDetectorOptions{});
+  if (!det.ok()) {
+    ADD_FAILURE() << "detector not created";
+    return errors;
+  }
+  const ImageDetection d = det->detect(f->image, f->camera());
+  writeDebug(debug_name + "_" + f->name, f->image, f->camera(), d);
+  EXPECT_TRUE(d.features.found && d.features.allEdgesValid()) << d.features.reason;
+  if (!d.features.found || !d.features.allEdgesValid()) return errors;
+  for (int j = 0; j < kNumEdges; ++j) {
+    errors[j] = edgeErrorPx(*f, d.features, j);
+    std::printf("  edge %s: %.2f px\n", edgeName(j), errors[j]);
+  }
+  return errors;
+}
+
+// Fresh draw 23, wood grain, rs16_1: a wall-and-floor rectangle of the office around the board
+// passed the board checks (corners fitting 0.8 x 0.6 m at 4.39 px by a steep turn) beside the
+// board itself (0.99 px), and won on its longer outline: all four sides 1000 px "off". Outlines
+// that cross cannot both be the board; the better fit is kept.
+TEST(ImageDetectorAugmented, ASceneRectangleCrossingTheBoardLosesToIt) {
+  if (!std::filesystem::exists(BOARD_CALIB_SHARED_DIR)) GTEST_SKIP() << "../shared absent";
+  const auto errors = replayedBoardErrors(23, 5, kWood, "rs16_1", "crossing");
+  // The board's sides: within 1 px but for a grain-bowed one (2.67 px measured); the scene
+  // rectangle's lie hundreds of px away.
+  for (int j = 0; j < kNumEdges; ++j) EXPECT_LT(errors[j], 4.0) << edgeName(j);
 }
 
 // Draw 32, far, rs16_3: the board's bottom side was merged with a collinear scene segment ~870 px
 // to its left, so its line crossed the board's corner and no quadrilateral ended there; the board
 // was taken with the floor line below it as its bottom side (corners fitting at 1.34 px, that
-// side 41 px off). A line now crosses a corner only within the other line's extent. Replays the
-// draw's generator up to that frame (the augmentations only) and detects it alone.
+// side 41 px off). A line now crosses a corner only within the other line's extent.
 TEST(ImageDetectorAugmented, ABoardSideMergedWithADistantSceneSegmentKeepsItsCorners) {
   if (!std::filesystem::exists(BOARD_CALIB_SHARED_DIR)) GTEST_SKIP() << "../shared absent";
-  const std::vector<Frame>& frames = recordedFrames();
-  ASSERT_GE(frames.size(), 16u + kRs16WithReference);
-  constexpr size_t kFarCase = 6;
-  ASSERT_EQ(kCases[kFarCase].ops, std::vector<augmented::Op>{kFar});
-  std::mt19937 rng(32);
-  for (size_t k = 0; k < kFarCase; ++k)
-    for (size_t i = 0; i < frames.size(); ++i)
-      augment(frames[i], kCases[k], static_cast<int>(i), rng);
-  for (size_t i = 0; i < frames.size(); ++i) {
-    const Frame f = augment(frames[i], kCases[kFarCase], static_cast<int>(i), rng);
-    if (f.name != "rs16_3") continue;
-    auto det = ImageBoardDetector::create(f.target, ImageBoardDetectorOptions{});
-    ASSERT_TRUE(det.ok());
-    const ImageDetection d = det->detect(f.image, f.camera());
-    writeDebug("merged_side_" + f.name, f.image, f.camera(), d);
-    ASSERT_TRUE(d.features.found && d.features.allEdgesValid()) << d.features.reason;
-    // The board's sides lie within 1 px of the reference (measured up to 0.26 px); the floor
-    // line is 20-48 px below the bottom side.
-    for (int j = 0; j < kNumEdges; ++j) {
-      const double error = edgeErrorPx(f, d.features, j);
-      std::printf("  edge %s: %.2f px\n", edgeName(j), error);
-      EXPECT_LT(error, 1.0) << edgeName(j);
-    }
-    return;
-  }
-  FAIL() << "rs16_3 is not among the recorded frames";
+  const auto errors = replayedBoardErrors(32, 6, kFar, "rs16_3", "merged_side");
+  // The board's sides lie within 1 px of the reference (measured up to 0.26 px); the floor line
+  // is 20-48 px below the bottom side.
+  for (int j = 0; j < kNumEdges; ++j) EXPECT_LT(errors[j], 1.0) << edgeName(j);
 }
 
 // The far cases alone, each from a fresh draw (its own generator at the default seed: other
