@@ -244,6 +244,46 @@ TEST(LineSegments, ABoardWithAHandOverACornerIsProposedBelowLongerLines) {
   EXPECT_LT(nearest, 0.5);
 }
 
+// A merged line of one segment from a to b (undistorted px).
+image_detection::MergedLine lineOf(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  image_detection::MergedLine l;
+  l.point = a;
+  l.dir = (b - a).normalized();
+  l.members.push_back({a, b, (b - a).norm()});
+  l.refit();
+  return l;
+}
+
+// Past the first lines, those ending where another line meets them and ends too (an L corner, as
+// a board's sides) come first; lines that cross, a T's stem, and two lines ending together at too
+// small an angle to be a corner keep their place behind them. The order within each group stays.
+TEST(LineSegments, LinesPastTheFirstThatEndAtACornerRankFirst) {
+  using image_detection::MergedLine;
+  std::vector<MergedLine> lines;
+  for (int k = 0; k < 4; ++k)  // the first lines: a long grid, never moved
+    lines.push_back(lineOf({0, 100.0 + 200 * k}, {1900, 100.0 + 200 * k}));
+  lines.push_back(lineOf({100, 0}, {100, 1000}));     // 4: crosses the grid
+  lines.push_back(lineOf({300, 300}, {300, 450}));    // 5: a T's stem on line 1
+  lines.push_back(lineOf({500, 450}, {800, 470}));    // 6: ends with 7 at 10 deg
+  lines.push_back(lineOf({800, 470}, {1100, 543}));   // 7
+  lines.push_back(lineOf({1200, 450}, {1300, 460}));  // 8: the board's top side
+  lines.push_back(lineOf({1301, 462}, {1290, 540}));  // 9: its right side (1 px gap)
+  lines.push_back(lineOf({1500, 900}, {1700, 950}));  // 10: alone
+  const size_t first = 4;
+  std::vector<Eigen::Vector2d> starts;
+  for (const auto& l : lines) starts.push_back(l.members.front().a);
+  image_detection::rankLinesEndingAtCorners(&lines, first, 0.7 * 3);
+  ASSERT_EQ(lines.size(), starts.size());
+  const std::vector<size_t> expected = {0, 1, 2, 3, 8, 9, 4, 5, 6, 7, 10};
+  for (size_t k = 0; k < lines.size(); ++k)
+    EXPECT_EQ(lines[k].members.front().a, starts[expected[k]]) << "rank " << k;
+  // No line past the first ones (first = size, or more): nothing to reorder, nothing read.
+  std::vector<MergedLine> two = {lineOf({0, 0}, {100, 0}), lineOf({100, 0}, {100, 100})};
+  image_detection::rankLinesEndingAtCorners(&two, 2, 2.1);
+  image_detection::rankLinesEndingAtCorners(&two, 5, 2.1);
+  EXPECT_EQ(two[0].members.front().b, Eigen::Vector2d(100, 0));
+}
+
 TEST(LineSegments, DegenerateInputGivesNoSegments) {
   EXPECT_TRUE(lineSegments(cv::Mat()).empty());
   EXPECT_TRUE(lineSegments(cv::Mat(1, 1, CV_8U, cv::Scalar(7))).empty());

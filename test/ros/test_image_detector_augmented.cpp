@@ -88,6 +88,14 @@ EdgeScore scoreEdges(const Frame& f, const ImageDetection& det, const std::strin
           "  edge %-10s %s %s: %.2f px (normals' cosine %.3f, bow %.1f +- %.1f px over %.0f)\n",
           f.name.c_str(), case_name.c_str(), edgeName(j), dist, along, det.details.edge_bow_px[j],
           det.details.edge_bow_sigma_px[j], det.details.edge_span_px[j]);
+    // Development aid: a side named otherwise (1000) next to the found lines under any name,
+    // which tells a quarter-turn naming of the board from another object.
+    if (dist >= 1e3 && std::getenv("BOARD_CALIB_AUG_DIAG")) {
+      std::printf("    found lines under any name:");
+      for (int k = 0; k < kNumEdges; ++k)
+        std::printf(" %s %.2f px", edgeName(k), segmentDistancePx(f, j, fe.edge_lines[k]));
+      std::printf("\n");
+    }
     if (dist > 1.0 && dist < 1e3 && std::getenv("BOARD_CALIB_AUG_RESIDUALS"))
       printResiduals(f, det, j);
   }
@@ -342,7 +350,7 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   // (1000); a side a hand pulled, 9.6 px (another draw, before the straightness test).
   EXPECT_LT(total.all.worst, 8.0);
   // Over every case (the whole table, when no case is selected): measured 47 of 60 rs16_plain
-  // frames and 231 of 252 in all. The search is deterministic, so a lost frame is a regression.
+  // frames and 232 of 252 in all. The search is deterministic, so a lost frame is a regression.
   // Session 29: 39 and 215 before edge profiles cut by the image border, the second look at a
   // weak side around its own peaks' line and the faint-line search's weak quadrilaterals (one
   // frame each). Session 31: 41 and 218 before a short side's span rule (basler0 far, 3 frames)
@@ -356,11 +364,13 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   // Session 44: 230, three far basler boards under grain, searched no wider than their lines'
   // error (quadSearchPx). Session 45: 47 and 231, the far rs16_3 board whose top side's line
   // took in a ceiling segment 450 px on: a line crosses a corner only within the other line's
-  // extent (crossesAt). Each session's figures, and what each change gained or cost, are in
-  // docs/BENCHMARKS.md.
+  // extent (crossesAt). Session 46: 48 and 232, the far rs16_1 board whose two upper sides
+  // ranked past the 200 lines kept: past the first lines, those ending at a corner come first
+  // (rankLinesEndingAtCorners). Each session's figures, and what each change gained or cost, are
+  // in docs/BENCHMARKS.md.
   if (!only && !seed) {
-    EXPECT_GE(total.rs16_found, 47);
-    EXPECT_GE(total.found, 231);
+    EXPECT_GE(total.rs16_found, 48);
+    EXPECT_GE(total.found, 232);
   }
 }
 
@@ -471,6 +481,29 @@ TEST(ImageDetectorAugmented, ABoardSideMergedWithADistantSceneSegmentKeepsItsCor
   // The board's sides lie within 1 px of the reference (measured up to 0.26 px); the floor line
   // is 20-48 px below the bottom side.
   for (int j = 0; j < kNumEdges; ++j) EXPECT_LT(errors[j], 1.0) << edgeName(j);
+}
+
+// Default draw, far + background + print + occluders, rs16_1: once more far lines were ranked,
+// a ceiling beam's light face in the wide-angle corner passed for a board 14.7 m away, its
+// sides 170 and 47 px. Its long sides run on past 3 of their 4 corner ends, but the short
+// sides' ends were too short a stretch to test, and with fewer than six ends tested no
+// quadrilateral was judged. A short side's ends are now tested over as many samples as an edge
+// needs (continuationStretchPx).
+TEST(ImageDetectorAugmented, ABeamsFaceWhoseLongSidesRunOnIsNotAFarBoard) {
+  if (!std::filesystem::exists(BOARD_CALIB_SHARED_DIR)) GTEST_SKIP() << "../shared absent";
+  const std::vector<Frame>& frames = recordedFrames();
+  ASSERT_GE(frames.size(), 16u + kRs16WithReference);
+  constexpr size_t kCase = 11;
+  ASSERT_EQ(kCases[kCase].ops, (std::vector<augmented::Op>{kBackground, kPrint, kOcclude, kFar}));
+  const std::optional<Frame> f = replayedFrame(frames, kDefaultSeed, kCase, "rs16_1");
+  ASSERT_TRUE(f.has_value());
+  auto det = ImageBoardDetector::create(f->target, ImageBoardDetectorOptions{});
+  ASSERT_TRUE(det.ok()) << det.error();
+  const ImageDetection d = det->detect(f->image, f->camera());
+  writeDebug("beam_face_" + f->name, f->image, f->camera(), d);
+  // Not found (the board's own sides are too faint here), or found with the board's sides.
+  for (int j = 0; j < kNumEdges && d.features.found; ++j)
+    EXPECT_LT(edgeErrorPx(*f, d.features, j), 1.0) << edgeName(j) << ": another object's side";
 }
 
 // The far cases alone, each from a fresh draw (its own generator at the default seed: other

@@ -140,6 +140,68 @@ double cornerEndTolerance(const MergedLine& l, double end_sigma) {
   return kCornerEndSigmas * end_sigma + kCornerToleranceFraction * (l.t_max - l.t_min);
 }
 
+}  // namespace
+
+// Support alone ranks a far board's sides (50-120 px) past the hundreds of longer ceiling and
+// floor lines of an office (rs16_plain: the 200th line had 105 px), which cross each other
+// rather than end together. Ends are matched within both lines' corner tolerances, as the corner
+// graph of the lines' ends matches them.
+void rankLinesEndingAtCorners(std::vector<MergedLine>* lines, size_t first, double end_sigma) {
+  std::vector<MergedLine>& l = *lines;
+  const size_t n = l.size();
+  if (n <= first) return;
+  // Every line's ends, by x: an end's partner lies within the two lines' tolerances of it.
+  struct End {
+    Eigen::Vector2d p;
+    double tolerance;
+    size_t line;
+  };
+  std::vector<End> ends;
+  ends.reserve(2 * n);
+  std::vector<Eigen::Vector3d> homogeneous(n);
+  double widest = 0;
+  for (size_t i = 0; i < n; ++i) {
+    homogeneous[i] = l[i].homogeneous();
+    const double tolerance = cornerEndTolerance(l[i], end_sigma);
+    widest = std::max(widest, tolerance);
+    for (const Eigen::Vector2d& p : l[i].ends()) ends.push_back({p, tolerance, i});
+  }
+  std::sort(ends.begin(), ends.end(), [](const End& a, const End& b) { return a.p.x() < b.p.x(); });
+  std::vector<char> at_corner(n, 0);
+  for (size_t k = 0; k < ends.size(); ++k) {
+    const End& a = ends[k];
+    if (a.line < first || at_corner[a.line]) continue;
+    const double reach = a.tolerance + widest;
+    // Whether end m (within reach along x) is a's partner at an L corner; false when past reach.
+    auto partner = [&](size_t m, bool* past) {
+      const End& b = ends[m];
+      *past = std::abs(b.p.x() - a.p.x()) > reach;
+      if (*past || b.line == a.line || (b.p - a.p).norm() > a.tolerance + b.tolerance ||
+          std::abs(cross2(l[a.line].dir, l[b.line].dir)) < kMinCornerSin)
+        return false;
+      Eigen::Vector2d c;
+      return intersectLines(homogeneous[a.line], homogeneous[b.line], &c) &&
+             (c - a.p).norm() <= a.tolerance && (c - b.p).norm() <= b.tolerance;
+    };
+    bool past = false;
+    for (size_t m = k + 1; m < ends.size() && !past && !at_corner[a.line]; ++m)
+      at_corner[a.line] = partner(m, &past);
+    past = false;
+    for (size_t m = k; m-- > 0 && !past && !at_corner[a.line];)
+      at_corner[a.line] = partner(m, &past);
+  }
+  std::vector<size_t> order(n);
+  for (size_t i = 0; i < n; ++i) order[i] = i;
+  std::stable_partition(order.begin() + first, order.end(),
+                        [&](size_t i) { return at_corner[i] != 0; });
+  std::vector<MergedLine> ranked;
+  ranked.reserve(n);
+  for (const size_t i : order) ranked.push_back(std::move(l[i]));
+  l = std::move(ranked);
+}
+
+namespace {
+
 // The line carries support on both sides of c within `reach` of it: it crosses there (a grid or
 // a window bay), where a board's side would end. Only within reach: the greedy merge joins
 // segments that are collinear by chance hundreds of px apart, and a board side's line that took

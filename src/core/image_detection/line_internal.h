@@ -55,6 +55,11 @@ struct MergedLine {
   }
 };
 
+/// Reorders the lines past the first `first` (most supported first): those with an end where
+/// another line meets them at a real angle and ends too (an L corner, as a board's sides make)
+/// come before the others, each group keeping its order (line_hypotheses.cpp).
+void rankLinesEndingAtCorners(std::vector<MergedLine>* lines, size_t first, double end_sigma);
+
 /// Line segments of an 8-bit grey image (x1, y1, x2, y2; pixel centres at integers): the LSD
 /// algorithm as OpenCV's LSD_REFINE_NONE, faster (line_segment_detector.cpp). `quantization`:
 /// LSD's q, the bound of the error on a gradient component (grey levels; 2 is LSD's for raw 8-bit

@@ -84,8 +84,8 @@ std::vector<Member> detectSegments(const cv::Mat& gray, const CameraModel& camer
 
 // Greedy merge, longest first: a segment joins a line when its direction agrees within its own
 // endpoint noise and both its ends lie within the bow of a held board. Returns the lines with
-// enough support, most supported first, at most max_lines (a floor or ceiling has many longer
-// than the board).
+// enough support, most supported first (past the first options.max_lines, those ending at a
+// corner first), at most max_lines (a floor or ceiling has many longer than the board).
 std::vector<MergedLine> mergeSegments(const std::vector<Member>& segments, double end_sigma,
                                       const ImageBoardDetectorOptions& o, int max_lines) {
   std::vector<MergedLine> lines;
@@ -123,6 +123,7 @@ std::vector<MergedLine> mergeSegments(const std::vector<Member>& segments, doubl
               lines.end());
   std::sort(lines.begin(), lines.end(),
             [](const MergedLine& x, const MergedLine& y) { return x.support > y.support; });
+  rankLinesEndingAtCorners(&lines, static_cast<size_t>(std::max(0, o.max_lines)), end_sigma);
   if (lines.size() > static_cast<size_t>(max_lines)) lines.resize(max_lines);
   return lines;
 }

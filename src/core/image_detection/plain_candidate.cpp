@@ -16,7 +16,8 @@ constexpr double kCornerMatchPx =
     1e-6;  // a clipped side end this close to its corner is the corner
 constexpr double kSquareTolerance = 0.01;  // boards whose width and height differ less are square
 // A board side ends at its corners; a window frame, door or floor line runs on. The stretch past
-// each corner is searched over this fraction of the side.
+// each corner is searched over this fraction of the side, and over as many samples as an edge
+// needs at least (continuationStretchPx).
 constexpr double kContinuationFraction = 0.25;
 // Measured on the augmented real frames (173 accepted true boards): with 5 or more testable ends
 // a true board ran on at <= 2 (<= 1 of 8 with all eight testable), the office rectangles taken
@@ -147,6 +148,15 @@ bool plausiblePose(const Target& target, const ImageBoardDetectorOptions& o, con
   return f.reason.empty();
 }
 
+// px searched past a corner of a side `side` px long: a short side's ends are tested too, with
+// one sample to spare for rounding. Without the floor a 47 px face of a ceiling beam escaped the
+// test (ends of its short sides untested, fewer than kMinTestedEnds) while its 170 px sides ran
+// on past 3 of their 4 ends (augmented real frames, a far rs16 case: taken for a board 14.7 m
+// away once the search ranked more far lines).
+double continuationStretchPx(double side, const ImageBoardDetectorOptions& o) {
+  return std::max(kContinuationFraction * side, o.min_edge_points * o.sample_step_px);
+}
+
 }  // namespace
 
 std::string implausiblePlace(const Target& target, const ImageBoardDetectorOptions& o,
@@ -180,7 +190,7 @@ bool sidesEndAtCorners(const cv::Mat& gray, const CameraModel& camera,
       const double run_on =
           edgeContinuation(gray, camera, f->edge_lines[j], e ? start : end,
                            e ? Eigen::Vector2d(-dir) : dir, o.corner_exclusion_px,
-                           kContinuationFraction * side, o, min_gradient, &positions, &run_on_px);
+                           continuationStretchPx(side, o), o, min_gradient, &positions, &run_on_px);
       if (positions < o.min_edge_points) continue;
       ++tested;
       // Running on as far as a side needs to count as seen, and as long as the shortest edge.

@@ -72,8 +72,9 @@ struct ImageBoardDetectorOptions {
   int max_lines_static_scene =
       200;  ///< the same once a session knows the static scene (ImageBoardTracker): its
             ///< quadrilaterals are then skipped and the rest ranked by support per px of perimeter;
-            ///< alone, the lines past max_lines up to this many give quadrilaterals only where
-            ///< the lines end at the corners, tried when nothing else was the board
+            ///< alone, the lines past max_lines up to this many (those ending at a corner
+            ///< first) give quadrilaterals only where the lines end at the corners, tried when
+            ///< nothing else was the board
   double max_board_tilt_deg = 70.0;    ///< deg, a plain board turned further from the camera is
                                        ///< rejected (no calibration view)
   double max_board_distance_m = 20.0;  ///< m, a plain board farther away is rejected: a 16-ring
