@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <functional>
 
 namespace board_calib {
 namespace {
@@ -404,6 +405,31 @@ double worstFoundEdgePx(const ImageDetection& d, const Rendered& r, const Target
   return off;
 }
 
+// Boards found in `frames` renders of scene(i), with the worst found edge against the truth and
+// how many of the frames had the line stage keep as many lines as it may (200).
+struct SceneTally {
+  int found = 0, full_line_sets = 0;
+  double worst_px = 0;
+};
+SceneTally detectEach(int frames, const std::function<Rendered(int)>& scene,
+                      const std::string& name, const std::string& debug_name) {
+  const CameraModel camera = testCamera();
+  const Target target = configTarget("plain_1016.yaml");
+  auto det = ImageBoardDetector::create(target, ImageBoardDetectorOptions{});
+  EXPECT_TRUE(det.ok()) << det.error();
+  SceneTally t;
+  for (int i = 0; i < frames && det.ok(); ++i) {
+    const Rendered r = scene(i);
+    const ImageDetection d = det->detect(r.image, camera);
+    writeDebug(debug_name + "_" + std::to_string(i), r.image, camera, d);
+    t.found += d.features.found;
+    t.full_line_sets += d.details.lines_px.size() >= 200;
+    t.worst_px = std::max(t.worst_px,
+                          worstFoundEdgePx(d, r, target, camera, name + " " + std::to_string(i)));
+  }
+  return t;
+}
+
 // A far board (~100 px, too small for a region proposal) in a scene of many longer lines: its
 // sides rank behind the window frames' edges, so only the quadrilaterals of the lines past
 // max_lines can outline it, and its segment support is far below that of the frames'
@@ -412,25 +438,16 @@ double worstFoundEdgePx(const ImageDetection& d, const Rendered& r, const Target
 TEST(ImageDetectorSim, AFarBoardBehindManyLongerLinesIsFoundByItsSides) {
   const CameraModel camera = testCamera();
   const Target target = configTarget("plain_1016.yaml");
-  auto det = ImageBoardDetector::create(target, ImageBoardDetectorOptions{});
-  ASSERT_TRUE(det.ok()) << det.error();
-  int found = 0;
-  double worst_px = 0;
   constexpr int kFrames = 12;
-  for (int i = 0; i < kFrames; ++i) {
-    const Rendered r = farBoardBehindWindows(camera, target, 40 + i, 30);
-    const ImageDetection d = det->detect(r.image, camera);
-    writeDebug("sim_plain_far_lines_" + std::to_string(i), r.image, camera, d);
-    found += d.features.found;
-    worst_px = std::max(worst_px, worstFoundEdgePx(d, r, target, camera,
-                                                   "far board behind lines " + std::to_string(i)));
-  }
+  const SceneTally t = detectEach(
+      kFrames, [&](int i) { return farBoardBehindWindows(camera, target, 40 + i, 30); },
+      "far board behind lines", "sim_plain_far_lines");
   // Measured: 12 of 12, lines within 0.03 px. Before the weak lines' quadrilaterals were ranked
   // by their sides' gradient (their segment score had to match the best quadrilaterals'), 4 of
   // 12: in the others no board was found (the attempt reported: a window frame's quadrilateral,
   // which fits no board).
-  EXPECT_EQ(found, kFrames);
-  EXPECT_LT(worst_px, 1.0);  // sub-pixel lines on a ~100 px board (issue 14)
+  EXPECT_EQ(t.found, kFrames);
+  EXPECT_LT(t.worst_px, 1.0);  // sub-pixel lines on a ~100 px board (issue 14)
 }
 
 // farBoardBehindWindows' board with `strokes` straight strokes instead of windows, 400-1600 px
@@ -466,24 +483,13 @@ Rendered farBoardUnderCrossingLines(const CameraModel& camera, const Target& tar
 TEST(ImageDetectorSim, AFarBoardUnderManyLongerCrossingLinesIsFoundByItsCorners) {
   const CameraModel camera = testCamera();
   const Target target = configTarget("plain_1016.yaml");
-  auto det = ImageBoardDetector::create(target, ImageBoardDetectorOptions{});
-  ASSERT_TRUE(det.ok()) << det.error();
-  int found = 0, many_lines = 0;
-  double worst_px = 0;
   constexpr int kFrames = 8;
-  for (int i = 0; i < kFrames; ++i) {
-    const Rendered r = farBoardUnderCrossingLines(camera, target, 80 + i, 160);
-    const ImageDetection d = det->detect(r.image, camera);
-    writeDebug("sim_plain_far_crossing_" + std::to_string(i), r.image, camera, d);
-    found += d.features.found;
-    many_lines += d.details.lines_px.size() >= 200;
-    worst_px =
-        std::max(worst_px, worstFoundEdgePx(d, r, target, camera,
-                                            "far board under crossing lines " + std::to_string(i)));
-  }
-  EXPECT_EQ(many_lines, kFrames);  // the search kept as many lines as it may: the case at hand
-  EXPECT_EQ(found, kFrames);
-  EXPECT_LT(worst_px, 1.0);
+  const SceneTally t = detectEach(
+      kFrames, [&](int i) { return farBoardUnderCrossingLines(camera, target, 80 + i, 160); },
+      "far board under crossing lines", "sim_plain_far_crossing");
+  EXPECT_EQ(t.full_line_sets, kFrames);  // the search kept as many lines as it may: the case
+  EXPECT_EQ(t.found, kFrames);
+  EXPECT_LT(t.worst_px, 1.0);
 }
 
 // A camera_T_board from {x, y, z, qw, qx, qy, qz}.
