@@ -137,7 +137,7 @@ constexpr char kOpenCorner = 2;
 // px: a line's support ending this close to a corner ends there (segment end noise at the LSD
 // scale, and corner rounding of a held board as a share of the line's extent).
 double cornerEndTolerance(const MergedLine& l, double end_sigma) {
-  return kCornerEndSigmas * end_sigma + kCornerToleranceFraction * (l.t_max - l.t_min);
+  return kCornerEndSigmas * end_sigma + kCornerToleranceFraction * l.extent();
 }
 
 }  // namespace
@@ -241,9 +241,7 @@ char cornerOfEnds(const MergedLine& a, const MergedLine& b, const Eigen::Vector2
   // The cheaper test first.
   const bool ends = endsAt(a, c, end_sigma) || endsAt(b, c, end_sigma);
   if (!ends && !open) return 0;
-  if (crossesAt(a, c, end_sigma, b.t_max - b.t_min) ||
-      crossesAt(b, c, end_sigma, a.t_max - a.t_min))
-    return 0;
+  if (crossesAt(a, c, end_sigma, b.extent()) || crossesAt(b, c, end_sigma, a.extent())) return 0;
   return ends ? kEndCorner : kOpenCorner;
 }
 
@@ -280,7 +278,7 @@ CornerGraph cornerGraph(const LineSet& set, int n, const CameraModel& camera,
       for (const MergedLine* l : {&lines[i], &lines[j]}) {
         const double t = l->along(c);
         const double gap = std::max({0.0, l->t_min - t, t - l->t_max});
-        near &= gap <= max_gap * (l->t_max - l->t_min);
+        near &= gap <= max_gap * l->extent();
       }
       if (!near && visibleUndistorted(camera, c, 0.0)) continue;
       g.adjacent[i * n + j] = g.adjacent[j * n + i] = kind;

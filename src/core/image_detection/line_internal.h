@@ -33,6 +33,8 @@ struct MergedLine {
   double support = 0, t_min = 0, t_max = 0;
 
   double offset(const Eigen::Vector2d& p) const { return cross2(dir, p - point); }
+  /// px between the ends of its support.
+  double extent() const { return t_max - t_min; }
   double along(const Eigen::Vector2d& p) const { return dir.dot(p - point); }
 
   /// Length-weighted total least squares through the member segments (each sampled at its ends
