@@ -450,6 +450,44 @@ TEST(ImageDetectorSim, AFarBoardBehindManyLongerLinesIsFoundByItsSides) {
   EXPECT_LT(t.worst_px, 1.0);  // sub-pixel lines on a ~100 px board (issue 14)
 }
 
+// farBoardBehindWindows' board with a hand over one side: a disc of another grey hides 40 % of
+// the side, at its middle or near its corner (the seed picks the side, the place and the grey).
+Rendered farBoardWithAHandOverASide(const CameraModel& camera, const Target& target, unsigned seed,
+                                    int windows) {
+  Rendered r = farBoardBehindWindows(camera, target, seed, windows);
+  const auto outer = target.outerCorners();
+  const int j = static_cast<int>(seed % kNumEdges);
+  const Eigen::Vector2d a = projectTruth(r.camera_T_board, outer[(j + 3) % 4], camera);
+  const Eigen::Vector2d b = projectTruth(r.camera_T_board, outer[j], camera);
+  const double at = (seed / kNumEdges) % 2 == 0 ? 0.5 : 0.25;  // of the side, from corner a
+  const double radius = 0.2 * (b - a).norm();
+  const Eigen::Vector2d centre = camera.distortPixel(a + at * (b - a));
+  const double grey = 90.0 + 13.0 * (seed % 9);
+  cv::circle(r.image,
+             cv::Point(static_cast<int>(std::lround(centre.x())),
+                       static_cast<int>(std::lround(centre.y()))),
+             static_cast<int>(std::lround(radius)), cv::Scalar(grey, grey, grey), cv::FILLED,
+             cv::LINE_AA);
+  return r;
+}
+
+// A hand hides 40 % of one side of a far board in a scene of longer lines. The weak lines'
+// quadrilaterals must show every side's edge along most of its length, and only a few are
+// refined: the windows' rectangles, whose sides show their edges all along, took those places.
+// Now only quadrilaterals that could be the declared board are ranked, and where the lines end
+// at three corners one side need only show what every board side must (min_side_coverage).
+// Measured: 14 of 16 found, lines within 0.07 px; before, 7 of 16.
+TEST(ImageDetectorSim, AFarBoardWithAHandOverASideIsFoundByItsOtherSides) {
+  const CameraModel camera = testCamera();
+  const Target target = configTarget("plain_1016.yaml");
+  constexpr int kFrames = 16;
+  const SceneTally t = detectEach(
+      kFrames, [&](int i) { return farBoardWithAHandOverASide(camera, target, 40 + i, 30); },
+      "far board with a hand over a side", "sim_plain_far_hand");
+  EXPECT_GE(t.found, 14);
+  EXPECT_LT(t.worst_px, 1.0);
+}
+
 // farBoardBehindWindows' board with `strokes` straight strokes instead of windows, 400-1600 px
 // long at any angle, in the same parts of the image: each gives two lines longer than the
 // board's sides, and they cross rather than end at each other, as an office ceiling's and

@@ -349,8 +349,8 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   // more, or named otherwise
   // (1000); a side a hand pulled, 9.6 px (another draw, before the straightness test).
   EXPECT_LT(total.all.worst, 8.0);
-  // Over every case (the whole table, when no case is selected): measured 47 of 60 rs16_plain
-  // frames and 232 of 252 in all. The search is deterministic, so a lost frame is a regression.
+  // Over every case (the whole table, when no case is selected): measured 49 of 60 rs16_plain
+  // frames and 233 of 252 in all. The search is deterministic, so a lost frame is a regression.
   // Session 29: 39 and 215 before edge profiles cut by the image border, the second look at a
   // weak side around its own peaks' line and the faint-line search's weak quadrilaterals (one
   // frame each). Session 31: 41 and 218 before a short side's span rule (basler0 far, 3 frames)
@@ -366,11 +366,14 @@ TEST(ImageDetectorAugmented, PlainBoardRealFrames) {
   // took in a ceiling segment 450 px on: a line crosses a corner only within the other line's
   // extent (crossesAt). Session 46: 48 and 232, the far rs16_1 board whose two upper sides
   // ranked past the 200 lines kept: past the first lines, those ending at a corner come first
-  // (rankLinesEndingAtCorners). Each session's figures, and what each change gained or cost, are
-  // in docs/BENCHMARKS.md.
+  // (rankLinesEndingAtCorners). Session 47: 49 and 233, the far rs16_2 board under legs and
+  // hands, whose lower right side shows 69 % of its edge: only quadrilaterals that could be the
+  // declared board take the weak lines' few places, and with its lines ending at three corners
+  // one side need only show min_side_coverage (rankWeakQuads). Each session's figures, and what
+  // each change gained or cost, are in docs/BENCHMARKS.md.
   if (!only && !seed) {
-    EXPECT_GE(total.rs16_found, 48);
-    EXPECT_GE(total.found, 232);
+    EXPECT_GE(total.rs16_found, 49);
+    EXPECT_GE(total.found, 233);
   }
 }
 

@@ -43,6 +43,8 @@ constexpr double kMinFineLineGain = 1.25;
 constexpr double kStableRegionAreaFactor = 4.0;
 // Downscaled px: how well a stable region's simplified outline places a corner.
 constexpr double kCoarseCornerPx = 1.5;
+// QuadHypothesis::corner_ends of a quadrilateral whose lines both end at three of its corners.
+constexpr int kThreeCornersEnds = 2 * (kNumEdges - 1);
 // Stable regions alike: mean sides and aspect (the ratio of opposite side pairs) within this
 // share of each other, and the steps of a row of them equal to it of the side. A facade's
 // windows are cut and spaced alike to well within it.
@@ -274,7 +276,9 @@ void addTracedSides(const cv::Mat& gray, const CameraModel& camera, const Target
 // so a side must show more than the refinement's min_side_coverage: halfway from it to the whole
 // side. Measured (a look along each side, fine_search_px wide): sides of boards on the augmented
 // real frames 0.81-0.97 at the least covered side; the simulated street's facade rectangles and
-// the office's panes 0.67 at most.
+// the office's panes 0.67 at most. A hand or a leg over the board hides a stretch of one side,
+// and that side's line stops short of the corner it hides: where the lines end at three corners
+// (kThreeCornersEnds), one side need only show what the refinement asks of every side.
 void rankByEdgeCoverage(const cv::Mat& gray, const CameraModel& camera,
                         const ImageBoardDetectorOptions& o, double min_gradient,
                         std::vector<QuadHypothesis>* quads) {
@@ -283,8 +287,11 @@ void rankByEdgeCoverage(const cv::Mat& gray, const CameraModel& camera,
   for (QuadHypothesis& q : *quads) {
     const Eigen::Vector2d inside =
         0.25 * (q.corners[0] + q.corners[1] + q.corners[2] + q.corners[3]);
-    double least = 1.0, sum = 0.0;
-    for (int s = 0; s < kNumEdges && least >= min_coverage; ++s) {
+    const double least_needed =
+        q.corner_ends >= kThreeCornersEnds ? o.min_side_coverage : min_coverage;
+    double least = 1.0, second = 1.0, sum = 0.0;
+    const auto covered = [&] { return least >= least_needed && second >= min_coverage; };
+    for (int s = 0; s < kNumEdges && covered(); ++s) {
       Eigen::Vector2d a, b;
       if (!visibleSideInterval(camera, q.corners[(s + 3) % 4], q.corners[s], o.border_margin_px, &a,
                                &b))
@@ -294,10 +301,11 @@ void rankByEdgeCoverage(const cv::Mat& gray, const CameraModel& camera,
       // residual bends a long edge): the side is looked at again around its own peaks' line.
       if (c < min_coverage)
         c = std::max(c, edgeCoverage(gray, camera, a, b, inside, o, min_gradient, true));
+      second = std::min(second, std::max(least, c));
       least = std::min(least, c);
       sum += c;
     }
-    if (least >= min_coverage) ranked.emplace_back(sum, std::move(q));
+    if (covered()) ranked.emplace_back(sum, std::move(q));
   }
   std::stable_sort(ranked.begin(), ranked.end(),
                    [](const auto& x, const auto& y) { return x.first > y.first; });
@@ -314,43 +322,74 @@ struct ShapedQuad {
   QuadHypothesis quad;
 };
 
-// The stable regions' quadrilaterals that could be the declared board: its corners fit a board of
-// the declared size (to what a corner of the downscaled image is known, kCoarseCornerPx of it, or
-// the detector's own corner bound when that is larger) within max_board_distance_m and
-// max_board_tilt_deg; best fit first, with the pose. A scene's stable regions are mostly cells of
-// other shapes or sizes (windows, tiles, a gap between frames), and only the first
-// max_line_hypotheses are refined.
+// Whether `q`'s corners fit a board of the declared size, to `corner_px` (what the corners are
+// known to) or the detector's own corner bound when that is larger, within max_board_distance_m
+// and max_board_tilt_deg: the better fit of either naming (rms per px of mean side, and the pose)
+// in `fit`.
+bool fitsDeclaredBoard(const Target& target, const CameraModel& camera,
+                       const ImageBoardDetectorOptions& o, double corner_px,
+                       const QuadHypothesis& q, ShapedQuad* fit) {
+  const auto outer = target.outerCorners();
+  const Points3 obj(outer.begin(), outer.end());
+  const double side = meanSidePx(q.corners);
+  const double bound = std::max(corner_px, o.max_plain_corner_rms_fraction * side);
+  fit->rms_share = std::numeric_limits<double>::infinity();
+  // Clockwise in the image (v down), as the edge naming orders a board's corners; either
+  // naming of a rectangular board (boardPose; a square one fits both alike).
+  const Eigen::Vector2d e1 = q.corners[1] - q.corners[0], e2 = q.corners[2] - q.corners[1];
+  const int step = e1.x() * e2.y() - e1.y() * e2.x() < 0 ? kNumEdges - 1 : 1;
+  for (int shift = 0; shift < 2; ++shift) {
+    Points2 img;
+    for (int k = 0; k < kNumEdges; ++k) img.push_back(q.corners[(shift + k * step) % kNumEdges]);
+    const PoseFit pose = fitPose(obj, img, camera.K(), o.pixel_sigma_px);
+    if (!pose.ok || pose.rms_px > bound) continue;
+    if (implausiblePlace(target, o, pose.camera_T_board).empty() &&
+        pose.rms_px / side < fit->rms_share) {
+      fit->rms_share = pose.rms_px / side;
+      fit->camera_T_board = pose.camera_T_board;
+    }
+  }
+  return std::isfinite(fit->rms_share);
+}
+
+// The stable regions' quadrilaterals that could be the declared board (to what a corner of the
+// downscaled image is known, kCoarseCornerPx of it); best fit first, with the pose. A scene's
+// stable regions are mostly cells of other shapes or sizes (windows, tiles, a gap between
+// frames), and only the first max_line_hypotheses are refined.
 std::vector<ShapedQuad> boardShaped(const Target& target, const CameraModel& camera,
                                     const ImageBoardDetectorOptions& o, double sx,
                                     std::vector<QuadHypothesis> quads) {
-  const auto outer = target.outerCorners();
-  const Points3 obj(outer.begin(), outer.end());
   std::vector<ShapedQuad> kept;
   for (QuadHypothesis& q : quads) {
-    const double side = meanSidePx(q.corners);
-    const double bound = std::max(kCoarseCornerPx * sx, o.max_plain_corner_rms_fraction * side);
-    ShapedQuad best{std::numeric_limits<double>::infinity(), Eigen::Isometry3d::Identity(), {}};
-    // Clockwise in the image (v down), as the edge naming orders a board's corners; either
-    // naming of a rectangular board (boardPose; a square one fits both alike).
-    const Eigen::Vector2d e1 = q.corners[1] - q.corners[0], e2 = q.corners[2] - q.corners[1];
-    const int step = e1.x() * e2.y() - e1.y() * e2.x() < 0 ? kNumEdges - 1 : 1;
-    for (int shift = 0; shift < 2; ++shift) {
-      Points2 img;
-      for (int k = 0; k < kNumEdges; ++k) img.push_back(q.corners[(shift + k * step) % kNumEdges]);
-      const PoseFit pose = fitPose(obj, img, camera.K(), o.pixel_sigma_px);
-      if (!pose.ok || pose.rms_px > bound) continue;
-      if (implausiblePlace(target, o, pose.camera_T_board).empty() &&
-          pose.rms_px / side < best.rms_share)
-        best = {pose.rms_px / side, pose.camera_T_board, {}};
-    }
-    if (!std::isfinite(best.rms_share)) continue;
-    best.quad = std::move(q);
-    kept.push_back(std::move(best));
+    ShapedQuad fit;
+    if (!fitsDeclaredBoard(target, camera, o, kCoarseCornerPx * sx, q, &fit)) continue;
+    fit.quad = std::move(q);
+    kept.push_back(std::move(fit));
   }
   std::stable_sort(kept.begin(), kept.end(), [](const ShapedQuad& a, const ShapedQuad& b) {
     return a.rms_share < b.rms_share;
   });
   return kept;
+}
+
+// The weak lines' quadrilaterals to try: those that could be the declared board, ranked by their
+// sides' gradient (rankByEdgeCoverage). Only max_line_hypotheses are refined, and a scene's
+// windows and doors of another shape, whose sides show their edges all along, took every place
+// before a far board with a hand over one side. Their corners are known to kCoarseCornerPx of
+// the line search's downscaled image (`line_scale` full-resolution px per px) or to the first
+// edge search's half width (coarse_search_px), whichever is coarser: a quadrilateral further off
+// a board than its sides are searched is not refined into it.
+void rankWeakQuads(const cv::Mat& gray, const CameraModel& camera, const Target& target,
+                   const ImageBoardDetectorOptions& o, double min_gradient, double line_scale,
+                   std::vector<QuadHypothesis>* quads) {
+  const double corner_px = std::max(kCoarseCornerPx * line_scale, o.coarse_search_px);
+  ShapedQuad fit;
+  quads->erase(std::remove_if(quads->begin(), quads->end(),
+                              [&](const QuadHypothesis& q) {
+                                return !fitsDeclaredBoard(target, camera, o, corner_px, q, &fit);
+                              }),
+               quads->end());
+  rankByEdgeCoverage(gray, camera, o, min_gradient, quads);
 }
 
 // Where the ray through undistorted pixel u meets the board plane of camera_T_board, in board
@@ -615,8 +654,10 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     });
     times.quads_ms -= again.times.total();
     times += again.times;
-    timed(&times.quads_ms,
-          [&] { rankByEdgeCoverage(gray, camera, o, min_gradient, &found.faint); });
+    timed(&times.quads_ms, [&] {
+      rankWeakQuads(gray, camera, target, o, min_gradient, lineDetectionScale(line_o, gray.cols),
+                    &found.faint);
+    });
     for (auto* list : {&found.best, &found.ending_at_corners, &found.faint})
       if (list != &found.best || with_first) addWeakQuads(list, source);
   };
@@ -645,8 +686,10 @@ void detectPlain(const cv::Mat& gray, const CameraModel& camera, const Target& t
     // segments support first, then those their sides' gradient does.
     if (i == hypotheses.size() && i >= regions && !search.settled(o.min_side_coverage) &&
         !(line_quads.ending_at_corners.empty() && line_quads.faint.empty())) {
-      timed(&times.quads_ms,
-            [&] { rankByEdgeCoverage(gray, camera, o, min_gradient, &line_quads.faint); });
+      timed(&times.quads_ms, [&] {
+        rankWeakQuads(gray, camera, target, o, min_gradient, lineDetectionScale(o, gray.cols),
+                      &line_quads.faint);
+      });
       for (auto* list : {&line_quads.ending_at_corners, &line_quads.faint}) {
         for (auto& q : *list) {
           hypotheses.push_back(fromQuad(q, camera, o, true));
